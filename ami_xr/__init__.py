@@ -1,0 +1,36 @@
+"""ami_xr: experimental modal analysis with the Algorithm of Mode Isolation on xarray data.
+
+Importing ami_xr registers the ``ds.ami`` accessor. Nothing is compiled on import: numba kernels
+compile on first call and are cached on disk.
+"""
+
+from __future__ import annotations
+
+__version__ = "0.1.0"
+
+from ami_xr import names  # noqa: E402
+from ami_xr.errors import (  # noqa: E402
+    AmiXrError,
+    AmiXrValueError,
+    ConvergenceWarning,
+    DataFileError,
+    IdentificationError,
+    NoModesWarning,
+    SchemaError,
+)
+
+# Public functions are added below as their modules land (keep one import line per module).
+
+from ami_xr import accessor as _accessor  # noqa: E402,F401  (registers ds.ami)
+
+__all__ = [
+    "__version__",
+    "names",
+    "AmiXrError",
+    "AmiXrValueError",
+    "ConvergenceWarning",
+    "DataFileError",
+    "IdentificationError",
+    "NoModesWarning",
+    "SchemaError",
+]

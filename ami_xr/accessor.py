@@ -1,0 +1,33 @@
+"""The ``ds.ami`` accessor: a thin, stateless shell over the public functions.
+
+Each method calls the public function of the same name with the Dataset as first argument and
+returns what it returns (a new Dataset; the caller's Dataset is never mutated). ``__init__`` only
+stores the Dataset: validation happens inside the functions.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import xarray as xr
+
+
+def _method(func):
+    """Make ``func(ds, ...)`` into an accessor method with the same signature and docstring."""
+
+    @functools.wraps(func)
+    def method(self, *args, **kwargs):
+        return func(self._ds, *args, **kwargs)
+
+    return method
+
+
+@xr.register_dataset_accessor("ami")
+class AmiAccessor:
+    """``ds.ami.<name>(...)`` is ``ami_xr.<name>(ds, ...)``."""
+
+    def __init__(self, ds: xr.Dataset):
+        self._ds = ds
+
+    # Methods are added as ``name = _method(public_function)``, one line each, imported lazily
+    # at the bottom of this module to avoid import cycles.

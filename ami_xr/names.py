@@ -1,0 +1,72 @@
+"""Names of the ami_xr data model: dimensions, variables and attributes.
+
+Every module imports its names from here so that a dimension or attribute is spelled in exactly
+one place. The README's "Data model" section documents the same names for users.
+"""
+
+from __future__ import annotations
+
+# --- dimensions -------------------------------------------------------------------------------
+POINT = "point"  # response point (measurement degree of freedom)
+FREQUENCY = "frequency"  # frequency in Hz
+TIME = "time"  # time in seconds
+RECORD = "record"  # repeated hits or blocks of a time record
+REFERENCE = "reference"  # excitation point (reserved for multi-reference data)
+MODE = "mode"  # identified or exact system mode
+COMPLEX = "complex"  # on-disk only: trailing dim of length 2 holding (real, imag)
+
+# --- variables --------------------------------------------------------------------------------
+FRF = "frf"  # complex FRF, dims (point, frequency)
+RESPONSE = "response"  # response time histories, dims ([record,] point, time)
+FORCE = "force"  # force time histories, dims ([record,] [reference,] time)
+COHERENCE = "coherence"  # ordinary (or multiple) coherence, dims (point, frequency)
+
+# --- attributes -------------------------------------------------------------------------------
+ATTR_DRIVE_POINT = "drive_point"  # label of the point where the force acts (the paper's P)
+ATTR_QUANTITY = "response_quantity"  # "displacement" | "velocity" | "acceleration"
+ATTR_FRF_TYPE = "frf_type"  # "receptance" | "mobility" | "accelerance" (follows the quantity)
+ATTR_UNITS = "units"  # on variables and coordinates
+ATTR_RESPONSE_UNITS = "response_units"  # e.g. "m", "m/s", "m/s^2"
+ATTR_FORCE_UNITS = "force_units"  # e.g. "N"
+ATTR_SOURCE = "frf_source"  # how the FRF was made, see SOURCES
+ATTR_DT = "sample_interval"  # s, for FRFs made from sampled impulse responses
+ATTR_NSAMPLES = "record_samples"  # number of time samples the FFT used
+ATTR_EXP_DECAY = "exponential_window_decay"  # 1/s, decay rate an exponential window added
+ATTR_HISTORY = "ami_xr_history"  # provenance: JSON list of {function, parameters, time, ...}
+ATTR_VERSION = "ami_xr_version"
+ATTR_SOURCE_FILE = "source_file"
+
+# --- allowed values ---------------------------------------------------------------------------
+QUANTITY_TO_FRF_TYPE = {
+    "displacement": "receptance",
+    "velocity": "mobility",
+    "acceleration": "accelerance",
+}
+FRF_TYPE_TO_QUANTITY = {v: k for k, v in QUANTITY_TO_FRF_TYPE.items()}
+
+SOURCE_IMPULSE = "impulse_response"  # FRF = dt * FFT(sampled impulse response)
+SOURCE_ANALYTIC = "analytic"  # FRF evaluated from the continuous-time model (eq. 4)
+SOURCE_ESTIMATED = "estimated"  # H1/H2/Hv estimate from force and response histories
+SOURCE_MEASURED = "measured"  # imported from another tool; origin unknown
+SOURCES = (SOURCE_IMPULSE, SOURCE_ANALYTIC, SOURCE_ESTIMATED, SOURCE_MEASURED)
+
+RESPONSE_UNITS = {
+    "displacement": ("m", "mm", "um", "in"),
+    "velocity": ("m/s", "mm/s", "in/s"),
+    "acceleration": ("m/s^2", "mm/s^2", "g", "in/s^2"),
+}
+FORCE_UNITS = ("N", "kN", "lbf")
+FREQUENCY_UNITS = "Hz"
+TIME_UNITS = "s"
+
+
+def frf_units(response_units: str, force_units: str) -> str:
+    """Units string of an FRF, e.g. ``"m/N"`` for receptance in metres per newton."""
+    return f"{response_units}/{force_units}"
+
+# --- modal results (identification outputs and simulator truth use the same names) ------------
+EIGENVALUE = "eigenvalue"  # complex, rad/s, upper half plane: -zeta*wn + i*wd
+NATURAL_FREQUENCY = "natural_frequency"  # Hz, |lambda| / (2 pi)
+DAMPING_RATIO = "damping_ratio"  # -Re(lambda) / |lambda|
+RESIDUE = "residue"  # complex A1 + i*A2 of eq. 4, dims (point, mode)
+MODE_VECTOR = "mode_vector"  # complex Phi of eq. 8, dims (point, mode)
