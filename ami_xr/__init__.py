@@ -20,12 +20,14 @@ from ami_xr.errors import (  # noqa: E402
 )
 
 # Public functions are added below as their modules land (keep one import line per module).
+from ami_xr import simulate  # noqa: E402
 
 from ami_xr import accessor as _accessor  # noqa: E402,F401  (registers ds.ami)
 
 __all__ = [
     "__version__",
     "names",
+    "simulate",
     "AmiXrError",
     "AmiXrValueError",
     "ConvergenceWarning",

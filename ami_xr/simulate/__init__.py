@@ -1,0 +1,47 @@
+"""Simulated test systems with exactly known modal parameters.
+
+* :mod:`~ami_xr.simulate.modal` -- any linear system ``M, C, K`` (non-proportional damping):
+  exact eigenvalues, mode vectors and residues (eqs. 2-5), analytic FRFs (eq. 4), impulse
+  responses and the paper's noise model (eq. 15).
+* :mod:`~ami_xr.simulate.beam` -- the paper's benchmark, a cantilever beam with three
+  suspended spring-mass-dashpot absorbers.
+* :mod:`~ami_xr.simulate.random` -- random lumped-mass chains and grids for tests.
+"""
+
+from ami_xr.simulate.beam import (
+    DRIVE_POINT as BENCHMARK_DRIVE_POINT,
+)
+from ami_xr.simulate.beam import (
+    POINT_LABELS as BENCHMARK_POINTS,
+)
+from ami_xr.simulate.beam import (
+    beam_absorbers,
+    benchmark,
+    benchmark_model,
+    frf_from_impulse,
+    paper_tables,
+)
+from ami_xr.simulate.modal import (
+    add_noise,
+    frf,
+    impulse_response,
+    modal_model,
+    residues,
+    state_space_modes,
+)
+
+__all__ = [
+    "BENCHMARK_DRIVE_POINT",
+    "BENCHMARK_POINTS",
+    "add_noise",
+    "beam_absorbers",
+    "benchmark",
+    "benchmark_model",
+    "frf",
+    "frf_from_impulse",
+    "impulse_response",
+    "modal_model",
+    "paper_tables",
+    "residues",
+    "state_space_modes",
+]

@@ -1,0 +1,633 @@
+"""Exact modal models of linear systems ``M q'' + C q' + K q = f`` with arbitrary damping.
+
+The state-space (first-order) form ``[[C, M], [M, 0]] x' + [[K, 0], [0, -M]] x = [f, 0]`` with
+``x = [q, q']`` has ``2n`` eigenvalues in complex-conjugate pairs. For an underdamped system the
+``n`` eigenvalues in the upper half plane, sorted by natural frequency, are the modes. Each
+complex mode vector ``Phi_k`` (the displacement part of the state eigenvector) is scaled so that
+the paper's residues hold exactly (eqs. 4 and 5)::
+
+    G_jP(w) = sum_k  A_jk / (i w - lam_k) + conj(A_jk) / (i w - conj(lam_k)),
+    A_jk    = A_jk^(1) + i A_jk^(2) = lam_k Phi_jk Phi_Pk,
+
+which means ``lam_k Phi_k^T (2 lam_k M + C) Phi_k = 1``. ``Phi_k`` is fixed up to its sign; the
+sign is chosen so that ``Re(lam_k Phi_jk) > 0`` at the generalized coordinate ``j`` where
+``|Phi_jk|`` is largest (for light damping ``lam_k Phi_k`` is nearly the real undamped mode
+divided by sqrt(2), whose largest entry is then positive). Residues do not depend on that sign.
+
+An ``output`` matrix ``T`` (n_points x n) maps generalized coordinates to measured points,
+``y = T q``; a force at measured point ``P`` acts on the generalized coordinates as
+``T[P]^T f`` (collocated), so the mode vectors at the measured points are ``T Phi`` and eqs. 4-5
+hold between measured points.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable, Sequence
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+import xarray as xr
+
+from ami_xr import names
+from ami_xr._provenance import add_history
+from ami_xr.errors import AmiXrValueError
+
+# Attributes this module adds beyond ami_xr.names (simulator-specific).
+ATTR_EXCITATION = "excitation"
+EXCITATION_UNIT_IMPULSE = "unit_impulse"
+ATTR_NOISE_LEVEL = "noise_level"  # alpha of eq. 15
+ATTR_NOISE_KIND = "noise_kind"  # "uniform" | "gaussian"
+ATTR_NOISE_SEED = "noise_seed"
+
+NOISE_KINDS = ("uniform", "gaussian")
+_QUANTITY_POWER = {"displacement": 0, "velocity": 1, "acceleration": 2}
+_DEFAULT_UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s^2"}
+
+
+# --------------------------------------------------------------------------------------------
+# validation helpers
+# --------------------------------------------------------------------------------------------
+def _square_matrix(value: Any, name: str, n: int | None = None) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise AmiXrValueError(f"{name}: expected a real square matrix, got {value!r}") from exc
+    if arr.ndim != 2 or arr.shape[0] != arr.shape[1] or arr.shape[0] == 0:
+        raise AmiXrValueError(f"{name}: expected a non-empty square matrix, got shape {arr.shape}")
+    if n is not None and arr.shape[0] != n:
+        raise AmiXrValueError(f"{name}: expected shape ({n}, {n}) like M, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise AmiXrValueError(f"{name}: contains NaN or inf")
+    if not np.allclose(arr, arr.T, rtol=1e-10, atol=1e-12 * max(1.0, np.abs(arr).max())):
+        raise AmiXrValueError(f"{name}: expected a symmetric matrix")
+    return arr
+
+
+def _labels(point_labels: Sequence[Hashable] | None, n: int) -> list:
+    if point_labels is None:
+        return list(range(n))
+    labels = list(point_labels)
+    if len(labels) != n:
+        raise AmiXrValueError(
+            f"point_labels: expected {n} labels (one per output row), got {len(labels)}"
+        )
+    if len(set(labels)) != n:
+        raise AmiXrValueError(f"point_labels: labels must be unique, got {labels}")
+    return labels
+
+
+def _check_model(model: Any, name: str = "model") -> xr.Dataset:
+    if not isinstance(model, xr.Dataset):
+        raise AmiXrValueError(
+            f"{name}: expected an xarray.Dataset from modal_model(), got {type(model).__name__}"
+        )
+    missing = [v for v in (names.EIGENVALUE,) if v not in model]
+    if names.MODE_VECTOR not in model and names.RESIDUE not in model:
+        missing.append(f"{names.MODE_VECTOR} or {names.RESIDUE}")
+    if missing:
+        raise AmiXrValueError(f"{name}: missing variable(s) {missing}")
+    return model
+
+
+def _drive(model: xr.Dataset, drive_point: Hashable | None) -> Hashable:
+    if drive_point is None:
+        drive_point = model.attrs.get(names.ATTR_DRIVE_POINT)
+        if drive_point is None:
+            raise AmiXrValueError(
+                "drive_point: not given and the model has no 'drive_point' attribute"
+            )
+    points = list(model[names.POINT].values)
+    if drive_point not in points:
+        raise AmiXrValueError(f"drive_point: {drive_point!r} is not one of the points {points}")
+    return drive_point
+
+
+# --------------------------------------------------------------------------------------------
+# eigensolution
+# --------------------------------------------------------------------------------------------
+def state_space_modes(
+    M: np.ndarray, C: np.ndarray, K: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (upper half plane, by natural frequency) and normalised mode vectors.
+
+    Parameters
+    ----------
+    M, C, K : ndarray, shape (n, n)
+        Symmetric mass, damping and stiffness matrices (M positive definite).
+
+    Returns
+    -------
+    lam : ndarray of complex, shape (n,)
+        Eigenvalues ``-zeta w + i w sqrt(1 - zeta^2)`` in rad/s.
+    phi : ndarray of complex, shape (n, n)
+        Mode vectors as columns, scaled so that ``lam_k phi_k^T (2 lam_k M + C) phi_k = 1``.
+
+    Raises
+    ------
+    AmiXrValueError
+        If a mode is not underdamped (real eigenvalue) or M is singular.
+    """
+    M = _square_matrix(M, "M")
+    n = M.shape[0]
+    C = _square_matrix(C, "C", n)
+    K = _square_matrix(K, "K", n)
+    try:
+        np.linalg.cholesky(M)
+    except np.linalg.LinAlgError as exc:
+        raise AmiXrValueError("M: expected a symmetric positive definite mass matrix") from exc
+    Z = np.zeros((n, n))
+    a_mat = np.block([[C, M], [M, Z]])
+    b_mat = np.block([[K, Z], [Z, -M]])
+    lam, vec = scipy.linalg.eig(-b_mat, a_mat)
+    if not np.all(np.isfinite(lam)):
+        raise AmiXrValueError("M, C, K: the state-space eigenproblem has infinite eigenvalues")
+    scale = np.abs(lam).max()
+    upper = lam.imag > 1e-12 * scale
+    if upper.sum() != n:
+        raise AmiXrValueError(
+            f"C: every mode must be underdamped; found {n - int(upper.sum())} of {n} modes "
+            "with real eigenvalues (overdamped or rigid-body)"
+        )
+    lam = lam[upper]
+    phi = vec[:n, upper]
+    # The QZ eigenvalues carry absolute errors ~ eps * (largest eigenvalue)^2 / |lam|, which
+    # spoils low modes when the spectrum is wide (many Ritz terms). Polish every mode on its own
+    # quadratic problem D(lam) = lam^2 M + lam C + K: a Rayleigh-quotient root of
+    # phi^T D(lam) phi = 0 (the problem is complex symmetric, so phi^T is the left vector) and
+    # one inverse-iteration step; cubically convergent, a few sweeps suffice.
+    for k in range(n):
+        lam[k], phi[:, k] = _polish(M, C, K, lam[k], phi[:, k])
+    order = np.lexsort((lam.imag, np.abs(lam)))
+    lam = lam[order]
+    phi = phi[:, order]
+    a = np.einsum("ik,ij,jk->k", phi, M, phi) * (2 * lam) + np.einsum("ik,ij,jk->k", phi, C, phi)
+    phi = phi / np.sqrt(lam * a)
+    # Deterministic sign: Re(lam Phi) > 0 at the largest entry.
+    big = np.argmax(np.abs(phi), axis=0)
+    flip = (lam * phi[big, np.arange(n)]).real < 0
+    phi[:, flip] *= -1
+    return lam, phi
+
+
+def _polish(M, C, K, lam, phi, sweeps: int = 4):
+    """Refine one eigenpair of the quadratic problem (Rayleigh quotient + inverse iteration)."""
+    phi = phi / np.linalg.norm(phi)
+    for _ in range(sweeps):
+        m = phi @ M @ phi
+        c = phi @ C @ phi
+        k = phi @ K @ phi
+        if m == 0:
+            break
+        disc = np.sqrt(c * c - 4 * m * k + 0j)
+        roots = np.array([(-c + disc) / (2 * m), (-c - disc) / (2 * m)])
+        new_lam = roots[np.argmin(np.abs(roots - lam))]
+        try:
+            v = np.linalg.solve(new_lam**2 * M + new_lam * C + K, (2 * new_lam * M + C) @ phi)
+        except np.linalg.LinAlgError:  # exactly singular: phi is already an eigenvector
+            lam = new_lam
+            break
+        if not np.all(np.isfinite(v)) or not np.any(v):
+            lam = new_lam
+            break
+        v = v / np.linalg.norm(v)
+        # keep the phase of the previous vector so convergence can be judged
+        v = v * np.exp(-1j * np.angle(np.vdot(phi, v)))
+        done = abs(new_lam - lam) <= 4e-16 * abs(new_lam) and np.linalg.norm(v - phi) < 1e-14
+        lam, phi = new_lam, v
+        if done:
+            break
+    return lam, phi
+
+
+def modal_model(
+    M: Any,
+    C: Any,
+    K: Any,
+    *,
+    point_labels: Sequence[Hashable] | None = None,
+    output: Any = None,
+    drive_point: Hashable | None = None,
+    response_units: str = "m",
+    force_units: str = "N",
+) -> xr.Dataset:
+    """Exact modal parameters of ``M q'' + C q' + K q = f`` as a truth Dataset.
+
+    Parameters
+    ----------
+    M, C, K : array_like, shape (n, n)
+        Symmetric mass (positive definite), damping and stiffness matrices; damping need not be
+        proportional. Every mode must be underdamped.
+    point_labels : sequence, optional
+        Labels of the measured points (rows of ``output``); default ``0 .. n_points-1``.
+    output : array_like, shape (n_points, n), optional
+        Selection matrix ``T`` with measured displacements ``y = T q`` (default identity). A
+        force at measured point ``P`` acts on the generalized coordinates as ``T[P]^T f``.
+    drive_point : label, optional
+        If given, the residues for a force at this point are added (see :func:`residues`).
+    response_units, force_units : str
+        Units of ``y`` and ``f`` (recorded as attributes).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``eigenvalue`` (mode) complex rad/s, ``natural_frequency`` (mode) Hz, ``damping_ratio``
+        (mode), ``mode_vector`` (point, mode) complex with ``A_jk = lam_k Phi_jk Phi_Pk``, and with
+        ``drive_point`` also ``residue`` (point, mode). Modes are numbered 1..n in order of
+        natural frequency.
+    """
+    lam, phi = state_space_modes(M, C, K)
+    n = lam.shape[0]
+    if output is None:
+        T = np.eye(n)
+    else:
+        T = np.asarray(output, dtype=np.float64)
+        if T.ndim == 1:
+            T = T[np.newaxis, :]
+        if T.ndim != 2 or T.shape[1] != n or T.shape[0] == 0:
+            raise AmiXrValueError(
+                f"output: expected a matrix of shape (n_points, {n}), got shape {T.shape}"
+            )
+        if not np.all(np.isfinite(T)):
+            raise AmiXrValueError("output: contains NaN or inf")
+    labels = _labels(point_labels, T.shape[0])
+    wn = np.abs(lam)
+    mode = np.arange(1, n + 1)
+    ds = xr.Dataset(
+        {
+            names.EIGENVALUE: (names.MODE, lam, {names.ATTR_UNITS: "rad/s"}),
+            names.NATURAL_FREQUENCY: (
+                names.MODE,
+                wn / (2 * np.pi),
+                {names.ATTR_UNITS: names.FREQUENCY_UNITS},
+            ),
+            names.DAMPING_RATIO: (names.MODE, -lam.real / wn, {names.ATTR_UNITS: "1"}),
+            names.MODE_VECTOR: (
+                (names.POINT, names.MODE),
+                T @ phi,
+                {names.ATTR_UNITS: f"sqrt({response_units}/{force_units})"},
+            ),
+        },
+        coords={names.POINT: labels, names.MODE: mode},
+        attrs={
+            names.ATTR_QUANTITY: "displacement",
+            names.ATTR_RESPONSE_UNITS: response_units,
+            names.ATTR_FORCE_UNITS: force_units,
+        },
+    )
+    ds = add_history(ds, "ami_xr.simulate.modal_model", {"n_dof": n, "n_points": len(labels)})
+    if drive_point is not None:
+        ds = residues(ds, drive_point)
+    return ds
+
+
+def residues(model: xr.Dataset, drive_point: Hashable | None = None) -> xr.Dataset:
+    """Add the residues ``A_jk = lam_k Phi_jk Phi_Pk`` (eq. 5) for a force at ``drive_point``.
+
+    Parameters
+    ----------
+    model : xarray.Dataset
+        Output of :func:`modal_model` (needs ``eigenvalue`` and ``mode_vector``).
+    drive_point : label, optional
+        The paper's P; default the model's ``drive_point`` attribute.
+
+    Returns
+    -------
+    xarray.Dataset
+        A new Dataset: ``model`` plus ``residue`` (point, mode) complex in
+        ``<response_units>/(<force_units> s)`` and the ``drive_point`` attribute.
+    """
+    model = _check_model(model)
+    if names.MODE_VECTOR not in model:
+        raise AmiXrValueError(f"model: missing variable {names.MODE_VECTOR!r}")
+    drive_point = _drive(model, drive_point)
+    phi = model[names.MODE_VECTOR]
+    lam = model[names.EIGENVALUE]
+    res = xr.apply_ufunc(
+        lambda p, pp, lm: lm[..., np.newaxis, :] * p * pp[..., np.newaxis, :],
+        phi,
+        phi.sel({names.POINT: drive_point}, drop=True),
+        lam,
+        input_core_dims=[[names.POINT, names.MODE], [names.MODE], [names.MODE]],
+        output_core_dims=[[names.POINT, names.MODE]],
+        dask="parallelized",
+        output_dtypes=[np.complex128],
+        keep_attrs=False,
+    )
+    out = model.copy()
+    out.attrs = dict(model.attrs)
+    ru = model.attrs.get(names.ATTR_RESPONSE_UNITS, "m")
+    fu = model.attrs.get(names.ATTR_FORCE_UNITS, "N")
+    out[names.RESIDUE] = res.transpose(names.POINT, names.MODE)
+    out[names.RESIDUE].attrs = {names.ATTR_UNITS: f"{ru}/({fu} s)"}
+    out.attrs[names.ATTR_DRIVE_POINT] = drive_point
+    return out
+
+
+def _model_residues(model: xr.Dataset, drive_point: Hashable | None) -> xr.Dataset:
+    """``model`` with residues for ``drive_point`` (recomputed from mode vectors when possible)."""
+    model = _check_model(model)
+    if names.MODE_VECTOR in model:
+        return residues(model, drive_point)
+    have = model.attrs.get(names.ATTR_DRIVE_POINT)
+    if drive_point is not None and drive_point != have:
+        raise AmiXrValueError(
+            f"drive_point: the model holds residues for drive point {have!r} only and no "
+            f"mode_vector to recompute them for {drive_point!r}"
+        )
+    return model
+
+
+# --------------------------------------------------------------------------------------------
+# responses
+# --------------------------------------------------------------------------------------------
+def _frequency_axis(frequency_hz: Any) -> np.ndarray:
+    f = np.asarray(frequency_hz, dtype=np.float64)
+    if f.ndim == 0:
+        f = f[np.newaxis]
+    if f.ndim != 1 or f.size == 0:
+        raise AmiXrValueError(f"frequency_hz: expected a 1-D array of frequencies, got {f.shape}")
+    if not np.all(np.isfinite(f)) or np.any(f < 0):
+        raise AmiXrValueError("frequency_hz: expected finite, non-negative frequencies in Hz")
+    if f.size > 1 and np.any(np.diff(f) <= 0):
+        raise AmiXrValueError("frequency_hz: expected strictly increasing frequencies")
+    return f
+
+
+def _frf_kernel(residue: np.ndarray, lam: np.ndarray, omega: np.ndarray, power: int) -> np.ndarray:
+    """eq. 4 on plain arrays: residue (..., point, mode), lam (..., mode) -> (..., point, freq)."""
+    iw = 1j * omega
+    lam_ = lam[..., np.newaxis, :, np.newaxis]
+    a = residue[..., :, :, np.newaxis]
+    g = (a / (iw - lam_) + np.conj(a) / (iw - np.conj(lam_))).sum(axis=-2)
+    return g * iw**power if power else g
+
+
+def frf(
+    model: xr.Dataset,
+    frequency_hz: Any,
+    drive_point: Hashable | None = None,
+    *,
+    response_quantity: str = "displacement",
+    response_units: str | None = None,
+) -> xr.Dataset:
+    """Exact FRFs ``G_jP`` of a modal model on a frequency grid (eq. 4).
+
+    Parameters
+    ----------
+    model : xarray.Dataset
+        Truth Dataset from :func:`modal_model` (or any Dataset with ``eigenvalue`` and
+        ``mode_vector``, or ``residue`` plus a ``drive_point`` attribute).
+    frequency_hz : array_like
+        Strictly increasing, non-negative frequencies in Hz.
+    drive_point : label, optional
+        The excitation point P (default: the model's ``drive_point`` attribute).
+    response_quantity : {"displacement", "velocity", "acceleration"}
+        Receptance, mobility (times ``i w``) or accelerance (times ``-w^2``).
+    response_units : str, optional
+        Default "m", "m/s" or "m/s^2".
+
+    Returns
+    -------
+    xarray.Dataset
+        FRF Dataset of the data model with ``frf_source="analytic"``.
+    """
+    if response_quantity not in _QUANTITY_POWER:
+        raise AmiXrValueError(
+            f"response_quantity: expected one of {tuple(_QUANTITY_POWER)}, "
+            f"got {response_quantity!r}"
+        )
+    f = _frequency_axis(frequency_hz)
+    model = _model_residues(model, drive_point)
+    omega = xr.DataArray(2 * np.pi * f, dims=[names.FREQUENCY])
+    g = xr.apply_ufunc(
+        _frf_kernel,
+        model[names.RESIDUE],
+        model[names.EIGENVALUE],
+        omega,
+        kwargs={"power": _QUANTITY_POWER[response_quantity]},
+        input_core_dims=[[names.POINT, names.MODE], [names.MODE], [names.FREQUENCY]],
+        output_core_dims=[[names.POINT, names.FREQUENCY]],
+        dask="parallelized",
+        output_dtypes=[np.complex128],
+        keep_attrs=False,
+    )
+    force_units = model.attrs.get(names.ATTR_FORCE_UNITS, "N")
+    ru = response_units or _DEFAULT_UNITS[response_quantity]
+    ds = xr.Dataset(
+        {names.FRF: g.transpose(names.POINT, names.FREQUENCY)},
+        coords={
+            names.POINT: model[names.POINT].values,
+            names.FREQUENCY: (names.FREQUENCY, f, {names.ATTR_UNITS: names.FREQUENCY_UNITS}),
+        },
+    )
+    ds[names.FRF].attrs = {names.ATTR_UNITS: names.frf_units(ru, force_units)}
+    ds.attrs = {
+        names.ATTR_DRIVE_POINT: model.attrs[names.ATTR_DRIVE_POINT],
+        names.ATTR_QUANTITY: response_quantity,
+        names.ATTR_FRF_TYPE: names.QUANTITY_TO_FRF_TYPE[response_quantity],
+        names.ATTR_RESPONSE_UNITS: ru,
+        names.ATTR_FORCE_UNITS: force_units,
+        names.ATTR_SOURCE: names.SOURCE_ANALYTIC,
+    }
+    return add_history(
+        ds,
+        "ami_xr.simulate.frf",
+        {"drive_point": ds.attrs[names.ATTR_DRIVE_POINT], "response_quantity": response_quantity,
+         "n_frequencies": int(f.size)},
+    )
+
+
+def time_axis(time: Any) -> np.ndarray:
+    """Uniform time samples from an array or a ``(duration, n_samples)`` pair.
+
+    ``(duration, n_samples)`` gives ``t = k * duration / n_samples``, ``k = 0 .. n_samples-1``,
+    so the record spans ``duration`` and the FFT frequency step is ``1 / duration``.
+    """
+    if isinstance(time, tuple):
+        if len(time) != 2:
+            raise AmiXrValueError(f"time: expected (duration, n_samples), got {time!r}")
+        duration, n_samples = time
+        if not (np.isfinite(duration) and duration > 0):
+            raise AmiXrValueError(f"time: duration must be a positive number, got {duration!r}")
+        if int(n_samples) != n_samples or n_samples < 2:
+            raise AmiXrValueError(f"time: n_samples must be an integer >= 2, got {n_samples!r}")
+        n_samples = int(n_samples)
+        return np.arange(n_samples) * (float(duration) / n_samples)
+    t = np.asarray(time, dtype=np.float64)
+    if t.ndim != 1 or t.size < 2:
+        raise AmiXrValueError(f"time: expected a 1-D array of >= 2 samples, got shape {t.shape}")
+    if not np.all(np.isfinite(t)):
+        raise AmiXrValueError("time: contains NaN or inf")
+    step = np.diff(t)
+    if np.any(step <= 0) or not np.allclose(step, step[0], rtol=1e-9, atol=0):
+        raise AmiXrValueError("time: expected uniformly spaced, increasing samples")
+    return t
+
+
+def _impulse_kernel(residue: np.ndarray, lam: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """h = 2 Re sum_k A_k exp(lam_k t): residue (..., point, mode), lam (..., mode) -> (..., point, time)."""
+    e = np.exp(lam[..., :, np.newaxis] * t)  # (..., mode, time)
+    return 2.0 * np.real(np.matmul(residue, e))
+
+
+def impulse_response(
+    model: xr.Dataset,
+    time: Any,
+    drive_point: Hashable | None = None,
+) -> xr.Dataset:
+    """Displacement responses to a unit impulse at ``drive_point``: ``h_j(t) = 2 Re sum A_jk e^(lam_k t)``.
+
+    Parameters
+    ----------
+    model : xarray.Dataset
+        Truth Dataset from :func:`modal_model`.
+    time : array_like or (duration, n_samples)
+        Uniform sample times in s, or a record length and sample count
+        (``t = k duration / n_samples``).
+    drive_point : label, optional
+        Default: the model's ``drive_point`` attribute.
+
+    Returns
+    -------
+    xarray.Dataset
+        Time Dataset: ``response`` (point, time) in the model's response units per unit impulse,
+        no ``force``, attribute ``excitation="unit_impulse"``.
+    """
+    t = time_axis(time)
+    model = _model_residues(model, drive_point)
+    tt = xr.DataArray(t, dims=[names.TIME])
+    h = xr.apply_ufunc(
+        _impulse_kernel,
+        model[names.RESIDUE],
+        model[names.EIGENVALUE],
+        tt,
+        input_core_dims=[[names.POINT, names.MODE], [names.MODE], [names.TIME]],
+        output_core_dims=[[names.POINT, names.TIME]],
+        dask="parallelized",
+        output_dtypes=[np.float64],
+        keep_attrs=False,
+    )
+    ru = model.attrs.get(names.ATTR_RESPONSE_UNITS, "m")
+    fu = model.attrs.get(names.ATTR_FORCE_UNITS, "N")
+    ds = xr.Dataset(
+        {names.RESPONSE: h.transpose(names.POINT, names.TIME)},
+        coords={
+            names.POINT: model[names.POINT].values,
+            names.TIME: (names.TIME, t, {names.ATTR_UNITS: names.TIME_UNITS}),
+        },
+    )
+    ds[names.RESPONSE].attrs = {names.ATTR_UNITS: ru}
+    ds.attrs = {
+        names.ATTR_DRIVE_POINT: model.attrs[names.ATTR_DRIVE_POINT],
+        names.ATTR_QUANTITY: "displacement",
+        names.ATTR_RESPONSE_UNITS: ru,
+        names.ATTR_FORCE_UNITS: fu,
+        ATTR_EXCITATION: EXCITATION_UNIT_IMPULSE,
+    }
+    return add_history(
+        ds,
+        "ami_xr.simulate.impulse_response",
+        {"drive_point": ds.attrs[names.ATTR_DRIVE_POINT], "n_samples": int(t.size),
+         "sample_interval": float(t[1] - t[0])},
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# noise (eq. 15)
+# --------------------------------------------------------------------------------------------
+def _noise_kernel(y: np.ndarray, r: np.ndarray, alpha: float) -> np.ndarray:
+    """y + alpha * max_n |y| * r, the maximum taken along the last (core) axis per channel."""
+    return y + alpha * np.abs(y).max(axis=-1, keepdims=True) * r
+
+
+def add_noise(
+    data: Any,
+    alpha: float,
+    *,
+    seed: int | None = None,
+    rng: np.random.Generator | None = None,
+    kind: str = "uniform",
+    dim: str = names.TIME,
+):
+    """Add the paper's measurement noise (eq. 15) to time histories, per channel.
+
+    ``y_j(t_n) + alpha * max_n |y_j(t_n)| * r_jn`` with ``r_jn`` uniform in [-1, 1) (the paper),
+    or, with ``kind="gaussian"``, standard normal (so the noise standard deviation is
+    ``alpha * max_n |y_j|``). The maximum is taken along ``dim`` separately for every channel
+    (every point, and every record where there is a ``record`` dim).
+
+    Parameters
+    ----------
+    data : xarray.Dataset, xarray.DataArray or ndarray
+        A time Dataset (noise is added to ``response`` only), a DataArray with ``dim``, or an
+        array whose LAST axis is time.
+    alpha : float
+        Noise level as a fraction of each channel's peak amplitude (0.15 in the paper).
+    seed : int, optional
+        Seed of a fresh ``numpy.random.default_rng``; the same seed gives the same noise.
+    rng : numpy.random.Generator, optional
+        Generator to draw from instead (mutually exclusive with ``seed``).
+    kind : {"uniform", "gaussian"}
+    dim : str
+        Time dimension of a Dataset or DataArray.
+
+    Returns
+    -------
+    Same type as ``data``: a new object with noise added.
+    """
+    if isinstance(alpha, bool) or not np.isscalar(alpha) or not np.isfinite(alpha) or alpha < 0:
+        raise AmiXrValueError(f"alpha: expected a finite number >= 0, got {alpha!r}")
+    if kind not in NOISE_KINDS:
+        raise AmiXrValueError(f"kind: expected one of {NOISE_KINDS}, got {kind!r}")
+    if seed is not None and rng is not None:
+        raise AmiXrValueError("seed, rng: give at most one of them")
+    if rng is None:
+        rng = np.random.default_rng(seed)
+    elif not isinstance(rng, np.random.Generator):
+        raise AmiXrValueError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}")
+
+    def draw(shape):
+        if kind == "uniform":
+            return rng.uniform(-1.0, 1.0, size=shape)
+        return rng.standard_normal(size=shape)
+
+    if isinstance(data, xr.Dataset):
+        if names.RESPONSE not in data:
+            raise AmiXrValueError(f"data: the Dataset has no {names.RESPONSE!r} variable")
+        noisy = add_noise(data[names.RESPONSE], alpha, rng=rng, kind=kind, dim=dim)
+        out = data.copy()
+        out.attrs = dict(data.attrs)
+        out[names.RESPONSE] = noisy
+        out.attrs[ATTR_NOISE_LEVEL] = float(alpha)
+        out.attrs[ATTR_NOISE_KIND] = kind
+        if seed is not None:
+            out.attrs[ATTR_NOISE_SEED] = int(seed)
+        return add_history(
+            out, "ami_xr.simulate.add_noise", {"alpha": alpha, "kind": kind, "seed": seed}
+        )
+    if isinstance(data, xr.DataArray):
+        if dim not in data.dims:
+            raise AmiXrValueError(f"dim: {dim!r} is not a dimension of data {data.dims}")
+        if not np.issubdtype(data.dtype, np.floating):
+            raise AmiXrValueError(f"data: expected real floating-point values, got {data.dtype}")
+        core_last = data.transpose(..., dim)
+        r = xr.DataArray(draw(core_last.shape), dims=core_last.dims)
+        out = xr.apply_ufunc(
+            _noise_kernel,
+            data,
+            r,
+            kwargs={"alpha": float(alpha)},
+            input_core_dims=[[dim], [dim]],
+            output_core_dims=[[dim]],
+            dask="parallelized",
+            output_dtypes=[np.float64],
+            keep_attrs=True,
+        )
+        return out.transpose(*data.dims)
+    y = np.asarray(data)
+    if y.ndim == 0 or not np.issubdtype(y.dtype, np.floating):
+        raise AmiXrValueError(
+            "data: expected a Dataset, DataArray or a real floating-point array with time last"
+        )
+    return _noise_kernel(y, draw(y.shape), float(alpha))
