@@ -68,8 +68,16 @@ _AXES = {1: "X", 2: "Y", 3: "Z", 4: "RX", 5: "RY", 6: "RZ"}
 _AXIS_CODES = {v: k for k, v in _AXES.items()}
 _LABEL_RE = re.compile(r"^\s*(\d+)\s*([+-])\s*(X|Y|Z|RX|RY|RZ)\s*$", re.IGNORECASE)
 _ID_TAG = "ami_xr point="
-_KNOWN_UNIT_ALIASES = {"m/s2": "m/s^2", "m/s**2": "m/s^2", "mm/s2": "mm/s^2", "in/s2": "in/s^2",
-                       "µm": "um", "lbf": "lbf", "n": "N", "kn": "kN"}
+_KNOWN_UNIT_ALIASES = {
+    "m/s2": "m/s^2",
+    "m/s**2": "m/s^2",
+    "mm/s2": "mm/s^2",
+    "in/s2": "in/s^2",
+    "µm": "um",
+    "lbf": "lbf",
+    "n": "N",
+    "kn": "kN",
+}
 
 
 def _require_pyuff():
@@ -139,11 +147,11 @@ def _label_of(record: dict, which: str) -> Any:
     """Point label of the response (``which="rsp"``) or reference DOF of a dataset-58 record."""
     tag = str(record.get("id2", ""))
     if which == "rsp" and tag.startswith(_ID_TAG):
-        return tag[len(_ID_TAG):]
+        return tag[len(_ID_TAG) :]
     if which == "ref":
         tag3 = str(record.get("id3", ""))
         if tag3.startswith(_ID_TAG):
-            return tag3[len(_ID_TAG):]
+            return tag3[len(_ID_TAG) :]
     return point_label(record[f"{which}_node"], record[f"{which}_dir"])
 
 
@@ -188,7 +196,9 @@ def _read_sets(path: Path) -> list[dict]:
         uff = pyuff.UFF(str(path))
         sets = uff.read_sets()
     except Exception as err:  # pyuff raises bare Exceptions of many kinds on bad files
-        raise DataFileError(f"{path}: not a readable UFF file ({type(err).__name__}: {err})") from err
+        raise DataFileError(
+            f"{path}: not a readable UFF file ({type(err).__name__}: {err})"
+        ) from err
     if isinstance(sets, dict):
         sets = [sets]
     if not sets:
@@ -227,9 +237,13 @@ def _single_reference(records: list[dict], path: Path) -> tuple[list, Any, str]:
     if len(set(ref)) == 1:
         return rsp, ref[0], "fixed reference: points are the response DOFs"
     if len(set(rsp)) == 1:
-        return ref, rsp[0], (
-            "roving hammer: one response DOF, several references; by reciprocity the points are "
-            "the reference DOFs and the drive point is the response DOF"
+        return (
+            ref,
+            rsp[0],
+            (
+                "roving hammer: one response DOF, several references; by reciprocity the points are "
+                "the reference DOFs and the drive point is the response DOF"
+            ),
         )
     raise DataFileError(
         f"{path}: the FRFs have {len(set(rsp))} response and {len(set(ref))} reference DOFs; "
@@ -259,7 +273,9 @@ def _check_same_grid(records: list[dict], grids: list[np.ndarray], path: Path, w
 def _read_frf(frfs: list[dict], coh: list[dict], coords: dict, path: Path) -> xr.Dataset:
     labels, drive, layout = _single_reference(frfs, path)
     if len(set(labels)) != len(labels):
-        raise DataFileError(f"{path}: the FRF records repeat a DOF ({labels}); expected one per point")
+        raise DataFileError(
+            f"{path}: the FRF records repeat a DOF ({labels}); expected one per point"
+        )
     quantities = {_quantity_and_units(r, path)[:3] for r in frfs}
     if len(quantities) != 1:
         raise DataFileError(
@@ -308,10 +324,16 @@ def _read_frf(frfs: list[dict], coh: list[dict], coords: dict, path: Path) -> xr
         coh_labels, _, _ = _single_reference(coh, path)
         coh_labels = _mixed_labels_to_str(coh_labels)
         if sorted(map(str, coh_labels)) == sorted(map(str, labels_out)):
-            by_label = {str(lab): np.asarray(r["data"]).real for lab, r in zip(coh_labels, coh, strict=True)}
+            by_label = {
+                str(lab): np.asarray(r["data"]).real for lab, r in zip(coh_labels, coh, strict=True)
+            }
             values = np.stack([by_label[str(lab)] for lab in labels_out])
             if values.shape == data.shape:
-                ds[names.COHERENCE] = ((names.POINT, names.FREQUENCY), values, {names.ATTR_UNITS: "1"})
+                ds[names.COHERENCE] = (
+                    (names.POINT, names.FREQUENCY),
+                    values,
+                    {names.ATTR_UNITS: "1"},
+                )
     return _attach_coordinates(ds, coords, label_nodes)
 
 
@@ -329,11 +351,15 @@ def _read_time(records: list[dict], coords: dict, path: Path) -> xr.Dataset:
     if len(quantities) != 1:
         raise DataFileError(f"{path}: the responses mix quantities or units {sorted(quantities)}")
     quantity, resp_units = quantities.pop()
-    force_units = _unit_label(force_recs[0].get("ordinate_axis_units_lab"), names.FORCE_UNITS) if force_recs else None
+    force_units = (
+        _unit_label(force_recs[0].get("ordinate_axis_units_lab"), names.FORCE_UNITS)
+        if force_recs
+        else None
+    )
     resp = np.full((len(cases), len(labels), time.size), np.nan)
     for r in resp_recs:
-        resp[cases.index(int(r.get("load_case_id", 0))), labels.index(_label_of(r, "rsp"))] = np.asarray(
-            r["data"], dtype=np.float64
+        resp[cases.index(int(r.get("load_case_id", 0))), labels.index(_label_of(r, "rsp"))] = (
+            np.asarray(r["data"], dtype=np.float64)
         )
     if np.isnan(resp).any():
         raise DataFileError(f"{path}: not every response DOF has a record for every load case")
@@ -355,18 +381,29 @@ def _read_time(records: list[dict], coords: dict, path: Path) -> xr.Dataset:
     if force_recs:
         drives = {_label_of(r, "rsp") for r in force_recs}
         if len(drives) != 1:
-            raise DataFileError(f"{path}: force records at several DOFs {sorted(map(str, drives))}; "
-                                "expected one drive point")
+            raise DataFileError(
+                f"{path}: force records at several DOFs {sorted(map(str, drives))}; "
+                "expected one drive point"
+            )
         force = np.full((len(cases), time.size), np.nan)
         for r in force_recs:
-            force[cases.index(int(r.get("load_case_id", 0)))] = np.asarray(r["data"], dtype=np.float64)
+            force[cases.index(int(r.get("load_case_id", 0)))] = np.asarray(
+                r["data"], dtype=np.float64
+            )
         if np.isnan(force).any():
             raise DataFileError(f"{path}: a load case has no force record")
-        ds[names.FORCE] = ((names.RECORD, names.TIME), force, {names.ATTR_UNITS: force_units or "N"})
+        ds[names.FORCE] = (
+            (names.RECORD, names.TIME),
+            force,
+            {names.ATTR_UNITS: force_units or "N"},
+        )
         drive = drives.pop()
         ds.attrs[names.ATTR_DRIVE_POINT] = str(drive) if isinstance(labels_out[0], str) else drive
-    if force_units is None or _unit_label(resp_recs[0].get("ordinate_axis_units_lab"),
-                                          names.RESPONSE_UNITS[quantity]) is None:
+    if (
+        force_units is None
+        or _unit_label(resp_recs[0].get("ordinate_axis_units_lab"), names.RESPONSE_UNITS[quantity])
+        is None
+    ):
         ds.attrs["uff_units_assumed"] = "the file gives no known unit labels; SI units assumed"
     if len(cases) == 1:
         ds = ds.isel({names.RECORD: 0}, drop=True)
@@ -405,10 +442,15 @@ def _read_modes(modes: list[dict], coords: dict, path: Path) -> xr.Dataset:
             names.DAMPING_RATIO: (names.MODE, -eig.real / wn, {names.ATTR_UNITS: "1"}),
             names.MODE_VECTOR: ((names.POINT, names.MODE), vectors),
         },
-        coords={names.POINT: labels, names.MODE: [int(m.get("mode_n", k + 1)) for k, m in enumerate(modes)]},
+        coords={
+            names.POINT: labels,
+            names.MODE: [int(m.get("mode_n", k + 1)) for k, m in enumerate(modes)],
+        },
         attrs={names.ATTR_SOURCE_FILE: str(path)},
     )
-    return _attach_coordinates(ds, coords, {lab: n for lab, (n, _) in zip(labels, dofs, strict=True)})
+    return _attach_coordinates(
+        ds, coords, {lab: n for lab, (n, _) in zip(labels, dofs, strict=True)}
+    )
 
 
 def read_uff(path: str | os.PathLike, *, kind: str | None = None) -> xr.Dataset:
@@ -503,21 +545,35 @@ def _frf_records(ds: xr.Dataset, binary: bool) -> list[dict]:
             data = np.asarray(values[i], dtype=np.complex128 if func == _FUNC_FRF else np.float64)
             records.append(
                 pyuff.prepare_58(
-                    binary=int(binary), id1=str(ds.attrs.get("title", "ami_xr"))[:80] or "NONE",
-                    id2=tag, id3=ref_tag, id4="NONE", id5="NONE",
-                    func_type=func, ver_num=0, load_case_id=0,
-                    rsp_ent_name="ami_xr", rsp_node=node, rsp_dir=direction,
-                    ref_ent_name="ami_xr", ref_node=ref_node, ref_dir=ref_dir,
+                    binary=int(binary),
+                    id1=str(ds.attrs.get("title", "ami_xr"))[:80] or "NONE",
+                    id2=tag,
+                    id3=ref_tag,
+                    id4="NONE",
+                    id5="NONE",
+                    func_type=func,
+                    ver_num=0,
+                    load_case_id=0,
+                    rsp_ent_name="ami_xr",
+                    rsp_node=node,
+                    rsp_dir=direction,
+                    ref_ent_name="ami_xr",
+                    ref_node=ref_node,
+                    ref_dir=ref_dir,
                     ord_data_type=6 if func == _FUNC_FRF else 4,
-                    num_pts=freq.size, abscissa_spacing=int(uniform),
-                    abscissa_min=float(freq[0]), abscissa_inc=float(step[0]) if uniform else 0.0,
-                    z_axis_value=0.0, abscissa_spec_data_type=_SPEC_FREQUENCY,
+                    num_pts=freq.size,
+                    abscissa_spacing=int(uniform),
+                    abscissa_min=float(freq[0]),
+                    abscissa_inc=float(step[0]) if uniform else 0.0,
+                    z_axis_value=0.0,
+                    abscissa_spec_data_type=_SPEC_FREQUENCY,
                     abscissa_axis_units_lab="Hz",
                     ordinate_spec_data_type=_QUANTITY_TO_SPEC[quantity] if func == _FUNC_FRF else 0,
                     ordinate_axis_units_lab=_units_lab(ds.attrs.get(names.ATTR_RESPONSE_UNITS, "")),
                     orddenom_spec_data_type=13 if func == _FUNC_FRF else 0,
                     orddenom_axis_units_lab=_units_lab(ds.attrs.get(names.ATTR_FORCE_UNITS, "")),
-                    data=data, x=freq,
+                    data=data,
+                    x=freq,
                 )
             )
     return records
@@ -547,15 +603,34 @@ def _time_records(ds: xr.Dataset, binary: bool) -> list[dict]:
 
     def record(data, node, direction, tag, case, spec, units):
         return pyuff.prepare_58(
-            binary=int(binary), id1="ami_xr", id2=tag, id3=ref_tag, id4="NONE", id5="NONE",
-            func_type=_FUNC_TIME, ver_num=0, load_case_id=case,
-            rsp_ent_name="ami_xr", rsp_node=node, rsp_dir=direction,
-            ref_ent_name="ami_xr", ref_node=ref_node, ref_dir=ref_dir,
-            ord_data_type=4, num_pts=time.size, abscissa_spacing=1,
-            abscissa_min=float(time[0]), abscissa_inc=dt, z_axis_value=0.0,
-            abscissa_spec_data_type=_SPEC_TIME, abscissa_axis_units_lab="s",
-            ordinate_spec_data_type=spec, ordinate_axis_units_lab=_units_lab(units),
-            orddenom_spec_data_type=0, data=np.asarray(data, dtype=np.float64), x=time,
+            binary=int(binary),
+            id1="ami_xr",
+            id2=tag,
+            id3=ref_tag,
+            id4="NONE",
+            id5="NONE",
+            func_type=_FUNC_TIME,
+            ver_num=0,
+            load_case_id=case,
+            rsp_ent_name="ami_xr",
+            rsp_node=node,
+            rsp_dir=direction,
+            ref_ent_name="ami_xr",
+            ref_node=ref_node,
+            ref_dir=ref_dir,
+            ord_data_type=4,
+            num_pts=time.size,
+            abscissa_spacing=1,
+            abscissa_min=float(time[0]),
+            abscissa_inc=dt,
+            z_axis_value=0.0,
+            abscissa_spec_data_type=_SPEC_TIME,
+            abscissa_axis_units_lab="s",
+            ordinate_spec_data_type=spec,
+            ordinate_axis_units_lab=_units_lab(units),
+            orddenom_spec_data_type=0,
+            data=np.asarray(data, dtype=np.float64),
+            x=time,
         )
 
     records = []
@@ -563,12 +638,29 @@ def _time_records(ds: xr.Dataset, binary: bool) -> list[dict]:
         case = r + 1 if resp.shape[0] > 1 else 0
         for i, lab in enumerate(labels):
             node, direction, tag = dof[lab]
-            records.append(record(resp[r, i], node, direction, tag, case,
-                                  _QUANTITY_TO_SPEC[quantity],
-                                  ds.attrs.get(names.ATTR_RESPONSE_UNITS, "")))
+            records.append(
+                record(
+                    resp[r, i],
+                    node,
+                    direction,
+                    tag,
+                    case,
+                    _QUANTITY_TO_SPEC[quantity],
+                    ds.attrs.get(names.ATTR_RESPONSE_UNITS, ""),
+                )
+            )
         if force is not None:
-            records.append(record(force[r], ref_node, ref_dir, ref_tag, case, 13,
-                                  ds.attrs.get(names.ATTR_FORCE_UNITS, "")))
+            records.append(
+                record(
+                    force[r],
+                    ref_node,
+                    ref_dir,
+                    ref_tag,
+                    case,
+                    13,
+                    ds.attrs.get(names.ATTR_FORCE_UNITS, ""),
+                )
+            )
     return records
 
 
@@ -596,11 +688,24 @@ def _mode_records(ds: xr.Dataset) -> list[dict]:
         kwargs = {f"r{c + 1}": comps[c] for c in range(ncomp)}
         records.append(
             pyuff.prepare_55(
-                id1="ami_xr mode shapes", id2="NONE", id3="NONE", id4="NONE", id5="NONE",
-                model_type=1, analysis_type=3, data_ch=3 if rotational else 2,
-                spec_data_type=8, data_type=5, n_data_per_node=ncomp, load_case=1,
-                mode_n=mode_n, eig=complex(eig[k]), modal_a=0j, modal_b=0j,
-                node_nums=np.asarray(nodes), **kwargs,
+                id1="ami_xr mode shapes",
+                id2="NONE",
+                id3="NONE",
+                id4="NONE",
+                id5="NONE",
+                model_type=1,
+                analysis_type=3,
+                data_ch=3 if rotational else 2,
+                spec_data_type=8,
+                data_type=5,
+                n_data_per_node=ncomp,
+                load_case=1,
+                mode_n=mode_n,
+                eig=complex(eig[k]),
+                modal_a=0j,
+                modal_b=0j,
+                node_nums=np.asarray(nodes),
+                **kwargs,
             )
         )
     return records
@@ -657,7 +762,9 @@ def write_uff(
             f"(needs '{names.FRF}', '{names.RESPONSE}' or '{names.MODE_VECTOR}'+'{names.EIGENVALUE}')"
         )
     if not path.parent.exists():
-        raise DataFileError(f"cannot write {str(path)!r}: folder {str(path.parent)!r} does not exist")
+        raise DataFileError(
+            f"cannot write {str(path)!r}: folder {str(path.parent)!r} does not exist"
+        )
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
     os.remove(tmp)  # pyuff refuses to "overwrite" a file it did not write; start from nothing

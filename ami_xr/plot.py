@@ -1,0 +1,535 @@
+"""Figures engineers judge a curve-fit by (matplotlib, an optional extra).
+
+Every function takes an identification result (or an FRF Dataset, for what it needs) and returns
+a :class:`matplotlib.figure.Figure`; with ``path=`` it also saves it (PNG, or any format matplotlib
+knows by the suffix). Figures are built on matplotlib's object API with an Agg canvas attached
+inside each function: importing this module imports no matplotlib, selects no backend and changes
+no global state, so it is safe in scripts, servers, tests and notebooks alike (a notebook shows a
+returned Figure as usual).
+
+A figure whose inputs are missing raises :class:`ami_xr.errors.AmiXrValueError` naming the missing
+variable; :func:`ami_xr.report.report` turns that into a "not produced" note.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Hashable, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.errors import AmiXrValueError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "plot_bode",
+    "plot_nyquist",
+    "plot_subtraction",
+    "plot_mode_vectors",
+    "plot_mac",
+    "plot_modal_table",
+    "mac_matrix",
+]
+
+# Variable names of identification results that ami_xr.names does not (yet) define. Looked up
+# with getattr so a name added to ami_xr.names later is picked up without an edit here.
+FRF_SYNTHESIZED = getattr(names, "FRF_SYNTHESIZED", "frf_synthesized")
+FRF_RESIDUAL = getattr(names, "FRF_RESIDUAL", "frf_residual")
+MAC = getattr(names, "MAC", "mac")
+DETECTED = getattr(names, "DETECTED", "detected")
+QUALITY_FLAGS = getattr(names, "QUALITY_FLAGS", "quality_flags")
+POINT_COORDS = tuple(f"{names.POINT}_{axis}" for axis in "xyz")
+
+_MAX_POINTS = 12  # beyond this, figures show the points with the strongest response
+
+
+def _new_figure(width: float, height: float) -> Figure:
+    try:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+    except ImportError as err:  # pragma: no cover - depends on the environment
+        raise ImportError(
+            "plots need the optional package matplotlib: pip install 'ami_xr[plot]'"
+        ) from err
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)  # Agg for this figure only; the global backend is left alone
+    return fig
+
+
+def _finish(fig: Figure, path: str | os.PathLike | None) -> Figure:
+    if path is not None:
+        fig.savefig(os.fspath(path), dpi=110)
+    return fig
+
+
+def _require(ds: xr.Dataset, *variables: str, figure: str) -> None:
+    missing = [v for v in variables if v not in ds.variables]
+    if missing:
+        raise AmiXrValueError(
+            f"{figure}: the Dataset has no {', '.join(repr(m) for m in missing)} "
+            f"(it has {sorted(map(str, ds.data_vars))})"
+        )
+
+
+def _select_points(ds: xr.Dataset, points: Sequence[Hashable] | None, figure: str) -> list:
+    labels = list(ds[names.POINT].values.tolist())
+    if points is not None:
+        points = list(points)
+        unknown = [p for p in points if p not in labels]
+        if unknown:
+            raise AmiXrValueError(f"{figure}: points {unknown} are not among the points {labels}")
+        return points
+    if len(labels) <= _MAX_POINTS or names.FRF not in ds:
+        return labels[:_MAX_POINTS]
+    # Many points: show the strongest FRFs, in their original order.
+    peak = np.abs(ds[names.FRF]).max(names.FREQUENCY).values
+    keep = set(np.argsort(peak)[::-1][:_MAX_POINTS].tolist())
+    return [lab for i, lab in enumerate(labels) if i in keep]
+
+
+def _natural_frequencies(ds: xr.Dataset) -> np.ndarray:
+    if names.NATURAL_FREQUENCY in ds:
+        return np.atleast_1d(np.asarray(ds[names.NATURAL_FREQUENCY].values, dtype=float))
+    if names.EIGENVALUE in ds:
+        return np.abs(np.atleast_1d(ds[names.EIGENVALUE].values)) / (2 * np.pi)
+    return np.zeros(0)
+
+
+def _mode_labels(ds: xr.Dataset) -> list:
+    if names.MODE in ds.coords:
+        return list(ds[names.MODE].values.tolist())
+    return list(range(1, _natural_frequencies(ds).size + 1))
+
+
+def _mark_modes(ax, fn: np.ndarray, labels: Sequence, text: bool) -> None:
+    for f, lab in zip(fn, labels, strict=False):
+        if not np.isfinite(f):
+            continue
+        ax.axvline(f, color="tab:red", lw=0.8, ls="--", alpha=0.7)
+        if text:
+            ax.annotate(
+                str(lab),
+                (f, 1.0),
+                xycoords=("data", "axes fraction"),
+                ha="center",
+                va="bottom",
+                fontsize=7,
+                color="tab:red",
+            )
+
+
+def _units(ds: xr.Dataset, var: str) -> str:
+    return str(ds[var].attrs.get(names.ATTR_UNITS, "")) if var in ds else ""
+
+
+# --- Bode --------------------------------------------------------------------------------------
+def plot_bode(
+    ds: xr.Dataset,
+    *,
+    points: Sequence[Hashable] | None = None,
+    path: str | os.PathLike | None = None,
+) -> Figure:
+    """Bode magnitude and phase of the measured FRF, and the synthesised one where present.
+
+    One column per point (at most 12; by default the 12 with the largest peak), magnitude on top
+    (log scale, FRF units) and phase (degrees) below; the identified natural frequencies are
+    marked with dashed red lines labelled by mode number.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        FRF Dataset or identification result (``frf``; optional ``frf_synthesized``,
+        ``natural_frequency``).
+    points : sequence of point labels, optional
+        Points to show.
+    path : str or path-like, optional
+        Save the figure there.
+    """
+    _require(ds, names.FRF, figure="plot_bode")
+    pts = _select_points(ds, points, "plot_bode")
+    fn, mode_labels = _natural_frequencies(ds), _mode_labels(ds)
+    freq = ds[names.FREQUENCY].values
+    ncol = min(len(pts), 4)
+    nrow_pts = int(np.ceil(len(pts) / ncol))
+    fig = _new_figure(3.4 * ncol, 3.6 * nrow_pts)
+    grid = fig.add_gridspec(2 * nrow_pts, ncol, height_ratios=[2, 1] * nrow_pts)
+    synth = ds[FRF_SYNTHESIZED] if FRF_SYNTHESIZED in ds else None
+    for i, p in enumerate(pts):
+        r, c = divmod(i, ncol)
+        ax_mag = fig.add_subplot(grid[2 * r, c])
+        ax_ph = fig.add_subplot(grid[2 * r + 1, c], sharex=ax_mag)
+        g = ds[names.FRF].sel({names.POINT: p}).values
+        ax_mag.semilogy(freq, np.abs(g), color="0.55", lw=0.8, label="measured")
+        ax_ph.plot(freq, np.degrees(np.angle(g)), color="0.55", lw=0.8)
+        if synth is not None:
+            s = synth.sel({names.POINT: p}).values
+            ax_mag.semilogy(freq, np.abs(s), color="tab:blue", lw=1.2, label="synthesised")
+            ax_ph.plot(freq, np.degrees(np.angle(s)), color="tab:blue", lw=1.2)
+        _mark_modes(ax_mag, fn, mode_labels, text=True)
+        _mark_modes(ax_ph, fn, mode_labels, text=False)
+        drive = " (drive point)" if p == ds.attrs.get(names.ATTR_DRIVE_POINT) else ""
+        ax_mag.set_title(f"point {p}{drive}", fontsize=9)
+        ax_mag.set_ylabel(f"|FRF| [{_units(ds, names.FRF)}]", fontsize=8)
+        ax_ph.set_ylabel("phase [deg]", fontsize=8)
+        ax_ph.set_xlabel("frequency [Hz]", fontsize=8)
+        ax_ph.set_ylim(-190, 190)
+        ax_ph.set_yticks([-180, -90, 0, 90, 180])
+        if i == 0:
+            ax_mag.legend(fontsize=7, loc="best")
+    return _finish(fig, path)
+
+
+# --- Nyquist -----------------------------------------------------------------------------------
+def _mode_band(fn: float, zeta: float, df: float, bandwidths: float) -> tuple[float, float]:
+    half = max(bandwidths * max(zeta, 1e-4) * fn, 4 * df)
+    return fn - half, fn + half
+
+
+def plot_nyquist(
+    ds: xr.Dataset,
+    *,
+    points: Sequence[Hashable] | None = None,
+    bandwidths: float = 3.0,
+    path: str | os.PathLike | None = None,
+) -> Figure:
+    """Nyquist plots (imaginary vs real part) of the FRF near each identified mode.
+
+    One row per point (at most 12) and one column per mode; each panel shows the measured FRF
+    (dots) and the synthesised FRF (line, where present) over ``fn +- bandwidths * zeta * fn``
+    (at least 4 frequency lines each side), with the line nearest ``fn`` marked.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Identification result: ``frf`` and ``natural_frequency`` (or ``eigenvalue``);
+        ``damping_ratio`` and ``frf_synthesized`` are used when present.
+    points : sequence of point labels, optional
+        Points to show.
+    bandwidths : float
+        Half-width of the band around each mode, in half-power bandwidths ``zeta * fn``.
+    path : str or path-like, optional
+        Save the figure there.
+    """
+    _require(ds, names.FRF, figure="plot_nyquist")
+    fn = _natural_frequencies(ds)
+    if fn.size == 0:
+        raise AmiXrValueError(
+            f"plot_nyquist: the Dataset has no {names.NATURAL_FREQUENCY!r} or {names.EIGENVALUE!r} "
+            "(run ami_xr.identify first)"
+        )
+    if not bandwidths > 0:
+        raise AmiXrValueError(f"plot_nyquist: bandwidths must be > 0, got {bandwidths!r}")
+    zeta = (
+        np.asarray(ds[names.DAMPING_RATIO].values, dtype=float)
+        if names.DAMPING_RATIO in ds
+        else np.full(fn.size, 0.01)
+    )
+    pts = _select_points(ds, points, "plot_nyquist")
+    freq = ds[names.FREQUENCY].values
+    df = float(np.median(np.diff(freq))) if freq.size > 1 else 1.0
+    labels = _mode_labels(ds)
+    fig = _new_figure(2.4 * fn.size + 0.6, 2.3 * len(pts) + 0.4)
+    axes = fig.subplots(len(pts), fn.size, squeeze=False)
+    synth = ds[FRF_SYNTHESIZED] if FRF_SYNTHESIZED in ds else None
+    for i, p in enumerate(pts):
+        g = ds[names.FRF].sel({names.POINT: p}).values
+        s = synth.sel({names.POINT: p}).values if synth is not None else None
+        for k in range(fn.size):
+            ax = axes[i, k]
+            lo, hi = _mode_band(fn[k], zeta[k], df, bandwidths)
+            band = (freq >= lo) & (freq <= hi)
+            ax.plot(g[band].real, g[band].imag, ".", color="0.45", ms=3)
+            if s is not None:
+                ax.plot(s[band].real, s[band].imag, "-", color="tab:blue", lw=1.1)
+            if band.any():
+                j = int(np.argmin(np.abs(freq - fn[k])))
+                ax.plot(g[j].real, g[j].imag, "o", mfc="none", color="tab:red", ms=6)
+            ax.set_aspect("equal", adjustable="datalim")
+            ax.tick_params(labelsize=6)
+            ax.ticklabel_format(style="sci", scilimits=(-2, 3))
+            ax.xaxis.get_offset_text().set_fontsize(6)
+            ax.yaxis.get_offset_text().set_fontsize(6)
+            if i == 0:
+                ax.set_title(f"mode {labels[k]}: {fn[k]:.4g} Hz", fontsize=8)
+            if k == 0:
+                ax.set_ylabel(f"point {p}\nImag", fontsize=8)
+            if i == len(pts) - 1:
+                ax.set_xlabel("Real", fontsize=8)
+    return _finish(fig, path)
+
+
+# --- Subtraction residual vs noise floor -------------------------------------------------------
+def _find(ds: xr.Dataset, candidates: Sequence[str]) -> str | None:
+    return next((c for c in candidates if c in ds.variables), None)
+
+
+def plot_subtraction(
+    ds: xr.Dataset,
+    *,
+    points: Sequence[Hashable] | None = None,
+    path: str | os.PathLike | None = None,
+) -> Figure:
+    """What the Subtraction Phase saw: the FRF, its residual, the noise floor and the threshold.
+
+    Per point: |measured FRF| (grey), |residual| after the subtraction (or, where the result
+    holds none, after removing the identified modes), the estimated noise floor and the automatic
+    stop threshold (horizontal lines), and the frequencies of the candidates the phase kept.
+    This is the plot the paper's authors inspected by eye to stop subtracting.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Result of ``ami_xr.subtract`` or ``ami_xr.identify`` (``frf``, ``subtraction_noise_floor``;
+        optional residual, threshold and candidate variables).
+    points : sequence of point labels, optional
+        Points to show.
+    path : str or path-like, optional
+        Save the figure there.
+    """
+    _require(ds, names.FRF, figure="plot_subtraction")
+    floor_name = _find(ds, _SUBTRACTION_FLOOR)
+    if floor_name is None:
+        raise AmiXrValueError(
+            f"plot_subtraction: the Dataset has none of {list(_SUBTRACTION_FLOOR)} "
+            "(run ami_xr.subtract or ami_xr.identify first)"
+        )
+    residual_name = _find(ds, _SUBTRACTION_RESIDUAL)
+    threshold_name = _find(ds, _SUBTRACTION_THRESHOLD)
+    cand_name = _find(ds, _SUBTRACTION_EIGENVALUE)
+    pts = _select_points(ds, points, "plot_subtraction")
+    freq = ds[names.FREQUENCY].values
+    ncol = min(len(pts), 4)
+    nrow = int(np.ceil(len(pts) / ncol))
+    fig = _new_figure(3.4 * ncol, 2.8 * nrow)
+    axes = fig.subplots(nrow, ncol, squeeze=False)
+    for ax in axes.ravel()[len(pts) :]:
+        ax.set_visible(False)
+    for i, p in enumerate(pts):
+        ax = axes.ravel()[i]
+        sel = {names.POINT: p}
+        g = ds[names.FRF].sel(sel).values
+        ax.semilogy(freq, np.abs(g), color="0.7", lw=0.8, label="measured")
+        if residual_name is not None:
+            res = ds[residual_name].sel(sel).values
+            ax.semilogy(freq, np.abs(res), color="tab:blue", lw=0.8, label="residual")
+        floor = float(np.asarray(ds[floor_name].sel(sel).values).ravel()[0])
+        ax.axhline(floor, color="tab:green", lw=1.2, label="noise floor")
+        if threshold_name is not None:
+            thr = float(np.asarray(ds[threshold_name].sel(sel).values).ravel()[0])
+            ax.axhline(thr, color="tab:red", lw=1.2, ls="--", label="stop threshold")
+        if cand_name is not None:
+            lam = np.asarray(ds[cand_name].sel(sel).values).ravel()
+            lam = lam[np.isfinite(lam)]
+            _mark_modes(ax, np.abs(lam) / (2 * np.pi), [""] * lam.size, text=False)
+        drive = " (drive point)" if p == ds.attrs.get(names.ATTR_DRIVE_POINT) else ""
+        ax.set_title(f"point {p}{drive}", fontsize=9)
+        ax.set_xlabel("frequency [Hz]", fontsize=8)
+        ax.set_ylabel(f"magnitude [{_units(ds, names.FRF)}]", fontsize=8)
+        if i == 0:
+            ax.legend(fontsize=7, loc="best")
+    return _finish(fig, path)
+
+
+# Names the subtraction phase may use, most specific first.
+_SUBTRACTION_FLOOR = ("subtraction_noise_floor", "noise_floor")
+_SUBTRACTION_THRESHOLD = ("subtraction_threshold", "subtraction_stop_threshold")
+_SUBTRACTION_RESIDUAL = ("subtraction_residual", FRF_RESIDUAL)
+_SUBTRACTION_EIGENVALUE = ("subtraction_eigenvalue",)
+
+
+# --- mode vectors ------------------------------------------------------------------------------
+def _vectors(ds: xr.Dataset, figure: str) -> tuple[xr.DataArray, str]:
+    for var in (names.MODE_VECTOR, names.RESIDUE):
+        if var in ds:
+            return ds[var].transpose(names.POINT, names.MODE), var
+    raise AmiXrValueError(
+        f"{figure}: the Dataset has no {names.MODE_VECTOR!r} or {names.RESIDUE!r} "
+        "(run ami_xr.identify first)"
+    )
+
+
+def _point_coordinate(ds: xr.Dataset, coord: str | None) -> str | None:
+    if coord is not None:
+        if coord not in ds.coords:
+            raise AmiXrValueError(f"plot_mode_vectors: coord {coord!r} is not a coordinate of ds")
+        return coord
+    return next((c for c in POINT_COORDS if c in ds.coords), None)
+
+
+def plot_mode_vectors(
+    ds: xr.Dataset,
+    *,
+    coord: str | None = None,
+    path: str | os.PathLike | None = None,
+) -> Figure:
+    """Mode vectors: magnitude and phase per point, and the shape along the structure.
+
+    One row per mode. Columns: magnitude per point (bars), phase per point (degrees), and, when
+    the points have a coordinate (``point_x``, ``point_y`` or ``point_z``, or ``coord``), the
+    shape along it: the vector rotated so that its largest entry is real, real part plotted
+    against the coordinate (imaginary part dotted: near zero for a normal mode). Modes whose
+    quality flags are not empty have the flags in their row title.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Identification result with ``mode_vector`` (or, failing that, ``residue``).
+    coord : str, optional
+        Point coordinate for the shape plot; by default the first of point_x/point_y/point_z.
+    path : str or path-like, optional
+        Save the figure there.
+    """
+    vec, var = _vectors(ds, "plot_mode_vectors")
+    xname = _point_coordinate(ds, coord)
+    labels = [str(p) for p in vec[names.POINT].values.tolist()]
+    nmode = vec.sizes[names.MODE]
+    ncol = 3 if xname is not None else 2
+    fig = _new_figure(3.3 * ncol, 2.0 * max(nmode, 1) + 0.5)
+    axes = fig.subplots(max(nmode, 1), ncol, squeeze=False)
+    fn = _natural_frequencies(ds)
+    flags = _flags(ds)
+    pos = np.arange(len(labels))
+    for k in range(nmode):
+        v = vec.isel({names.MODE: k}).values
+        ax_m, ax_p = axes[k, 0], axes[k, 1]
+        ax_m.bar(pos, np.abs(v), color="tab:blue")
+        ax_p.bar(pos, np.degrees(np.angle(v)), color="tab:orange")
+        ax_p.set_ylim(-190, 190)
+        ax_p.set_yticks([-180, -90, 0, 90, 180])
+        for ax in (ax_m, ax_p):
+            ax.set_xticks(pos, labels, fontsize=7, rotation=90 if len(labels) > 8 else 0)
+            ax.tick_params(axis="y", labelsize=7)
+        title = f"mode {vec[names.MODE].values[k]}"
+        if k < fn.size:
+            title += f", {fn[k]:.4g} Hz"
+        if k < len(flags) and flags[k]:
+            title += f"  [{flags[k]}]"
+        ax_m.set_title(title, fontsize=8, loc="left")
+        ax_m.set_ylabel(f"|{var}|", fontsize=8)
+        ax_p.set_ylabel("phase [deg]", fontsize=8)
+        if xname is not None:
+            ax_s = axes[k, 2]
+            x = np.asarray(ds[xname].values, dtype=float)
+            order = np.argsort(x)
+            big = v[np.argmax(np.abs(v))] if v.size and np.any(v != 0) else 1.0
+            w = v * np.exp(-1j * np.angle(big))
+            ax_s.plot(x[order], w.real[order], "o-", color="tab:blue", ms=3)
+            ax_s.plot(x[order], w.imag[order], ":", color="0.5")
+            ax_s.axhline(0, color="0.8", lw=0.6)
+            units = ds[xname].attrs.get(names.ATTR_UNITS, "")
+            ax_s.set_xlabel(f"{xname}" + (f" [{units}]" if units else ""), fontsize=8)
+            ax_s.set_ylabel("shape (real)", fontsize=8)
+            ax_s.tick_params(labelsize=7)
+    return _finish(fig, path)
+
+
+# --- MAC ---------------------------------------------------------------------------------------
+def mac_matrix(vectors: np.ndarray) -> np.ndarray:
+    """Modal Assurance Criterion between the columns of ``vectors`` (points x modes), in [0, 1]."""
+    v = np.asarray(vectors, dtype=np.complex128)
+    num = np.abs(v.conj().T @ v) ** 2
+    norm = np.real(np.sum(v.conj() * v, axis=0))
+    den = np.outer(norm, norm)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, num / den, np.nan)
+
+
+def plot_mac(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure:
+    """The MAC matrix of the identified mode vectors, values printed in each cell.
+
+    Uses the ``mac`` variable when present, otherwise computes it from ``mode_vector`` (or
+    ``residue``). Off-diagonal values near 1 mean two "modes" look alike at the measured points.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Identification result.
+    path : str or path-like, optional
+        Save the figure there.
+    """
+    if MAC in ds:
+        mac = np.asarray(ds[MAC].values, dtype=float)
+    else:
+        vec, _ = _vectors(ds, "plot_mac")
+        mac = mac_matrix(vec.values)
+    labels = _mode_labels(ds) or list(range(1, mac.shape[0] + 1))
+    n = mac.shape[0]
+    fig = _new_figure(1.0 + 0.55 * max(n, 3), 0.8 + 0.5 * max(n, 3))
+    ax = fig.add_subplot()
+    im = ax.imshow(mac, vmin=0, vmax=1, cmap="viridis")
+    for i in range(n):
+        for j in range(mac.shape[1]):
+            value = mac[i, j]
+            ax.text(
+                j,
+                i,
+                "-" if not np.isfinite(value) else f"{value:.2f}",
+                ha="center",
+                va="center",
+                fontsize=7,
+                color="w" if value < 0.6 else "k",
+            )
+    ax.set_xticks(range(mac.shape[1]), labels[: mac.shape[1]], fontsize=8)
+    ax.set_yticks(range(n), labels[:n], fontsize=8)
+    ax.set_xlabel("mode", fontsize=8)
+    ax.set_ylabel("mode", fontsize=8)
+    ax.set_title("MAC", fontsize=9)
+    fig.colorbar(im, ax=ax, shrink=0.8)
+    return _finish(fig, path)
+
+
+# --- modal table -------------------------------------------------------------------------------
+def _flags(ds: xr.Dataset) -> list[str]:
+    if QUALITY_FLAGS not in ds:
+        return []
+    return [_as_text(f) for f in np.atleast_1d(ds[QUALITY_FLAGS].values)]
+
+
+def _as_text(value: Any) -> str:
+    if isinstance(value, bytes):
+        value = value.decode()
+    text = str(value)
+    return "" if text in ("nan", "None") else text
+
+
+def plot_modal_table(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure:
+    """The modal table (mode, frequency in Hz and rad/s, damping %, detected-in, flags) as a figure.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Identification result (``eigenvalue`` or ``natural_frequency``).
+    path : str or path-like, optional
+        Save the figure there.
+    """
+    from ami_xr.report import modal_table
+
+    rows = modal_table(ds)
+    header = ["mode", "f [Hz]", "w [rad/s]", "zeta [%]", "detected in", "flags"]
+    cells = [
+        [
+            str(r["mode"]),
+            f"{r['frequency_hz']:.5g}",
+            f"{r['frequency_rad_s']:.5g}",
+            f"{r['damping_percent']:.4g}",
+            r["detected_in"],
+            r["flags"] or "-",
+        ]
+        for r in rows
+    ]
+    fig = _new_figure(9.0, 0.6 + 0.3 * (len(cells) + 1))
+    ax = fig.add_subplot()
+    ax.axis("off")
+    if cells:
+        table = ax.table(cellText=cells, colLabels=header, loc="center", cellLoc="center")
+        table.auto_set_font_size(False)
+        table.set_fontsize(8)
+        table.auto_set_column_width(list(range(len(header))))
+    else:
+        ax.text(0.5, 0.5, "no modes identified", ha="center", va="center")
+    return _finish(fig, path)

@@ -1,0 +1,322 @@
+"""The modal table and the identification report (a folder of PNGs and one index.html).
+
+``modal_table`` and ``format_modal_table`` need no matplotlib (the CLI prints the table with
+them); ``report`` draws the figures of :mod:`ami_xr.plot` and needs the ``plot`` extra.
+"""
+
+from __future__ import annotations
+
+import csv
+import html
+import io
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.errors import AmiXrValueError, DataFileError
+
+__all__ = ["modal_table", "format_modal_table", "report", "FIGURES"]
+
+DETECTED = getattr(names, "DETECTED", "detected")
+QUALITY_FLAGS = getattr(names, "QUALITY_FLAGS", "quality_flags")
+
+#: Report figures: file stem -> (plot function name in ami_xr.plot, caption).
+FIGURES: dict[str, tuple[str, str]] = {
+    "modal_table": ("plot_modal_table", "Identified modes with their quality flags."),
+    "bode": (
+        "plot_bode",
+        "Measured (grey) and synthesised (blue) FRFs; dashed lines mark the "
+        "identified natural frequencies.",
+    ),
+    "nyquist": (
+        "plot_nyquist",
+        "Nyquist plots of each FRF near each mode (measured dots, "
+        "synthesised line, circle at the natural frequency).",
+    ),
+    "subtraction": (
+        "plot_subtraction",
+        "Subtraction phase: FRF, residual, estimated noise floor and the automatic stop threshold.",
+    ),
+    "mode_vectors": (
+        "plot_mode_vectors",
+        "Mode vectors: magnitude and phase per point (and "
+        "shape along the structure where point coordinates "
+        "are given).",
+    ),
+    "mac": ("plot_mac", "Modal Assurance Criterion between the identified mode vectors."),
+}
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, bytes):
+        value = value.decode()
+    text = str(value)
+    return "" if text in ("nan", "None") else text
+
+
+def modal_table(ds: xr.Dataset) -> list[dict[str, Any]]:
+    """One row per identified mode.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Identification result with ``eigenvalue`` (rad/s) or ``natural_frequency`` (Hz) and
+        ``damping_ratio``; ``detected`` (point, mode) and ``quality_flags`` (mode) are used when
+        present.
+
+    Returns
+    -------
+    list of dict
+        Keys ``mode``, ``frequency_hz``, ``frequency_rad_s``, ``damping_percent``,
+        ``eigenvalue`` (complex rad/s or nan), ``detected_in`` (point labels joined by spaces, or
+        "-" when unknown) and ``flags`` ("" when none).
+    """
+    if names.EIGENVALUE in ds:
+        lam = np.atleast_1d(np.asarray(ds[names.EIGENVALUE].values, dtype=np.complex128))
+        wn = np.abs(lam)
+        fn = wn / (2 * np.pi)
+        zeta = np.where(wn > 0, -lam.real / np.where(wn > 0, wn, 1), np.nan)
+    elif names.NATURAL_FREQUENCY in ds:
+        fn = np.atleast_1d(np.asarray(ds[names.NATURAL_FREQUENCY].values, dtype=float))
+        wn = 2 * np.pi * fn
+        lam = np.full(fn.size, np.nan + 0j)
+        zeta = np.full(fn.size, np.nan)
+    else:
+        raise AmiXrValueError(
+            f"modal_table: the Dataset has no {names.EIGENVALUE!r} or {names.NATURAL_FREQUENCY!r} "
+            "(run ami_xr.identify first)"
+        )
+    if names.DAMPING_RATIO in ds:
+        zeta = np.atleast_1d(np.asarray(ds[names.DAMPING_RATIO].values, dtype=float))
+    modes = (
+        list(ds[names.MODE].values.tolist())
+        if names.MODE in ds.coords
+        else list(range(1, fn.size + 1))
+    )
+    detected: list[str] = ["-"] * fn.size
+    if DETECTED in ds and names.POINT in ds[DETECTED].dims:
+        det = ds[DETECTED].transpose(names.POINT, names.MODE).values.astype(bool)
+        pts = [str(p) for p in ds[names.POINT].values.tolist()]
+        detected = [
+            " ".join(p for p, d in zip(pts, det[:, k], strict=True) if d) or "none"
+            for k in range(fn.size)
+        ]
+    flags = (
+        [_text(f) for f in np.atleast_1d(ds[QUALITY_FLAGS].values)]
+        if QUALITY_FLAGS in ds
+        else [""] * fn.size
+    )
+    return [
+        {
+            "mode": modes[k],
+            "frequency_hz": float(fn[k]),
+            "frequency_rad_s": float(wn[k]),
+            "damping_percent": float(100 * zeta[k]),
+            "eigenvalue": complex(lam[k]),
+            "detected_in": detected[k],
+            "flags": flags[k],
+        }
+        for k in range(fn.size)
+    ]
+
+
+def format_modal_table(ds: xr.Dataset, *, extra: dict[str, list[str]] | None = None) -> str:
+    """The modal table as aligned text, for terminals and logs.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Identification result (see :func:`modal_table`).
+    extra : dict of column name -> list of str, optional
+        Additional columns (one string per mode), e.g. reference values to compare with.
+    """
+    rows = modal_table(ds)
+    header = ["mode", "f [Hz]", "w [rad/s]", "zeta [%]"]
+    body = [
+        [
+            str(r["mode"]),
+            f"{r['frequency_hz']:.5f}",
+            f"{r['frequency_rad_s']:.4f}",
+            f"{r['damping_percent']:.3f}",
+        ]
+        for r in rows
+    ]
+    for name, values in (extra or {}).items():
+        header.append(name)
+        for row, v in zip(body, list(values) + [""] * len(body), strict=False):
+            row.append(v)
+    header += ["detected in", "flags"]
+    for row, r in zip(body, rows, strict=True):
+        row += [r["detected_in"], r["flags"] or "-"]
+    if not body:
+        return "no modes identified"
+    widths = [max(len(h), *(len(row[i]) for row in body)) for i, h in enumerate(header)]
+    lines = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)).rstrip()]
+    lines.append("  ".join("-" * w for w in widths))
+    lines += [
+        "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in body
+    ]
+    return "\n".join(lines)
+
+
+def _atomic_write_bytes(path: Path, write: Callable[[Any], None], mode: str = "wb") -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(
+            fd, mode, **({} if "b" in mode else {"encoding": "utf-8", "newline": ""})
+        ) as fh:
+            write(fh)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def _attrs_summary(ds: xr.Dataset) -> list[tuple[str, str]]:
+    keys = (
+        names.ATTR_SOURCE_FILE,
+        names.ATTR_DRIVE_POINT,
+        names.ATTR_QUANTITY,
+        names.ATTR_FRF_TYPE,
+        names.ATTR_SOURCE,
+        names.ATTR_VERSION,
+        "ami_xr_function",
+    )
+    out = [(k, str(ds.attrs[k])) for k in keys if k in ds.attrs]
+    if names.POINT in ds.sizes:
+        out.append(("points", str(ds.sizes[names.POINT])))
+    if names.FREQUENCY in ds.coords and ds.sizes.get(names.FREQUENCY, 0):
+        f = ds[names.FREQUENCY].values
+        out.append(("frequency lines", f"{f.size} from {f[0]:.6g} to {f[-1]:.6g} Hz"))
+    return out
+
+
+def report(
+    ds: xr.Dataset,
+    outdir: str | os.PathLike,
+    *,
+    title: str | None = None,
+    figures: tuple[str, ...] | None = None,
+) -> Path:
+    """Write the identification report: one PNG per figure, the table as CSV, and index.html.
+
+    Figures whose inputs are missing from ``ds`` (e.g. no subtraction outputs, no mode vectors)
+    are skipped and listed in the page as "not produced" with the reason. Every file is written
+    atomically; an existing report in ``outdir`` is overwritten file by file.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Identification result of :func:`ami_xr.identify` (an FRF Dataset alone gives the Bode
+        plot and notes for the rest).
+    outdir : str or path-like
+        Folder to write (created if missing).
+    title : str, optional
+        Page title; by default from the source file attribute.
+    figures : tuple of str, optional
+        Subset of :data:`FIGURES` keys to draw (default all).
+
+    Returns
+    -------
+    pathlib.Path
+        Path of ``index.html``.
+    """
+    from ami_xr import plot
+
+    outdir = Path(outdir)
+    if outdir.exists() and not outdir.is_dir():
+        raise DataFileError(f"report: output {str(outdir)!r} exists and is not a folder")
+    outdir.mkdir(parents=True, exist_ok=True)
+    wanted = tuple(FIGURES) if figures is None else tuple(figures)
+    unknown = [f for f in wanted if f not in FIGURES]
+    if unknown:
+        raise AmiXrValueError(f"report: unknown figures {unknown}; choose from {list(FIGURES)}")
+    made: list[tuple[str, str]] = []
+    skipped: list[tuple[str, str]] = []
+    for stem in wanted:
+        func_name, caption = FIGURES[stem]
+        try:
+            fig = getattr(plot, func_name)(ds)
+        except AmiXrValueError as err:
+            skipped.append((stem, str(err)))
+            continue
+        target = outdir / f"{stem}.png"
+        _atomic_write_bytes(target, lambda fh, fig=fig: fig.savefig(fh, format="png", dpi=110))
+        made.append((stem, caption))
+    try:
+        rows = modal_table(ds)
+    except AmiXrValueError as err:
+        rows = []
+        skipped.append(("modal table", str(err)))
+    if rows:
+
+        def write_csv(fh):
+            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+
+        _atomic_write_bytes(outdir / "modal_table.csv", write_csv, mode="w")
+    page = _html(
+        ds,
+        rows,
+        made,
+        skipped,
+        title or f"ami_xr report: {ds.attrs.get(names.ATTR_SOURCE_FILE, 'dataset')}",
+    )
+    index = outdir / "index.html"
+    _atomic_write_bytes(index, lambda fh: fh.write(page.encode("utf-8")))
+    return index
+
+
+def _html(ds, rows, made, skipped, title) -> str:
+    e = html.escape
+    buf = io.StringIO()
+    buf.write(
+        "<!DOCTYPE html>\n<html><head><meta charset='utf-8'>"
+        f"<title>{e(title)}</title><style>"
+        "body{font-family:sans-serif;margin:2em;max-width:1200px}"
+        "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;"
+        "text-align:right}th{background:#eee}td.l{text-align:left}"
+        "img{max-width:100%;border:1px solid #ddd}.flag{color:#b00}"
+        "</style></head><body>\n"
+    )
+    buf.write(f"<h1>{e(title)}</h1>\n<table>\n")
+    for k, v in _attrs_summary(ds):
+        buf.write(f"<tr><th>{e(k)}</th><td class='l'>{e(v)}</td></tr>\n")
+    buf.write("</table>\n<h2>Modal table</h2>\n")
+    if rows:
+        buf.write(
+            "<table><tr><th>mode</th><th>f [Hz]</th><th>&omega; [rad/s]</th>"
+            "<th>&zeta; [%]</th><th>eigenvalue [rad/s]</th><th>detected in</th>"
+            "<th>flags</th></tr>\n"
+        )
+        for r in rows:
+            lam = r["eigenvalue"]
+            lam_text = "" if not np.isfinite(lam) else f"{lam.real:.6g} {lam.imag:+.6g}i"
+            buf.write(
+                f"<tr><td>{e(str(r['mode']))}</td><td>{r['frequency_hz']:.6g}</td>"
+                f"<td>{r['frequency_rad_s']:.6g}</td><td>{r['damping_percent']:.4g}</td>"
+                f"<td>{e(lam_text)}</td><td class='l'>{e(r['detected_in'])}</td>"
+                f"<td class='l flag'>{e(r['flags'])}</td></tr>\n"
+            )
+        buf.write("</table>\n<p><a href='modal_table.csv'>modal_table.csv</a></p>\n")
+    else:
+        buf.write("<p>No modes identified.</p>\n")
+    for stem, caption in made:
+        buf.write(
+            f"<h2>{e(stem.replace('_', ' '))}</h2>\n<p>{e(caption)}</p>\n"
+            f"<img src='{e(stem)}.png' alt='{e(stem)}'>\n"
+        )
+    if skipped:
+        buf.write("<h2>Not produced</h2>\n<ul>\n")
+        for stem, why in skipped:
+            buf.write(f"<li><b>{e(stem)}</b>: {e(why)}</li>\n")
+        buf.write("</ul>\n")
+    buf.write("</body></html>\n")
+    return buf.getvalue()
