@@ -21,6 +21,13 @@ from ami_xr.errors import (  # noqa: E402
 
 # Public functions are added below as their modules land (keep one import line per module).
 from ami_xr import simulate  # noqa: E402
+from ami_xr.io import (  # noqa: E402
+    make_frf_dataset,
+    make_time_dataset,
+    open_dataset,
+    to_netcdf,
+    validate,
+)
 
 from ami_xr import accessor as _accessor  # noqa: E402,F401  (registers ds.ami)
 
@@ -35,4 +42,9 @@ __all__ = [
     "IdentificationError",
     "NoModesWarning",
     "SchemaError",
+    "validate",
+    "open_dataset",
+    "to_netcdf",
+    "make_frf_dataset",
+    "make_time_dataset",
 ]

@@ -31,3 +31,9 @@ class AmiAccessor:
 
     # Methods are added as ``name = _method(public_function)``, one line each, imported lazily
     # at the bottom of this module to avoid import cycles.
+
+
+from ami_xr.io import to_netcdf, validate  # noqa: E402
+
+AmiAccessor.validate = _method(validate)
+AmiAccessor.to_netcdf = _method(to_netcdf)

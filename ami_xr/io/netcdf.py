@@ -1,0 +1,448 @@
+"""netCDF files: lossless encode/decode of what netCDF cannot store, atomic writes, lazy opening.
+
+On-disk conventions (readable without ami_xr, see the README's "netCDF files" section):
+
+* A complex variable ``z`` with dims ``(d1, ..., dn)`` is stored as a float variable ``z`` with
+  dims ``(d1, ..., dn, "complex")``; index 0 of the trailing dim holds the real part, index 1 the
+  imaginary part (complex128 -> float64, complex64 -> float32), bit for bit. The variable carries
+  the attribute ``ami_xr_complex = "real,imag along last dim 'complex'"``. Plain xarray recovers
+  it with ``raw.z.isel(complex=0) + 1j * raw.z.isel(complex=1)`` (exact except for the sign of
+  zero and NaN imaginary parts; use the view in the README for bit-exact values).
+* Boolean variables are stored by xarray as int8 with the attribute ``dtype = "bool"`` (plain
+  xarray decodes them back).
+* Attributes netCDF cannot hold natively (bool, complex, None, dict, empty or one-element
+  lists, integers beyond int64) are stored in a plain form, and the attribute
+  ``ami_xr_encoded_attrs`` of the same variable (or of the Dataset) holds a JSON object
+  ``{attribute name: tag}`` saying how to decode each: ``"bool"`` (int8 0/1), ``"bool[]"``
+  (int8 array), ``"complex"`` (float array ``[real, imag]``), ``"complex[]"`` (float array
+  ``[re0, im0, re1, im1, ...]``), ``"json"`` (a JSON string), ``"[1]"`` (a one-element
+  array stored as a scalar).
+* Float variables are written without ``_FillValue`` so every bit pattern (NaN payloads, -0.0)
+  comes back unchanged.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import uuid
+from numbers import Integral
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr._provenance import add_history
+from ami_xr.errors import AmiXrValueError, DataFileError
+
+__all__ = [
+    "open_dataset",
+    "to_netcdf",
+    "encode",
+    "decode",
+    "LAZY_THRESHOLD_BYTES",
+    "ATTR_COMPLEX",
+    "ATTR_COMPLEX_VALUE",
+    "ATTR_ENCODED_ATTRS",
+]
+
+ENGINE = "netcdf4"
+FORMAT = "NETCDF4"  # needed for int64 and variable-length strings
+
+# Files larger than this open lazily (dask-backed) when neither ``chunks`` nor ``lazy`` is given.
+LAZY_THRESHOLD_BYTES = 256 * 2**20
+
+ATTR_COMPLEX = "ami_xr_complex"
+ATTR_COMPLEX_VALUE = f"real,imag along last dim {names.COMPLEX!r}"
+ATTR_ENCODED_ATTRS = "ami_xr_encoded_attrs"
+_RESERVED_ATTRS = (ATTR_COMPLEX, ATTR_ENCODED_ATTRS)
+
+_INT64 = np.iinfo(np.int64)
+
+
+# --- complex <-> (real, imag) pairs, bit exact ---------------------------------------------------
+
+
+def _to_pairs(z: np.ndarray) -> np.ndarray:
+    """complex (...,) -> float (..., 2) by reinterpreting memory (no arithmetic, bit exact)."""
+    z = np.asarray(z)
+    if not z.flags.c_contiguous:
+        z = z.copy(order="C")
+    return z.reshape(-1).view(z.real.dtype).reshape(z.shape + (2,))
+
+
+def _from_pairs(x: np.ndarray) -> np.ndarray:
+    """float (..., 2) -> complex (...,) by reinterpreting memory (no arithmetic, bit exact).
+
+    ``re + 1j * im`` is not exact: it turns -0.0 real parts into +0.0 and a NaN imaginary part
+    into a NaN real part.
+    """
+    x = np.asarray(x)
+    if not x.flags.c_contiguous:
+        x = x.copy(order="C")
+    ctype = np.result_type(x.dtype, np.complex64)
+    return x.reshape(-1).view(ctype).reshape(x.shape[:-1])
+
+
+def _encode_complex_variable(name: str, var: xr.Variable) -> xr.Variable:
+    if names.COMPLEX in var.dims:
+        raise AmiXrValueError(
+            f"variable {name!r}: already has a dim {names.COMPLEX!r}, reserved for the on-disk "
+            "complex encoding"
+        )
+    out = xr.apply_ufunc(
+        _to_pairs,
+        var,
+        input_core_dims=[[]],
+        output_core_dims=[[names.COMPLEX]],
+        dask="parallelized",
+        output_dtypes=[var.dtype.type(0).real.dtype],
+        dask_gufunc_kwargs={"output_sizes": {names.COMPLEX: 2}},
+    )
+    out.attrs = {**var.attrs, ATTR_COMPLEX: ATTR_COMPLEX_VALUE}
+    return out
+
+
+def _decode_complex_variable(name: str, var: xr.Variable) -> xr.Variable:
+    if (
+        not var.dims
+        or var.dims[-1] != names.COMPLEX
+        or var.shape[-1] != 2
+        or not np.issubdtype(var.dtype, np.floating)
+    ):
+        raise ValueError(
+            f"variable {name!r} is flagged {ATTR_COMPLEX!r} but is not float with a last dim "
+            f"{names.COMPLEX!r} of length 2 (dims {var.dims}, dtype {var.dtype})"
+        )
+    out = xr.apply_ufunc(
+        _from_pairs,
+        var,
+        input_core_dims=[[names.COMPLEX]],
+        output_core_dims=[[]],
+        dask="parallelized",
+        output_dtypes=[np.result_type(var.dtype, np.complex64)],
+        dask_gufunc_kwargs={"allow_rechunk": True},
+        keep_attrs=True,
+    )
+    del out.attrs[ATTR_COMPLEX]
+    return out
+
+
+# --- attributes -----------------------------------------------------------------------------------
+
+
+def _encode_attr(key: str, value: Any, owner: str) -> tuple[Any, str | None]:
+    """(value netCDF can store, tag or None) for one attribute."""
+
+    def fail(why: str) -> AmiXrValueError:
+        return AmiXrValueError(
+            f"attribute {key!r} of {owner}: {why}; netCDF attributes can hold str, numbers, bool, "
+            "complex, 1-D lists/arrays of those, dict and None (JSON-serialisable)"
+        )
+
+    if isinstance(value, (bool, np.bool_)):
+        return np.int8(value), "bool"
+    if isinstance(value, (complex, np.complexfloating)):
+        return _to_pairs(np.asarray(value)), "complex"
+    if isinstance(value, str):
+        if "\x00" in value:
+            raise fail("a NUL character cannot be stored in a netCDF string")
+        return value, None
+    if isinstance(value, Integral):
+        if _INT64.min <= int(value) <= _INT64.max:
+            return value, None
+        return json.dumps(int(value)), "json"
+    if isinstance(value, (float, np.floating)):
+        return value, None
+    if value is None or isinstance(value, dict):
+        try:
+            return json.dumps(value), "json"
+        except (TypeError, ValueError) as err:
+            raise fail(f"a {type(value).__name__} that is not JSON-serialisable ({err})") from err
+    if isinstance(value, (list, tuple, np.ndarray)):
+        arr = np.asarray(value) if not isinstance(value, np.ndarray) else value
+        if arr.ndim != 1:
+            raise fail(f"a {arr.ndim}-D array cannot be an attribute (store it as a variable)")
+        if arr.size == 0 or arr.dtype == object:
+            try:
+                return json.dumps(_json_list(value)), "json"
+            except (TypeError, ValueError) as err:
+                raise fail(f"a list of mixed or unsupported types ({err})") from err
+        if arr.dtype.kind == "b":
+            return arr.astype(np.int8), "bool[]"
+        if arr.dtype.kind == "c":
+            return _to_pairs(arr).reshape(-1), "complex[]"
+        if arr.dtype.kind == "U" and any("\x00" in s for s in arr):
+            raise fail("a NUL character cannot be stored in a netCDF string")
+        if arr.dtype.kind not in "iufU":
+            raise fail(f"arrays of dtype {arr.dtype} are not supported")
+        if arr.dtype.kind == "u" and arr.dtype.itemsize == 8 and arr.max() > _INT64.max:
+            raise fail("uint64 values beyond int64")
+        if arr.size == 1:  # netCDF reads a one-element attribute back as a scalar
+            return (arr[0].item() if arr.dtype.kind == "U" else arr[0]), "[1]"
+        return value, None
+    raise fail(f"type {type(value).__name__} is not supported")
+
+
+def _json_list(value: Any) -> Any:
+    return [v.item() if isinstance(v, np.generic) else v for v in value]
+
+
+def _decode_attr(value: Any, tag: str) -> Any:
+    if tag == "bool":
+        return bool(value)
+    if tag == "bool[]":
+        return np.atleast_1d(np.asarray(value)).astype(bool)
+    if tag == "complex":
+        return _from_pairs(np.asarray(value)).item()
+    if tag == "complex[]":
+        return _from_pairs(np.asarray(value).reshape(-1, 2))
+    if tag == "json":
+        return json.loads(value)
+    if tag == "[1]":
+        return np.atleast_1d(np.asarray(value))
+    raise ValueError(f"unknown attribute encoding tag {tag!r}")
+
+
+def _encode_attrs(attrs: dict, owner: str) -> dict:
+    out: dict[str, Any] = {}
+    tags: dict[str, str] = {}
+    for key, value in attrs.items():
+        if not isinstance(key, str):
+            raise AmiXrValueError(
+                f"attribute {key!r} of {owner}: netCDF attribute names must be str"
+            )
+        if key in _RESERVED_ATTRS:
+            raise AmiXrValueError(
+                f"attribute {key!r} of {owner}: the name is reserved for ami_xr's netCDF encoding"
+            )
+        out[key], tag = _encode_attr(key, value, owner)
+        if tag is not None:
+            tags[key] = tag
+    if tags:
+        out[ATTR_ENCODED_ATTRS] = json.dumps(tags)
+    return out
+
+
+def _decode_attrs(attrs: dict) -> dict:
+    attrs = dict(attrs)
+    raw = attrs.pop(ATTR_ENCODED_ATTRS, None)
+    if raw is None:
+        return attrs
+    tags = json.loads(raw)
+    for key, tag in tags.items():
+        attrs[key] = _decode_attr(attrs[key], tag)
+    return attrs
+
+
+# --- whole Datasets -------------------------------------------------------------------------------
+
+
+def _rebuild(ds: xr.Dataset, variables: dict[str, xr.Variable], attrs: dict) -> xr.Dataset:
+    coord_names = set(ds.coords)
+    return xr.Dataset(
+        {k: v for k, v in variables.items() if k not in coord_names},
+        coords={k: v for k, v in variables.items() if k in coord_names},
+        attrs=attrs,
+    )
+
+
+def encode(ds: xr.Dataset) -> xr.Dataset:
+    """The Dataset as it is written to disk: complex variables as (real, imag) pairs, attributes
+    netCDF cannot hold tagged, stale encodings dropped. Lazy (dask) data stays lazy.
+
+    Raises :class:`~ami_xr.errors.AmiXrValueError` (naming the variable or attribute) for what
+    cannot be stored: complex dimension coordinates, 2-D attributes, unsupported types.
+    """
+    if names.COMPLEX in ds.dims:
+        raise AmiXrValueError(
+            f"ds: has a dim {names.COMPLEX!r}, reserved for the on-disk complex encoding; "
+            "rename it before writing"
+        )
+    variables: dict[str, xr.Variable] = {}
+    for name, var in ds.variables.items():
+        owner = f"variable {name!r}"
+        var = var.copy(deep=False)
+        var.encoding = {}
+        var.attrs = _encode_attrs(var.attrs, owner)
+        if np.issubdtype(var.dtype, np.complexfloating):
+            if name in ds.dims:
+                raise AmiXrValueError(
+                    f"coordinate {name!r}: a complex dimension coordinate cannot be written to "
+                    "netCDF; make it a non-index coordinate or drop it"
+                )
+            var = _encode_complex_variable(str(name), var.to_base_variable())
+        if np.issubdtype(var.dtype, np.floating):
+            var.encoding = {"_FillValue": None}  # keep every bit pattern; NaN is stored as is
+        variables[name] = var
+    return _rebuild(ds, variables, _encode_attrs(ds.attrs, "the Dataset"))
+
+
+def decode(ds: xr.Dataset) -> xr.Dataset:
+    """Inverse of :func:`encode`: complex variables back from (real, imag), attributes untagged.
+
+    Works lazily on dask-backed Datasets (nothing is read).
+    """
+    variables: dict[str, xr.Variable] = {}
+    for name, var in ds.variables.items():
+        if ATTR_COMPLEX in var.attrs:
+            var = _decode_complex_variable(str(name), var.to_base_variable())
+        else:
+            var = var.copy(deep=False)
+        var.attrs = _decode_attrs(var.attrs)
+        variables[name] = var
+    return _rebuild(ds, variables, _decode_attrs(ds.attrs))
+
+
+# --- files ----------------------------------------------------------------------------------------
+
+
+def _check_dask(argument: str) -> None:
+    try:
+        import dask.array  # noqa: F401
+    except ImportError as err:  # pragma: no cover - dask is installed in the test environment
+        raise AmiXrValueError(
+            f"{argument}: lazy opening needs dask (pip install 'ami_xr[dask]')"
+        ) from err
+
+
+def open_dataset(
+    path: str | os.PathLike,
+    chunks: dict[str, int] | int | str | None = None,
+    lazy: bool | None = None,
+) -> xr.Dataset:
+    """Open an ami_xr netCDF file, decoding complex variables and tagged attributes.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The netCDF file.
+    chunks : dict, int or "auto", optional
+        dask chunk sizes, e.g. ``{"time": 2**20}``; implies ``lazy=True``.
+    lazy : bool, optional
+        Whether to return dask-backed variables instead of reading the file into memory.
+        The rule when ``lazy`` is None: lazy if ``chunks`` is given or the file is larger than
+        ``LAZY_THRESHOLD_BYTES`` (256 MiB; chunks then default to ``"auto"``), eager otherwise.
+        An eager open reads everything and closes the file. A lazy open keeps the file open and
+        reads on compute; decoding complex variables stays lazy too.
+
+    Returns
+    -------
+    xarray.Dataset
+        With attribute ``source_file`` set to the absolute path read.
+
+    Raises
+    ------
+    DataFileError
+        If the file is missing, not a netCDF file, truncated or not decodable; the message names
+        the file.
+    AmiXrValueError
+        If ``lazy=False`` is combined with ``chunks``.
+    """
+    path = Path(path)
+    if lazy is False and chunks is not None:
+        raise AmiXrValueError(f"chunks: given {chunks!r} but lazy=False; chunks imply a lazy open")
+    if not path.exists():
+        raise DataFileError(f"{path}: no such file")
+    if not path.is_file():
+        raise DataFileError(f"{path}: not a file")
+    if lazy is None:
+        lazy = chunks is not None or path.stat().st_size > LAZY_THRESHOLD_BYTES
+    if lazy:
+        _check_dask("lazy")
+        chunks = "auto" if chunks is None else chunks
+    try:
+        raw = xr.open_dataset(
+            path, engine=ENGINE, chunks=chunks if lazy else None, decode_timedelta=False
+        )
+        if not lazy:
+            with raw:
+                raw = raw.load()
+        ds = decode(raw)
+    except (OSError, RuntimeError, ValueError, KeyError, IndexError, TypeError) as err:
+        raise DataFileError(
+            f"{path}: cannot read it as an ami_xr netCDF file (missing, truncated or not netCDF?): "
+            f"{type(err).__name__}: {err}"
+        ) from err
+    ds.attrs[names.ATTR_SOURCE_FILE] = str(path.resolve())
+    return ds
+
+
+def _fsync(path: Path) -> None:
+    with open(path, "rb+") as f:
+        os.fsync(f.fileno())
+
+
+def to_netcdf(
+    ds: xr.Dataset,
+    path: str | os.PathLike,
+    *,
+    function: str | None = None,
+    parameters: dict[str, Any] | None = None,
+) -> Path:
+    """Write ``ds`` to a netCDF file atomically, with provenance.
+
+    The Dataset is encoded (see the module docstring: complex as real/imag pairs, special
+    attributes tagged), a provenance record is appended to ``ami_xr_history`` (the writing
+    ``function`` and its ``parameters``, UTC time, ami_xr version and the Dataset's
+    ``source_file`` if it has one), and the file is written to a temporary file in the target
+    folder that then replaces ``path`` with ``os.replace``.
+
+    Guarantees: on any error the temporary file is removed and an existing ``path`` is left
+    untouched; ``path`` may be the file ``ds`` was lazily opened from (the old file stays
+    readable until the new one is complete, then is swapped in one rename; POSIX only).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Any Dataset (not validated: modal results are written too).
+    path : str or path-like
+        Target file; its folder must exist.
+    function : str, optional
+        Name of the function that produced the data, for the provenance record
+        (default ``"ami_xr.to_netcdf"``).
+    parameters : dict, optional
+        Its parameters (JSON-serialised in the record).
+
+    Returns
+    -------
+    pathlib.Path
+        The absolute path written.
+
+    Raises
+    ------
+    AmiXrValueError
+        Something in ``ds`` netCDF cannot store (raised before any file is touched).
+    DataFileError
+        The folder is missing or the file cannot be written.
+    """
+    if not isinstance(ds, xr.Dataset):
+        raise AmiXrValueError(f"ds: expected an xarray.Dataset, got {type(ds).__name__}")
+    path = Path(path).absolute()
+    if not path.parent.is_dir():
+        raise DataFileError(f"{path}: folder {path.parent} does not exist")
+    if path.is_dir():
+        raise DataFileError(f"{path}: is a folder, expected a file path")
+    recorded = add_history(
+        ds,
+        function or "ami_xr.to_netcdf",
+        parameters,
+        source_file=ds.attrs.get(names.ATTR_SOURCE_FILE),
+    )
+    encoded = encode(recorded)  # raises on unstorable content before any file exists
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
+    try:
+        # O_EXCL: never clobber a file we did not create; 0o666 lets the umask decide the mode.
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+        encoded.to_netcdf(tmp, mode="w", format=FORMAT, engine=ENGINE)
+        _fsync(tmp)
+        os.replace(tmp, path)
+    except OSError as err:
+        tmp.unlink(missing_ok=True)
+        raise DataFileError(f"{path}: cannot write: {type(err).__name__}: {err}") from err
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path

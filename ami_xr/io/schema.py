@@ -1,0 +1,723 @@
+"""Schema validation of ami_xr Datasets, and constructors that build conforming ones.
+
+:func:`validate` checks a Dataset against the data model (see ``ami_xr.names`` and the README's
+"Data model" section) and reports every problem at once in one :class:`~ami_xr.errors.SchemaError`.
+:func:`make_frf_dataset` and :func:`make_time_dataset` build a valid Dataset from plain arrays in
+one call; their errors name the argument instead of the variable.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from numbers import Integral, Real
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.errors import AmiXrValueError, SchemaError
+
+__all__ = ["validate", "make_frf_dataset", "make_time_dataset", "KINDS", "UNIFORM_RTOL"]
+
+KINDS = ("frf", "time")
+
+# Dataset attribute of impulse-response time Datasets that carry no force record.
+ATTR_EXCITATION = "excitation"
+EXCITATION_UNIT_IMPULSE = "unit_impulse"
+
+# Time steps may differ from their mean by this fraction of the step (float rounding of t = i*dt).
+UNIFORM_RTOL = 1e-6
+
+_MULTI_REFERENCE = (
+    f"has a leading {names.REFERENCE!r} dim: multi-reference data is not supported yet "
+    f"(select one reference first, e.g. ds.isel({names.REFERENCE}=0))"
+)
+
+
+def _shorten(values: Any, limit: int = 8) -> str:
+    values = list(values)
+    text = ", ".join(repr(_plain(v)) for v in values[:limit])
+    return f"[{text}{', ...' if len(values) > limit else ''}]"
+
+
+def _plain(value: Any) -> Any:
+    """numpy scalars -> Python scalars so messages read ``3`` rather than ``np.int64(3)``."""
+    return value.item() if isinstance(value, np.generic) else value
+
+
+class _Namer:
+    """Says how a message refers to a variable, coordinate or attribute.
+
+    ``validate`` names Dataset parts ("variable 'frf'"); the ``make_*`` constructors map them to
+    their own argument names ("argument 'points'").
+    """
+
+    def __init__(self, arguments: Mapping[str, str] | None = None):
+        self.arguments = dict(arguments or {})
+
+    def _name(self, kind: str, name: str) -> str:
+        if name in self.arguments:
+            return f"argument {self.arguments[name]!r}"
+        return f"{kind} {name!r}"
+
+    def var(self, name: str) -> str:
+        return self._name("variable", name)
+
+    def coord(self, name: str) -> str:
+        return self._name("coordinate", name)
+
+    def attr(self, name: str) -> str:
+        return self._name("attribute", name)
+
+    def var_attr(self, var: str, attr: str) -> str:
+        key = f"{var}.{attr}"
+        if key in self.arguments:
+            return f"argument {self.arguments[key]!r}"
+        return f"attribute {attr!r} of variable {var!r}"
+
+
+# --- small checks, each appends to ``problems`` -------------------------------------------------
+
+
+def _check_finite(da: xr.DataArray, subject: str, problems: list[str]) -> None:
+    """Report NaN and inf values of ``da`` (one pass over the data; locations only if bad)."""
+    if da.size == 0 or not (
+        np.issubdtype(da.dtype, np.floating) or np.issubdtype(da.dtype, np.complexfloating)
+    ):
+        return
+    n_bad = int((~np.isfinite(da)).sum())
+    if n_bad == 0:
+        return
+    bad = ~np.isfinite(np.asarray(da.values))
+    n_nan = int(np.isnan(da.values).sum())
+    first = np.unravel_index(int(np.argmax(bad)), bad.shape)
+    where = ", ".join(f"{dim}={i}" for dim, i in zip(da.dims, first, strict=True))
+    problems.append(
+        f"{subject}: expected finite values, found {n_nan} NaN and {n_bad - n_nan} inf "
+        f"(first at index {where})"
+    )
+
+
+def _check_axis(
+    ds: xr.Dataset,
+    dim: str,
+    units: str,
+    namer: _Namer,
+    problems: list[str],
+    *,
+    uniform: bool = False,
+    nonnegative: bool = False,
+) -> None:
+    """Check a frequency or time coordinate: present, real, finite, strictly increasing."""
+    subject = namer.coord(dim)
+    if dim not in ds.coords:
+        problems.append(f"{subject}: missing (expected 1-D values in {units} along dim {dim!r})")
+        return
+    coord = ds.coords[dim]
+    if coord.dims != (dim,):
+        problems.append(f"{subject}: expected dims ({dim!r},), got {coord.dims}")
+        return
+    if not (np.issubdtype(coord.dtype, np.floating) or np.issubdtype(coord.dtype, np.integer)):
+        problems.append(f"{subject}: expected real numbers in {units}, got dtype {coord.dtype}")
+        return
+    if coord.attrs.get(names.ATTR_UNITS) != units:
+        problems.append(
+            f"{namer.var_attr(dim, names.ATTR_UNITS)}: expected {units!r}, "
+            f"got {coord.attrs.get(names.ATTR_UNITS)!r}"
+        )
+    values = np.asarray(coord.values, dtype=np.float64)
+    if values.size == 0:
+        return  # reported as an empty variable
+    if not np.all(np.isfinite(values)):
+        problems.append(f"{subject}: expected finite values, found NaN or inf")
+        return
+    if nonnegative and values[0] < 0:
+        problems.append(
+            f"{subject}: expected non-negative frequencies, got {int((values < 0).sum())} "
+            f"negative (smallest {values.min()!r})"
+        )
+    steps = np.diff(values)
+    dup = np.flatnonzero(steps == 0)
+    if dup.size:
+        problems.append(
+            f"{subject}: expected strictly increasing values, found duplicate {dim} values "
+            f"{_shorten(values[dup])}"
+        )
+    down = np.flatnonzero(steps < 0)
+    if down.size:
+        i = down[0]
+        problems.append(
+            f"{subject}: expected strictly increasing values, not increasing at {down.size} "
+            f"place(s) (first: index {i} = {values[i]!r} then {values[i + 1]!r})"
+        )
+    if uniform and steps.size > 1 and not dup.size and not down.size:
+        dt = (values[-1] - values[0]) / steps.size
+        tol = UNIFORM_RTOL * dt + 8 * np.finfo(np.float64).eps * np.abs(values).max()
+        worst = int(np.argmax(np.abs(steps - dt)))
+        if abs(steps[worst] - dt) > tol:
+            problems.append(
+                f"{subject}: expected uniform steps, step {worst} is {steps[worst]!r} s "
+                f"but the mean step is {dt!r} s (relative tolerance {UNIFORM_RTOL})"
+            )
+
+
+def _check_points(ds: xr.Dataset, namer: _Namer, problems: list[str]) -> np.ndarray | None:
+    """Check the point labels; return them when usable, else None."""
+    subject = namer.coord(names.POINT)
+    if names.POINT not in ds.coords:
+        problems.append(f"{subject}: missing (expected unique int or str labels along dim 'point')")
+        return None
+    labels = np.asarray(ds.coords[names.POINT].values)
+    if labels.ndim != 1:
+        problems.append(f"{subject}: expected a 1-D coordinate, got shape {labels.shape}")
+        return None
+    is_int = np.issubdtype(labels.dtype, np.integer)
+    is_str = labels.dtype.kind == "U" or (
+        labels.dtype == object and all(isinstance(v, str) for v in labels)
+    )
+    if not (is_int or is_str):
+        problems.append(f"{subject}: expected int or str labels, got dtype {labels.dtype}")
+        return None
+    uniq, counts = np.unique(labels.astype(str) if is_str else labels, return_counts=True)
+    if np.any(counts > 1):
+        problems.append(
+            f"{subject}: expected unique labels, duplicates {_shorten(uniq[counts > 1])}"
+        )
+    return labels
+
+
+def _check_drive_point(
+    ds: xr.Dataset, labels: np.ndarray | None, require: bool, namer: _Namer, problems: list[str]
+) -> None:
+    subject = namer.attr(names.ATTR_DRIVE_POINT)
+    if names.ATTR_DRIVE_POINT not in ds.attrs:
+        if require:
+            problems.append(
+                f"{subject}: missing (expected the label of the point where the force acts; "
+                "pass require_drive_point=False to accept unscaled mode vectors)"
+            )
+        return
+    if not require or labels is None:
+        return
+    dp = ds.attrs[names.ATTR_DRIVE_POINT]
+    if np.issubdtype(labels.dtype, np.integer):
+        ok_type = isinstance(dp, Integral) and not isinstance(dp, (bool, np.bool_))
+        kind = "int"
+    else:
+        ok_type = isinstance(dp, str)
+        kind = "str"
+    if not ok_type:
+        problems.append(
+            f"{subject}: expected a point label of type {kind}, got {_plain(dp)!r} "
+            f"({type(dp).__name__})"
+        )
+    elif not np.any(labels == dp):
+        problems.append(
+            f"{subject}: {_plain(dp)!r} is not among the point labels {_shorten(labels)}"
+        )
+
+
+def _check_quantity_units(
+    ds: xr.Dataset, namer: _Namer, problems: list[str], *, need_frf_type: bool
+) -> tuple[str | None, str | None]:
+    """Check quantity, frf_type and units attrs; return the (response, force) units if valid."""
+    quantities = tuple(names.RESPONSE_UNITS)
+    q = ds.attrs.get(names.ATTR_QUANTITY)
+    if q not in quantities:
+        got = "missing" if q is None else f"got {q!r}"
+        problems.append(f"{namer.attr(names.ATTR_QUANTITY)}: expected one of {quantities}, {got}")
+        q = None
+    if need_frf_type:
+        want = names.QUANTITY_TO_FRF_TYPE.get(q) if q else None
+        got_type = ds.attrs.get(names.ATTR_FRF_TYPE)
+        allowed = (want,) if want else tuple(names.FRF_TYPE_TO_QUANTITY)
+        if got_type not in allowed:
+            got = "missing" if got_type is None else f"got {got_type!r}"
+            expected = f"{want!r} (response_quantity is {q!r})" if want else f"one of {allowed}"
+            problems.append(f"{namer.attr(names.ATTR_FRF_TYPE)}: expected {expected}, {got}")
+    resp_units = ds.attrs.get(names.ATTR_RESPONSE_UNITS)
+    allowed_units = (
+        names.RESPONSE_UNITS[q]
+        if q
+        else tuple(u for us in names.RESPONSE_UNITS.values() for u in us)
+    )
+    if resp_units not in allowed_units:
+        got = "missing" if resp_units is None else f"got {resp_units!r}"
+        of = f" for {q}" if q else ""
+        problems.append(
+            f"{namer.attr(names.ATTR_RESPONSE_UNITS)}: expected one of {allowed_units}{of}, {got}"
+        )
+        resp_units = None
+    force_units = ds.attrs.get(names.ATTR_FORCE_UNITS)
+    if force_units not in names.FORCE_UNITS:
+        got = "missing" if force_units is None else f"got {force_units!r}"
+        problems.append(
+            f"{namer.attr(names.ATTR_FORCE_UNITS)}: expected one of {names.FORCE_UNITS}, {got}"
+        )
+        force_units = None
+    return resp_units, force_units
+
+
+def _is_positive_number(value: Any) -> bool:
+    return (
+        isinstance(value, Real)
+        and not isinstance(value, (bool, np.bool_))
+        and bool(np.isfinite(value))
+        and value > 0
+    )
+
+
+def _check_empty(da: xr.DataArray, subject: str, problems: list[str]) -> bool:
+    if da.size == 0:
+        problems.append(f"{subject}: empty (expected at least one value, got shape {da.shape})")
+        return True
+    return False
+
+
+# --- the two kinds of Dataset -------------------------------------------------------------------
+
+
+def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool, namer: _Namer):
+    problems: list[str] = []
+    want_dims = (names.POINT, names.FREQUENCY)
+    if names.FRF not in ds.data_vars:
+        problems.append(
+            f"{namer.var(names.FRF)}: missing (expected complex FRF with dims {want_dims})"
+        )
+        frf = None
+    else:
+        frf = ds[names.FRF]
+        subject = namer.var(names.FRF)
+        if names.REFERENCE in frf.dims:
+            problems.append(f"{subject}: {_MULTI_REFERENCE}")
+        elif names.COMPLEX in frf.dims:
+            problems.append(
+                f"{subject}: has the on-disk dim {names.COMPLEX!r} (real, imag); "
+                "open the file with ami_xr.open_dataset to decode it"
+            )
+        elif frf.dims != want_dims:
+            problems.append(f"{subject}: expected dims {want_dims}, got {frf.dims}")
+        if not np.issubdtype(frf.dtype, np.complexfloating):
+            problems.append(
+                f"{subject}: expected complex values (complex128), got dtype {frf.dtype}"
+            )
+        empty = _check_empty(frf, subject, problems)
+        if check_values and not empty:
+            _check_finite(frf, subject, problems)
+    _check_axis(ds, names.FREQUENCY, names.FREQUENCY_UNITS, namer, problems, nonnegative=True)
+    labels = _check_points(ds, namer, problems)
+    _check_drive_point(ds, labels, require_drive_point, namer, problems)
+    resp_units, force_units = _check_quantity_units(ds, namer, problems, need_frf_type=True)
+    if frf is not None and resp_units and force_units:
+        want = names.frf_units(resp_units, force_units)
+        got = frf.attrs.get(names.ATTR_UNITS)
+        if got != want:
+            problems.append(
+                f"{namer.var_attr(names.FRF, names.ATTR_UNITS)}: expected {want!r} "
+                f"(response_units/force_units), got {got!r}"
+            )
+    source = ds.attrs.get(names.ATTR_SOURCE)
+    if source not in names.SOURCES:
+        got = "missing" if source is None else f"got {source!r}"
+        problems.append(f"{namer.attr(names.ATTR_SOURCE)}: expected one of {names.SOURCES}, {got}")
+    if source == names.SOURCE_IMPULSE:
+        dt = ds.attrs.get(names.ATTR_DT)
+        if not _is_positive_number(dt):
+            got = "missing" if dt is None else f"got {_plain(dt)!r}"
+            problems.append(
+                f"{namer.attr(names.ATTR_DT)}: expected a positive sample interval in s "
+                f"because frf_source is {source!r}, {got}"
+            )
+        n = ds.attrs.get(names.ATTR_NSAMPLES)
+        if not (_is_positive_number(n) and isinstance(n, Integral)):
+            got = "missing" if n is None else f"got {_plain(n)!r}"
+            problems.append(
+                f"{namer.attr(names.ATTR_NSAMPLES)}: expected a positive integer record length "
+                f"because frf_source is {source!r}, {got}"
+            )
+    if names.ATTR_EXP_DECAY in ds.attrs:
+        decay = ds.attrs[names.ATTR_EXP_DECAY]
+        if not (_is_positive_number(decay) or (isinstance(decay, Real) and decay == 0)):
+            problems.append(
+                f"{namer.attr(names.ATTR_EXP_DECAY)}: expected a finite decay rate >= 0 in 1/s, "
+                f"got {_plain(decay)!r}"
+            )
+    return problems
+
+
+def _signal_problems(
+    ds: xr.Dataset,
+    var: str,
+    allowed: tuple[tuple[str, ...], ...],
+    check_values: bool,
+    namer: _Namer,
+) -> list[str]:
+    problems: list[str] = []
+    da = ds[var]
+    subject = namer.var(var)
+    if names.REFERENCE in da.dims:
+        problems.append(f"{subject}: {_MULTI_REFERENCE}")
+    elif da.dims not in allowed:
+        problems.append(f"{subject}: expected dims {' or '.join(map(str, allowed))}, got {da.dims}")
+    if not np.issubdtype(da.dtype, np.floating):
+        problems.append(f"{subject}: expected real float values (float64), got dtype {da.dtype}")
+    empty = _check_empty(da, subject, problems)
+    if check_values and not empty:
+        _check_finite(da, subject, problems)
+    return problems
+
+
+def _time_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool, namer: _Namer):
+    problems: list[str] = []
+    p, t, r = names.POINT, names.TIME, names.RECORD
+    if names.RESPONSE not in ds.data_vars:
+        problems.append(
+            f"{namer.var(names.RESPONSE)}: missing (expected float responses with dims "
+            f"{(p, t)} or {(r, p, t)})"
+        )
+    else:
+        problems += _signal_problems(ds, names.RESPONSE, ((p, t), (r, p, t)), check_values, namer)
+    if names.FORCE in ds.data_vars:
+        problems += _signal_problems(ds, names.FORCE, ((t,), (r, t)), check_values, namer)
+    elif ds.attrs.get(ATTR_EXCITATION) != EXCITATION_UNIT_IMPULSE:
+        problems.append(
+            f"{namer.var(names.FORCE)}: missing (expected float force with dims {(t,)} or "
+            f"{(r, t)}, or attribute {ATTR_EXCITATION}={EXCITATION_UNIT_IMPULSE!r} for impulse "
+            "responses)"
+        )
+    _check_axis(ds, t, names.TIME_UNITS, namer, problems, uniform=True)
+    labels = _check_points(ds, namer, problems)
+    _check_drive_point(ds, labels, require_drive_point, namer, problems)
+    resp_units, force_units = _check_quantity_units(ds, namer, problems, need_frf_type=False)
+    for var, units in ((names.RESPONSE, resp_units), (names.FORCE, force_units)):
+        if var in ds.data_vars and units and names.ATTR_UNITS in ds[var].attrs:
+            got = ds[var].attrs[names.ATTR_UNITS]
+            if got != units:
+                problems.append(
+                    f"{namer.var_attr(var, names.ATTR_UNITS)}: expected {units!r} "
+                    f"(the Dataset's {'response' if var == names.RESPONSE else 'force'}_units), "
+                    f"got {got!r}"
+                )
+    return problems
+
+
+def _problems(
+    ds: Any, kind: str | None, require_drive_point: bool, check_values: bool, namer: _Namer
+) -> tuple[str, list[str]]:
+    if not isinstance(ds, xr.Dataset):
+        hint = " (e.g. da.to_dataset(name='frf'))" if isinstance(ds, xr.DataArray) else ""
+        raise AmiXrValueError(f"ds: expected an xarray.Dataset{hint}, got {type(ds).__name__}")
+    if kind is not None and kind not in KINDS:
+        raise AmiXrValueError(f"kind: expected None or one of {KINDS}, got {kind!r}")
+    if kind is None:
+        if names.FRF in ds.data_vars:
+            kind = "frf"
+        elif names.RESPONSE in ds.data_vars:
+            kind = "time"
+        else:
+            return "Dataset", [
+                f"{namer.var(names.FRF)} or {namer.var(names.RESPONSE)}: missing (expected "
+                f"{names.FRF!r} for an FRF Dataset or {names.RESPONSE!r} for a time Dataset; "
+                f"has {sorted(map(str, ds.data_vars))})"
+            ]
+    check = _frf_problems if kind == "frf" else _time_problems
+    return f"{'FRF' if kind == 'frf' else 'Time'} Dataset", check(
+        ds, require_drive_point, check_values, namer
+    )
+
+
+def validate(
+    ds: xr.Dataset,
+    kind: str | None = None,
+    *,
+    require_drive_point: bool = True,
+    check_values: bool = True,
+) -> xr.Dataset:
+    """Check ``ds`` against the ami_xr data model and return it unchanged when it conforms.
+
+    Every problem found is reported at once in one :class:`~ami_xr.errors.SchemaError` whose
+    ``problems`` list names, for each, the variable, coordinate or attribute and what was
+    expected.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        An FRF Dataset (``frf`` complex, dims ``(point, frequency)``) or a time Dataset
+        (``response`` float, dims ``([record,] point, time)``, plus ``force``).
+    kind : {None, "frf", "time"}
+        Which model to check against. ``None`` detects it: a Dataset with ``frf`` is an FRF
+        Dataset, one with ``response`` a time Dataset.
+    require_drive_point : bool, default True
+        Require the ``drive_point`` attribute to name one of the points. AMI can run without a
+        measured drive point (mode vectors then stay unscaled): pass False to skip both checks.
+    check_values : bool, default True
+        Scan ``frf``/``response``/``force`` for NaN and inf. This reads all data (it computes
+        lazily opened variables); pass False to check only structure, coordinates and attributes.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``ds`` itself (not a copy), so ``validate`` can be chained.
+
+    Raises
+    ------
+    SchemaError
+        Listing every problem. Extra variables and attributes are allowed and not checked
+        (NaN is fine in them).
+    AmiXrValueError
+        If ``ds`` is not a Dataset or ``kind`` is unknown.
+
+    Examples
+    --------
+    >>> import numpy as np, ami_xr
+    >>> ds = ami_xr.make_frf_dataset(np.ones((2, 3), complex), [0.0, 1.0, 2.0], drive_point=0)
+    >>> ami_xr.validate(ds) is ds
+    True
+    """
+    what, problems = _problems(ds, kind, require_drive_point, check_values, _Namer())
+    if problems:
+        raise SchemaError(problems, what=what)
+    return ds
+
+
+# --- constructors ------------------------------------------------------------------------------
+
+
+def _as_array(value: Any, argument: str) -> Any:
+    """ndarray (or dask array, kept lazy) from array-like ``value``."""
+    if isinstance(value, xr.DataArray):
+        value = value.data
+    if type(value).__module__.startswith("dask"):
+        return value
+    try:
+        return np.asarray(value)
+    except (TypeError, ValueError) as err:
+        raise AmiXrValueError(f"{argument}: expected an array, got {type(value).__name__}") from err
+
+
+def _labels(points: Any, n: int, argument: str = "points") -> np.ndarray:
+    if points is None:
+        return np.arange(n)
+    labels = np.asarray(points)
+    if labels.ndim != 1 or labels.shape[0] != n:
+        raise AmiXrValueError(
+            f"{argument}: expected {n} labels (one per point), got shape {labels.shape}"
+        )
+    return labels
+
+
+def _raise_problems(problems: list[str], function: str) -> None:
+    if problems:
+        raise SchemaError(problems, what=f"{function} arguments")
+
+
+def _std_attrs(
+    drive_point: Any, response_quantity: str, response_units: str, force_units: str
+) -> dict[str, Any]:
+    attrs: dict[str, Any] = {}
+    if drive_point is not None:
+        attrs[names.ATTR_DRIVE_POINT] = _plain(drive_point)
+    attrs[names.ATTR_QUANTITY] = response_quantity
+    attrs[names.ATTR_RESPONSE_UNITS] = response_units
+    attrs[names.ATTR_FORCE_UNITS] = force_units
+    return attrs
+
+
+_ARGUMENTS = {
+    names.FRF: "frf",
+    names.RESPONSE: "response",
+    names.FORCE: "force",
+    names.FREQUENCY: "frequency",
+    names.TIME: "time",
+    names.POINT: "points",
+    names.ATTR_DRIVE_POINT: "drive_point",
+    names.ATTR_QUANTITY: "response_quantity",
+    names.ATTR_RESPONSE_UNITS: "response_units",
+    names.ATTR_FORCE_UNITS: "force_units",
+    names.ATTR_SOURCE: "frf_source",
+}
+
+
+def make_frf_dataset(
+    frf: Any,
+    frequency: Any,
+    points: Any = None,
+    drive_point: Any = None,
+    response_quantity: str = "displacement",
+    response_units: str = "m",
+    force_units: str = "N",
+    frf_source: str = names.SOURCE_MEASURED,
+    **attrs: Any,
+) -> xr.Dataset:
+    """Build a valid FRF Dataset from plain arrays (validated; errors name the argument).
+
+    Parameters
+    ----------
+    frf : array_like of complex, shape (n_point, n_frequency) or (n_frequency,)
+        FRF values; a 1-D array is one point. Real input is rejected (not cast). A dask array
+        stays lazy.
+    frequency : array_like of float, shape (n_frequency,)
+        Frequencies in Hz, non-negative and strictly increasing.
+    points : array_like of int or str, optional
+        Unique point labels; default ``0 .. n_point - 1``.
+    drive_point : int or str, optional
+        Label of the point where the force acts. ``None`` leaves the ``drive_point`` attribute
+        out (AMI then leaves mode vectors unscaled).
+    response_quantity : {"displacement", "velocity", "acceleration"}
+        Sets ``frf_type`` to receptance, mobility or accelerance.
+    response_units, force_units : str
+        One of ``names.RESPONSE_UNITS[response_quantity]`` and of ``names.FORCE_UNITS``;
+        ``frf.attrs["units"]`` becomes ``"<response_units>/<force_units>"``.
+    frf_source : str
+        One of ``names.SOURCES``. For ``"impulse_response"`` pass ``sample_interval=dt`` and
+        ``record_samples=N`` as keyword attributes.
+    **attrs
+        Further Dataset attributes (e.g. ``sample_interval``, ``record_samples``,
+        ``exponential_window_decay``, ``title``).
+
+    Returns
+    -------
+    xarray.Dataset
+
+    Raises
+    ------
+    AmiXrValueError
+        Shapes that do not fit together.
+    SchemaError
+        Every other problem, each naming the argument.
+    """
+    values = _as_array(frf, "frf")
+    if values.ndim == 1:
+        values = values[None, :]
+    if values.ndim != 2:
+        raise AmiXrValueError(
+            f"frf: expected shape (n_point, n_frequency) or (n_frequency,), got {values.shape}"
+            + (" (multi-reference data is not supported yet)" if values.ndim == 3 else "")
+        )
+    freq = _as_array(frequency, "frequency")
+    if freq.ndim != 1 or freq.shape[0] != values.shape[1]:
+        raise AmiXrValueError(
+            f"frequency: expected {values.shape[1]} values (frf.shape[-1]), got shape {freq.shape}"
+        )
+    labels = _labels(points, values.shape[0])
+    ds_attrs = _std_attrs(drive_point, response_quantity, response_units, force_units)
+    frf_type = names.QUANTITY_TO_FRF_TYPE.get(response_quantity)
+    if frf_type is not None:
+        ds_attrs[names.ATTR_FRF_TYPE] = frf_type
+    ds_attrs[names.ATTR_SOURCE] = frf_source
+    ds_attrs.update(attrs)
+    ds = xr.Dataset(
+        {
+            names.FRF: (
+                (names.POINT, names.FREQUENCY),
+                values,
+                {names.ATTR_UNITS: names.frf_units(str(response_units), str(force_units))},
+            )
+        },
+        coords={
+            names.POINT: labels,
+            names.FREQUENCY: (names.FREQUENCY, freq, {names.ATTR_UNITS: names.FREQUENCY_UNITS}),
+        },
+        attrs=ds_attrs,
+    )
+    namer = _Namer(_ARGUMENTS)
+    _, problems = _problems(ds, "frf", drive_point is not None, True, namer)
+    _raise_problems(problems, "make_frf_dataset")
+    return ds
+
+
+def make_time_dataset(
+    response: Any,
+    time: Any = None,
+    *,
+    fs: float | None = None,
+    force: Any = None,
+    points: Any = None,
+    drive_point: Any = None,
+    response_quantity: str = "displacement",
+    response_units: str = "m",
+    force_units: str = "N",
+    **attrs: Any,
+) -> xr.Dataset:
+    """Build a valid time Dataset from plain arrays (validated; errors name the argument).
+
+    Parameters
+    ----------
+    response : array_like of float, shape (n_point, n_time), (n_record, n_point, n_time), (n_time,)
+        Response histories; a 1-D array is one point. A dask array stays lazy.
+    time : array_like of float, shape (n_time,), optional
+        Sample times in s, uniformly spaced. Give exactly one of ``time`` and ``fs``.
+    fs : float, optional
+        Sampling rate in Hz; the time axis is then ``arange(n_time) / fs``.
+    force : array_like of float, shape (n_time,) or (n_record, n_time), optional
+        Force history. ``None`` means the responses are impulse responses to a unit impulse:
+        the attribute ``excitation = "unit_impulse"`` is set.
+    points, drive_point, response_quantity, response_units, force_units
+        As for :func:`make_frf_dataset`.
+    **attrs
+        Further Dataset attributes.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``response`` dims ``([record,] point, time)``, ``force`` dims ``([record,] time)``,
+        ``time`` coordinate with units ``"s"``.
+    """
+    values = _as_array(response, "response")
+    if values.ndim == 1:
+        values = values[None, :]
+    if values.ndim not in (2, 3):
+        raise AmiXrValueError(
+            f"response: expected shape (n_point, n_time), (n_record, n_point, n_time) or "
+            f"(n_time,), got {values.shape}"
+        )
+    n_time = values.shape[-1]
+    if (time is None) == (fs is None):
+        raise AmiXrValueError(
+            "time, fs: give exactly one of the time axis (s) or the sampling rate"
+        )
+    if fs is not None:
+        if not _is_positive_number(fs):
+            raise AmiXrValueError(f"fs: expected a positive sampling rate in Hz, got {fs!r}")
+        t = np.arange(n_time) / float(fs)
+    else:
+        t = _as_array(time, "time")
+        if t.ndim != 1 or t.shape[0] != n_time:
+            raise AmiXrValueError(
+                f"time: expected {n_time} values (response.shape[-1]), got shape {t.shape}"
+            )
+    dims = (
+        (names.POINT, names.TIME) if values.ndim == 2 else (names.RECORD, names.POINT, names.TIME)
+    )
+    labels = _labels(points, values.shape[-2])
+    data_vars: dict[str, Any] = {names.RESPONSE: (dims, values, {names.ATTR_UNITS: response_units})}
+    coords: dict[str, Any] = {
+        names.POINT: labels,
+        names.TIME: (names.TIME, t, {names.ATTR_UNITS: names.TIME_UNITS}),
+    }
+    if values.ndim == 3:
+        coords[names.RECORD] = np.arange(values.shape[0])
+    ds_attrs = _std_attrs(drive_point, response_quantity, response_units, force_units)
+    if force is None:
+        ds_attrs[ATTR_EXCITATION] = EXCITATION_UNIT_IMPULSE
+    else:
+        f = _as_array(force, "force")
+        want = values.shape[:1] + (n_time,) if values.ndim == 3 else (n_time,)
+        if f.shape == (n_time,):
+            fdims: tuple[str, ...] = (names.TIME,)
+        elif values.ndim == 3 and f.shape == want:
+            fdims = (names.RECORD, names.TIME)
+        else:
+            raise AmiXrValueError(
+                f"force: expected shape {(n_time,)}"
+                + (f" or {want}" if values.ndim == 3 else "")
+                + f", got {f.shape}"
+            )
+        data_vars[names.FORCE] = (fdims, f, {names.ATTR_UNITS: force_units})
+    ds_attrs.update(attrs)
+    ds = xr.Dataset(data_vars, coords=coords, attrs=ds_attrs)
+    namer = _Namer(_ARGUMENTS)
+    _, problems = _problems(ds, "time", drive_point is not None, True, namer)
+    _raise_problems(problems, "make_time_dataset")
+    return ds
