@@ -29,6 +29,7 @@ from ami_xr.simulate.modal import (
     residues,
     state_space_modes,
 )
+from ami_xr.simulate.random import mode_peaks, random_system
 
 __all__ = [
     "BENCHMARK_DRIVE_POINT",
@@ -41,7 +42,9 @@ __all__ = [
     "frf_from_impulse",
     "impulse_response",
     "modal_model",
+    "mode_peaks",
     "paper_tables",
+    "random_system",
     "residues",
     "state_space_modes",
 ]

@@ -39,6 +39,7 @@ from scipy.optimize import brentq
 from ami_xr import names
 from ami_xr._provenance import add_history
 from ami_xr.errors import AmiXrValueError
+from ami_xr.kernels.fft import impulse_to_frf, rfft_frequencies
 from ami_xr.simulate.modal import (
     add_noise,
     impulse_response,
@@ -189,19 +190,13 @@ def benchmark_model(J: int = DEFAULT_J) -> xr.Dataset:
 
 
 def _impulse_frf(response: xr.DataArray, dt: float) -> xr.DataArray:
-    """``dt * rfft(h)`` along time, on the grid ``k / (N dt)`` Hz."""
-    try:  # the signal layer's conversion, when it exists
-        from ami_xr.signal.impulse import impulse_to_frf  # type: ignore[import-not-found]
-    except ImportError:
-        impulse_to_frf = None
-    if impulse_to_frf is not None:
-        out = impulse_to_frf(response.to_dataset(name=names.RESPONSE))
-        return out[names.FRF]
+    """``dt * rfft(h)`` along time, on the grid ``k / (N dt)`` Hz (the FFT kernel)."""
     n = response.sizes[names.TIME]
-    freq = np.fft.rfftfreq(n, dt)
+    freq = rfft_frequencies(n, dt)
     g = xr.apply_ufunc(
-        lambda y: dt * np.fft.rfft(y, axis=-1),
+        impulse_to_frf,
         response,
+        kwargs={"dt": dt},
         input_core_dims=[[names.TIME]],
         output_core_dims=[[names.FREQUENCY]],
         exclude_dims={names.TIME},
@@ -213,7 +208,10 @@ def _impulse_frf(response: xr.DataArray, dt: float) -> xr.DataArray:
 
 
 def frf_from_impulse(ts: xr.Dataset) -> xr.Dataset:
-    """FRF Dataset ``dt * rfft(response)`` of an impulse-response Dataset (frf_source="impulse_response")."""
+    """FRF Dataset ``dt * rfft(response)`` of an impulse-response Dataset.
+
+    The result has ``frf_source="impulse_response"``, ``sample_interval`` and ``record_samples``.
+    """
     t = ts[names.TIME].values
     dt = float(t[1] - t[0])
     n = t.size

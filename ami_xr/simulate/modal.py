@@ -466,7 +466,7 @@ def time_axis(time: Any) -> np.ndarray:
 
 
 def _impulse_kernel(residue: np.ndarray, lam: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """h = 2 Re sum_k A_k exp(lam_k t): residue (..., point, mode), lam (..., mode) -> (..., point, time)."""
+    """``h = 2 Re sum_k A_k exp(lam_k t)``: (..., point, mode), (..., mode) -> (..., point, t)."""
     e = np.exp(lam[..., :, np.newaxis] * t)  # (..., mode, time)
     return 2.0 * np.real(np.matmul(residue, e))
 
@@ -476,7 +476,9 @@ def impulse_response(
     time: Any,
     drive_point: Hashable | None = None,
 ) -> xr.Dataset:
-    """Displacement responses to a unit impulse at ``drive_point``: ``h_j(t) = 2 Re sum A_jk e^(lam_k t)``.
+    """Displacement responses to a unit impulse at ``drive_point``.
+
+    ``h_j(t) = 2 Re sum_k A_jk exp(lam_k t)``, exact at every sample.
 
     Parameters
     ----------
