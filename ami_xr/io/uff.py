@@ -14,19 +14,19 @@ Point labels
 ------------
 A UFF degree of freedom is a node number and a direction code (1, 2, 3 = +X, +Y, +Z; 4, 5, 6 =
 rotations RX, RY, RZ; negative codes point the other way; 0 = scalar). It becomes the label
-``f"{node}{sign}{axis}"``, e.g. ``"1+Z"`` or ``"12-X"``; a scalar DOF (direction 0) becomes the integer
-node number. Labels that are neither (``"tip"``) are written with node numbers 1, 2, ... and the label
-in ID line 2 (``"ami_xr point=tip"``), which the reader restores.
+``f"{node}{sign}{axis}"``, e.g. ``"1+Z"`` or ``"12-X"``; a scalar DOF (direction 0) becomes the
+integer node number. Labels that are neither (``"tip"``) are written with node numbers 1, 2, ...
+and the label in ID line 2 (``"ami_xr point=tip"``), which the reader restores.
 
 Single-reference grouping and the drive point
 ---------------------------------------------
 ami_xr's FRF Dataset holds one column of the FRF matrix: responses at many points to a force at one
 drive point. A UFF file with one reference DOF and several response DOFs maps directly (points =
 response DOFs, ``drive_point`` = the reference DOF). A roving-hammer file has the transpose: one
-response DOF, several reference DOFs. By Maxwell-Betti reciprocity (H_rj = H_jr for a linear system)
-its FRFs are the same column, so points = reference DOFs and ``drive_point`` = the fixed response DOF;
-the Dataset attribute ``uff_layout`` says which case applied. Files where both vary (multiple
-references) are refused with a clear error until multi-reference data is supported.
+response DOF, several reference DOFs. By Maxwell-Betti reciprocity (H_rj = H_jr for a linear
+system) its FRFs are the same column, so points = reference DOFs and ``drive_point`` = the fixed
+response DOF; the Dataset attribute ``uff_layout`` says which case applied. Files where both
+vary (multiple references) are refused with a clear error until multi-reference data is supported.
 
 Units
 -----
@@ -241,8 +241,8 @@ def _single_reference(records: list[dict], path: Path) -> tuple[list, Any, str]:
             ref,
             rsp[0],
             (
-                "roving hammer: one response DOF, several references; by reciprocity the points are "
-                "the reference DOFs and the drive point is the response DOF"
+                "roving hammer: one response DOF, several references; by reciprocity the "
+                "points are the reference DOFs and the drive point is the response DOF"
             ),
         )
     raise DataFileError(
@@ -511,12 +511,12 @@ def _validated(ds: xr.Dataset) -> xr.Dataset:
     """Run the data-model check on FRF and time Datasets (modal Datasets have no schema)."""
     if names.FRF not in ds and names.RESPONSE not in ds:
         return ds
-    import ami_xr
+    from ami_xr.io.schema import validate
 
-    validate = getattr(ami_xr, "validate", None)
-    if validate is not None:
-        validate(ds)
-    return ds
+    # A drive point that was not measured is allowed: AMI then leaves mode vectors unscaled.
+    drive = ds.attrs.get(names.ATTR_DRIVE_POINT)
+    measured = drive is not None and drive in ds[names.POINT].values.tolist()
+    return validate(ds, require_drive_point=measured)
 
 
 # --- writing ---------------------------------------------------------------------------------
@@ -759,7 +759,8 @@ def write_uff(
     if not records:
         raise AmiXrValueError(
             f"write_uff: the Dataset has nothing to write for include={list(include)} "
-            f"(needs '{names.FRF}', '{names.RESPONSE}' or '{names.MODE_VECTOR}'+'{names.EIGENVALUE}')"
+            f"(needs '{names.FRF}', '{names.RESPONSE}' or "
+            f"'{names.MODE_VECTOR}'+'{names.EIGENVALUE}')"
         )
     if not path.parent.exists():
         raise DataFileError(
