@@ -46,7 +46,7 @@ def _divide_spectra(num, den):
 
 
 def rfft_frequencies(n: int, dt: float) -> np.ndarray:
-    """One-sided FFT frequencies ``k / (n dt)`` in Hz, ``k = 0 .. n // 2`` (``scipy.fft.rfftfreq``)."""
+    """One-sided FFT frequencies ``k / (n dt)`` in Hz, ``k = 0 .. n // 2`` (as ``rfftfreq``)."""
     n = _check_samples(n)
     dt = _check_dt(dt)
     return np.arange(n // 2 + 1, dtype=np.float64) / (n * dt)
@@ -71,7 +71,9 @@ def _check_dt(dt) -> float:
 def _check_record(x, argument: str) -> np.ndarray:
     x = np.asarray(x)
     if x.ndim < 1 or x.shape[-1] < 1:
-        raise AmiXrValueError(f"{argument}: expected samples along the last axis, got shape {x.shape}")
+        raise AmiXrValueError(
+            f"{argument}: expected samples along the last axis, got shape {x.shape}"
+        )
     if not np.issubdtype(x.dtype, np.number) or np.iscomplexobj(x):
         raise AmiXrValueError(f"{argument}: expected real samples, got dtype {x.dtype}")
     return np.ascontiguousarray(x, dtype=np.float64)
@@ -82,7 +84,9 @@ def _window_for(window, n: int, argument: str) -> np.ndarray:
         return np.ones(n, dtype=np.float64)
     w = _check_window_array(window, argument)
     if w.shape[0] != n:
-        raise AmiXrValueError(f"{argument}: expected {n} samples to match the record, got {w.shape[0]}")
+        raise AmiXrValueError(
+            f"{argument}: expected {n} samples to match the record, got {w.shape[0]}"
+        )
     return w
 
 

@@ -188,7 +188,8 @@ def exponential_decay_rate(
     if (decay is None) == (end_value is None):
         raise AmiXrValueError(
             "decay, end_value: the exponential window needs exactly one of decay (1/s) or "
-            f"end_value (its value at the last sample), got decay={decay!r}, end_value={end_value!r}"
+            f"end_value (its value at the last sample), got decay={decay!r}, "
+            f"end_value={end_value!r}"
         )
     if decay is not None:
         return _positive_float(decay, "decay")
@@ -200,7 +201,9 @@ def _end_value(end_value, n: int) -> float:
     try:
         end = float(end_value)
     except (TypeError, ValueError):
-        raise AmiXrValueError(f"end_value: expected a number in (0, 1), got {end_value!r}") from None
+        raise AmiXrValueError(
+            f"end_value: expected a number in (0, 1), got {end_value!r}"
+        ) from None
     if not (0.0 < end < 1.0):
         raise AmiXrValueError(f"end_value: expected a number in (0, 1), got {end_value!r}")
     if n < 2:
@@ -235,7 +238,8 @@ def get_window(
     end_value : float, optional
         ``"exponential"`` only: value at the last sample, in (0, 1) (instead of ``decay``).
     width : int, optional
-        ``"force"`` only (required): samples of the pulse where the window is 1, ``1 <= width <= n``.
+        ``"force"`` only (required): samples of the pulse where the window is 1,
+        ``1 <= width <= n``.
     taper : int, optional
         ``"force"`` only: samples of the falling half-cosine after the pulse, >= 0; default
         ``max(1, width // 10)``. A taper running past the record end is cut there.
@@ -340,7 +344,8 @@ def apply_window(x: np.ndarray, w: np.ndarray) -> np.ndarray:
     w = _check_window_array(w)
     if x.ndim < 1 or x.shape[-1] != w.shape[0]:
         raise AmiXrValueError(
-            f"x: expected a last axis of {w.shape[0]} samples to match the window, got shape {x.shape}"
+            f"x: expected a last axis of {w.shape[0]} samples to match the window, "
+            f"got shape {x.shape}"
         )
     if not np.issubdtype(x.dtype, np.number):
         raise AmiXrValueError(f"x: expected numeric samples, got dtype {x.dtype}")
