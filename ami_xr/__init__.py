@@ -28,6 +28,7 @@ from ami_xr.io import (  # noqa: E402
     to_netcdf,
     validate,
 )
+from ami_xr.signal import apply_window, impulse_to_frf  # noqa: E402
 
 from ami_xr import accessor as _accessor  # noqa: E402,F401  (registers ds.ami)
 
@@ -47,4 +48,6 @@ __all__ = [
     "to_netcdf",
     "make_frf_dataset",
     "make_time_dataset",
+    "apply_window",
+    "impulse_to_frf",
 ]

@@ -37,3 +37,8 @@ from ami_xr.io import to_netcdf, validate  # noqa: E402
 
 AmiAccessor.validate = _method(validate)
 AmiAccessor.to_netcdf = _method(to_netcdf)
+
+from ami_xr.signal import apply_window, impulse_to_frf  # noqa: E402
+
+AmiAccessor.apply_window = _method(apply_window)
+AmiAccessor.impulse_to_frf = _method(impulse_to_frf)
