@@ -70,3 +70,31 @@ NATURAL_FREQUENCY = "natural_frequency"  # Hz, |lambda| / (2 pi)
 DAMPING_RATIO = "damping_ratio"  # -Re(lambda) / |lambda|
 RESIDUE = "residue"  # complex A1 + i*A2 of eq. 4, dims (point, mode)
 MODE_VECTOR = "mode_vector"  # complex Phi of eq. 8, dims (point, mode)
+
+# --- joint refinement (ami_xr.refine) and Cramér-Rao bound (ami_xr.cramer_rao_bound) ---------
+AMI_PREFIX = "ami_"  # refine keeps the AMI values as ami_eigenvalue, ami_residue, ...
+EIGENVALUE_STD = "eigenvalue_std"  # complex: std(Re lam) + i std(Im lam), rad/s
+NATURAL_FREQUENCY_STD = "natural_frequency_std"  # Hz
+DAMPING_RATIO_STD = "damping_ratio_std"  # absolute (not %)
+RESIDUE_STD = "residue_std"  # sqrt(E|dA|^2), dims (point, mode)
+MODE_VECTOR_STD = "mode_vector_std"  # sqrt(E|dPhi|^2), dims (point, mode)
+FRF_NOISE_STD = "frf_noise_std"  # sqrt(E|noise|^2) of one FRF line, dims (point)
+RESIDUAL_LOWER = "residual_lower"  # complex coefficient of -1/w^2, dims (point)
+RESIDUAL_UPPER = "residual_upper"  # complex constant (residual flexibility), dims (point)
+NATURAL_FREQUENCY_ERROR = "natural_frequency_error"  # CRB: expected |error| / f_n
+DAMPING_RATIO_ERROR = "damping_ratio_error"  # CRB: expected |error| / zeta
+MODE_VECTOR_ERROR = "mode_vector_error"  # CRB: expected |dPhi_k| / |Phi_k| (Euclidean norms)
+FLAG_REFINE_NOT_CONVERGED = "refine_not_converged"
+FLAG_REFINE_FALLBACK = "refine_fallback"
+
+# --- FRF estimation from time histories (ami_xr.frf) ------------------------------------------
+FORCE_AUTOSPECTRUM = "force_autospectrum"  # Gff, one-sided density, dims ([reference,] frequency)
+RESPONSE_AUTOSPECTRUM = "response_autospectrum"  # Gyy, dims (point, frequency)
+CROSS_SPECTRUM = "cross_spectrum"  # Gfy = E[conj(F) Y], complex, dims ([reference,] point, frequency)
+HIT_REJECTED = "hit_rejected"  # bool, dims (record): impact hit left out of the average
+HIT_REJECT_REASON = "hit_reject_reason"  # str, dims (record): why ("" when accepted)
+HIT_PEAK_FORCE = "hit_peak_force"  # largest |force| of each hit, dims (record)
+RECORD_START = "record_start"  # s, start time of each record (e.g. LVM segment X0), dims (record)
+ATTR_ESTIMATOR = "estimator"  # "H1" | "H2" | "Hv"
+ATTR_N_AVERAGES = "n_averages"  # number of segments (hits) averaged
+ATTR_FORCE_WINDOW_WIDTH = "force_window_width"  # s, width of the force (transient) window

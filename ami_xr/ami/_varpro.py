@@ -1,0 +1,323 @@
+"""Array core of the joint refinement and of the Cramér-Rao bound (no xarray here).
+
+Variable projection: for given eigenvalues the residues of every FRF follow by linear least
+squares on a basis that all FRFs share (one QR factorisation per evaluation); the eigenvalues,
+shared by all FRFs, follow by Levenberg-Marquardt on the Kaufman Jacobian. The objective is the
+negative log-likelihood of independent Gaussian frequency lines whose variance is unknown per
+FRF and profiled out, ``f = sum_j (n / 2) log |r_j|^2``, so each FRF is weighted by its own noise
+level ``n / |r_j|^2`` at every iteration (maximum likelihood, not equal weights).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ami_xr.kernels.refine import model_columns, normal_equations
+
+# |r_j|^2 is floored at (RSS_FLOOR |y_j|)^2 so that noise-free data (residual at rounding
+# level) keep a finite objective.
+RSS_FLOOR = 1e-14
+
+
+@dataclass
+class Problem:
+    """The data and model choices of one refinement, in real-stacked form."""
+
+    y: np.ndarray  # (2L, P) real-stacked, line-weighted data
+    omega: np.ndarray  # (L,) rad/s
+    line_weight: np.ndarray  # (L,) sqrt weight per line (1/sqrt(2) at DC and Nyquist)
+    dt: float | None
+    n_samples: int | None
+    residual_terms: tuple[str, ...] = ()
+    y_norm2: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        self.y_norm2 = np.maximum(np.sum(self.y**2, axis=0), np.finfo(float).tiny)
+
+    @property
+    def n_rows(self) -> int:
+        return self.y.shape[0]
+
+
+@dataclass
+class Projection:
+    """Everything the objective, the step and the covariance need at one set of eigenvalues."""
+
+    lam: np.ndarray
+    q: np.ndarray  # (2L, p) orthonormal basis of the model columns
+    r: np.ndarray  # (p, p) triangular factor
+    v: np.ndarray  # (2L, 2K) derivative columns
+    coef: np.ndarray  # (P, p) residue (and residual-term) coefficients
+    rss: np.ndarray  # (P,) residual sum of squares per point
+    resid: np.ndarray  # (2L, P)
+    ok: bool
+
+
+def make_problem(frf, omega, dt, n_samples, residual_terms=(), nyquist=None) -> Problem:
+    """Real-stack complex FRFs ``frf`` (P, L); DC and Nyquist lines get weight 1/sqrt(2)."""
+    w = np.ones(omega.shape[0])
+    # A real impulse response gives real DC and Nyquist lines: their noise is all in the real
+    # part, with twice the variance of the real part elsewhere.
+    w[np.isclose(omega, 0.0, rtol=0.0, atol=1e-12 * max(float(np.max(np.abs(omega))), 1.0))] = (
+        2**-0.5
+    )
+    if nyquist is not None:
+        w[np.isclose(omega, nyquist, rtol=1e-9, atol=0.0)] = 2**-0.5
+    yc = np.asarray(frf, dtype=np.complex128) * w[None, :]
+    y = np.concatenate([yc.real, yc.imag], axis=1).T.copy()
+    return Problem(y, np.asarray(omega, float), w, dt, n_samples, tuple(residual_terms))
+
+
+def _stack(z):
+    return np.concatenate([z.real, z.imag], axis=0)
+
+
+def project(prob: Problem, lam: np.ndarray) -> Projection:
+    """Residues by linear least squares for eigenvalues ``lam`` (all points at once)."""
+    phi, dphi = model_columns(prob.omega, lam, prob.dt, prob.n_samples, prob.residual_terms)
+    w = prob.line_weight[:, None]
+    a = _stack(phi * w)
+    v = _stack(dphi * w)
+    ok = bool(np.all(np.isfinite(a)) and np.all(np.isfinite(v)))
+    if not ok:
+        nan = np.full(1, np.nan)
+        return Projection(lam, a, np.eye(a.shape[1]), v, nan, np.full(prob.y.shape[1], np.inf),
+                          nan, False)
+    q, r = np.linalg.qr(a)
+    diag = np.abs(np.diag(r))
+    # Coinciding eigenvalues make the basis rank deficient: no unique residues.
+    ok = bool(diag.min() > 1e-12 * diag.max())
+    qty = q.T @ prob.y
+    resid = prob.y - q @ qty
+    rss = np.sum(resid**2, axis=0)
+    if ok:
+        coef = np.linalg.solve(r, qty).T
+    else:
+        coef = (np.linalg.pinv(r) @ qty).T
+    return Projection(lam, q, r, v, coef, rss, resid, ok)
+
+
+def objective(prob: Problem, proj: Projection) -> float:
+    """Profiled negative log-likelihood ``sum_j (n/2) log |r_j|^2`` (up to a constant)."""
+    if not proj.ok:
+        return np.inf
+    rss = np.maximum(proj.rss, (RSS_FLOOR**2) * prob.y_norm2)
+    return 0.5 * prob.n_rows * float(np.sum(np.log(rss)))
+
+
+def gauss_newton(prob: Problem, proj: Projection, weight: np.ndarray):
+    """Normal equations ``(h, g)`` of ``1/2 sum_j w_j |r_j|^2`` in the eigenvalue parameters."""
+    n_mode = proj.lam.shape[0]
+    v_perp = proj.v - proj.q @ (proj.q.T @ proj.v)
+    s_mat = v_perp.T @ v_perp
+    v_res = (proj.v.T @ proj.resid).T
+    return normal_equations(proj.coef, weight, s_mat, v_res, n_mode)
+
+
+def ml_weight(prob: Problem, proj: Projection) -> np.ndarray:
+    rss = np.maximum(proj.rss, (RSS_FLOOR**2) * prob.y_norm2)
+    return prob.n_rows / rss
+
+
+@dataclass
+class FitResult:
+    lam: np.ndarray
+    proj: Projection
+    cost: float
+    start_cost: float
+    n_iter: int
+    converged: bool
+    message: str
+
+
+def _theta(lam):
+    return np.column_stack([lam.real, lam.imag]).ravel()
+
+
+def _lam(theta):
+    return theta[0::2] + 1j * theta[1::2]
+
+
+def levenberg_marquardt(
+    prob: Problem, lam0: np.ndarray, *, max_iter: int = 50, tol: float = 1e-10,
+    free: np.ndarray | None = None,
+) -> FitResult:
+    """Minimise :func:`objective` over the eigenvalues, starting at ``lam0``.
+
+    Only steps that lower the objective are taken, so the result is never worse than the start.
+    ``free`` (K,) bool marks the eigenvalues that may move (others stay at ``lam0``).
+    Converged when every free eigenvalue changes by less than ``tol`` relative to its modulus, or
+    when the predicted decrease of the objective is at rounding level.
+    """
+    lam = np.asarray(lam0, dtype=np.complex128).copy()
+    n_mode = lam.shape[0]
+    free = np.ones(n_mode, bool) if free is None else np.asarray(free, bool)
+    idx = np.flatnonzero(np.repeat(free, 2))
+    proj = project(prob, lam)
+    cost = objective(prob, proj)
+    start = cost
+    if not np.isfinite(cost):
+        return FitResult(lam, proj, cost, start, 0, False, "objective not finite at the start")
+    if idx.size == 0:
+        return FitResult(lam, proj, cost, start, 0, True, "no free eigenvalue")
+    mu = 1e-3
+    nu = 2.0
+    n_iter = 0
+    converged = False
+    message = "iteration cap reached"
+    # Rounding level of the objective: a change below it is not a change.
+    cost_eps = 1e-13 * max(abs(cost), prob.y.shape[1])
+    while n_iter < max_iter:
+        n_iter += 1
+        w = ml_weight(prob, proj)
+        h_full, g_full = gauss_newton(prob, proj, w)
+        h = h_full[np.ix_(idx, idx)]
+        g = g_full[idx]
+        d = np.sqrt(np.maximum(np.diag(h), np.finfo(float).tiny))
+        hs = h / np.outer(d, d)
+        gs = g / d
+        try:
+            decrement = float(gs @ np.linalg.solve(hs, gs))
+        except np.linalg.LinAlgError:
+            decrement = np.inf
+        if decrement < 2 * cost_eps:
+            converged = True
+            message = "predicted decrease below rounding"
+            break
+        accepted = False
+        while mu < 1e12:
+            try:
+                step_s = -np.linalg.solve(hs + mu * np.eye(idx.size), gs)
+            except np.linalg.LinAlgError:
+                mu *= nu
+                nu *= 2.0
+                continue
+            step = step_s / d
+            theta = _theta(lam)
+            theta[idx] += step
+            lam_new = _lam(theta)
+            proj_new = project(prob, lam_new)
+            cost_new = objective(prob, proj_new)
+            pred = -(gs @ step_s) - 0.5 * step_s @ (hs @ step_s)
+            if np.isfinite(cost_new) and cost_new < cost:
+                rho = (cost - cost_new) / pred if pred > 0 else 0.0
+                mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+                nu = 2.0
+                accepted = True
+                break
+            mu *= nu
+            nu *= 2.0
+        if not accepted:
+            # No descent direction at rounding level: we are at the minimum the arithmetic allows.
+            converged = decrement < 1e-6 * max(prob.y.shape[1], 1)
+            message = "no further decrease possible" if converged else "step rejected"
+            break
+        rel = np.max(np.abs(lam_new - lam)[free] / np.abs(lam[free]))
+        decrease = cost - cost_new
+        lam, proj, cost = lam_new, proj_new, cost_new
+        if rel < tol or decrease < cost_eps:
+            converged = True
+            message = "eigenvalue change below tol" if rel < tol else "objective change below rounding"
+            break
+    return FitResult(lam, proj, cost, start, n_iter, converged, message)
+
+
+def covariance(prob: Problem, proj: Projection, noise_var: np.ndarray, drive_index: int | None,
+               *, quantity_power: int = 0, lam_shift: float = 0.0):
+    """Covariances of eigenvalues, residues and mode vectors at ``proj`` (Gauss-Newton / Fisher).
+
+    ``noise_var`` (P,) is the noise variance of one real component of one (weighted) line. With
+    the true parameters and the true variance this is the Cramér-Rao bound. The basis poles are
+    ``proj.lam``; the physical eigenvalues used for the mode vectors are ``proj.lam + lam_shift``
+    (an exponential window of decay rate ``b`` shifts every pole by ``-b``).
+
+    Returns a dict with ``cov_theta`` (2K, 2K), ``residue_var`` (P, K) = E|dA|^2,
+    ``mode_vector_var`` (P, K) = E|dPhi|^2, ``mode_vector`` (P, K) and ``cov_c_theta`` pieces.
+    """
+    lam = proj.lam
+    n_mode = lam.shape[0]
+    n_point = proj.coef.shape[0]
+    weight = 1.0 / noise_var
+    h, _ = gauss_newton(prob, proj, weight)
+    cov_theta = np.linalg.pinv(h)
+    # c_j = R^-1 Q' (y_j - V M_j dtheta) -> dc_j/dtheta = -G0 M_j with G0 = R^-1 Q' V
+    g0 = np.linalg.solve(proj.r, proj.q.T @ proj.v)  # (p, 2K)
+    rinv = np.linalg.inv(proj.r)
+    cov_lin = rinv @ rinv.T  # (R'R)^-1
+    a1 = proj.coef[:, 0 : 2 * n_mode : 2]
+    a2 = proj.coef[:, 1 : 2 * n_mode : 2]
+    m = np.zeros((n_point, 2 * n_mode, 2 * n_mode))
+    for k in range(n_mode):
+        m[:, 2 * k, 2 * k] = a1[:, k]
+        m[:, 2 * k, 2 * k + 1] = -a2[:, k]
+        m[:, 2 * k + 1, 2 * k] = a2[:, k]
+        m[:, 2 * k + 1, 2 * k + 1] = a1[:, k]
+    hj = -np.einsum("pa,jab->jpb", g0, m)  # (P, p, 2K)
+    hc = hj @ cov_theta  # cov(c_j, theta): (P, p, 2K)
+    p = proj.coef.shape[1]
+    residue = a1 + 1j * a2
+    # Var of the residue A_jk: blocks (2k, 2k+1) of cov(c_j) = s_j^2 (R'R)^-1 + H_j C H_j'
+    res_var = np.empty((n_point, n_mode))
+    cov_cc_blocks = np.empty((n_point, n_mode, 2, 2))
+    for k in range(n_mode):
+        sl = slice(2 * k, 2 * k + 2)
+        blk = noise_var[:, None, None] * cov_lin[None, sl, sl] + np.einsum(
+            "jab,jcb->jac", hc[:, sl, :], hj[:, sl, :]
+        )
+        cov_cc_blocks[:, k] = blk
+        res_var[:, k] = blk[:, 0, 0] + blk[:, 1, 1]
+    out = {
+        "cov_theta": cov_theta,
+        "residue": residue,
+        "residue_var": res_var,
+        "n_coef": p,
+    }
+    if drive_index is None:
+        return out
+    # Mode vectors (eq. 8) from displacement residues A_disp = A / lam^q.
+    P_ = drive_index
+    lam = lam + lam_shift
+    lam_b = lam[None, :]
+    a_disp = residue / lam_b**quantity_power
+    phi_p = np.sqrt(a_disp[P_] / lam)
+    phi = a_disp / (lam_b * phi_p[None, :])
+    phi[P_] = phi_p
+    # Complex derivatives of Phi_jk with respect to A_jk, A_Pk and lam_k (holomorphic), where
+    # a residue A (not A_disp) is the variable: A_disp = A lam^-q.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d_aj = phi / residue
+        d_ap = -0.5 * phi / residue[P_][None, :]
+        d_lam = -0.5 * (1 + quantity_power) * phi / lam_b
+        # drive point: Phi_P = sqrt(A_P lam^-q / lam)
+        d_aj[P_] = 0.0
+        d_ap[P_] = 0.5 * phi_p / residue[P_]
+        d_lam[P_] = -0.5 * (1 + quantity_power) * phi_p / lam
+    # Linearise Phi_jk in the real variables (theta_k, c_jk, c_Pk): for a holomorphic
+    # derivative f of z = x + i y, d(Re, Im)/d(x, y) = [[Re f, -Im f], [Im f, Re f]].
+    def real_jac(f):
+        return np.stack([np.stack([f.real, -f.imag], -1), np.stack([f.imag, f.real], -1)], -2)
+
+    var = np.empty((n_point, n_mode))
+    for k in range(n_mode):
+        sl = slice(2 * k, 2 * k + 2)
+        c_tt = np.broadcast_to(cov_theta[sl, sl], (n_point, 2, 2))
+        c_pp = np.broadcast_to(cov_cc_blocks[P_, k], (n_point, 2, 2))
+        c_pt = np.broadcast_to(hc[P_, sl, sl], (n_point, 2, 2))  # cov(c_P, theta_k)
+        c_jj = cov_cc_blocks[:, k].copy()
+        c_jp = hc[:, sl, :] @ hj[P_, sl, :].T  # cov(c_j, c_P) for j != P
+        c_jt = hc[:, sl, sl].copy()
+        c_jp[P_] = cov_cc_blocks[P_, k]
+        big = np.concatenate([
+            np.concatenate([c_tt, np.swapaxes(c_jt, 1, 2), np.swapaxes(c_pt, 1, 2)], 2),
+            np.concatenate([c_jt, c_jj, c_jp], 2),
+            np.concatenate([c_pt, np.swapaxes(c_jp, 1, 2), c_pp], 2),
+        ], 1)  # (P, 6, 6)
+        jac = np.concatenate(
+            [real_jac(d_lam[:, k]), real_jac(d_aj[:, k]), real_jac(d_ap[:, k])], 2
+        )  # (P, 2, 6)
+        var[:, k] = np.einsum("jab,jbc,jac->j", jac, big, jac)
+    out["mode_vector"] = phi
+    out["mode_vector_var"] = var
+    return out

@@ -1,0 +1,199 @@
+"""Kernels of the joint maximum-likelihood refinement (variable projection) of a modal model.
+
+Plain arrays in, plain arrays out. The model of FRF ``j`` at angular frequencies ``omega`` is
+
+    G_j(w) = sum_k A_jk b(lam_k, w) + conj(A_jk) b(conj(lam_k), w)  [+ residual terms]
+
+with ``b`` the continuous (``1/(i w - lam)``) or exact discrete-time basis (see
+:mod:`ami_xr.kernels.basis`). Residues enter real-linearly through ``A1 = Re A`` and
+``A2 = Im A``; the eigenvalues enter nonlinearly. Every FRF shares the same basis, so the
+projection onto the basis (one QR factorisation) is shared by all points and only the
+data-dependent products are per point. The real parameter vector of the eigenvalues is
+``theta = [Re lam_1, Im lam_1, ..., Re lam_K, Im lam_K]``.
+
+Real stacking: a complex vector ``z`` of length ``L`` is the real vector ``[Re z, Im z]``
+of length ``2 L``, so real inner products are ``Re(conj(u) . v)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ami_xr.kernels._numba import jit
+
+RESIDUAL_TERMS = ("lower", "upper")
+
+
+@jit
+def _basis_and_derivative(omega, lam, dt, n_samples):
+    """``b(lam_k, w)`` and ``d b / d lam`` for every pole ``lam_k``: two arrays (K, L) complex.
+
+    ``dt <= 0`` selects the continuous basis ``1/(i w - lam)``; otherwise the exact discrete
+    basis ``dt s / (1 - exp((lam - i w) dt))`` with ``s = 1 - exp(lam n dt)`` (``s = 1`` when
+    ``n_samples <= 0``).
+    """
+    n_mode = lam.shape[0]
+    n_line = omega.shape[0]
+    b = np.empty((n_mode, n_line), dtype=np.complex128)
+    db = np.empty((n_mode, n_line), dtype=np.complex128)
+    for k in range(n_mode):
+        lk = lam[k]
+        if dt > 0.0:
+            s = 1.0 + 0j
+            ds = 0.0 + 0j
+            if n_samples > 0:
+                e_n = np.exp(lk * (n_samples * dt))
+                s = 1.0 - e_n
+                ds = -(n_samples * dt) * e_n
+            for i in range(n_line):
+                e = np.exp((lk - 1j * omega[i]) * dt)
+                den = 1.0 - e
+                b[k, i] = dt * s / den
+                # d/dlam [dt s / (1 - e)] = dt (ds (1 - e) + s dt e) / (1 - e)^2
+                db[k, i] = dt * (ds * den + s * dt * e) / (den * den)
+        else:
+            for i in range(n_line):
+                den = 1j * omega[i] - lk
+                b[k, i] = 1.0 / den
+                db[k, i] = 1.0 / (den * den)
+    return b, db
+
+
+def basis_and_derivative(
+    omega: np.ndarray, lam: np.ndarray, dt: float | None = None, n_samples: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Modal basis ``b(lam_k, w)`` and its derivative with respect to ``lam_k``.
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (L,)
+        Angular frequencies in rad/s.
+    lam : ndarray of complex, shape (K,)
+        Poles in rad/s.
+    dt, n_samples : optional
+        Sample interval and record length of the impulse response when the FRF is
+        ``dt * DFT`` of it (exact discrete basis); ``None`` for the continuous basis.
+
+    Returns
+    -------
+    b, db : ndarray of complex, shape (K, L)
+    """
+    omega = np.ascontiguousarray(omega, dtype=np.float64)
+    lam = np.ascontiguousarray(np.atleast_1d(lam), dtype=np.complex128)
+    if omega.ndim != 1:
+        raise ValueError(f"omega: expected a 1-D array, got shape {omega.shape}")
+    if lam.ndim != 1:
+        raise ValueError(f"lam: expected a 1-D array of poles, got shape {lam.shape}")
+    return _basis_and_derivative(omega, lam, float(dt) if dt else 0.0, int(n_samples or 0))
+
+
+def model_columns(
+    omega: np.ndarray,
+    lam: np.ndarray,
+    dt: float | None,
+    n_samples: int | None,
+    residual_terms: tuple[str, ...] = (),
+) -> tuple[np.ndarray, np.ndarray]:
+    """Complex columns of the real-linear model and of its derivative.
+
+    Returns ``phi`` (L, 2K + 2R) -- columns multiplying ``A1_k``, ``A2_k`` for each mode and the
+    real and imaginary coefficient of each residual term -- and ``dphi`` (L, 2K) -- the vectors
+    ``u_k = b'(lam) + b'(conj lam)`` and ``v_k = i (b'(lam) - b'(conj lam))``, so that the
+    derivative of the model of a point with residue ``A1 + i A2`` is
+    ``A1 u + A2 v`` with respect to ``Re lam`` and ``A1 v - A2 u`` with respect to ``Im lam``.
+    """
+    for term in residual_terms:
+        if term not in RESIDUAL_TERMS:
+            raise ValueError(f"residual_terms: expected entries in {RESIDUAL_TERMS}, got {term!r}")
+    lam = np.ascontiguousarray(np.atleast_1d(lam), dtype=np.complex128)
+    omega = np.ascontiguousarray(omega, dtype=np.float64)
+    n_mode = lam.shape[0]
+    both = np.concatenate([lam, np.conj(lam)])
+    b, db = basis_and_derivative(omega, both, dt, n_samples)
+    b_l, b_c = b[:n_mode], b[n_mode:]
+    d_l, d_c = db[:n_mode], db[n_mode:]
+    n_res = len(residual_terms)
+    phi = np.empty((omega.shape[0], 2 * n_mode + 2 * n_res), dtype=np.complex128)
+    phi[:, 0 : 2 * n_mode : 2] = (b_l + b_c).T
+    phi[:, 1 : 2 * n_mode : 2] = (1j * (b_l - b_c)).T
+    for r, term in enumerate(residual_terms):
+        if term == "lower":  # mass line of modes below the band: -1/w^2
+            col = -1.0 / omega**2
+        else:  # residual flexibility of modes above the band: constant
+            col = np.ones_like(omega)
+        phi[:, 2 * n_mode + 2 * r] = col
+        phi[:, 2 * n_mode + 2 * r + 1] = 1j * col
+    dphi = np.empty((omega.shape[0], 2 * n_mode), dtype=np.complex128)
+    dphi[:, 0::2] = (d_l + d_c).T
+    dphi[:, 1::2] = (1j * (d_l - d_c)).T
+    return phi, dphi
+
+
+def stack_real(z: np.ndarray) -> np.ndarray:
+    """``[Re z, Im z]`` along the last axis... for columns: complex (L, m) -> real (2L, m)."""
+    return np.concatenate([z.real, z.imag], axis=0)
+
+
+@jit
+def _normal_equations(coef, weight, s_mat, v_res, n_mode):
+    """Gauss-Newton normal equations of the eigenvalue parameters, summed over points.
+
+    ``coef`` (P, p): residue coefficients ``A1, A2`` of each mode (first ``2 K`` entries);
+    ``weight`` (P,): weight of each point (1 / noise variance); ``s_mat`` (2K, 2K): the shared
+    matrix ``V' (I - Q Q') V`` of the projected derivative columns; ``v_res`` (P, 2K): ``V' r_j``.
+    Returns ``h`` (2K, 2K) = sum_j w_j M_j' S M_j and ``g`` (2K,) = -sum_j w_j M_j' V' r_j, the
+    Hessian approximation and gradient of ``1/2 sum_j w_j |r_j|^2``, with ``M_j`` block diagonal,
+    blocks ``[[A1, -A2], [A2, A1]]``.
+    """
+    n_par = 2 * n_mode
+    h = np.zeros((n_par, n_par))
+    g = np.zeros(n_par)
+    m = np.zeros((n_par, n_par))
+    for j in range(coef.shape[0]):
+        w = weight[j]
+        for k in range(n_mode):
+            a1 = coef[j, 2 * k]
+            a2 = coef[j, 2 * k + 1]
+            m[2 * k, 2 * k] = a1
+            m[2 * k, 2 * k + 1] = -a2
+            m[2 * k + 1, 2 * k] = a2
+            m[2 * k + 1, 2 * k + 1] = a1
+        # block-diagonal M: (S M)[:, l-block] = S[:, l-block] @ B_l
+        sm = np.zeros((n_par, n_par))
+        for r in range(n_par):
+            for l in range(n_mode):
+                for c in range(2):
+                    sm[r, 2 * l + c] = (
+                        s_mat[r, 2 * l] * m[2 * l, 2 * l + c]
+                        + s_mat[r, 2 * l + 1] * m[2 * l + 1, 2 * l + c]
+                    )
+        for k in range(n_mode):
+            for a in range(2):
+                row = 2 * k + a
+                # (M' X)[row, :] = B_k[:, a]' X[k-block, :]
+                m0 = m[2 * k, row]
+                m1 = m[2 * k + 1, row]
+                for col in range(n_par):
+                    h[row, col] += w * (m0 * sm[2 * k, col] + m1 * sm[2 * k + 1, col])
+                g[row] -= w * (m0 * v_res[j, 2 * k] + m1 * v_res[j, 2 * k + 1])
+    return h, g
+
+
+def normal_equations(
+    coef: np.ndarray, weight: np.ndarray, s_mat: np.ndarray, v_res: np.ndarray, n_mode: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Validated wrapper of :func:`_normal_equations` (see there)."""
+    coef = np.ascontiguousarray(coef, dtype=np.float64)
+    weight = np.ascontiguousarray(weight, dtype=np.float64)
+    s_mat = np.ascontiguousarray(s_mat, dtype=np.float64)
+    v_res = np.ascontiguousarray(v_res, dtype=np.float64)
+    n_point = coef.shape[0]
+    if coef.ndim != 2 or coef.shape[1] < 2 * n_mode:
+        raise ValueError(f"coef: expected shape (P, >= {2 * n_mode}), got {coef.shape}")
+    if weight.shape != (n_point,):
+        raise ValueError(f"weight: expected shape ({n_point},), got {weight.shape}")
+    if s_mat.shape != (2 * n_mode, 2 * n_mode):
+        raise ValueError(f"s_mat: expected shape ({2 * n_mode}, {2 * n_mode}), got {s_mat.shape}")
+    if v_res.shape != (n_point, 2 * n_mode):
+        raise ValueError(f"v_res: expected shape ({n_point}, {2 * n_mode}), got {v_res.shape}")
+    return _normal_equations(coef, weight, s_mat, v_res, int(n_mode))
