@@ -1,0 +1,458 @@
+"""Batch processing of a whole test campaign: every measurement file in a folder tree -> modes.
+
+:func:`batch` walks ``input_dir`` for netCDF (``.nc``), UFF (``.uff``, ``.unv``) and LabVIEW
+(``.lvm``) files, runs each through the pipeline (time histories -> :func:`ami_xr.frf`;
+FRFs -> :func:`ami_xr.identify`) and writes ``<output_dir>/<same relative folder>/<stem>.modes.nc``.
+
+Guarantees
+----------
+* **Atomic outputs.** Each result is written with :func:`ami_xr.to_netcdf` (temporary file in the
+  target folder, then a rename), so an output file is either complete or absent; a crash,
+  ``kill`` or Ctrl-C never leaves a partial result (stale temporary files of an earlier crash are
+  removed at the start of the next run).
+* **Resumable, incremental.** Each output records the SHA-256 of its input file, the input's size
+  and mtime, and a hash of the pipeline parameters (attributes ``batch_input_sha256``,
+  ``batch_parameters_sha256``). A re-run skips a file whose output matches both (the content
+  hash decides; a touched but unchanged input is still up to date) and redoes it otherwise;
+  ``force=True`` redoes everything.
+* **One bad file never stops the batch.** Its error is reported in the summary (status
+  ``failed``) and the others go on.
+* **Summary.** ``<output_dir>/batch_summary.csv`` (file, status, modes found, natural frequencies
+  in Hz, output, seconds, message), written atomically after every run.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import csv
+import hashlib
+import json
+import os
+import sys
+import time
+import traceback
+import warnings
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ami_xr import names
+from ami_xr.errors import AmiXrValueError, DataFileError
+
+__all__ = ["batch", "BatchSummary", "find_inputs", "output_path", "INPUT_SUFFIXES"]
+
+#: File suffixes (lower case) the batch treats as measurements.
+INPUT_SUFFIXES = (".nc", ".uff", ".unv", ".lvm")
+OUTPUT_SUFFIX = ".modes.nc"
+SUMMARY_NAME = "batch_summary.csv"
+ATTR_INPUT = "batch_input"
+ATTR_INPUT_SHA = "batch_input_sha256"
+ATTR_INPUT_SIZE = "batch_input_size"
+ATTR_INPUT_MTIME = "batch_input_mtime_ns"
+ATTR_PARAMS_SHA = "batch_parameters_sha256"
+ATTR_PARAMS = "batch_parameters"
+# Bump when the meaning of the pipeline changes so old outputs are redone.
+PIPELINE_VERSION = 1
+
+STATUS_OK = "ok"
+STATUS_UP_TO_DATE = "up to date"
+STATUS_FAILED = "failed"
+SUMMARY_FIELDS = ("file", "status", "modes", "frequencies_hz", "output", "seconds", "message")
+
+
+@dataclass
+class BatchSummary:
+    """Outcome of :func:`batch`: one row per input file, and where the summary CSV is.
+
+    Attributes
+    ----------
+    rows : list of dict
+        Keys ``file`` (path relative to the input folder), ``status`` ("ok", "up to date" or
+        "failed"), ``modes`` (number found, "" when failed), ``frequencies_hz`` (space-separated
+        natural frequencies), ``output`` (relative to the output folder), ``seconds``,
+        ``message`` (error or warnings).
+    csv_path : pathlib.Path
+        The summary CSV.
+    """
+
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    csv_path: Path | None = None
+
+    @property
+    def n_failed(self) -> int:
+        """Number of files that failed."""
+        return sum(r["status"] == STATUS_FAILED for r in self.rows)
+
+    @property
+    def ok(self) -> bool:
+        """True when no file failed."""
+        return self.n_failed == 0
+
+    def format(self, width: int = 60) -> str:
+        """The summary as an aligned text table."""
+        header = ("file", "status", "modes", "frequencies [Hz]")
+        body = []
+        for r in self.rows:
+            freqs = r["frequencies_hz"]
+            if len(freqs) > width:
+                freqs = freqs[: width - 3] + "..."
+            status = r["status"]
+            if status == STATUS_FAILED:
+                freqs = r["message"].splitlines()[0][:width] if r["message"] else ""
+            body.append((r["file"], status, str(r["modes"]), freqs))
+        if not body:
+            return "no input files found"
+        widths = [max(len(h), *(len(row[i]) for row in body)) for i, h in enumerate(header)]
+        lines = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)).rstrip(),
+                 "  ".join("-" * w for w in widths)]
+        lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip()
+                  for row in body]
+        counts = {s: sum(r["status"] == s for r in self.rows)
+                  for s in (STATUS_OK, STATUS_UP_TO_DATE, STATUS_FAILED)}
+        lines.append(f"{len(self.rows)} file(s): {counts[STATUS_OK]} processed, "
+                     f"{counts[STATUS_UP_TO_DATE]} up to date, {counts[STATUS_FAILED]} failed")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.format()
+
+
+# --- discovery -----------------------------------------------------------------------------------
+def find_inputs(input_dir: str | os.PathLike, *, exclude: Iterable[Path] = ()) -> list[Path]:
+    """Measurement files under ``input_dir`` (recursive, sorted), skipping hidden files and folders,
+    ``*.modes.nc`` results and anything under the ``exclude`` folders."""
+    root = Path(input_dir)
+    excluded = [Path(e).resolve() for e in exclude]
+    found = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        here = Path(dirpath)
+        dirnames[:] = sorted(d for d in dirnames if not d.startswith(".")
+                             and (here / d).resolve() not in excluded)
+        for name in sorted(filenames):
+            if name.startswith(".") or name.lower().endswith(OUTPUT_SUFFIX):
+                continue
+            if Path(name).suffix.lower() in INPUT_SUFFIXES:
+                found.append(here / name)
+    return found
+
+
+def output_path(input_file: Path, input_dir: Path, output_dir: Path) -> Path:
+    """Where the result of ``input_file`` goes: same relative folder, ``<stem>.modes.nc``."""
+    rel = input_file.relative_to(input_dir)
+    return output_dir / rel.parent / (rel.stem + OUTPUT_SUFFIX)
+
+
+# --- hashing and up-to-date check ----------------------------------------------------------------
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _parameters_hash(parameters: dict[str, Any]) -> str:
+    text = json.dumps({"pipeline": PIPELINE_VERSION, **parameters}, sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _output_attrs(path: Path) -> dict[str, Any] | None:
+    """Global attributes of an existing output (None when missing or unreadable)."""
+    if not path.is_file():
+        return None
+    try:
+        import netCDF4
+
+        with netCDF4.Dataset(path) as nc:
+            return {k: nc.getncattr(k) for k in nc.ncattrs()}
+    except (OSError, RuntimeError, ValueError):
+        return None
+
+
+def _up_to_date(inp: Path, out: Path, params_sha: str) -> bool:
+    attrs = _output_attrs(out)
+    if attrs is None or attrs.get(ATTR_PARAMS_SHA) != params_sha:
+        return False
+    st = inp.stat()
+    same_stat = (str(attrs.get(ATTR_INPUT_SIZE)) == str(st.st_size)
+                 and str(attrs.get(ATTR_INPUT_MTIME)) == str(st.st_mtime_ns))
+    if same_stat and attrs.get(ATTR_INPUT_SHA):
+        return True
+    return attrs.get(ATTR_INPUT_SHA) == _sha256(inp)
+
+
+def _remove_stale_temporaries(output_dir: Path) -> None:
+    # to_netcdf and the report write ".<name>.<random>.tmp" next to the target; after a hard
+    # crash (kill -9, power loss) such files can stay behind.
+    if not output_dir.is_dir():
+        return
+    for tmp in output_dir.rglob(".*.tmp"):
+        if tmp.is_file():
+            tmp.unlink(missing_ok=True)
+
+
+# --- one file ---------------------------------------------------------------------------------
+def _read_any(path: Path):
+    suffix = path.suffix.lower()
+    if suffix == ".nc":
+        from ami_xr.io.netcdf import open_dataset
+
+        return open_dataset(path)
+    if suffix in (".uff", ".unv"):
+        from ami_xr.io.uff import read_uff
+
+        return read_uff(path)
+    if suffix == ".lvm":
+        from ami_xr.io.lvm import read_lvm
+
+        return read_lvm(path)
+    raise DataFileError(f"{path}: unknown file type {suffix!r}; expected one of {INPUT_SUFFIXES}")
+
+
+def _modal_summary(ds) -> tuple[int, str]:
+    if names.EIGENVALUE not in ds:
+        return 0, ""
+    import numpy as np
+
+    fn = np.abs(np.atleast_1d(ds[names.EIGENVALUE].values)) / (2 * np.pi)
+    return int(fn.size), " ".join(f"{f:.4f}" for f in fn)
+
+
+def _process_one(job: dict[str, Any]) -> dict[str, Any]:
+    """Run the pipeline on one file (in a worker process); never raises for a bad file."""
+    import ami_xr
+
+    inp, out = Path(job["input"]), Path(job["output"])
+    row = {"file": job["rel"], "status": STATUS_FAILED, "modes": "", "frequencies_hz": "",
+           "output": job["out_rel"], "seconds": 0.0, "message": ""}
+    start = time.perf_counter()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            input_sha = _sha256(inp)
+            st = inp.stat()
+            ds = _read_any(inp)
+            if names.FRF not in ds:
+                if names.RESPONSE not in ds:
+                    raise DataFileError(
+                        f"{inp}: neither an FRF Dataset ('{names.FRF}') nor a time Dataset "
+                        f"('{names.RESPONSE}'); found variables {sorted(map(str, ds.data_vars))}"
+                    )
+                ds = ami_xr.frf(ds, **job["frf_options"])
+            result = ami_xr.identify(ds, **job["identify_options"])
+            result.attrs.update({
+                ATTR_INPUT: job["rel"],
+                ATTR_INPUT_SHA: input_sha,
+                ATTR_INPUT_SIZE: str(st.st_size),
+                ATTR_INPUT_MTIME: str(st.st_mtime_ns),
+                ATTR_PARAMS_SHA: job["params_sha"],
+                ATTR_PARAMS: json.dumps(job["parameters"], sort_keys=True, default=repr),
+            })
+            out.parent.mkdir(parents=True, exist_ok=True)
+            if job["report"]:
+                from ami_xr.report import report
+
+                # Report first: the netCDF output appearing marks the whole file as done.
+                report(result, out.with_name(out.name[: -len(OUTPUT_SUFFIX)] + ".report"))
+            ami_xr.to_netcdf(result, out, function="ami_xr.batch", parameters=job["parameters"])
+        row["modes"], row["frequencies_hz"] = _modal_summary(result)
+        row["status"] = STATUS_OK
+        messages = sorted({f"{w.category.__name__}: {w.message}" for w in caught
+                           if issubclass(w.category, UserWarning)})
+        row["message"] = "; ".join(messages)
+    except Exception as err:  # a bad file must not stop the batch: report it and go on
+        first = str(err).strip().splitlines()
+        row["message"] = f"{type(err).__name__}: {' '.join(s.strip() for s in first)}"
+        if job.get("traceback"):
+            row["traceback"] = traceback.format_exc()
+    row["seconds"] = round(time.perf_counter() - start, 3)
+    return row
+
+
+# --- progress ---------------------------------------------------------------------------------
+class _SimpleProgress:
+    """Minimal progress line on stderr when tqdm is not installed."""
+
+    def __init__(self, total: int, desc: str):
+        self.total, self.n, self.desc = total, 0, desc
+        self._draw()
+
+    def _draw(self) -> None:
+        width = 30
+        done = int(width * self.n / self.total) if self.total else width
+        sys.stderr.write(f"\r{self.desc}: [{'#' * done}{'.' * (width - done)}] "
+                         f"{self.n}/{self.total}")
+        sys.stderr.flush()
+
+    def update(self, n: int = 1) -> None:
+        self.n += n
+        self._draw()
+
+    def close(self) -> None:
+        sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def _progress(total: int, enabled: bool, desc: str):
+    if not enabled or total == 0:
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        return _SimpleProgress(total, desc)
+    return tqdm(total=total, desc=desc, unit="file", file=sys.stderr)
+
+
+# --- the batch ----------------------------------------------------------------------------------
+def _write_summary(rows: list[dict], path: Path) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "w", newline="", encoding="utf-8") as fh:
+            writer = csv.DictWriter(fh, fieldnames=SUMMARY_FIELDS, extrasaction="ignore")
+            writer.writeheader()
+            writer.writerows(rows)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _run_jobs(jobs: list[dict], workers: int) -> Iterator[dict]:
+    if workers == 1 or len(jobs) <= 1:
+        for job in jobs:
+            yield _process_one(job)
+        return
+    pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(jobs)))
+    try:
+        futures = {pool.submit(_process_one, job): job for job in jobs}
+        for fut in cf.as_completed(futures):
+            try:
+                yield fut.result()
+            except cf.process.BrokenProcessPool as err:
+                # A worker died (e.g. killed for memory): report the files it did not finish.
+                job = futures[fut]
+                yield {"file": job["rel"], "status": STATUS_FAILED, "modes": "",
+                       "frequencies_hz": "", "output": job["out_rel"], "seconds": 0.0,
+                       "message": f"worker process died: {err}"}
+    finally:
+        # Ctrl-C or an error: drop queued files; finished outputs are complete, others absent.
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def batch(
+    input_dir: str | os.PathLike,
+    output_dir: str | os.PathLike,
+    *,
+    workers: int = 1,
+    identify_options: dict[str, Any] | None = None,
+    frf_options: dict[str, Any] | None = None,
+    report: bool = False,
+    force: bool = False,
+    progress: bool = True,
+    keep_tracebacks: bool = False,
+) -> BatchSummary:
+    """Identify the modes of every measurement file in a folder tree.
+
+    Parameters
+    ----------
+    input_dir : str or path-like
+        Folder searched recursively for ``.nc`` (FRF or time Datasets), ``.uff``/``.unv``
+        (dataset 58) and ``.lvm`` files. Hidden files and folders, ``*.modes.nc`` files and
+        ``output_dir`` (if inside) are skipped.
+    output_dir : str or path-like
+        Results go to ``<output_dir>/<relative folder>/<stem>.modes.nc`` (created as needed),
+        the summary to ``<output_dir>/batch_summary.csv``.
+    workers : int, default 1
+        Number of files processed in parallel (separate processes).
+    identify_options : dict, optional
+        Keyword arguments of :func:`ami_xr.identify` (e.g. ``{"method": "paper"}``).
+    frf_options : dict, optional
+        Keyword arguments of :func:`ami_xr.frf`, used for time-history files.
+    report : bool, default False
+        Also write a report folder ``<stem>.report/`` (needs matplotlib) next to each result.
+    force : bool, default False
+        Redo files whose outputs are up to date.
+    progress : bool, default True
+        Show a progress bar on stderr (tqdm when installed).
+    keep_tracebacks : bool, default False
+        Keep the full traceback of failed files in the rows (key ``traceback``).
+
+    Returns
+    -------
+    BatchSummary
+        One row per file; ``summary.ok`` is False when any file failed.
+
+    Raises
+    ------
+    DataFileError
+        ``input_dir`` is not a folder.
+    AmiXrValueError
+        ``workers`` is not a positive integer, or an options argument is not a dict.
+    """
+    input_dir, output_dir = Path(input_dir), Path(output_dir)
+    if not input_dir.is_dir():
+        raise DataFileError(f"input_dir: {str(input_dir)!r} is not a folder")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise AmiXrValueError(f"workers: expected a positive integer, got {workers!r}")
+    for argument, value in (("identify_options", identify_options), ("frf_options", frf_options)):
+        if value is not None and not isinstance(value, dict):
+            raise AmiXrValueError(f"{argument}: expected a dict of keyword arguments, "
+                                  f"got {type(value).__name__}")
+    if output_dir.exists() and not output_dir.is_dir():
+        raise DataFileError(f"output_dir: {str(output_dir)!r} exists and is not a folder")
+    output_dir.mkdir(parents=True, exist_ok=True)
+    _remove_stale_temporaries(output_dir)
+    parameters = {"identify": identify_options or {}, "frf": frf_options or {},
+                  "report": bool(report)}
+    params_sha = _parameters_hash(parameters)
+    inputs = find_inputs(input_dir, exclude=[output_dir])
+
+    rows: dict[str, dict] = {}
+    jobs, claimed = [], {}
+    for inp in inputs:
+        out = output_path(inp, input_dir, output_dir)
+        rel = inp.relative_to(input_dir).as_posix()
+        out_rel = out.relative_to(output_dir).as_posix()
+        if out in claimed:
+            rows[rel] = {"file": rel, "status": STATUS_FAILED, "modes": "", "frequencies_hz": "",
+                         "output": out_rel, "seconds": 0.0,
+                         "message": f"output name collides with that of {claimed[out]}; "
+                                    "rename one of the files"}
+            continue
+        claimed[out] = rel
+        if not force and _up_to_date(inp, out, params_sha):
+            count, freqs = _modal_summary_from_file(out)
+            rows[rel] = {"file": rel, "status": STATUS_UP_TO_DATE, "modes": count,
+                         "frequencies_hz": freqs, "output": out_rel, "seconds": 0.0,
+                         "message": ""}
+            continue
+        rows[rel] = {}
+        jobs.append({"input": str(inp), "output": str(out), "rel": rel, "out_rel": out_rel,
+                     "identify_options": identify_options or {}, "frf_options": frf_options or {},
+                     "parameters": parameters, "params_sha": params_sha, "report": report,
+                     "traceback": keep_tracebacks})
+
+    summary = BatchSummary(csv_path=output_dir / SUMMARY_NAME)
+    bar = _progress(len(jobs), progress, "ami-xr batch")
+    try:
+        for row in _run_jobs(jobs, workers):
+            rows[row["file"]] = row
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+        # Also on Ctrl-C: the summary lists what is done; unfinished files have empty rows.
+        summary.rows = [rows[inp.relative_to(input_dir).as_posix()] for inp in inputs
+                        if rows.get(inp.relative_to(input_dir).as_posix())]
+        _write_summary(summary.rows, summary.csv_path)
+    return summary
+
+
+def _modal_summary_from_file(path: Path) -> tuple[int | str, str]:
+    try:
+        from ami_xr.io.netcdf import open_dataset
+
+        return _modal_summary(open_dataset(path))
+    except (AmiXrValueError, OSError):
+        return "", ""
