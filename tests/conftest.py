@@ -27,7 +27,7 @@ def _frf_fixture_modes():
 
 @pytest.fixture
 def frf_truth() -> xr.Dataset:
-    """Exact modal parameters of ``frf_dataset``: ``eigenvalue`` (mode), ``residue`` (point, mode)."""
+    """Exact modes of ``frf_dataset``: ``eigenvalue`` (mode), ``residue`` (point, mode)."""
     lam, residue = _frf_fixture_modes()
     return xr.Dataset(
         {
