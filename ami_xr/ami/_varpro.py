@@ -273,6 +273,9 @@ def covariance(prob: Problem, proj: Projection, noise_var: np.ndarray, drive_ind
         "residue": residue,
         "residue_var": res_var,
         "n_coef": p,
+        "dc_dtheta": hj,  # (P, p, 2K)
+        "cov_c_theta": hc,  # (P, p, 2K)
+        "cov_lin": cov_lin,  # (p, p): (R'R)^-1
     }
     if drive_index is None:
         return out
