@@ -29,13 +29,14 @@ from ami_xr.simulate.modal import (
     residues,
     state_space_modes,
 )
-from ami_xr.simulate.random import mode_peaks, random_system
+from ami_xr.simulate.random import contrast, mode_peaks, random_system
 
 __all__ = [
     "BENCHMARK_DRIVE_POINT",
     "BENCHMARK_POINTS",
     "add_noise",
     "beam_absorbers",
+    "contrast",
     "benchmark",
     "benchmark_model",
     "frf",
