@@ -1,0 +1,409 @@
+"""The ``ami-xr`` command line: a thin shell over the public functions.
+
+Each subcommand parses its options, calls one public function (heavy imports happen inside the
+subcommand, so ``ami-xr --help`` is fast and compiles nothing), and maps errors to exit codes:
+
+* 0 success; 1 a library error (bad input file, bad option value, failed identification): one
+  line ``ami-xr <command>: error: ...`` on stderr, no traceback (``-v`` shows it); 2 a usage error
+  (argparse); 3 ``batch`` finished but some files failed; 130 interrupted (Ctrl-C).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import traceback
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from ami_xr.errors import AmiXrError
+
+EXIT_OK = 0
+EXIT_ERROR = 1
+EXIT_USAGE = 2
+EXIT_BATCH_FAILURES = 3
+EXIT_INTERRUPTED = 130
+
+#: The paper's AMI results (average eigenvalues of Tables 1-2, rad/s) for the demo comparison.
+PAPER_AMI_EIGENVALUES = (
+    -0.46025 + 30.555j,
+    -0.71644 + 48.041j,
+    -0.39394 + 65.057j,
+    -0.54413 + 65.836j,
+)
+DEFAULT_DEMO_DIR = "ami_xr_demo"
+
+
+class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """Show defaults and keep the description's line breaks."""
+
+
+# --- helpers -------------------------------------------------------------------------------------
+def _one_line(err: BaseException) -> str:
+    lines = [s.strip(" -") for s in str(err).strip().splitlines() if s.strip()]
+    text = "; ".join(lines) if lines else type(err).__name__
+    if not isinstance(err, (AmiXrError,)):
+        text = f"{type(err).__name__}: {text}"
+    return text
+
+
+def _say(*parts: Any) -> None:
+    print(*parts, flush=True)
+
+
+def _open_any(path: str | os.PathLike):
+    """Read a netCDF, UFF or LVM file into a Dataset (by suffix)."""
+    from ami_xr.batch import _read_any
+
+    return _read_any(Path(path))
+
+
+def _write_any(ds, path: str | os.PathLike, *, binary: bool = False, function: str,
+               parameters: dict | None = None) -> Path:
+    path = Path(path)
+    if path.suffix.lower() in (".uff", ".unv"):
+        from ami_xr.io.uff import write_uff
+
+        return write_uff(ds, path, binary=binary)
+    if path.suffix.lower() != ".nc":
+        from ami_xr.errors import AmiXrValueError
+
+        raise AmiXrValueError(f"output {str(path)!r}: expected a .nc, .uff or .unv file name")
+    import ami_xr
+
+    return ami_xr.to_netcdf(ds, path, function=function, parameters=parameters)
+
+
+def _drop_none(options: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in options.items() if v is not None}
+
+
+def _add_output(p: argparse.ArgumentParser, what: str, required: bool = True,
+                default: str | None = None) -> None:
+    p.add_argument("-o", "--output", required=required, default=default, metavar="PATH",
+                   help=what)
+
+
+# --- identify options (shared by identify, batch and demo) ------------------------------------------
+def _add_identify_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("identification options (ami_xr.identify)")
+    g.add_argument("--method", default=None,
+                   help="identification method passed to ami_xr.identify (default: the "
+                        "library's default)")
+
+
+def _identify_options(args: argparse.Namespace) -> dict[str, Any]:
+    return _drop_none({"method": args.method})
+
+
+# --- subcommands ---------------------------------------------------------------------------------
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    import ami_xr
+
+    ts, g, truth = ami_xr.simulate.benchmark(noise=args.noise, seed=args.seed,
+                                             duration=args.duration, n_samples=args.samples)
+    params = {"system": args.system, "noise": args.noise, "seed": args.seed,
+              "duration": args.duration, "n_samples": args.samples}
+    ami_xr.to_netcdf(g, args.output, function="ami_xr.simulate.benchmark", parameters=params)
+    _say(f"wrote FRFs ({g.sizes['point']} points x {g.sizes['frequency']} lines) to {args.output}")
+    if args.time_output:
+        ami_xr.to_netcdf(ts, args.time_output, function="ami_xr.simulate.benchmark",
+                         parameters=params)
+        _say(f"wrote impulse responses to {args.time_output}")
+    if args.truth_output:
+        ami_xr.to_netcdf(truth, args.truth_output, function="ami_xr.simulate.benchmark",
+                         parameters=params)
+        _say(f"wrote exact modal parameters to {args.truth_output}")
+    return EXIT_OK
+
+
+def _cmd_frf(args: argparse.Namespace) -> int:
+    import ami_xr
+
+    ts = _open_any(args.input)
+    options = _frf_options(args)
+    g = ami_xr.frf(ts, **options)
+    ami_xr.to_netcdf(g, args.output, function="ami_xr.frf", parameters=options)
+    _say(f"wrote FRFs ({g.sizes['point']} points x {g.sizes['frequency']} lines) to {args.output}")
+    return EXIT_OK
+
+
+def _add_frf_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("FRF estimation options (ami_xr.frf)")
+    g.add_argument("--estimator", default="H1", choices=("H1", "H2", "Hv"),
+                   help="FRF estimator")
+    g.add_argument("--window", default=None,
+                   help="response window (e.g. hann, boxcar, exponential); default: the "
+                        "library's choice for the data (exponential for hammer hits)")
+
+
+def _frf_options(args: argparse.Namespace) -> dict[str, Any]:
+    return _drop_none({"estimator": args.estimator, "window": args.window})
+
+
+def _identify_with_progress(ds, options: dict[str, Any], show: bool):
+    import ami_xr
+
+    return ami_xr.identify(ds, **options)
+
+
+def _cmd_identify(args: argparse.Namespace) -> int:
+    from ami_xr.report import format_modal_table
+
+    ds = _open_any(args.input)
+    options = _identify_options(args)
+    result = _identify_with_progress(ds, options, show=not args.quiet)
+    _say(format_modal_table(result))
+    if args.output:
+        _write_any(result, args.output, function="ami_xr.identify", parameters=options)
+        _say(f"wrote modes to {args.output}")
+    return EXIT_OK
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from ami_xr.report import report
+
+    ds = _open_any(args.input)
+    index = report(ds, args.output, title=args.title)
+    _say(f"wrote report to {index}")
+    return EXIT_OK
+
+
+def _cmd_convert(args: argparse.Namespace) -> int:
+    src = Path(args.input)
+    ds = _open_any(src)
+    out = _write_any(ds, args.output, binary=args.binary, function="ami_xr.cli.convert",
+                     parameters={"input": str(src)})
+    _say(f"converted {src} -> {out}")
+    return EXIT_OK
+
+
+def _cmd_batch(args: argparse.Namespace) -> int:
+    from ami_xr.batch import batch
+
+    summary = batch(args.input, args.output, workers=args.workers,
+                    identify_options=_identify_options(args), frf_options=_frf_options(args),
+                    report=args.report, force=args.force, progress=not args.quiet,
+                    keep_tracebacks=args.verbose)
+    _say(summary.format())
+    _say(f"summary: {summary.csv_path}")
+    if args.verbose:
+        for row in summary.rows:
+            if row.get("traceback"):
+                print(f"--- {row['file']}\n{row['traceback']}", file=sys.stderr)
+    return EXIT_OK if summary.ok else EXIT_BATCH_FAILURES
+
+
+# --- demo ----------------------------------------------------------------------------------------
+def _sample_frf_file() -> Path | None:
+    """The shipped benchmark FRF file (noisy, paper's seed) of a source checkout, if present."""
+    folder = Path(__file__).resolve().parents[1] / "sample_data"
+    if not folder.is_dir():
+        return None
+    for pattern in ("*benchmark*frf*.nc", "*frf*.nc"):
+        for path in sorted(folder.glob(pattern)):
+            name = path.name.lower()
+            if "clean" not in name and "noise_free" not in name and "noisefree" not in name:
+                return path
+    return None
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    import ami_xr
+    from ami_xr.report import format_modal_table
+
+    outdir = Path(args.output)
+    sample = None if args.simulate else _sample_frf_file()
+    truth = ami_xr.simulate.benchmark_model()
+    if sample is not None:
+        g = ami_xr.open_dataset(sample)
+        _say(f"benchmark FRFs: {sample}")
+    else:
+        _, g, _ = ami_xr.simulate.benchmark(noise=args.noise, seed=args.seed)
+        _say(f"benchmark FRFs: simulated (noise {args.noise}, seed {args.seed})")
+    _say(f"  {g.sizes['point']} points {list(map(str, g['point'].values))} x "
+         f"{g.sizes['frequency']} lines, 0-{float(g['frequency'][-1]):.4g} Hz, drive point "
+         f"{g.attrs.get('drive_point')}\n")
+    options = _identify_options(args)
+    result = ami_xr.identify(g, **options)
+    lam = np.atleast_1d(result["eigenvalue"].values) if "eigenvalue" in result else np.zeros(0)
+    exact = np.asarray(truth["eigenvalue"].values)
+    paper = np.asarray(PAPER_AMI_EIGENVALUES)
+
+    def nearest(values: np.ndarray, target: complex) -> int:
+        return int(np.argmin(np.abs(np.abs(values) - abs(target))))
+
+    extra: dict[str, list[str]] = {"paper AMI [rad/s]": [], "exact [rad/s]": [],
+                                   "err f/zeta [%]": [], "paper err [%]": []}
+    for lk in lam:
+        k = nearest(exact, lk)
+        ex = exact[k]
+        extra["exact [rad/s]"].append(f"{ex.real:.5f}{ex.imag:+.4f}i")
+        extra["err f/zeta [%]"].append(_errors(lk, ex))
+        if k < paper.size:
+            pa = paper[k]
+            extra["paper AMI [rad/s]"].append(f"{pa.real:.5f}{pa.imag:+.3f}i")
+            extra["paper err [%]"].append(_errors(pa, ex))
+        else:
+            extra["paper AMI [rad/s]"].append("-")
+            extra["paper err [%]"].append("-")
+    _say(format_modal_table(result, extra=extra))
+    _say("\n(err f/zeta: error of natural frequency and of damping ratio vs the simulator's exact "
+         "values; paper: the averages of Tables 1-2 of Ginsberg & Allen)")
+    outdir.mkdir(parents=True, exist_ok=True)
+    modes_path = ami_xr.to_netcdf(result, outdir / "modes.nc", function="ami_xr.identify",
+                                  parameters=options)
+    _say(f"\nwrote {modes_path}")
+    if not args.no_report:
+        from ami_xr.report import report
+
+        _say(f"wrote {report(result, outdir / 'report', title='ami_xr demo: paper benchmark')}")
+    return EXIT_OK
+
+
+def _errors(lam: complex, exact: complex) -> str:
+    import numpy as np
+
+    wn, wn0 = abs(lam), abs(exact)
+    z, z0 = -lam.real / wn, -exact.real / wn0
+    return f"{100 * (wn - wn0) / wn0:+.3f}/{100 * (z - z0) / z0:+.1f}"
+
+
+# --- parser --------------------------------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    """The ``ami-xr`` argument parser (every option shows its default and units in --help)."""
+    from ami_xr import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="ami-xr", formatter_class=_Formatter,
+        description="Experimental modal analysis with the Algorithm of Mode Isolation "
+                    "(Ginsberg & Allen) on labeled xarray data.\n\n"
+                    "Start with:  ami-xr demo",
+        epilog="Exit codes: 0 ok, 1 error (one line on stderr; -v shows the traceback), "
+               "2 usage error, 3 batch with failed files, 130 interrupted.",
+    )
+    parser.add_argument("--version", action="version", version=f"ami_xr {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", default=False,
+                        help="show tracebacks of errors")
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                        help="show tracebacks of errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    def add(name: str, help_text: str, description: str) -> argparse.ArgumentParser:
+        return sub.add_parser(name, help=help_text, description=description,
+                              formatter_class=_Formatter, parents=[common])
+
+    p = add("demo", "identify the paper's benchmark and compare with the paper",
+            "Load the shipped benchmark FRFs (sample_data/, or simulate them when absent), run "
+            "the identification, print the modal table next to the paper's AMI values and the "
+            "simulator's exact values, and write modes.nc and a report/ folder.")
+    _add_output(p, "output folder", required=False, default=DEFAULT_DEMO_DIR)
+    p.add_argument("--simulate", action="store_true",
+                   help="simulate the benchmark even when sample data are present")
+    p.add_argument("--noise", type=float, default=0.15,
+                   help="noise level alpha of eq. 15 (fraction of each signal's peak) when "
+                        "simulating")
+    p.add_argument("--seed", type=int, default=0, help="noise seed when simulating")
+    p.add_argument("--no-report", action="store_true", help="skip the report (no matplotlib)")
+    _add_identify_options(p)
+    p.set_defaults(func=_cmd_demo)
+
+    p = add("simulate", "simulate a test system and write its FRFs",
+            "Simulate the paper's benchmark (cantilever beam with three absorbers, unit impulse "
+            "at the tip, displacement responses) and write its FRFs as netCDF.")
+    p.add_argument("system", choices=("beam-absorbers",), help="which system")
+    _add_output(p, "FRF netCDF file to write (m/N receptance)")
+    p.add_argument("--noise", type=float, default=0.15,
+                   help="noise level alpha of eq. 15 (fraction of each impulse response's peak; "
+                        "0 = noise-free)")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (reproducible)")
+    p.add_argument("--duration", type=float, default=60.0, help="record length [s]")
+    p.add_argument("--samples", type=int, default=4096, help="samples per record")
+    p.add_argument("--time-output", default=None, metavar="PATH",
+                   help="also write the impulse responses [m per N s] to this netCDF file")
+    p.add_argument("--truth-output", default=None, metavar="PATH",
+                   help="also write the exact modal parameters to this netCDF file")
+    p.set_defaults(func=_cmd_simulate)
+
+    p = add("frf", "estimate FRFs from force and response time histories",
+            "Read a time Dataset (netCDF, UFF dataset 58 time responses, or LabVIEW .lvm) and "
+            "estimate FRFs with coherence (ami_xr.frf).")
+    p.add_argument("input", help="time-history file (.nc, .uff, .lvm)")
+    _add_output(p, "FRF netCDF file to write")
+    _add_frf_options(p)
+    p.set_defaults(func=_cmd_frf)
+
+    p = add("identify", "identify modes from FRFs (subtraction, isolation, global fit)",
+            "Run the Algorithm of Mode Isolation on an FRF file and print the modal table "
+            "(mode, natural frequency in Hz and rad/s, damping ratio in %, FRFs that detected "
+            "the mode, quality flags).")
+    p.add_argument("input", help="FRF file (.nc or .uff)")
+    _add_output(p, "result file to write (.nc: FRFs + modal results; .uff: FRFs as dataset "
+                   "58 and mode shapes as dataset 55); omit to only print the table",
+                required=False)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    _add_identify_options(p)
+    p.set_defaults(func=_cmd_identify)
+
+    p = add("report", "draw the figures and write an HTML report",
+            "Write Bode, Nyquist, subtraction, mode-vector and MAC plots (PNG), the modal table "
+            "(CSV) and an index.html showing them, from an identification result.")
+    p.add_argument("input", help="result file of 'ami-xr identify' (.nc)")
+    _add_output(p, "report folder (created)")
+    p.add_argument("--title", default=None, help="page title (default: from the source file)")
+    p.set_defaults(func=_cmd_report)
+
+    p = add("convert", "convert between UFF and netCDF",
+            "Convert a file by its suffixes: .uff/.unv (dataset 58 FRFs or time histories, 55 "
+            "mode shapes) or .lvm -> .nc, and .nc -> .uff (FRFs as 58, modes as 55, time "
+            "histories as 58).")
+    p.add_argument("input", help="input file (.uff, .unv, .lvm or .nc)")
+    _add_output(p, "output file (.nc, .uff or .unv)")
+    p.add_argument("--binary", action="store_true",
+                   help="write UFF dataset 58 in binary (exact float64) instead of ASCII")
+    p.set_defaults(func=_cmd_convert)
+
+    p = add("batch", "identify every measurement file in a folder tree",
+            "Process every .nc, .uff/.unv and .lvm file under DIR (time histories -> FRFs -> "
+            "modes), writing OUTDIR/<same folders>/<stem>.modes.nc atomically. Files whose "
+            "output is up to date (same input content and options) are skipped, so an "
+            "interrupted run resumes. A bad file is reported and skipped. Prints and writes "
+            "OUTDIR/batch_summary.csv; exits with 3 when any file failed.")
+    p.add_argument("input", metavar="DIR", help="folder of measurement files (searched "
+                                                "recursively)")
+    _add_output(p, "output folder (mirrors DIR)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="files processed in parallel (processes)")
+    p.add_argument("--report", action="store_true",
+                   help="also write <stem>.report/ folders (needs matplotlib)")
+    p.add_argument("--force", action="store_true", help="redo files whose outputs are up to date")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    _add_identify_options(p)
+    _add_frf_options(p)
+    p.set_defaults(func=_cmd_batch)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``ami-xr``; returns the exit code (see the module docstring)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or EXIT_OK)
+    except KeyboardInterrupt:
+        print("ami-xr: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (AmiXrError, ValueError, OSError, ImportError) as err:
+        if args.verbose:
+            traceback.print_exc()
+        print(f"ami-xr {args.command}: error: {_one_line(err)}", file=sys.stderr)
+        return EXIT_ERROR
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
