@@ -86,7 +86,7 @@ def _add_output(p: argparse.ArgumentParser, what: str, required: bool = True,
                    help=what)
 
 
-# --- identify options (shared by identify, batch and demo) ------------------------------------------
+# --- identify options (shared by identify, batch and demo) ------------------------------------
 def _add_identify_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("identification options (ami_xr.identify)")
     g.add_argument("--method", default=None,
@@ -266,7 +266,6 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _errors(lam: complex, exact: complex) -> str:
-    import numpy as np
 
     wn, wn0 = abs(lam), abs(exact)
     z, z0 = -lam.real / wn, -exact.real / wn0
