@@ -146,7 +146,8 @@ def frf_from_force(
     Raises
     ------
     AmiXrValueError
-        When the force spectrum is exactly zero at some frequency (division impossible).
+        When the force spectrum is exactly zero at some frequency (division impossible). On
+        dask-backed data this surfaces when the block is computed.
     """
     y = _check_record(y, "y")
     f = _check_record(f, "f")
