@@ -28,6 +28,12 @@ system) its FRFs are the same column, so points = reference DOFs and ``drive_poi
 response DOF; the Dataset attribute ``uff_layout`` says which case applied. Files where both
 vary (multiple references) are refused with a clear error until multi-reference data is supported.
 
+Abscissae
+---------
+Evenly spaced records store their increment with about 6 significant digits. When ``1 / inc``
+is that close to an integer (a sampling rate in Hz or a record length in s), the exact reciprocal
+is used, so ``dt = 1/1024 s`` or ``df = 1/60 Hz`` survive a round trip.
+
 Units
 -----
 The response quantity comes from the ordinate's specific data type (8 displacement, 11 velocity,
@@ -180,11 +186,19 @@ def _quantity_and_units(record: dict, path: Path) -> tuple[str, str, str, bool]:
 
 
 def _abscissa(record: dict) -> np.ndarray:
-    x = record.get("x")
-    if x is not None and len(x) == len(record["data"]):
-        return np.asarray(x, dtype=np.float64)
     n = len(record["data"])
-    return float(record["abscissa_min"]) + float(record["abscissa_inc"]) * np.arange(n)
+    if int(record.get("abscissa_spacing", 0)) != 1:
+        return np.asarray(record["x"], dtype=np.float64)
+    start, inc = float(record["abscissa_min"]), float(record["abscissa_inc"])
+    # The header keeps ~6 significant digits (E13.5): dt = 1/1024 s is written 9.76562e-04.
+    # When 1/inc is within that precision of an integer (a sampling rate in Hz, a record length
+    # in s), use the exact reciprocal so time and frequency axes survive a round trip.
+    if inc > 0:
+        rate = 1.0 / inc
+        nearest = round(rate)
+        if nearest >= 1 and abs(rate - nearest) <= 2e-5 * rate:
+            inc = 1.0 / nearest
+    return start + inc * np.arange(n)
 
 
 # --- reading ---------------------------------------------------------------------------------
