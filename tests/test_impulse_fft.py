@@ -71,10 +71,12 @@ def test_impulse_to_frf_matches_numpy_reference():
     )
 
 
-def test_impulse_to_frf_of_modal_response_is_the_exact_discrete_basis():
-    got = kfft.impulse_to_frf(impulse_responses(), DT)
-    omega = 2 * np.pi * kfft.rfft_frequencies(N, DT)
-    assert rel_err(got, exact_frf(omega)) < 1e-12
+@pytest.mark.parametrize(("n", "dt"), [(N, DT), (1001, 0.02), (64, 0.5)])
+def test_impulse_to_frf_of_modal_response_is_the_exact_discrete_basis(n, dt):
+    got = kfft.impulse_to_frf(impulse_responses(n=n, dt=dt), dt)
+    omega = 2 * np.pi * kfft.rfft_frequencies(n, dt)
+    assert got.shape == (2, n // 2 + 1)
+    assert rel_err(got, exact_frf(omega, dt=dt, n=n)) < 1e-12
 
 
 def test_exponential_window_shifts_every_eigenvalue_by_beta():
@@ -160,6 +162,27 @@ def test_impulse_to_frf_dataset_follows_the_data_model():
     assert names.ATTR_EXP_DECAY not in a
     assert json.loads(a[names.ATTR_HISTORY])[-1]["function"] == "impulse_to_frf"
     assert names.TIME not in out.coords
+
+
+@pytest.mark.parametrize(
+    ("quantity", "units", "frf_type"),
+    [("velocity", "m/s", "mobility"), ("acceleration", "m/s^2", "accelerance")],
+)
+def test_impulse_to_frf_carries_quantity_and_units(quantity, units, frf_type):
+    ds = ami_xr.make_time_dataset(
+        impulse_responses(),
+        fs=1 / DT,
+        points=POINTS,
+        drive_point="tip",
+        response_quantity=quantity,
+        response_units=units,
+        force_units="kN",
+    )
+    out = ami_xr.impulse_to_frf(ds)
+    assert out.attrs[names.ATTR_FRF_TYPE] == frf_type
+    assert out.attrs[names.ATTR_QUANTITY] == quantity
+    assert out[names.FRF].attrs[names.ATTR_UNITS] == f"{units}/kN"
+    ami_xr.validate(out, kind="frf")
 
 
 def test_impulse_to_frf_equals_mode_contribution():

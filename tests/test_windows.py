@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 import scipy.signal
 import scipy.signal.windows as sw
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels import windows as kw
@@ -276,3 +278,32 @@ def test_other_bad_inputs():
         kw.exponential_decay_rate(10, fs=0.0, decay=1.0)
     with pytest.raises(AmiXrValueError, match="n:"):
         kw.exponential_decay_rate(0, fs=1.0, decay=1.0)
+
+
+# --- property tests ---------------------------------------------------------------------------
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    name=st.sampled_from(["hann", "flattop", "boxcar"]),
+    n=st.integers(1, 3000),
+    sym=st.booleans(),
+)
+def test_property_cosine_windows_equal_scipy(name, n, sym):
+    got = kw.get_window(name, n, sym=sym)
+    np.testing.assert_allclose(got, scipy.signal.get_window(name, n, fftbins=not sym), atol=1e-15)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    n=st.integers(1, 200),
+    width=st.integers(1, 200),
+    taper=st.integers(0, 50),
+    batch=st.integers(0, 3),
+)
+def test_property_force_window_and_apply_window(n, width, taper, batch):
+    width = min(width, n)
+    w = kw.get_window("force", n, width=width, taper=taper)
+    np.testing.assert_allclose(w, ref_force(n, width, taper), atol=1e-15)
+    x = np.random.default_rng(n).standard_normal((batch, 2, n))
+    np.testing.assert_array_equal(kw.apply_window(x, w), x * w)
