@@ -59,6 +59,9 @@ def impulse_to_frf(
     ``rfft(w * response) / rfft(w * force)``, ``frf_source="estimated"``, and no ``dt``/``N``
     attributes (the discrete basis does not model a measured force pulse).
 
+    Sample 0 is taken as the instant of the impulse (``t = 0``) whatever the origin of the
+    ``time`` coordinate: trim any pre-trigger first.
+
     Parameters
     ----------
     ds : xarray.Dataset
