@@ -29,6 +29,8 @@ from ami_xr.io import (  # noqa: E402
     validate,
 )
 from ami_xr.signal import apply_window, impulse_to_frf  # noqa: E402
+from ami_xr.ami.refine import refine  # noqa: E402
+from ami_xr.ami.crb import cramer_rao_bound  # noqa: E402
 
 from ami_xr import accessor as _accessor  # noqa: E402,F401  (registers ds.ami)
 
@@ -50,4 +52,6 @@ __all__ = [
     "make_time_dataset",
     "apply_window",
     "impulse_to_frf",
+    "refine",
+    "cramer_rao_bound",
 ]

@@ -42,3 +42,7 @@ from ami_xr.signal import apply_window, impulse_to_frf  # noqa: E402
 
 AmiAccessor.apply_window = _method(apply_window)
 AmiAccessor.impulse_to_frf = _method(impulse_to_frf)
+
+from ami_xr.ami.refine import refine  # noqa: E402
+
+AmiAccessor.refine = _method(refine)

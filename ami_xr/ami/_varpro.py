@@ -219,7 +219,7 @@ def levenberg_marquardt(
         lam, proj, cost = lam_new, proj_new, cost_new
         if rel < tol or decrease < cost_eps:
             converged = True
-            message = "eigenvalue change below tol" if rel < tol else "objective change below rounding"
+            message = "eigenvalue change below tol" if rel < tol else "objective flat"
             break
     return FitResult(lam, proj, cost, start, n_iter, converged, message)
 

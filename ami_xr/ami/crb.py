@@ -139,7 +139,8 @@ def cramer_rao_bound(
         kind = noise_kind or frf.attrs.get(_ATTR_NOISE_KIND, "uniform")
         if alpha is None or not np.isfinite(alpha) or alpha <= 0:
             raise AmiXrValueError(
-                f"noise_level: expected a positive alpha of eq. 15 (or frf_noise_std), got {alpha!r}"
+                "noise_level: expected a positive alpha of eq. 15 (or frf_noise_std), "
+                f"got {alpha!r}"
             )
         if kind not in NOISE_KINDS:
             raise AmiXrValueError(f"noise_kind: expected one of {NOISE_KINDS}, got {kind!r}")

@@ -76,7 +76,7 @@ def _refine_arrays(
     omega = 2.0 * np.pi * np.asarray(freq, dtype=np.float64)
     nyquist = np.pi / dt if dt else None
     prob = _varpro.make_problem(frf, omega, dt, n_samples, residual_terms, nyquist=nyquist)
-    # An exponential window multiplies exp(lam t) by exp(-decay t): the data's poles are lam - decay.
+    # An exponential window multiplies exp(lam t) by exp(-decay t): data poles are lam - decay.
     mu0 = np.asarray(lam0, dtype=np.complex128) - decay
     min_width = 2.0 * (omega[1] - omega[0]) if omega.size > 1 else 0.0
     free = np.ones(n_mode, bool)
@@ -223,7 +223,8 @@ def _model_choice(ds, residual_terms):
     n = ds.attrs.get(names.ATTR_NSAMPLES)
     discrete = source == names.SOURCE_IMPULSE and dt is not None and n is not None
     if residual_terms == "auto":
-        terms = () if source in (names.SOURCE_IMPULSE, names.SOURCE_ANALYTIC) else ("lower", "upper")
+        exact = source in (names.SOURCE_IMPULSE, names.SOURCE_ANALYTIC)
+        terms = () if exact else ("lower", "upper")
     elif isinstance(residual_terms, str):
         terms = (residual_terms,)
     else:
@@ -292,7 +293,9 @@ def refine(
         frf = frf.sel({names.FREQUENCY: slice(float(band[0]), float(band[1]))})
     if "lower" in terms:
         frf = frf.where(frf[names.FREQUENCY] > 0, drop=True)
-    lam0 = ds[names.EIGENVALUE]
+    # The eigenvalues are shared by all points: this step gathers, so dask data are loaded.
+    frf = frf.compute()
+    lam0 = ds[names.EIGENVALUE].compute()
     n_mode = lam0.sizes[names.MODE]
     n_line = frf.sizes[names.FREQUENCY]
     n_coef = 2 * n_mode + 2 * len(terms)
@@ -302,7 +305,7 @@ def refine(
             f"{(n_coef + 2 * n_mode) // 2 + 1}"
         )
     if names.RESIDUE in ds:
-        res0 = ds[names.RESIDUE].transpose(names.POINT, names.MODE)
+        res0 = ds[names.RESIDUE].transpose(names.POINT, names.MODE).compute()
     else:
         res0 = xr.zeros_like(frf.isel({names.FREQUENCY: 0}, drop=True)) * xr.zeros_like(
             lam0, dtype=np.complex128
@@ -378,7 +381,7 @@ def refine(
               "max_shift": max_shift}
     out = add_history(out, "ami_xr.refine", params)
     if path is not None:
-        from ami_xr.io.netcdf import to_netcdf
+        from ami_xr.io import to_netcdf
 
         to_netcdf(out, path)
     return out

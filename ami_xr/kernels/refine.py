@@ -129,11 +129,6 @@ def model_columns(
     return phi, dphi
 
 
-def stack_real(z: np.ndarray) -> np.ndarray:
-    """``[Re z, Im z]`` along the last axis... for columns: complex (L, m) -> real (2L, m)."""
-    return np.concatenate([z.real, z.imag], axis=0)
-
-
 @jit
 def _normal_equations(coef, weight, s_mat, v_res, n_mode):
     """Gauss-Newton normal equations of the eigenvalue parameters, summed over points.
@@ -161,11 +156,11 @@ def _normal_equations(coef, weight, s_mat, v_res, n_mode):
         # block-diagonal M: (S M)[:, l-block] = S[:, l-block] @ B_l
         sm = np.zeros((n_par, n_par))
         for r in range(n_par):
-            for l in range(n_mode):
+            for b in range(n_mode):
                 for c in range(2):
-                    sm[r, 2 * l + c] = (
-                        s_mat[r, 2 * l] * m[2 * l, 2 * l + c]
-                        + s_mat[r, 2 * l + 1] * m[2 * l + 1, 2 * l + c]
+                    sm[r, 2 * b + c] = (
+                        s_mat[r, 2 * b] * m[2 * b, 2 * b + c]
+                        + s_mat[r, 2 * b + 1] * m[2 * b + 1, 2 * b + c]
                     )
         for k in range(n_mode):
             for a in range(2):

@@ -1,0 +1,255 @@
+"""Tests of the joint maximum-likelihood refinement (ami_xr.refine) and the Cramér-Rao bound."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import ami_xr
+from ami_xr import names
+from ami_xr.ami.crb import cramer_rao_bound, expected_norm
+from ami_xr.ami.refine import refine
+from ami_xr.errors import IdentificationError
+from ami_xr.simulate import benchmark, frf
+
+PERTURB = np.array([1.0, -1.0, 1.0, -1.0])
+
+
+def _mode_vector_error(phi, phi_true):
+    """|phi - phi_true| / |phi_true| per mode, up to the sign of eq. 8's square root."""
+    out = []
+    for k in range(phi_true.shape[1]):
+        n = np.linalg.norm(phi_true[:, k])
+        out.append(min(np.linalg.norm(phi[:, k] - phi_true[:, k]),
+                       np.linalg.norm(phi[:, k] + phi_true[:, k])) / n)
+    return np.array(out)
+
+
+def _start(g, truth, rel=0.003, damping=1.0):
+    """An AMI-like start: the FRFs with perturbed eigenvalues (and the true residues)."""
+    ds = g.copy()
+    lam = truth[names.EIGENVALUE].values
+    lam0 = lam.real * damping + 1j * lam.imag * (1 + rel * PERTURB[: lam.size])
+    ds[names.EIGENVALUE] = xr.DataArray(lam0, dims=names.MODE,
+                                        coords={names.MODE: truth[names.MODE].values})
+    ds[names.RESIDUE] = truth[names.RESIDUE]
+    return ds
+
+
+@pytest.fixture(scope="module")
+def clean():
+    _, g, truth = benchmark(noise=0.0)
+    return g, truth
+
+
+@pytest.mark.parametrize("rel,damping", [(0.003, 1.0), (-0.002, 1.6), (0.001, 0.5)])
+def test_noise_free_exact_recovery(clean, rel, damping):
+    g, truth = clean
+    out = refine(_start(g, truth, rel, damping))
+    lam = truth[names.EIGENVALUE].values
+    err = np.abs(out[names.EIGENVALUE].values - lam) / np.abs(lam)
+    assert err.max() < 1e-8
+    mv = _mode_vector_error(out[names.MODE_VECTOR].values, truth[names.MODE_VECTOR].values)
+    assert mv.max() < 1e-6  # modes 1 and 2 included: the exact discrete model
+    assert out.attrs["refine_converged"] == 1
+    assert out.attrs["refine_model"] == "discrete"
+    # the start is kept
+    np.testing.assert_array_equal(out["ami_eigenvalue"].values, _start(g, truth, rel, damping)[
+        names.EIGENVALUE].values)
+
+
+def test_noise_free_analytic_continuous_model(clean):
+    _, truth = clean
+    g = frf(truth, np.linspace(0.5, 20.0, 800))
+    out = refine(_start(g, truth, 0.002))
+    assert out.attrs["refine_model"] == "continuous"
+    lam = truth[names.EIGENVALUE].values
+    assert (np.abs(out[names.EIGENVALUE].values - lam) / np.abs(lam)).max() < 1e-8
+    # residual terms allowed (measured data): still exact, terms near zero
+    g2 = g.assign_attrs({names.ATTR_SOURCE: names.SOURCE_MEASURED})
+    out2 = refine(_start(g2, truth, 0.002))
+    assert out2.attrs["refine_residual_terms"] == "lower,upper"
+    assert (np.abs(out2[names.EIGENVALUE].values - lam) / np.abs(lam)).max() < 1e-8
+    assert np.abs(out2[names.RESIDUAL_UPPER].values).max() < 1e-9 * np.abs(g.frf.values).max()
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_never_worse_than_start(seed):
+    _, g, truth = benchmark(noise=0.15, seed=seed)
+    out = refine(_start(g, truth, 0.004, 1.4))
+    assert out.attrs["refine_cost"] <= out.attrs["refine_cost_start"]
+    # and with the AMI residues instead of projected ones the start is worse still: the
+    # refined residuals are at least as small for every FRF weighting
+    from ami_xr.ami import _varpro
+
+    dt, n = g.attrs[names.ATTR_DT], g.attrs[names.ATTR_NSAMPLES]
+    omega = 2 * np.pi * g[names.FREQUENCY].values
+    prob = _varpro.make_problem(g.frf.values, omega, dt, n, nyquist=np.pi / dt)
+    start_cost = _varpro.objective(prob, _varpro.project(prob, out["ami_eigenvalue"].values))
+    assert out.attrs["refine_cost"] <= start_cost + 1e-9
+
+
+def test_fallback_when_modes_move_too_far():
+    _, g, truth = benchmark(noise=0.15, seed=1)
+    start = _start(g, truth, 0.004)
+    out = refine(start, max_shift=1e-6)
+    np.testing.assert_array_equal(out[names.EIGENVALUE].values, start[names.EIGENVALUE].values)
+    assert all(names.FLAG_REFINE_FALLBACK in f for f in out["quality_flags"].values)
+
+
+def test_fallback_on_coinciding_eigenvalues():
+    _, g, truth = benchmark(noise=0.15, seed=1)
+    start = _start(g, truth, 0.0)
+    lam = start[names.EIGENVALUE].values.copy()
+    lam[3] = lam[2]
+    start[names.EIGENVALUE] = (names.MODE, lam)
+    out = refine(start)
+    np.testing.assert_array_equal(out[names.EIGENVALUE].values, lam)
+    assert all(names.FLAG_REFINE_FALLBACK in f for f in out["quality_flags"].values)
+    np.testing.assert_array_equal(out[names.RESIDUE].values, truth[names.RESIDUE].values)
+
+
+def test_not_converged_is_flagged_and_keeps_flags():
+    _, g, truth = benchmark(noise=0.15, seed=2)
+    start = _start(g, truth, 0.004, 1.5)
+    start["quality_flags"] = (names.MODE, np.array(["low_drive_point_snr", "", "", ""]))
+    out = refine(start, max_iter=1)
+    flags = list(out["quality_flags"].values)
+    assert flags[0].split(",") == ["low_drive_point_snr", names.FLAG_REFINE_NOT_CONVERGED]
+    assert all(names.FLAG_REFINE_NOT_CONVERGED in f for f in flags)
+    assert out.attrs["refine_converged"] == 0
+
+
+def test_input_not_mutated_and_accessor_and_history(clean):
+    g, truth = clean
+    start = _start(g, truth, 0.002)
+    before = start.copy(deep=True)
+    out = start.ami.refine(max_iter=20)
+    xr.testing.assert_identical(start, before)
+    assert "ami_xr.refine" in out.attrs[names.ATTR_HISTORY]
+    assert ami_xr.refine is refine
+
+
+def test_band_and_dask_match(clean):
+    g, truth = clean
+    start = _start(g, truth, 0.002)
+    out = refine(start, band=(3.0, 13.0))
+    lam = truth[names.EIGENVALUE].values
+    assert (np.abs(out[names.EIGENVALUE].values - lam) / np.abs(lam)).max() < 1e-8
+    pytest.importorskip("dask")
+    out_d = refine(start.chunk({names.POINT: 2}), band=(3.0, 13.0))
+    np.testing.assert_allclose(out_d[names.EIGENVALUE].values, out[names.EIGENVALUE].values,
+                               rtol=1e-12)
+
+
+def test_path_writes_netcdf(clean, tmp_path):
+    netcdf = pytest.importorskip("ami_xr.io")
+    g, truth = clean
+    path = tmp_path / "refined.nc"
+    out = refine(_start(g, truth, 0.002), path=path)
+    back = netcdf.open_dataset(path)
+    np.testing.assert_allclose(back[names.EIGENVALUE].values, out[names.EIGENVALUE].values)
+
+
+@pytest.mark.parametrize(
+    "kwargs,match",
+    [
+        ({"max_iter": 0}, "max_iter"),
+        ({"tol": -1.0}, "tol"),
+        ({"band": (5.0, 1.0)}, "band"),
+        ({"band": "low"}, "band"),
+        ({"residual_terms": ("middle",)}, "residual_terms"),
+        ({"max_shift": 0}, "max_shift"),
+        ({"band": (10.0, 10.05)}, "band"),
+    ],
+)
+def test_bad_arguments(clean, kwargs, match):
+    g, truth = clean
+    with pytest.raises(IdentificationError, match=match):
+        refine(_start(g, truth), **kwargs)
+
+
+def test_missing_eigenvalue(clean):
+    g, _ = clean
+    with pytest.raises(IdentificationError, match="eigenvalue"):
+        refine(g)
+
+
+# ------------------------------------------------------------------------------------------
+# Cramér-Rao bound
+# ------------------------------------------------------------------------------------------
+def test_expected_norm_closed_forms():
+    assert expected_norm(np.eye(1) * 4.0) == pytest.approx(2.0 * np.sqrt(2 / np.pi), rel=1e-9)
+    # circular complex scalar: E|z| = sqrt(pi)/2 sqrt(E|z|^2)
+    assert expected_norm(np.eye(2) * 0.5) == pytest.approx(np.sqrt(np.pi) / 2, rel=1e-9)
+    # 3-D standard normal: E|x| = 2 sqrt(2/pi)
+    assert expected_norm(np.eye(3)) == pytest.approx(2 * np.sqrt(2 / np.pi), rel=1e-9)
+
+
+def test_crb_single_mode_closed_form():
+    """One lightly damped mode on a dense grid: E|d lam|^2 = 4 a^3 sigma^2 dw / (pi |A|^2).
+
+    For ``G = A / (i w - lam)``, ``lam = -a + i b`` and circular noise ``E|e|^2 = sigma^2`` per
+    line, the Fisher information of (lam, A) summed over lines ``dw`` apart (band >> a) has
+    ``|A|^2 pi / (2 a^3 dw)``, ``pi / (a dw)`` and ``A pi / (2 a^2 dw)``; its Schur complement
+    gives the bound. The conjugate term and the finite band change it by well under 1 %.
+    """
+    a, b, amp = 0.5, 200.0, 3.0 - 1.0j
+    dw = 0.02
+    omega = np.arange(100.0, 300.0, dw)
+    lam = -a + 1j * b
+    truth = xr.Dataset(
+        {names.EIGENVALUE: ((names.MODE,), [lam]),
+         names.RESIDUE: ((names.POINT, names.MODE), [[amp]])},
+        coords={names.MODE: [1], names.POINT: ["p"]},
+    )
+    g = xr.Dataset(coords={names.FREQUENCY: omega / (2 * np.pi), names.POINT: ["p"]},
+                   attrs={names.ATTR_SOURCE: names.SOURCE_ANALYTIC, names.ATTR_DRIVE_POINT: "p"})
+    sigma = 1e-3
+    crb = cramer_rao_bound(truth, g, frf_noise_std=sigma)
+    expected = np.sqrt(2 * a**3 * sigma**2 * dw / (np.pi * abs(amp) ** 2))
+    std = crb[names.EIGENVALUE_STD].values[0]
+    assert std.real == pytest.approx(expected, rel=5e-3)
+    assert std.imag == pytest.approx(expected, rel=5e-3)
+
+
+def test_crb_benchmark_matches_issue():
+    _, g, truth = benchmark(noise=0.15, seed=0)
+    crb = cramer_rao_bound(truth, g)
+    np.testing.assert_allclose(100 * crb[names.NATURAL_FREQUENCY_ERROR].values,
+                               [0.045, 0.067, 0.012, 0.024], rtol=0.05)
+    np.testing.assert_allclose(100 * crb[names.DAMPING_RATIO_ERROR].values,
+                               [3.0, 4.5, 2.0, 2.7], rtol=0.05)
+    np.testing.assert_allclose(100 * crb[names.MODE_VECTOR_ERROR].values[2:], [3.5, 4.7],
+                               rtol=0.05)
+
+
+def test_refine_std_matches_crb_at_truth():
+    """At the true eigenvalues with the true noise the Gauss-Newton covariance is the bound."""
+    _, g, truth = benchmark(noise=0.15, seed=5)
+    crb = cramer_rao_bound(truth, g)
+    out = refine(_start(g, truth, 0.0))
+    ratio = out[names.NATURAL_FREQUENCY_STD].values / crb[names.NATURAL_FREQUENCY_STD].values
+    assert np.all((ratio > 0.7) & (ratio < 1.4))
+    ratio = out[names.DAMPING_RATIO_STD].values / crb[names.DAMPING_RATIO_STD].values
+    assert np.all((ratio > 0.7) & (ratio < 1.4))
+
+
+def test_small_monte_carlo_near_crb():
+    """A few seeds: refined errors are of the size of the bound (loose: 6 seeds)."""
+    _, g, truth = benchmark(noise=0.15, seed=0)
+    crb = cramer_rao_bound(truth, g)
+    lam = truth[names.EIGENVALUE].values
+    fn_err, z_err = [], []
+    for seed in range(6):
+        _, g, _ = benchmark(noise=0.15, seed=100 + seed)
+        out = refine(_start(g, truth, 0.003, 1.3))
+        fit = out[names.EIGENVALUE].values
+        fn_err.append(np.abs(np.abs(fit) - np.abs(lam)) / np.abs(lam))
+        z_err.append(np.abs((fit.real / np.abs(fit)) / (lam.real / np.abs(lam)) - 1))
+    fn_ratio = np.mean(fn_err, 0) / crb[names.NATURAL_FREQUENCY_ERROR].values
+    z_ratio = np.mean(z_err, 0) / crb[names.DAMPING_RATIO_ERROR].values
+    assert np.all(fn_ratio < 2.5), fn_ratio
+    assert np.all(z_ratio < 2.5), z_ratio
+    assert np.mean(fn_ratio) < 1.6 and np.mean(z_ratio) < 1.6
