@@ -40,7 +40,14 @@ from typing import Any
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, DataFileError
 
-__all__ = ["batch", "BatchSummary", "find_inputs", "output_path", "INPUT_SUFFIXES"]
+__all__ = [
+    "batch",
+    "BatchSummary",
+    "estimate_frf",
+    "find_inputs",
+    "output_path",
+    "INPUT_SUFFIXES",
+]
 
 #: File suffixes (lower case) the batch treats as measurements.
 INPUT_SUFFIXES = (".nc", ".uff", ".unv", ".lvm")
@@ -210,6 +217,17 @@ def _read_any(path: Path):
     raise DataFileError(f"{path}: unknown file type {suffix!r}; expected one of {INPUT_SUFFIXES}")
 
 
+def estimate_frf(ts, frf_options: dict[str, Any] | None = None):
+    """:func:`ami_xr.frf` on a time Dataset; without an ``excitation`` option, data with a
+    ``record`` dim (repeated hammer hits) are treated as an impact test, others as random."""
+    import ami_xr
+
+    options = dict(frf_options or {})
+    if "excitation" not in options:
+        options["excitation"] = "impact" if names.RECORD in ts.dims else "random"
+    return ami_xr.frf(ts, **options)
+
+
 def _modal_summary(ds) -> tuple[int, str]:
     if names.EIGENVALUE not in ds:
         return 0, ""
@@ -239,7 +257,7 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
                         f"{inp}: neither an FRF Dataset ('{names.FRF}') nor a time Dataset "
                         f"('{names.RESPONSE}'); found variables {sorted(map(str, ds.data_vars))}"
                     )
-                ds = ami_xr.frf(ds, **job["frf_options"])
+                ds = estimate_frf(ds, job["frf_options"])
             result = ami_xr.identify(ds, **job["identify_options"])
             result.attrs.update({
                 ATTR_INPUT: job["rel"],

@@ -122,25 +122,76 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 def _cmd_frf(args: argparse.Namespace) -> int:
     import ami_xr
 
+    from ami_xr.batch import estimate_frf
+
     ts = _open_any(args.input)
     options = _frf_options(args)
-    g = ami_xr.frf(ts, **options)
+    g = estimate_frf(ts, options)
     ami_xr.to_netcdf(g, args.output, function="ami_xr.frf", parameters=options)
     _say(f"wrote FRFs ({g.sizes['point']} points x {g.sizes['frequency']} lines) to {args.output}")
     return EXIT_OK
 
 
 def _add_frf_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("FRF estimation options (ami_xr.frf)")
+    g = p.add_argument_group("FRF estimation options (ami_xr.frf; time-history input only)")
     g.add_argument("--estimator", default="H1", choices=("H1", "H2", "Hv"),
-                   help="FRF estimator")
+                   help="FRF estimator: H1 = Gfy/Gff (output noise), H2 = Gyy/Gyf (input "
+                        "noise), Hv (total least squares)")
+    g.add_argument("--excitation", default="auto", choices=("auto", "random", "impact"),
+                   help="impact: every record is a hammer hit (checked, windowed, averaged); "
+                        "random: Welch segments; auto: impact when the data have a 'record' "
+                        "dim, else random")
     g.add_argument("--window", default=None,
-                   help="response window (e.g. hann, boxcar, exponential); default: the "
-                        "library's choice for the data (exponential for hammer hits)")
+                   help="Welch window for random excitation (hann, boxcar, flattop, ...); "
+                        "default hann")
+    g.add_argument("--nperseg", type=int, default=None,
+                   help="segment length [samples]; default 256 (random) or the whole record "
+                        "(impact)")
+    g.add_argument("--noverlap", type=int, default=None,
+                   help="segment overlap [samples]; default nperseg // 2 (random), 0 (impact)")
+    g.add_argument("--nfft", type=int, default=None, help="FFT length [samples]; default nperseg")
+    g.add_argument("--detrend", default=None, choices=("constant", "linear", "none"),
+                   help="detrend of each segment; default constant (random), none (impact)")
+    g.add_argument("--average", default="linear", choices=("linear", "exponential"),
+                   help="averaging over segments or hits")
+    g.add_argument("--n-average", type=int, default=8,
+                   help="time constant of exponential averaging [segments]")
+    g.add_argument("--force-window", type=float, default=None, metavar="SECONDS",
+                   help="impact: force window width [s]; default from the force pulse")
+    g.add_argument("--exponential-decay", type=float, default=None, metavar="PER_SECOND",
+                   help="impact: exponential window decay rate [1/s] (its damping is removed "
+                        "again by identification); default none")
+    g.add_argument("--exponential-end-value", type=float, default=None, metavar="FRACTION",
+                   help="impact: exponential window by its value at the record end [0-1], "
+                        "instead of --exponential-decay")
+    g.add_argument("--no-hit-checks", action="store_true",
+                   help="impact: use every hit (no overload/double-impact/weak-force checks)")
+    g.add_argument("--double-impact-threshold", type=float, default=0.1, metavar="FRACTION",
+                   help="impact: second force pulse above this fraction of the peak = double "
+                        "impact")
+    g.add_argument("--overload-samples", type=int, default=3,
+                   help="impact: this many samples at the channel's extreme = overload")
+    g.add_argument("--min-force", type=float, default=None, metavar="NEWTON",
+                   help="impact: reject hits whose peak force is below this [force units]")
+    g.add_argument("--weak-force-ratio", type=float, default=0.1, metavar="FRACTION",
+                   help="impact: reject hits weaker than this fraction of the median peak")
 
 
 def _frf_options(args: argparse.Namespace) -> dict[str, Any]:
-    return _drop_none({"estimator": args.estimator, "window": args.window})
+    options = {
+        "estimator": args.estimator, "window": args.window, "nperseg": args.nperseg,
+        "noverlap": args.noverlap, "nfft": args.nfft, "detrend": args.detrend,
+        "average": args.average, "n_average": args.n_average,
+        "force_window": args.force_window, "exponential_decay": args.exponential_decay,
+        "exponential_end_value": args.exponential_end_value,
+        "hit_checks": not args.no_hit_checks,
+        "double_impact_threshold": args.double_impact_threshold,
+        "overload_samples": args.overload_samples, "min_force": args.min_force,
+        "weak_force_ratio": args.weak_force_ratio,
+    }
+    if args.excitation != "auto":
+        options["excitation"] = args.excitation
+    return _drop_none(options)
 
 
 def _identify_with_progress(ds, options: dict[str, Any], show: bool):
