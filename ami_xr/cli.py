@@ -121,7 +121,6 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 def _cmd_frf(args: argparse.Namespace) -> int:
     import ami_xr
-
     from ami_xr.batch import estimate_frf
 
     ts = _open_any(args.input)
