@@ -29,8 +29,22 @@ from ami_xr.io import (  # noqa: E402
     validate,
 )
 from ami_xr.signal import apply_window, impulse_to_frf  # noqa: E402
+from ami_xr.signal.frf import convert_quantity, frf  # noqa: E402
+from ami_xr.io.lvm import read_lvm  # noqa: E402
 from ami_xr.ami.refine import refine  # noqa: E402
 from ami_xr.ami.crb import cramer_rao_bound  # noqa: E402
+
+from ami_xr.batch import batch  # noqa: E402
+from ami_xr.io.uff import read_uff, write_uff  # noqa: E402
+from ami_xr.plot import (  # noqa: E402
+    plot_bode,
+    plot_mac,
+    plot_modal_table,
+    plot_mode_vectors,
+    plot_nyquist,
+    plot_subtraction,
+)
+from ami_xr.report import format_modal_table, modal_table, report  # noqa: E402
 
 from ami_xr import accessor as _accessor  # noqa: E402,F401  (registers ds.ami)
 
@@ -52,6 +66,21 @@ __all__ = [
     "make_time_dataset",
     "apply_window",
     "impulse_to_frf",
+    "frf",
+    "convert_quantity",
+    "read_lvm",
     "refine",
     "cramer_rao_bound",
+    "batch",
+    "read_uff",
+    "write_uff",
+    "plot_bode",
+    "plot_nyquist",
+    "plot_subtraction",
+    "plot_mode_vectors",
+    "plot_mac",
+    "plot_modal_table",
+    "report",
+    "modal_table",
+    "format_modal_table",
 ]

@@ -46,3 +46,29 @@ AmiAccessor.impulse_to_frf = _method(impulse_to_frf)
 from ami_xr.ami.refine import refine  # noqa: E402
 
 AmiAccessor.refine = _method(refine)
+
+from ami_xr.io.uff import write_uff  # noqa: E402
+from ami_xr.plot import (  # noqa: E402
+    plot_bode,
+    plot_mac,
+    plot_modal_table,
+    plot_mode_vectors,
+    plot_nyquist,
+    plot_subtraction,
+)
+from ami_xr.report import modal_table, report  # noqa: E402
+
+AmiAccessor.write_uff = _method(write_uff)
+AmiAccessor.plot_bode = _method(plot_bode)
+AmiAccessor.plot_nyquist = _method(plot_nyquist)
+AmiAccessor.plot_subtraction = _method(plot_subtraction)
+AmiAccessor.plot_mode_vectors = _method(plot_mode_vectors)
+AmiAccessor.plot_mac = _method(plot_mac)
+AmiAccessor.plot_modal_table = _method(plot_modal_table)
+AmiAccessor.report = _method(report)
+AmiAccessor.modal_table = _method(modal_table)
+
+from ami_xr.signal.frf import convert_quantity, frf  # noqa: E402
+
+AmiAccessor.frf = _method(frf)
+AmiAccessor.convert_quantity = _method(convert_quantity)
