@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
+import time
 import uuid
 from numbers import Integral
 from pathlib import Path
@@ -86,21 +88,33 @@ def _from_pairs(x: np.ndarray) -> np.ndarray:
     return x.reshape(-1).view(ctype).reshape(x.shape[:-1])
 
 
+def _is_dask(data: Any) -> bool:
+    try:
+        import dask
+    except ImportError:  # pragma: no cover - dask is an optional dependency
+        return False
+    return dask.is_dask_collection(data)
+
+
 def _encode_complex_variable(name: str, var: xr.Variable) -> xr.Variable:
     if names.COMPLEX in var.dims:
         raise AmiXrValueError(
             f"variable {name!r}: already has a dim {names.COMPLEX!r}, reserved for the on-disk "
             "complex encoding"
         )
-    out = xr.apply_ufunc(
-        _to_pairs,
-        var,
-        input_core_dims=[[]],
-        output_core_dims=[[names.COMPLEX]],
-        dask="parallelized",
-        output_dtypes=[var.dtype.type(0).real.dtype],
-        dask_gufunc_kwargs={"output_sizes": {names.COMPLEX: 2}},
-    )
+    data = var.data
+    real = np.empty(0, var.dtype).real.dtype
+    if _is_dask(data):
+        # map_blocks with an explicit meta: lazy, one block in -> one block out (no rechunk)
+        pairs = data.map_blocks(
+            _to_pairs,
+            new_axis=data.ndim,
+            chunks=data.chunks + ((2,),),
+            meta=np.empty((0,) * (data.ndim + 1), real),
+        )
+    else:
+        pairs = _to_pairs(data)
+    out = xr.Variable(var.dims + (names.COMPLEX,), pairs)
     out.attrs = {**var.attrs, ATTR_COMPLEX: ATTR_COMPLEX_VALUE}
     return out
 
@@ -116,17 +130,17 @@ def _decode_complex_variable(name: str, var: xr.Variable) -> xr.Variable:
             f"variable {name!r} is flagged {ATTR_COMPLEX!r} but is not float with a last dim "
             f"{names.COMPLEX!r} of length 2 (dims {var.dims}, dtype {var.dtype})"
         )
-    out = xr.apply_ufunc(
-        _from_pairs,
-        var,
-        input_core_dims=[[names.COMPLEX]],
-        output_core_dims=[[]],
-        dask="parallelized",
-        output_dtypes=[np.result_type(var.dtype, np.complex64)],
-        dask_gufunc_kwargs={"allow_rechunk": True},
-        keep_attrs=True,
-    )
-    del out.attrs[ATTR_COMPLEX]
+    data = var.data
+    ctype = np.result_type(var.dtype, np.complex64)
+    if _is_dask(data):
+        data = data.rechunk({data.ndim - 1: 2})  # (real, imag) of a value in one block
+        values = data.map_blocks(
+            _from_pairs, drop_axis=data.ndim - 1, meta=np.empty((0,) * (data.ndim - 1), ctype)
+        )
+    else:
+        values = _from_pairs(data)
+    out = xr.Variable(var.dims[:-1], values)
+    out.attrs = {k: v for k, v in var.attrs.items() if k != ATTR_COMPLEX}
     return out
 
 
@@ -363,11 +377,24 @@ def open_dataset(
         ds = decode(raw)
     except (OSError, RuntimeError, ValueError, KeyError, IndexError, TypeError) as err:
         raise DataFileError(
-            f"{path}: cannot read it as an ami_xr netCDF file (missing, truncated or not netCDF?): "
+            f"{path}: cannot read it as a netCDF file (truncated, corrupt or not netCDF?): "
             f"{type(err).__name__}: {err}"
         ) from err
     ds.attrs[names.ATTR_SOURCE_FILE] = str(path.resolve())
     return ds
+
+
+def _remove_tree(folder: Path) -> None:
+    """Remove the temporary folder, retrying while a straggling writer re-creates its file."""
+    for _ in range(50):
+        try:
+            shutil.rmtree(folder)
+        except FileNotFoundError:
+            return
+        except OSError:
+            time.sleep(0.01)
+        if not folder.exists():
+            return
 
 
 def _fsync(path: Path) -> None:
@@ -388,10 +415,11 @@ def to_netcdf(
     attributes tagged), a provenance record is appended to ``ami_xr_history`` (the writing
     ``function`` and its ``parameters``, UTC time, ami_xr version and the Dataset's
     ``source_file`` if it has one), and the file is written to a temporary file in the target
-    folder that then replaces ``path`` with ``os.replace``.
+    folder (inside a private hidden folder ``.<name>.<random>.tmp``) that then replaces ``path``
+    with ``os.replace``.
 
-    Guarantees: on any error the temporary file is removed and an existing ``path`` is left
-    untouched; ``path`` may be the file ``ds`` was lazily opened from (the old file stays
+    Guarantees: on any error the temporary folder and file are removed and an existing ``path``
+    is left untouched; ``path`` may be the file ``ds`` was lazily opened from (the old file stays
     readable until the new one is complete, then is swapped in one rename; POSIX only).
 
     Parameters
@@ -432,17 +460,21 @@ def to_netcdf(
         source_file=ds.attrs.get(names.ATTR_SOURCE_FILE),
     )
     encoded = encode(recorded)  # raises on unstorable content before any file exists
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
+    # The temporary file lives in a private temporary folder next to the target: after a failed
+    # dask-backed write, a straggling worker thread may reopen the file by name (xarray reopens
+    # in append mode, which creates it); once the folder is gone such a reopen fails instead.
+    tmp_dir = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
+    tmp = tmp_dir / path.name
     try:
-        # O_EXCL: never clobber a file we did not create; 0o666 lets the umask decide the mode.
-        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+        tmp_dir.mkdir()
         encoded.to_netcdf(tmp, mode="w", format=FORMAT, engine=ENGINE)
         _fsync(tmp)
         os.replace(tmp, path)
+        tmp_dir.rmdir()
     except OSError as err:
-        tmp.unlink(missing_ok=True)
+        _remove_tree(tmp_dir)
         raise DataFileError(f"{path}: cannot write: {type(err).__name__}: {err}") from err
     except BaseException:
-        tmp.unlink(missing_ok=True)
+        _remove_tree(tmp_dir)
         raise
     return path
