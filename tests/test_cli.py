@@ -1,0 +1,154 @@
+"""The ami-xr command line (ami_xr.cli): help texts, exit codes, one-line errors, commands."""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import ami_xr
+from ami_xr import names
+from ami_xr.cli import EXIT_ERROR, EXIT_OK, EXIT_USAGE, build_parser, main
+
+COMMANDS = ("demo", "simulate", "frf", "identify", "report", "convert", "batch")
+
+
+def _run(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "ami_xr.cli", *args], capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def _subparsers() -> dict[str, argparse.ArgumentParser]:
+    parser = build_parser()
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return dict(action.choices)
+
+
+def test_top_level_help_lists_every_command():
+    proc = _run("--help")
+    assert proc.returncode == 0
+    for cmd in COMMANDS:
+        assert cmd in proc.stdout
+    assert _run("--version").stdout.startswith("ami_xr ")
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_option_has_help_and_default(command, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main([command, "--help"])
+    assert exit_info.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    sub = _subparsers()[command]
+    for action in sub._actions:
+        if isinstance(action, argparse._HelpAction):
+            continue
+        assert action.help, f"{command}: {action.dest} has no help"
+        for option in action.option_strings:
+            assert option in text
+        if action.option_strings and action.default is not argparse.SUPPRESS:
+            assert "(default:" in " ".join(action.help.split()) or "(default: " in text
+
+
+def test_help_compiles_nothing_and_imports_no_extras():
+    code = (
+        "import sys\n"
+        "from numba.core.dispatcher import Dispatcher\n"
+        "from ami_xr.cli import main\n"
+        "for cmd in ('identify', 'batch', 'demo'):\n"
+        "    try:\n"
+        "        main([cmd, '--help'])\n"
+        "    except SystemExit:\n"
+        "        pass\n"
+        "compiled = [f'{m}.{k}' for m, mod in list(sys.modules.items()) if m.startswith('ami_xr')\n"
+        "            for k, v in vars(mod).items() if isinstance(v, Dispatcher) and v.signatures]\n"
+        "extras = [m for m in ('matplotlib', 'pyuff', 'tqdm', 'netCDF4') if m in sys.modules]\n"
+        "print('COMPILED', compiled, 'EXTRAS', extras)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "COMPILED [] EXTRAS []" in proc.stdout
+
+
+def test_library_error_is_one_line_and_nonzero(tmp_path):
+    proc = _run("identify", str(tmp_path / "missing.nc"))
+    assert proc.returncode == EXIT_ERROR
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("ami-xr identify: error:")
+    assert "missing.nc" in lines[0]
+    assert "Traceback" not in proc.stderr
+
+
+def test_verbose_shows_the_traceback(tmp_path, capsys):
+    assert main(["-v", "identify", str(tmp_path / "missing.nc")]) == EXIT_ERROR
+    err = capsys.readouterr().err
+    assert "Traceback" in err and err.strip().splitlines()[-1].startswith("ami-xr identify:")
+    assert main(["identify", "-v", str(tmp_path / "missing.nc")]) == EXIT_ERROR
+    assert "Traceback" in capsys.readouterr().err
+
+
+def test_bad_option_value_is_a_clear_error(tmp_path, capsys):
+    code = main(["simulate", "beam-absorbers", "-o", str(tmp_path / "x.nc"), "--noise", "-1"])
+    assert code == EXIT_ERROR
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "alpha" in err[0]
+    assert not (tmp_path / "x.nc").exists()
+
+
+def test_usage_error_exits_2():
+    proc = _run("identify")
+    assert proc.returncode == EXIT_USAGE
+    assert "usage:" in proc.stderr
+
+
+def test_schema_error_becomes_one_line(tmp_path, capsys):
+    bad = xr.Dataset({"frf": (("point", "frequency"), np.ones((2, 3)))})  # real, no coords
+    path = ami_xr.to_netcdf(bad, tmp_path / "bad.nc")
+    assert main(["identify", str(path)]) == EXIT_ERROR
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("ami-xr identify: error:")
+
+
+def test_simulate_identify_report_convert(tmp_path, capsys):
+    frf = tmp_path / "bench.nc"
+    truth = tmp_path / "truth.nc"
+    assert main(["simulate", "beam-absorbers", "-o", str(frf), "--noise", "0.15", "--seed", "1",
+                 "--truth-output", str(truth)]) == EXIT_OK
+    g = ami_xr.open_dataset(frf)
+    ami_xr.validate(g)
+    assert g.attrs["noise_seed"] == 1
+    modes = tmp_path / "modes.nc"
+    assert main(["identify", str(frf), "-o", str(modes), "-q"]) == EXIT_OK
+    out = capsys.readouterr().out
+    for column in ("f [Hz]", "w [rad/s]", "zeta [%]", "detected in", "flags"):
+        assert column in out
+    result = ami_xr.open_dataset(modes)
+    assert names.EIGENVALUE in result and names.FRF in result
+    assert main(["report", str(modes), "-o", str(tmp_path / "rep")]) == EXIT_OK
+    assert (tmp_path / "rep" / "index.html").is_file()
+    # netCDF -> UFF (FRFs as 58, modes as 55) -> netCDF
+    uff = tmp_path / "modes.uff"
+    assert main(["convert", str(modes), "-o", str(uff), "--binary"]) == EXIT_OK
+    back = tmp_path / "back.nc"
+    assert main(["convert", str(uff), "-o", str(back)]) == EXIT_OK
+    np.testing.assert_array_equal(ami_xr.open_dataset(back)[names.FRF].values,
+                                  g[names.FRF].values)
+    assert main(["convert", str(modes), "-o", str(tmp_path / "x.csv")]) == EXIT_ERROR
+
+
+def test_demo_prints_paper_comparison_and_writes_results(tmp_path):
+    proc = _run("demo", "-o", str(tmp_path / "demo"))
+    assert proc.returncode == 0, proc.stderr
+    assert "paper AMI" in proc.stdout and "exact" in proc.stdout
+    assert (tmp_path / "demo" / "modes.nc").is_file()
+    assert (tmp_path / "demo" / "report" / "index.html").is_file()
+    result = ami_xr.open_dataset(tmp_path / "demo" / "modes.nc")
+    fn = np.sort(np.atleast_1d(result[names.NATURAL_FREQUENCY].values))
+    exact = np.abs(ami_xr.simulate.paper_tables()["eigenvalue"]) / (2 * np.pi)
+    assert fn.size == 4
+    np.testing.assert_allclose(fn, exact, rtol=2e-3)

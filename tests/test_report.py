@@ -1,0 +1,130 @@
+"""Plots (ami_xr.plot), the modal table and the HTML report (ami_xr.report)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import ami_xr
+from ami_xr import names
+from ami_xr.errors import AmiXrValueError
+from ami_xr.report import FIGURES, format_modal_table, modal_table, report
+
+pytest.importorskip("matplotlib")
+
+ALL_PNGS = {f"{stem}.png" for stem in FIGURES}
+
+
+@pytest.fixture(scope="module")
+def benchmark_result() -> xr.Dataset:
+    """The identified paper benchmark (15 % noise, seed 0)."""
+    _, g, _ = ami_xr.simulate.benchmark(noise=0.15, seed=0)
+    return ami_xr.identify(g)
+
+
+@pytest.fixture(scope="module")
+def chain_result() -> xr.Dataset:
+    """An identified random chain without point coordinates (labels 0..n-1)."""
+    g, _ = ami_xr.simulate.random_system(n_points=5, n_modes=5, noise=0.02, seed=3,
+                                         n_frequencies=1024)
+    for coord in ("point_x", "point_y", "point_z"):
+        if coord in g.coords:
+            g = g.drop_vars(coord)
+    return ami_xr.identify(g)
+
+
+def _pngs(folder):
+    return {p.name for p in folder.glob("*.png")}
+
+
+def test_every_figure_for_the_benchmark(tmp_path, benchmark_result):
+    index = report(benchmark_result, tmp_path / "rep")
+    assert index.name == "index.html"
+    assert _pngs(index.parent) == ALL_PNGS
+    page = index.read_text()
+    for stem in FIGURES:
+        assert f"{stem}.png" in page
+    assert "Not produced" not in page
+    assert (index.parent / "modal_table.csv").read_text().startswith("mode,")
+    # every PNG is a real image
+    for png in index.parent.glob("*.png"):
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not list(index.parent.glob(".*.tmp"))
+
+
+def test_every_figure_without_point_coordinates(tmp_path, chain_result):
+    assert not any(c in chain_result.coords for c in ("point_x", "point_y", "point_z"))
+    index = report(chain_result, tmp_path / "rep")
+    assert _pngs(index.parent) == ALL_PNGS
+
+
+def test_mode_shape_along_structure_when_coordinates_given(chain_result):
+    n = chain_result.sizes[names.POINT]
+    with_x = chain_result.assign_coords(point_x=(names.POINT, np.linspace(0, 1, n), {"units": "m"}))
+    fig_x = with_x.ami.plot_mode_vectors()
+    fig = chain_result.ami.plot_mode_vectors()
+    assert len(fig_x.axes) == 3 * chain_result.sizes[names.MODE]
+    assert len(fig.axes) == 2 * chain_result.sizes[names.MODE]
+
+
+def test_missing_optional_variables_are_noted(tmp_path, benchmark_result):
+    optional = [v for v in benchmark_result.data_vars
+                if v not in (names.FRF, names.EIGENVALUE)]
+    bare = benchmark_result.drop_vars(optional)
+    index = report(bare, tmp_path / "bare")
+    pngs = _pngs(index.parent)
+    assert {"bode.png", "nyquist.png", "modal_table.png"} <= pngs
+    assert "mode_vectors.png" not in pngs and "subtraction.png" not in pngs
+    page = index.read_text()
+    assert "Not produced" in page and "mode_vector" in page
+
+
+def test_plain_frf_dataset_gives_bode_and_notes(tmp_path, frf_dataset):
+    index = report(frf_dataset, tmp_path / "frf")
+    assert _pngs(index.parent) == {"bode.png"}
+    assert "No modes identified" in index.read_text()
+
+
+def test_plot_functions_return_figures_and_save(tmp_path, benchmark_result):
+    for name in ("plot_bode", "plot_nyquist", "plot_subtraction", "plot_mode_vectors",
+                 "plot_mac", "plot_modal_table"):
+        path = tmp_path / f"{name}.png"
+        fig = getattr(benchmark_result.ami, name)(path=path)
+        assert fig.axes and path.stat().st_size > 1000
+    fig = ami_xr.plot_bode(benchmark_result, points=["tip"])
+    assert len(fig.axes) == 2
+
+
+def test_plots_do_not_touch_global_matplotlib_state(benchmark_result):
+    import matplotlib
+
+    backend = matplotlib.get_backend()
+    ami_xr.plot_mac(benchmark_result)
+    assert matplotlib.get_backend() == backend
+
+
+def test_plot_errors_name_what_is_missing(frf_dataset):
+    with pytest.raises(AmiXrValueError, match="natural_frequency"):
+        ami_xr.plot_nyquist(frf_dataset)
+    with pytest.raises(AmiXrValueError, match="subtraction_noise_floor"):
+        ami_xr.plot_subtraction(frf_dataset)
+    with pytest.raises(AmiXrValueError, match="mode_vector"):
+        ami_xr.plot_mode_vectors(frf_dataset)
+    with pytest.raises(AmiXrValueError, match="not among the points"):
+        ami_xr.plot_bode(frf_dataset, points=["nope"])
+
+
+def test_modal_table_rows_and_text(benchmark_result):
+    rows = modal_table(benchmark_result)
+    lam = np.atleast_1d(benchmark_result[names.EIGENVALUE].values)
+    assert len(rows) == lam.size
+    for row, lk in zip(rows, lam, strict=True):
+        assert row["frequency_rad_s"] == pytest.approx(abs(lk))
+        assert row["frequency_hz"] == pytest.approx(abs(lk) / (2 * np.pi))
+        assert row["damping_percent"] == pytest.approx(-100 * lk.real / abs(lk), rel=1e-6)
+        assert row["detected_in"]
+    text = format_modal_table(benchmark_result)
+    assert "f [Hz]" in text and "w [rad/s]" in text and "zeta [%]" in text
+    assert "detected in" in text and "flags" in text
+    assert len(text.splitlines()) == lam.size + 2
