@@ -36,10 +36,7 @@ import numpy as np
 import xarray as xr
 from scipy.optimize import brentq
 
-from ami_xr import names
-from ami_xr._provenance import add_history
 from ami_xr.errors import AmiXrValueError
-from ami_xr.kernels.fft import impulse_to_frf, rfft_frequencies
 from ami_xr.simulate.modal import (
     add_noise,
     impulse_response,
@@ -189,63 +186,16 @@ def benchmark_model(J: int = DEFAULT_J) -> xr.Dataset:
     return truth
 
 
-def _impulse_frf(response: xr.DataArray, dt: float) -> xr.DataArray:
-    """``dt * rfft(h)`` along time, on the grid ``k / (N dt)`` Hz (the FFT kernel)."""
-    n = response.sizes[names.TIME]
-    freq = rfft_frequencies(n, dt)
-    g = xr.apply_ufunc(
-        impulse_to_frf,
-        response,
-        kwargs={"dt": dt},
-        input_core_dims=[[names.TIME]],
-        output_core_dims=[[names.FREQUENCY]],
-        exclude_dims={names.TIME},
-        dask="parallelized",
-        output_dtypes=[np.complex128],
-        dask_gufunc_kwargs={"output_sizes": {names.FREQUENCY: freq.size}},
-    )
-    return g.assign_coords({names.FREQUENCY: freq})
-
-
 def frf_from_impulse(ts: xr.Dataset) -> xr.Dataset:
     """FRF Dataset ``dt * rfft(response)`` of an impulse-response Dataset.
 
-    The result has ``frf_source="impulse_response"``, ``sample_interval`` and ``record_samples``.
+    A thin wrapper of :func:`ami_xr.impulse_to_frf` (no window): the result has
+    ``frf_source="impulse_response"``, ``sample_interval`` and ``record_samples``, and keeps the
+    time Dataset's attributes (noise level, seed, ...).
     """
-    t = ts[names.TIME].values
-    dt = float(t[1] - t[0])
-    n = t.size
-    g = _impulse_frf(ts[names.RESPONSE], dt).transpose(names.POINT, names.FREQUENCY)
-    ru = ts.attrs.get(names.ATTR_RESPONSE_UNITS, "m")
-    fu = ts.attrs.get(names.ATTR_FORCE_UNITS, "N")
-    quantity = ts.attrs.get(names.ATTR_QUANTITY, "displacement")
-    ds = xr.Dataset(
-        {names.FRF: (g.dims, np.asarray(g.values, dtype=np.complex128))},
-        coords={
-            names.POINT: ts[names.POINT].values,
-            names.FREQUENCY: (
-                names.FREQUENCY,
-                np.asarray(g[names.FREQUENCY].values, dtype=np.float64),
-                {names.ATTR_UNITS: names.FREQUENCY_UNITS},
-            ),
-        },
-    )
-    ds[names.FRF].attrs = {names.ATTR_UNITS: names.frf_units(ru, fu)}
-    ds.attrs = {
-        names.ATTR_DRIVE_POINT: ts.attrs[names.ATTR_DRIVE_POINT],
-        names.ATTR_QUANTITY: quantity,
-        names.ATTR_FRF_TYPE: names.QUANTITY_TO_FRF_TYPE[quantity],
-        names.ATTR_RESPONSE_UNITS: ru,
-        names.ATTR_FORCE_UNITS: fu,
-        names.ATTR_SOURCE: names.SOURCE_IMPULSE,
-        names.ATTR_DT: dt,
-        names.ATTR_NSAMPLES: int(n),
-    }
-    for key in ("noise_level", "noise_kind", "noise_seed"):
-        if key in ts.attrs:
-            ds.attrs[key] = ts.attrs[key]
-    return add_history(ds, "ami_xr.simulate.frf_from_impulse", {"sample_interval": dt,
-                                                               "record_samples": int(n)})
+    from ami_xr.signal.impulse import impulse_to_frf  # the signal layer imports io; keep lazy
+
+    return impulse_to_frf(ts)
 
 
 def benchmark(
