@@ -294,8 +294,9 @@ def refine(
     if "lower" in terms:
         frf = frf.where(frf[names.FREQUENCY] > 0, drop=True)
     # The eigenvalues are shared by all points: this step gathers, so dask data are loaded.
-    frf = frf.compute()
-    lam0 = ds[names.EIGENVALUE].compute()
+    frf = frf.compute() if frf.chunks else frf
+    lam0 = ds[names.EIGENVALUE]
+    lam0 = lam0.compute() if lam0.chunks else lam0
     n_mode = lam0.sizes[names.MODE]
     n_line = frf.sizes[names.FREQUENCY]
     n_coef = 2 * n_mode + 2 * len(terms)
@@ -305,7 +306,8 @@ def refine(
             f"{(n_coef + 2 * n_mode) // 2 + 1}"
         )
     if names.RESIDUE in ds:
-        res0 = ds[names.RESIDUE].transpose(names.POINT, names.MODE).compute()
+        res0 = ds[names.RESIDUE].transpose(names.POINT, names.MODE)
+        res0 = res0.compute() if res0.chunks else res0
     else:
         res0 = xr.zeros_like(frf.isel({names.FREQUENCY: 0}, drop=True)) * xr.zeros_like(
             lam0, dtype=np.complex128
@@ -342,39 +344,42 @@ def refine(
             dask_gufunc_kwargs={"allow_rechunk": True},
             keep_attrs=False,
         )
-        outs = [o.compute() for o in outs]
-    out = ds.copy()
-    out.attrs = dict(ds.attrs)
+        outs = [o.compute() if o.chunks else o for o in outs]
+    new = {}
     for var in (names.EIGENVALUE, names.NATURAL_FREQUENCY, names.DAMPING_RATIO, names.RESIDUE,
                 names.MODE_VECTOR):
         if var in ds:
-            out[names.AMI_PREFIX + var] = ds[var]
+            new[names.AMI_PREFIX + var] = ds[var]
+    attrs = {}
     if outs is not None:
         (lam, eig_std, fn_std, zeta_std, residue, res_std, phi, phi_std, noise_std, lower, upper,
          status, n_iter, cost0, cost) = outs
         units_frf = ds[names.FRF].attrs.get(names.ATTR_UNITS)
-        out[names.EIGENVALUE] = lam.assign_attrs(units="rad/s")
-        out[names.NATURAL_FREQUENCY] = (np.abs(lam) / (2 * np.pi)).assign_attrs(
-            units=names.FREQUENCY_UNITS)
-        out[names.DAMPING_RATIO] = (-lam.real / np.abs(lam)).assign_attrs(units="1")
-        out[names.RESIDUE] = residue.transpose(P, M)
-        out[names.MODE_VECTOR] = phi.transpose(P, M)
-        out[names.EIGENVALUE_STD] = eig_std.assign_attrs(units="rad/s")
-        out[names.NATURAL_FREQUENCY_STD] = fn_std.assign_attrs(units=names.FREQUENCY_UNITS)
-        out[names.DAMPING_RATIO_STD] = zeta_std.assign_attrs(units="1")
-        out[names.RESIDUE_STD] = res_std.transpose(P, M)
-        out[names.MODE_VECTOR_STD] = phi_std.transpose(P, M)
-        out[names.FRF_NOISE_STD] = noise_std.assign_attrs(
-            **({names.ATTR_UNITS: units_frf} if units_frf else {}))
+        hz = {names.ATTR_UNITS: names.FREQUENCY_UNITS}
+        new[names.EIGENVALUE] = lam.assign_attrs(units="rad/s")
+        new[names.NATURAL_FREQUENCY] = (np.abs(lam) / (2 * np.pi)).assign_attrs(hz)
+        new[names.DAMPING_RATIO] = (-lam.real / np.abs(lam)).assign_attrs(units="1")
+        new[names.RESIDUE] = residue.transpose(P, M)
+        new[names.MODE_VECTOR] = phi.transpose(P, M)
+        new[names.EIGENVALUE_STD] = eig_std.assign_attrs(units="rad/s")
+        new[names.NATURAL_FREQUENCY_STD] = fn_std.assign_attrs(hz)
+        new[names.DAMPING_RATIO_STD] = zeta_std.assign_attrs(units="1")
+        new[names.RESIDUE_STD] = res_std.transpose(P, M)
+        new[names.MODE_VECTOR_STD] = phi_std.transpose(P, M)
+        new[names.FRF_NOISE_STD] = noise_std.assign_attrs(
+            {names.ATTR_UNITS: units_frf} if units_frf else {})
         if "lower" in terms:
-            out[names.RESIDUAL_LOWER] = lower
+            new[names.RESIDUAL_LOWER] = lower
         if "upper" in terms:
-            out[names.RESIDUAL_UPPER] = upper
-        out[QUALITY_FLAGS] = _merge_flags(ds, status.values, lam0)
-        out.attrs["refine_iterations"] = int(n_iter)
-        out.attrs["refine_converged"] = int(bool(np.all(status.values != _STATUS_NOT_CONVERGED)))
-        out.attrs["refine_cost_start"] = float(cost0)
-        out.attrs["refine_cost"] = float(cost)
+            new[names.RESIDUAL_UPPER] = upper
+        new[QUALITY_FLAGS] = _merge_flags(ds, status.values, lam0)
+        attrs["refine_iterations"] = int(n_iter)
+        attrs["refine_converged"] = int(bool(np.all(status.values != _STATUS_NOT_CONVERGED)))
+        attrs["refine_cost_start"] = float(cost0)
+        attrs["refine_cost"] = float(cost)
+    # one assignment: the results share the input's point and mode coordinates
+    out = ds.assign({k: v.variable if isinstance(v, xr.DataArray) else v for k, v in new.items()})
+    out.attrs = {**ds.attrs, **attrs}
     out.attrs["refine_model"] = "discrete" if dt else "continuous"
     out.attrs["refine_residual_terms"] = ",".join(terms)
     params = {"max_iter": max_iter, "tol": tol, "band": band, "residual_terms": terms,

@@ -36,6 +36,11 @@ def _basis_and_derivative(omega, lam, dt, n_samples):
     n_line = omega.shape[0]
     b = np.empty((n_mode, n_line), dtype=np.complex128)
     db = np.empty((n_mode, n_line), dtype=np.complex128)
+    # exp((lam - i w) dt) = exp(lam dt) exp(-i w dt): one exp per line, shared by the poles
+    turn = np.empty(n_line, dtype=np.complex128)
+    if dt > 0.0:
+        for i in range(n_line):
+            turn[i] = np.exp(-1j * omega[i] * dt)
     for k in range(n_mode):
         lk = lam[k]
         if dt > 0.0:
@@ -45,8 +50,9 @@ def _basis_and_derivative(omega, lam, dt, n_samples):
                 e_n = np.exp(lk * (n_samples * dt))
                 s = 1.0 - e_n
                 ds = -(n_samples * dt) * e_n
+            p = np.exp(lk * dt)
             for i in range(n_line):
-                e = np.exp((lk - 1j * omega[i]) * dt)
+                e = p * turn[i]
                 den = 1.0 - e
                 b[k, i] = dt * s / den
                 # d/dlam [dt s / (1 - e)] = dt (ds (1 - e) + s dt e) / (1 - e)^2
