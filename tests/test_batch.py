@@ -173,3 +173,14 @@ def test_ctrl_c_leaves_no_partial_files_and_resumes(tmp_path):
                if f"f{s}.modes.nc" in done)
     assert all(row["status"] in ("ok", "up to date") for row in rows.values())
     assert np.all([Path(out / row["output"]).is_file() for row in rows.values()])
+
+
+def test_batch_campaign_script(tmp_path):
+    script = Path(__file__).resolve().parents[1] / "scripts" / "batch_campaign.py"
+    cmd = [sys.executable, str(script), "--example", "2", "-o", str(tmp_path / "c")]
+    first = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert first.returncode == 0, first.stderr
+    assert "2 processed" in first.stdout and "max |f error|" in first.stdout
+    second = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert second.returncode == 0, second.stderr
+    assert "2 up to date" in second.stdout
