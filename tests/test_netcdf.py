@@ -1,10 +1,9 @@
-"""netCDF I/O: lossless round trips, plain-xarray readability, provenance, atomic writes, lazy opening."""
+"""netCDF I/O: lossless round trips, plain-xarray reading, provenance, atomic writes, lazy open."""
 
 from __future__ import annotations
 
 import json
 import math
-import os
 import re
 import string
 
@@ -53,9 +52,9 @@ def _same_attr(a, b) -> bool:
     if a is None or isinstance(a, (dict, str)):
         return type(b) is type(a) and a == b
     if isinstance(a, (complex, np.complexfloating)):
-        return isinstance(b, (complex, np.complexfloating)) and _bits(np.complex128(a)).tolist() == (
-            _bits(np.complex128(b)).tolist()
-        )
+        return isinstance(b, (complex, np.complexfloating)) and _bits(
+            np.complex128(a)
+        ).tolist() == (_bits(np.complex128(b)).tolist())
     if isinstance(a, (list, tuple, np.ndarray)):
         a_arr, b_arr = np.asarray(a), np.asarray(b)
         if a_arr.size == 0:
@@ -169,7 +168,10 @@ def test_bool_and_string_variables_round_trip(tmp_path):
 def test_time_dataset_with_records_round_trips(tmp_path):
     rng = np.random.default_rng(1)
     ds = ami_xr.make_time_dataset(
-        rng.standard_normal((2, 3, 100)), fs=50.0, force=rng.standard_normal((2, 100)), drive_point=0
+        rng.standard_normal((2, 3, 100)),
+        fs=50.0,
+        force=rng.standard_normal((2, 100)),
+        drive_point=0,
     )
     assert_round_trip(ds, open_dataset(to_netcdf(ds, tmp_path / "t.nc")))
 
@@ -221,13 +223,16 @@ def test_encoded_attributes_are_documented_on_disk(tmp_path, frf_dataset):
     raw.close()
 
 
-# --- what cannot be stored is refused before any file is written ------------------------------------
+# --- what cannot be stored is refused before any file is written ---------------------------------
 
 
 @pytest.mark.parametrize(
     ("mutate", "match"),
     [
-        (lambda ds: ds.assign_attrs(grid=np.ones((2, 2))), r"attribute 'grid' of the Dataset: a 2-D"),
+        (
+            lambda ds: ds.assign_attrs(grid=np.ones((2, 2))),
+            r"attribute 'grid' of the Dataset: a 2-D",
+        ),
         (lambda ds: ds.assign_attrs(items={1, 2}), r"attribute 'items' of the Dataset: type set"),
         (lambda ds: ds.assign_attrs(bad={"x": {1, 2}}), r"attribute 'bad' .*not JSON-serialisable"),
         (lambda ds: ds.assign_attrs(nul="a\x00b"), r"attribute 'nul' .*NUL character"),
@@ -255,7 +260,7 @@ def test_unstorable_content_raises_before_writing(tmp_path, frf_dataset, mutate,
     assert list(tmp_path.iterdir()) == []
 
 
-# --- provenance ------------------------------------------------------------------------------------
+# --- provenance ----------------------------------------------------------------------------------
 
 
 def test_provenance_is_recorded(tmp_path, frf_dataset):
@@ -286,7 +291,7 @@ def test_to_netcdf_does_not_mutate_input(tmp_path, frf_dataset):
     xr.testing.assert_identical(frf_dataset, before)
 
 
-# --- atomic writes ---------------------------------------------------------------------------------
+# --- atomic writes -------------------------------------------------------------------------------
 
 
 def _write_old(tmp_path, frf_dataset):
@@ -323,10 +328,11 @@ def test_error_while_computing_lazy_data_leaves_old_file(tmp_path, frf_dataset):
     lazy["frf"] = lazy.frf.copy(
         data=lazy.frf.data.map_blocks(fail_on_last_block, dtype=np.complex128)
     )
-    with pytest.raises(ZeroDivisionError, match="block 3"):
-        to_netcdf(lazy, path)
-    assert path.read_bytes() == old
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["data.nc"]
+    for _ in range(5):  # worker threads may still run after the error: repeat to catch races
+        with pytest.raises(ZeroDivisionError, match="block 3"):
+            to_netcdf(lazy, path)
+        assert path.read_bytes() == old
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["data.nc"]
 
 
 def test_write_into_missing_folder_or_onto_folder(tmp_path, frf_dataset):
@@ -362,7 +368,7 @@ def test_overwrite_the_file_an_eager_dataset_was_opened_from(tmp_path, frf_datas
     np.testing.assert_array_equal(open_dataset(path).frf.values, 3 * frf_dataset.frf.values)
 
 
-# --- bad files -------------------------------------------------------------------------------------
+# --- bad files -----------------------------------------------------------------------------------
 
 
 def test_missing_file(tmp_path):
@@ -401,7 +407,7 @@ def test_wrongly_flagged_complex_variable_is_a_data_file_error(tmp_path):
         open_dataset(path)
 
 
-# --- lazy opening ----------------------------------------------------------------------------------
+# --- lazy opening --------------------------------------------------------------------------------
 
 
 def _no_compute(*args, **kwargs):
@@ -450,10 +456,12 @@ def test_lazy_write_stays_lazy_until_written(tmp_path, long_record):
     assert_round_trip(ds, _strip_provenance(open_dataset(out)))
 
 
-# --- property test: random Datasets survive the round trip --------------------------------------------
+# --- property test: random Datasets survive the round trip ---------------------------------------
 
 _NAME = st.text(string.ascii_lowercase, min_size=1, max_size=6).map(lambda s: "x" + s)
-_TEXT = st.text(st.characters(blacklist_characters="\x00", blacklist_categories=("Cs",)), max_size=8)
+_TEXT = st.text(
+    st.characters(blacklist_characters="\x00", blacklist_categories=("Cs",)), max_size=8
+)
 _FLOAT = st.floats(allow_nan=True, allow_infinity=True)
 _INT64 = st.integers(-(2**63), 2**63 - 1)
 _COMPLEX = st.complex_numbers(allow_nan=True, allow_infinity=True)
@@ -493,7 +501,10 @@ def random_datasets(draw):
         np.array(
             draw(
                 st.lists(
-                    st.floats(0, 1e6, allow_nan=False), min_size=n_freq, max_size=n_freq, unique=True
+                    st.floats(0, 1e6, allow_nan=False),
+                    min_size=n_freq,
+                    max_size=n_freq,
+                    unique=True,
                 )
             )
         )
@@ -508,7 +519,10 @@ def random_datasets(draw):
         ),
         "counts": ((names.POINT,), draw(hnp.arrays(np.int32, (n_point,))), draw(_ATTRS)),
         "mask": ((names.FREQUENCY,), draw(hnp.arrays(np.bool_, (n_freq,))), draw(_ATTRS)),
-        "label": ((names.POINT,), np.array(draw(st.lists(_TEXT, min_size=n_point, max_size=n_point)))),
+        "label": (
+            (names.POINT,),
+            np.array(draw(st.lists(_TEXT, min_size=n_point, max_size=n_point))),
+        ),
         "scalar": ((), draw(_COMPLEX)),
     }
     if draw(st.booleans()):
@@ -526,7 +540,7 @@ def random_datasets(draw):
 
 
 @settings(
-    max_examples=60,
+    max_examples=50,
     deadline=None,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
 )
