@@ -408,3 +408,16 @@ def test_random_system_impulse_source_and_noise():
 def test_random_system_bad_input(kwargs, match):
     with pytest.raises(AmiXrValueError, match=match):
         random_system(**kwargs)
+
+
+def test_dask_backed_models_stay_lazy_and_agree():
+    pytest.importorskip("dask")
+    truth = modal_model(*_random_mck(4, 1), drive_point=2)
+    lazy = truth.chunk({names.POINT: 2})
+    f = np.linspace(0.0, 3.0, 40)
+    g = frf(lazy, f)
+    h = impulse_response(lazy, (5.0, 256))
+    assert hasattr(g[names.FRF].data, "dask") and hasattr(h[names.RESPONSE].data, "dask")
+    np.testing.assert_array_equal(g[names.FRF].values, frf(truth, f)[names.FRF].values)
+    np.testing.assert_array_equal(h[names.RESPONSE].values,
+                                  impulse_response(truth, (5.0, 256))[names.RESPONSE].values)

@@ -281,6 +281,11 @@ def modal_model(
     return ds
 
 
+def _residue_kernel(phi: np.ndarray, phi_p: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """eq. 5: ``lam_k Phi_jk Phi_Pk`` on arrays with mode last."""
+    return lam * phi * phi_p
+
+
 def residues(model: xr.Dataset, drive_point: Hashable | None = None) -> xr.Dataset:
     """Add the residues ``A_jk = lam_k Phi_jk Phi_Pk`` (eq. 5) for a force at ``drive_point``.
 
@@ -304,12 +309,12 @@ def residues(model: xr.Dataset, drive_point: Hashable | None = None) -> xr.Datas
     phi = model[names.MODE_VECTOR]
     lam = model[names.EIGENVALUE]
     res = xr.apply_ufunc(
-        lambda p, pp, lm: lm[..., np.newaxis, :] * p * pp[..., np.newaxis, :],
+        _residue_kernel,
         phi,
         phi.sel({names.POINT: drive_point}, drop=True),
         lam,
-        input_core_dims=[[names.POINT, names.MODE], [names.MODE], [names.MODE]],
-        output_core_dims=[[names.POINT, names.MODE]],
+        input_core_dims=[[names.MODE], [names.MODE], [names.MODE]],
+        output_core_dims=[[names.MODE]],
         dask="parallelized",
         output_dtypes=[np.complex128],
         keep_attrs=False,
@@ -355,11 +360,14 @@ def _frequency_axis(frequency_hz: Any) -> np.ndarray:
 
 
 def _frf_kernel(residue: np.ndarray, lam: np.ndarray, omega: np.ndarray, power: int) -> np.ndarray:
-    """eq. 4 on plain arrays: residue (..., point, mode), lam (..., mode) -> (..., point, freq)."""
+    """eq. 4 on plain arrays: residue (..., mode), lam (..., mode), omega (f,) -> (..., f).
+
+    Written as a matrix product over modes so memory stays O(modes x frequencies)."""
     iw = 1j * omega
-    lam_ = lam[..., np.newaxis, :, np.newaxis]
-    a = residue[..., :, :, np.newaxis]
-    g = (a / (iw - lam_) + np.conj(a) / (iw - np.conj(lam_))).sum(axis=-2)
+    basis = 1.0 / (iw - lam[..., :, np.newaxis])  # (..., mode, f)
+    basis_c = 1.0 / (iw - np.conj(lam)[..., :, np.newaxis])
+    a = residue[..., np.newaxis, :]  # (..., 1, mode)
+    g = (np.matmul(a, basis) + np.matmul(np.conj(a), basis_c))[..., 0, :]
     return g * iw**power if power else g
 
 
@@ -406,8 +414,8 @@ def frf(
         model[names.EIGENVALUE],
         omega,
         kwargs={"power": _QUANTITY_POWER[response_quantity]},
-        input_core_dims=[[names.POINT, names.MODE], [names.MODE], [names.FREQUENCY]],
-        output_core_dims=[[names.POINT, names.FREQUENCY]],
+        input_core_dims=[[names.MODE], [names.MODE], [names.FREQUENCY]],
+        output_core_dims=[[names.FREQUENCY]],
         dask="parallelized",
         output_dtypes=[np.complex128],
         keep_attrs=False,
@@ -466,9 +474,9 @@ def time_axis(time: Any) -> np.ndarray:
 
 
 def _impulse_kernel(residue: np.ndarray, lam: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """``h = 2 Re sum_k A_k exp(lam_k t)``: (..., point, mode), (..., mode) -> (..., point, t)."""
-    e = np.exp(lam[..., :, np.newaxis] * t)  # (..., mode, time)
-    return 2.0 * np.real(np.matmul(residue, e))
+    """``sum_k A_k exp(lam_k t)`` (h is twice its real part): (..., mode), (..., mode), (n,)."""
+    e = np.exp(lam[..., :, np.newaxis] * t)  # (..., mode, n)
+    return np.matmul(residue[..., np.newaxis, :], e)[..., 0, :]
 
 
 def impulse_response(
@@ -504,12 +512,13 @@ def impulse_response(
         model[names.RESIDUE],
         model[names.EIGENVALUE],
         tt,
-        input_core_dims=[[names.POINT, names.MODE], [names.MODE], [names.TIME]],
-        output_core_dims=[[names.POINT, names.TIME]],
+        input_core_dims=[[names.MODE], [names.MODE], [names.TIME]],
+        output_core_dims=[[names.TIME]],
         dask="parallelized",
-        output_dtypes=[np.float64],
+        output_dtypes=[np.complex128],
         keep_attrs=False,
     )
+    h = 2.0 * h.real  # (taken outside the kernel: dask would cast a complex meta to float)
     ru = model.attrs.get(names.ATTR_RESPONSE_UNITS, "m")
     fu = model.attrs.get(names.ATTR_FORCE_UNITS, "N")
     ds = xr.Dataset(
