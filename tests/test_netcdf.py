@@ -189,7 +189,7 @@ def test_plain_xarray_recovers_complex_values(tmp_path, frf_dataset):
     raw = xr.open_dataset(path)
     frf = raw[names.FRF]
     assert frf.dims == (names.POINT, names.FREQUENCY, names.COMPLEX)
-    assert frf.attrs[netcdf.ATTR_COMPLEX] == "real,imag along last dim 'complex'"
+    assert frf.attrs[netcdf.ATTR_COMPLEX] == "real,imag along last dim complex"
     assert frf.attrs["units"] == "m/N"
     recovered = frf.isel(complex=0) + 1j * frf.isel(complex=1)
     np.testing.assert_array_equal(recovered.values, frf_dataset.frf.values)

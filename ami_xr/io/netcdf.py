@@ -5,7 +5,7 @@ On-disk conventions (readable without ami_xr, see the README's "netCDF files" se
 * A complex variable ``z`` with dims ``(d1, ..., dn)`` is stored as a float variable ``z`` with
   dims ``(d1, ..., dn, "complex")``; index 0 of the trailing dim holds the real part, index 1 the
   imaginary part (complex128 -> float64, complex64 -> float32), bit for bit. The variable carries
-  the attribute ``ami_xr_complex = "real,imag along last dim 'complex'"``. Plain xarray recovers
+  the attribute ``ami_xr_complex = "real,imag along last dim complex"``. Plain xarray recovers
   it with ``raw.z.isel(complex=0) + 1j * raw.z.isel(complex=1)`` (exact except for the sign of
   zero and NaN imaginary parts; use the view in the README for bit-exact values).
 * Boolean variables are stored by xarray as int8 with the attribute ``dtype = "bool"`` (plain
@@ -57,7 +57,7 @@ FORMAT = "NETCDF4"  # needed for int64 and variable-length strings
 LAZY_THRESHOLD_BYTES = 256 * 2**20
 
 ATTR_COMPLEX = "ami_xr_complex"
-ATTR_COMPLEX_VALUE = f"real,imag along last dim {names.COMPLEX!r}"
+ATTR_COMPLEX_VALUE = f"real,imag along last dim {names.COMPLEX}"
 ATTR_ENCODED_ATTRS = "ami_xr_encoded_attrs"
 _RESERVED_ATTRS = (ATTR_COMPLEX, ATTR_ENCODED_ATTRS)
 

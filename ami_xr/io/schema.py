@@ -132,7 +132,7 @@ def _check_axis(
     if not np.all(np.isfinite(values)):
         problems.append(f"{subject}: expected finite values, found NaN or inf")
         return
-    if nonnegative and values[0] < 0:
+    if nonnegative and np.any(values < 0):
         problems.append(
             f"{subject}: expected non-negative frequencies, got {int((values < 0).sum())} "
             f"negative (smallest {values.min()!r})"
