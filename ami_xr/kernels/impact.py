@@ -3,7 +3,8 @@
 * :func:`extreme_run` - longest run of consecutive samples equal to the channel's maximum or
   minimum. An analogue-to-digital converter driven past its range returns its limit code for
   every sample of the overload, so a run of several identical extreme samples marks clipping
-  (a genuine peak of a smooth signal is one sample, two at most by quantization).
+  (a genuine peak of a smooth signal is one sample, two at most by quantization). An extreme
+  close to the median, such as the zero floor of a clean pulse, is ignored.
 * :func:`force_pulses` - the pulses of a hammer force: runs of samples with ``|f| > threshold``,
   runs separated by fewer than ``min_gap`` quiet samples merged into one pulse. A second pulse
   is a double impact (the hammer bounced).
@@ -18,8 +19,12 @@ from ami_xr.kernels._numba import jit
 
 
 @jit
-def _extreme_run(x, out):
-    """out[b] = longest run of samples of x[b] equal to max(x[b]) or min(x[b])."""
+def _extreme_run(x, center, out):
+    """out[b] = longest run of samples of x[b] equal to max(x[b]) or min(x[b]).
+
+    Only an extreme at least half as far from ``center[b]`` (the median) as the farther one
+    counts, so the flat quiet part of a noise-free pulse (its minimum, 0) is not clipping.
+    """
     for b in range(x.shape[0]):
         n = x.shape[1]
         hi = x[b, 0]
@@ -29,12 +34,17 @@ def _extreme_run(x, out):
                 hi = x[b, k]
             if x[b, k] < lo:
                 lo = x[b, k]
+        dhi = hi - center[b]
+        dlo = center[b] - lo
+        far = max(dhi, dlo)
+        use_hi = dhi > 0.0 and dhi >= 0.5 * far
+        use_lo = dlo > 0.0 and dlo >= 0.5 * far
         best = 0
         run_hi = 0
         run_lo = 0
         for k in range(n):
-            run_hi = run_hi + 1 if x[b, k] == hi else 0
-            run_lo = run_lo + 1 if x[b, k] == lo else 0
+            run_hi = run_hi + 1 if (use_hi and x[b, k] == hi) else 0
+            run_lo = run_lo + 1 if (use_lo and x[b, k] == lo) else 0
             if run_hi > best:
                 best = run_hi
             if run_lo > best:
@@ -78,7 +88,7 @@ def extreme_run(x: np.ndarray) -> np.ndarray:
     x = np.ascontiguousarray(x, dtype=np.float64)
     if x.ndim != 2 or x.shape[1] < 1:
         raise AmiXrValueError(f"x: expected shape (batch, time) with time >= 1, got {x.shape}")
-    return _extreme_run(x, np.empty(x.shape[0], np.int64))
+    return _extreme_run(x, np.median(x, axis=1), np.empty(x.shape[0], np.int64))
 
 
 def force_pulses(f: np.ndarray, threshold: np.ndarray, min_gap: int = 3) -> np.ndarray:

@@ -44,7 +44,7 @@ def _prepare_segments(x, starts, window, detrend, out):
     n_ch = x.shape[0]
     nseg = starts.shape[0]
     m = out.shape[2]
-    # linear detrend: centred sample index t - tm has sum 0, so slope = sum((t-tm) x) / sum((t-tm)^2)
+    # linear detrend: the centred index t - tm sums to 0, so slope = sum((t-tm) x) / sum((t-tm)^2)
     tm = 0.5 * (m - 1)
     stt = 0.0
     for k in range(m):
@@ -152,9 +152,16 @@ def _frf_from_spectra(Gff, Gfy, Gyy, estimator, H, coh):
                     H[0, p, k] = gyy / np.conj(gfy) if a2 > 0.0 else complex(nan, nan)
                 else:
                     # Hv: principal eigenvector of [[Gff, Gfy], [Gyf, Gyy]] (equal noise weights)
+                    # (d + r) / (2 conj(Gfy)) with r = sqrt(d^2 + 4 |Gfy|^2); for d < 0 the
+                    # same value as 2 Gfy / (r - d), free of cancellation (Gyy << Gff is common:
+                    # the two spectra carry different units)
                     if a2 > 0.0:
                         d = gyy - gff
-                        H[0, p, k] = (d + np.sqrt(d * d + 4.0 * a2)) / (2.0 * np.conj(gfy))
+                        r = np.sqrt(d * d + 4.0 * a2)
+                        if d >= 0.0:
+                            H[0, p, k] = (d + r) / (2.0 * np.conj(gfy))
+                        else:
+                            H[0, p, k] = 2.0 * gfy / (r - d)
                     else:
                         H[0, p, k] = complex(nan, nan)
         return
@@ -195,7 +202,7 @@ def _frf_from_spectra(Gff, Gfy, Gyy, estimator, H, coh):
 
 
 def detrend_code(detrend) -> int:
-    """Code of a detrend name: ``"none"`` (or ``False``/``None``) 0, ``"constant"`` 1, ``"linear"`` 2."""
+    """Code of a detrend name: "none" (or False/None) 0, "constant" 1, "linear" 2."""
     if detrend is False or detrend is None:
         return 0
     if not isinstance(detrend, str) or detrend.lower() not in _DETREND_CODE:
@@ -255,11 +262,15 @@ def prepare_segments(
         w = np.broadcast_to(w, (x.shape[0], w.shape[0]))
     w = np.ascontiguousarray(w)
     if w.ndim != 2 or w.shape[0] != x.shape[0] or w.shape[1] < 1:
-        raise AmiXrValueError(f"window: expected shape (nperseg,) or ({x.shape[0]}, nperseg), got {w.shape}")
+        raise AmiXrValueError(
+            f"window: expected shape (nperseg,) or ({x.shape[0]}, nperseg), got {w.shape}"
+        )
     starts = np.ascontiguousarray(starts, dtype=np.int64)
     m = w.shape[1]
     if starts.ndim != 1 or (starts.size and (starts.min() < 0 or starts.max() + m > x.shape[1])):
-        raise AmiXrValueError(f"starts: every segment of {m} samples must lie inside the {x.shape[1]} samples")
+        raise AmiXrValueError(
+            f"starts: every segment of {m} samples must lie inside the {x.shape[1]} samples"
+        )
     out = np.empty((x.shape[0], starts.shape[0], m), dtype=np.float64)
     return _prepare_segments(x, starts, w, detrend_code(detrend), out)
 
@@ -345,9 +356,15 @@ def frf_from_spectra(
     Gff = np.ascontiguousarray(Gff, dtype=np.complex128)
     Gfy = np.ascontiguousarray(Gfy, dtype=np.complex128)
     Gyy = np.ascontiguousarray(np.real(Gyy), dtype=np.float64)
-    if (Gff.ndim != 3 or Gfy.ndim != 3 or Gyy.ndim != 2 or Gff.shape[0] != Gff.shape[1]
-            or Gfy.shape[0] != Gff.shape[0] or Gfy.shape[1:] != Gyy.shape
-            or Gff.shape[2] != Gyy.shape[1]):
+    if (
+        Gff.ndim != 3
+        or Gfy.ndim != 3
+        or Gyy.ndim != 2
+        or Gff.shape[0] != Gff.shape[1]
+        or Gfy.shape[0] != Gff.shape[0]
+        or Gfy.shape[1:] != Gyy.shape
+        or Gff.shape[2] != Gyy.shape[1]
+    ):
         raise AmiXrValueError(
             f"Gff, Gfy, Gyy: expected shapes (ref, ref, f), (ref, point, f), (point, f), got "
             f"{Gff.shape}, {Gfy.shape}, {Gyy.shape}"

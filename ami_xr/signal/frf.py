@@ -78,16 +78,20 @@ def _signals(ds: Any, force: xr.DataArray | None, fs: float | None):
     """Check the time Dataset and return (force, response, fs) as DataArrays
     force ([record,] [reference,] time), response ([record,] point, time)."""
     if not isinstance(ds, xr.Dataset):
-        raise AmiXrValueError(f"ds: expected a time Dataset (xarray.Dataset), got {type(ds).__name__}")
+        raise AmiXrValueError(
+            f"ds: expected a time Dataset (xarray.Dataset), got {type(ds).__name__}"
+        )
     if names.RESPONSE not in ds.data_vars:
         raise AmiXrValueError(
             f"ds: has no {names.RESPONSE!r} variable (response histories with dims "
             f"([record,] point, time)); has {sorted(map(str, ds.data_vars))}"
         )
     y = ds[names.RESPONSE]
-    if names.POINT not in y.dims or names.TIME not in y.dims or not set(y.dims) <= {
-        names.RECORD, names.POINT, names.TIME
-    }:
+    if (
+        names.POINT not in y.dims
+        or names.TIME not in y.dims
+        or not set(y.dims) <= {names.RECORD, names.POINT, names.TIME}
+    ):
         raise AmiXrValueError(f"response: expected dims ([record,] point, time), got {y.dims}")
     if force is None:
         if names.FORCE not in ds.data_vars:
@@ -99,7 +103,9 @@ def _signals(ds: Any, force: xr.DataArray | None, fs: float | None):
         f = ds[names.FORCE]
     else:
         if not isinstance(force, xr.DataArray):
-            raise AmiXrValueError(f"force: expected an xarray.DataArray, got {type(force).__name__}")
+            raise AmiXrValueError(
+                f"force: expected an xarray.DataArray, got {type(force).__name__}"
+            )
         f = force
     if names.TIME not in f.dims or not set(f.dims) <= {names.RECORD, names.REFERENCE, names.TIME}:
         raise AmiXrValueError(f"force: expected dims ([record,] [reference,] time), got {f.dims}")
@@ -119,8 +125,10 @@ def _signals(ds: Any, force: xr.DataArray | None, fs: float | None):
     rates = {}
     for argument, da in (("response", y), ("force", f)):
         if names.TIME in da.coords:
-            rates[argument] = _sampling_rate(np.asarray(da[names.TIME].values, float),
-                                             f"{argument}.time" if force is not None else "time")
+            rates[argument] = _sampling_rate(
+                np.asarray(da[names.TIME].values, float),
+                f"{argument}.time" if force is not None else "time",
+            )
     if "response" in rates and "force" in rates:
         if not math.isclose(rates["response"], rates["force"], rel_tol=1e-6):
             raise AmiXrValueError(
@@ -129,8 +137,10 @@ def _signals(ds: Any, force: xr.DataArray | None, fs: float | None):
             )
     coord_fs = rates.get("response", rates.get("force"))
     if fs is not None:
-        if isinstance(fs, bool) or not isinstance(fs, (int, float, np.number)) or not (
-            math.isfinite(fs) and fs > 0
+        if (
+            isinstance(fs, bool)
+            or not isinstance(fs, (int, float, np.number))
+            or not (math.isfinite(fs) and fs > 0)
         ):
             raise AmiXrValueError(f"fs: expected a positive sampling rate in Hz, got {fs!r}")
         if coord_fs is not None and not math.isclose(float(fs), coord_fs, rel_tol=1e-6):
@@ -212,7 +222,7 @@ def check_hits(
     pulses = np.empty_like(first)
     for r in range(nrec):
         gap = max(3, int(first[r, 2] - first[r, 1] + 1))
-        pulses[r] = _ki.force_pulses(f0[r:r + 1], thr[r:r + 1], gap)[0]
+        pulses[r] = _ki.force_pulses(f0[r : r + 1], thr[r : r + 1], gap)[0]
     overloaded = np.array([any(s.startswith("overload") for s in reasons[r]) for r in range(nrec)])
     clean_peaks = peak[~overloaded] if np.any(~overloaded) else peak
     median_peak = float(np.median(clean_peaks))
@@ -233,8 +243,7 @@ def check_hits(
             )
         elif noise[r] > 0 and peak[r] < min_snr * noise[r]:
             reasons[r].append(
-                f"force too weak: peak {peak[r]:.4g} < {min_snr:g} x the force noise "
-                f"{noise[r]:.3g}"
+                f"force too weak: peak {peak[r]:.4g} < {min_snr:g} x the force noise {noise[r]:.3g}"
             )
     rejected = np.array([bool(x) for x in reasons])
     return rejected, ["; ".join(x) for x in reasons], peak, pulses[:, 1:3]
@@ -249,7 +258,7 @@ def _blocks(n: int, da: xr.DataArray, chunk_samples: int | None) -> list[tuple[i
         size = int(chunk_samples)
     elif _is_lazy(da):
         edges = np.cumsum((0,) + tuple(da.chunks[da.get_axis_num(names.TIME)]))
-        return list(zip(edges[:-1].tolist(), edges[1:].tolist()))
+        return list(zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True))
     else:
         size = n
     return [(a, min(a + size, n)) for a in range(0, n, size)]
@@ -265,7 +274,7 @@ def _load(da: xr.DataArray, r: int, a: int, b: int, argument: str) -> np.ndarray
 
 
 def _frf_kernel(gff, gfy, gyy, estimator):
-    """apply_ufunc core: (ref, ref2, f), (ref, point, f), (point, f) -> (ref, point, f), (point, f)."""
+    """apply_ufunc core: (ref, ref2, f), (ref, point, f), (point, f) -> H, coherence."""
     return _ks.frf_from_spectra(gff, gfy, gyy, estimator)
 
 
@@ -366,8 +375,9 @@ def frf(
     estimator = _ks.ESTIMATORS[code - 1]
     excitation = _choice(excitation, EXCITATIONS, "excitation")
     average = _choice(average, ("linear", "exponential"), "average")
-    if average == "exponential" and (isinstance(n_average, bool) or not isinstance(
-            n_average, (int, np.integer)) or n_average < 1):
+    if average == "exponential" and (
+        isinstance(n_average, bool) or not isinstance(n_average, (int, np.integer)) or n_average < 1
+    ):
         raise AmiXrValueError(f"n_average: expected an integer >= 1, got {n_average!r}")
     f_da, y_da, fs = _signals(ds, force, fs)
     nrec, nref, nt = f_da.shape
@@ -386,8 +396,11 @@ def frf(
     if noverlap is None and impact:
         noverlap = 0
     nperseg, noverlap, nfft = check_segments(nt, nperseg, noverlap, nfft)
-    if chunk_samples is not None and (isinstance(chunk_samples, bool) or not isinstance(
-            chunk_samples, (int, np.integer)) or chunk_samples < 1):
+    if chunk_samples is not None and (
+        isinstance(chunk_samples, bool)
+        or not isinstance(chunk_samples, (int, np.integer))
+        or chunk_samples < 1
+    ):
         raise AmiXrValueError(f"chunk_samples: expected an integer >= 1, got {chunk_samples!r}")
     labels = list(y_da[names.POINT].values) if names.POINT in y_da.coords else list(range(npt))
 
@@ -401,66 +414,98 @@ def frf(
                 "both channels the exponential window); use force_window and exponential_decay "
                 "or exponential_end_value"
             )
+        if force_window is not None and not (
+            isinstance(force_window, (int, float, np.number)) and force_window > 0
+        ):
+            raise AmiXrValueError(f"force_window: expected a width in s > 0, got {force_window!r}")
+        beta = None
+        if exponential_decay is not None or exponential_end_value is not None:
+            beta = _kw.exponential_decay_rate(
+                nperseg, fs=fs, decay=exponential_decay, end_value=exponential_end_value
+            )
         fv = np.stack([_load(f_da, r, 0, nt, "force") for r in range(nrec)])
         yv = np.stack([_load(y_da, r, 0, nt, "response") for r in range(nrec)])
         if hit_checks:
             rejected, reasons, peak, pulse = check_hits(
-                fv, yv, overload_samples=overload_samples,
-                double_impact_threshold=double_impact_threshold, min_force=min_force,
-                weak_force_ratio=weak_force_ratio, point_labels=labels)
+                fv,
+                yv,
+                overload_samples=overload_samples,
+                double_impact_threshold=double_impact_threshold,
+                min_force=min_force,
+                weak_force_ratio=weak_force_ratio,
+                point_labels=labels,
+            )
         else:
             rejected = np.zeros(nrec, bool)
             reasons = [""] * nrec
             peak = np.max(np.abs(fv[:, 0]), axis=1)
-            pulse = _ki.force_pulses(np.ascontiguousarray(fv[:, 0]),
-                                     double_impact_threshold * peak, 3)[:, 1:3]
+            pulse = _ki.force_pulses(
+                np.ascontiguousarray(fv[:, 0]), double_impact_threshold * peak, 3
+            )[:, 1:3]
         del fv, yv
         if rejected.all():
             lines = "; ".join(f"hit {r}: {reasons[r]}" for r in range(nrec))
             raise AmiXrValueError(f"ds: every impact hit was rejected ({lines})")
         use = ~rejected
         rec_dim = names.RECORD
-        rec_coord = (ds[names.RECORD].values if names.RECORD in ds.coords
-                     else np.arange(nrec))
-        extra[names.HIT_REJECTED] = xr.DataArray(rejected, dims=[rec_dim],
-                                                 coords={rec_dim: rec_coord})
-        extra[names.HIT_REJECT_REASON] = xr.DataArray(np.array(reasons, dtype=str),
-                                                      dims=[rec_dim], coords={rec_dim: rec_coord})
-        extra[names.HIT_PEAK_FORCE] = xr.DataArray(peak, dims=[rec_dim], coords={rec_dim: rec_coord},
-                                                   attrs={names.ATTR_UNITS: ds.attrs.get(
-                                                       names.ATTR_FORCE_UNITS, "")})
+        rec_coord = ds[names.RECORD].values if names.RECORD in ds.coords else np.arange(nrec)
+        extra[names.HIT_REJECTED] = xr.DataArray(
+            rejected, dims=[rec_dim], coords={rec_dim: rec_coord}
+        )
+        extra[names.HIT_REJECT_REASON] = xr.DataArray(
+            np.array(reasons, dtype=str), dims=[rec_dim], coords={rec_dim: rec_coord}
+        )
+        extra[names.HIT_PEAK_FORCE] = xr.DataArray(
+            peak,
+            dims=[rec_dim],
+            coords={rec_dim: rec_coord},
+            attrs={names.ATTR_UNITS: ds.attrs.get(names.ATTR_FORCE_UNITS, "")},
+        )
         # force window: default covers the first pulse of every accepted hit plus its length
         if force_window is None:
             ends = pulse[use, 1]
             lengths = pulse[use, 1] - pulse[use, 0] + 1
             width = int(min(nperseg, max(1, ends.max() + 1 + lengths.max())))
         else:
-            if not (isinstance(force_window, (int, float, np.number)) and force_window > 0):
-                raise AmiXrValueError(f"force_window: expected a width in s > 0, got {force_window!r}")
             width = int(min(nperseg, max(1, round(float(force_window) * fs))))
         wf = _kw.get_window("force", nperseg, width=width)
-        if exponential_decay is not None or exponential_end_value is not None:
-            beta = _kw.exponential_decay_rate(nperseg, fs=fs, decay=exponential_decay,
-                                              end_value=exponential_end_value)
+        if beta is not None:
             we = _kw.get_window("exponential", nperseg, fs=fs, decay=beta)
-            attrs_extra[names.ATTR_EXP_DECAY] = float(beta)
+            # a window already applied to the time data (ami_xr.apply_window) adds up
+            attrs_extra[names.ATTR_EXP_DECAY] = float(beta) + float(
+                ds.attrs.get(names.ATTR_EXP_DECAY, 0.0) or 0.0
+            )
         else:
             we = np.ones(nperseg)
         force_w, response_w = wf * we, we
         attrs_extra[names.ATTR_FORCE_WINDOW_WIDTH] = width / fs
         window_label = "force*exponential" if names.ATTR_EXP_DECAY in attrs_extra else "force"
     else:
-        for arg, val in (("force_window", force_window), ("exponential_decay", exponential_decay),
-                         ("exponential_end_value", exponential_end_value)):
+        for arg, val in (
+            ("force_window", force_window),
+            ("exponential_decay", exponential_decay),
+            ("exponential_end_value", exponential_end_value),
+        ):
             if val is not None:
                 raise AmiXrValueError(f"{arg}: only used with excitation='impact'")
         window = "hann" if window is None else window
         response_w = force_w = resolve_window(window, nperseg)
         window_label = window if isinstance(window, str) else "array"
 
-    acc = WelchAccumulator(nref, npt, fs=fs, nperseg=nperseg, noverlap=noverlap, nfft=nfft,
-                           force_window=force_w, response_window=response_w, detrend=detrend,
-                           average=average, n_average=n_average, workers=workers)
+    acc = WelchAccumulator(
+        nref,
+        npt,
+        fs=fs,
+        nperseg=nperseg,
+        noverlap=noverlap,
+        nfft=nfft,
+        force_window=force_w,
+        response_window=response_w,
+        detrend=detrend,
+        average=average,
+        n_average=n_average,
+        workers=workers,
+    )
     for r in np.flatnonzero(use):
         for a, b in _blocks(nt, y_da, chunk_samples):
             acc.feed(_load(f_da, r, a, b, "force"), _load(y_da, r, a, b, "response"))
@@ -469,16 +514,21 @@ def frf(
     freq = acc.frequency
 
     fdim = names.FREQUENCY
-    ref_coord = (f_da[names.REFERENCE].values if names.REFERENCE in f_da.coords
-                 else np.arange(nref))
+    ref_coord = f_da[names.REFERENCE].values if names.REFERENCE in f_da.coords else np.arange(nref)
     Gff = xr.DataArray(gff, dims=[names.REFERENCE, _REF2, fdim])
     Gfy = xr.DataArray(gfy, dims=[names.REFERENCE, names.POINT, fdim])
     Gyy = xr.DataArray(gyy, dims=[names.POINT, fdim])
     H, coh = xr.apply_ufunc(
-        _frf_kernel, Gff, Gfy, Gyy,
+        _frf_kernel,
+        Gff,
+        Gfy,
+        Gyy,
         kwargs={"estimator": estimator},
-        input_core_dims=[[names.REFERENCE, _REF2, fdim], [names.REFERENCE, names.POINT, fdim],
-                         [names.POINT, fdim]],
+        input_core_dims=[
+            [names.REFERENCE, _REF2, fdim],
+            [names.REFERENCE, names.POINT, fdim],
+            [names.POINT, fdim],
+        ],
         output_core_dims=[[names.REFERENCE, names.POINT, fdim], [names.POINT, fdim]],
         dask="parallelized",
         output_dtypes=[np.complex128, np.float64],
@@ -489,8 +539,11 @@ def frf(
     gff_diag = xr.DataArray(np.real(np.einsum("iik->ik", gff)), dims=[names.REFERENCE, fdim])
     siso = names.REFERENCE not in (force if force is not None else ds[names.FORCE]).dims
     if siso:
-        H, Gfy, gff_diag = H.isel({names.REFERENCE: 0}), Gfy.isel({names.REFERENCE: 0}), \
-            gff_diag.isel({names.REFERENCE: 0})
+        H, Gfy, gff_diag = (
+            H.isel({names.REFERENCE: 0}),
+            Gfy.isel({names.REFERENCE: 0}),
+            gff_diag.isel({names.REFERENCE: 0}),
+        )
     out = xr.Dataset(
         {
             names.FRF: H.assign_attrs({names.ATTR_UNITS: names.frf_units(ru, fu)}),
@@ -506,28 +559,41 @@ def frf(
             **({} if siso else {names.REFERENCE: ref_coord}),
         },
     )
-    out = out.transpose(*[d for d in (names.REFERENCE, names.POINT, fdim, names.RECORD)
-                          if d in out.dims])
+    out = out.transpose(
+        *[d for d in (names.REFERENCE, names.POINT, fdim, names.RECORD) if d in out.dims]
+    )
     quantity = ds.attrs.get(names.ATTR_QUANTITY)
     attrs = {k: ds.attrs[k] for k in (names.ATTR_DRIVE_POINT, names.ATTR_QUANTITY) if k in ds.attrs}
     if quantity in names.QUANTITY_TO_FRF_TYPE:
         attrs[names.ATTR_FRF_TYPE] = names.QUANTITY_TO_FRF_TYPE[quantity]
-    attrs.update({
-        names.ATTR_RESPONSE_UNITS: ru,
-        names.ATTR_FORCE_UNITS: fu,
-        names.ATTR_SOURCE: names.SOURCE_ESTIMATED,
-        names.ATTR_ESTIMATOR: estimator,
-        names.ATTR_N_AVERAGES: int(acc.count),
-        **attrs_extra,
-    })
+    if names.ATTR_EXP_DECAY in ds.attrs and names.ATTR_EXP_DECAY not in attrs_extra:
+        attrs[names.ATTR_EXP_DECAY] = ds.attrs[names.ATTR_EXP_DECAY]
+    attrs.update(
+        {
+            names.ATTR_RESPONSE_UNITS: ru,
+            names.ATTR_FORCE_UNITS: fu,
+            names.ATTR_SOURCE: names.SOURCE_ESTIMATED,
+            names.ATTR_ESTIMATOR: estimator,
+            names.ATTR_N_AVERAGES: int(acc.count),
+            **attrs_extra,
+        }
+    )
     for key in (names.ATTR_HISTORY, names.ATTR_VERSION, names.ATTR_SOURCE_FILE):
         if key in ds.attrs:
             attrs[key] = ds.attrs[key]
     out.attrs = attrs
     params = {
-        "estimator": estimator, "fs": fs, "window": window_label, "nperseg": nperseg,
-        "noverlap": noverlap, "nfft": nfft, "detrend": detrend, "average": average,
-        "n_average": n_average, "excitation": excitation, "n_records_used": int(use.sum()),
+        "estimator": estimator,
+        "fs": fs,
+        "window": window_label,
+        "nperseg": nperseg,
+        "noverlap": noverlap,
+        "nfft": nfft,
+        "detrend": detrend,
+        "average": average,
+        "n_average": n_average,
+        "excitation": excitation,
+        "n_records_used": int(use.sum()),
         **attrs_extra,
     }
     out = add_history(out, "ami_xr.frf", params)
@@ -601,8 +667,9 @@ def convert_quantity(ds: xr.Dataset, to: str, *, dc: str = "nan") -> xr.Dataset:
         factor = scale * iw**k if k >= 0 else scale / iw ** (-k)
     if k < 0:
         at0 = f.values == 0
-        factor = factor.where(~xr.DataArray(at0, dims=[names.FREQUENCY]),
-                              np.nan if dc == "nan" else 0.0)
+        factor = factor.where(
+            ~xr.DataArray(at0, dims=[names.FREQUENCY]), np.nan if dc == "nan" else 0.0
+        )
     out = ds.copy()
     out[names.FRF] = ds[names.FRF] * factor
     fu = ds.attrs.get(names.ATTR_FORCE_UNITS, "")

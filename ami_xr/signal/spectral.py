@@ -28,13 +28,12 @@ AVERAGES = ("linear", "exponential")
 _BATCH_BYTES = 16 * 2**20  # segment buffer per batch (the FFT output is about as large again)
 
 
-def check_segments(
-    n_samples: int, nperseg, noverlap, nfft
-) -> tuple[int, int, int]:
+def check_segments(n_samples: int, nperseg, noverlap, nfft) -> tuple[int, int, int]:
     """Validate ``nperseg``, ``noverlap`` and ``nfft`` against a record of ``n_samples``.
 
     ``noverlap=None`` means ``nperseg // 2`` and ``nfft=None`` means ``nperseg`` (scipy's).
     """
+
     def _int(value, argument):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
             raise AmiXrValueError(f"{argument}: expected an integer, got {value!r}")
@@ -50,7 +49,9 @@ def check_segments(
         )
     noverlap = nperseg // 2 if noverlap is None else _int(noverlap, "noverlap")
     if not 0 <= noverlap < nperseg:
-        raise AmiXrValueError(f"noverlap: expected 0 <= noverlap < nperseg={nperseg}, got {noverlap}")
+        raise AmiXrValueError(
+            f"noverlap: expected 0 <= noverlap < nperseg={nperseg}, got {noverlap}"
+        )
     nfft = nperseg if nfft is None else _int(nfft, "nfft")
     if nfft < nperseg:
         raise AmiXrValueError(f"nfft: expected nfft >= nperseg={nperseg}, got {nfft}")
@@ -67,7 +68,11 @@ def resolve_window(window, nperseg: int, argument: str = "window") -> np.ndarray
             )
         return _w.get_window(window, nperseg)
     w = np.asarray(window)
-    if w.ndim != 1 or w.shape[0] != nperseg or not (np.issubdtype(w.dtype, np.floating) or np.issubdtype(w.dtype, np.integer)):
+    if (
+        w.ndim != 1
+        or w.shape[0] != nperseg
+        or not (np.issubdtype(w.dtype, np.floating) or np.issubdtype(w.dtype, np.integer))
+    ):
         raise AmiXrValueError(
             f"{argument}: expected a window name or a 1-D real array of nperseg={nperseg} "
             f"samples, got {type(window).__name__} of shape {getattr(w, 'shape', None)}"
@@ -163,15 +168,17 @@ class WelchAccumulator:
             starts = np.arange(a, min(a + self._batch, nseg), dtype=np.int64) * self.step
             self._add(f, y, starts)
         # carry what the next segment needs; copy so the caller's block can be freed
-        self._tail_f = f[:, nseg * self.step:].copy()
-        self._tail_y = y[:, nseg * self.step:].copy()
+        self._tail_f = f[:, nseg * self.step :].copy()
+        self._tail_y = y[:, nseg * self.step :].copy()
 
     def _add(self, f: np.ndarray, y: np.ndarray, starts: np.ndarray) -> None:
         m = self.nperseg
-        sf = _k._prepare_segments(f, starts, self._wf, self.detrend,
-                                  np.empty((self.n_force, starts.size, m)))
-        sy = _k._prepare_segments(y, starts, self._wy, self.detrend,
-                                  np.empty((self.n_response, starts.size, m)))
+        sf = _k._prepare_segments(
+            f, starts, self._wf, self.detrend, np.empty((self.n_force, starts.size, m))
+        )
+        sy = _k._prepare_segments(
+            y, starts, self._wy, self.detrend, np.empty((self.n_response, starts.size, m))
+        )
         F = scipy.fft.rfft(sf, n=self.nfft, axis=-1, overwrite_x=True, workers=self.workers)
         del sf
         Y = scipy.fft.rfft(sy, n=self.nfft, axis=-1, overwrite_x=True, workers=self.workers)
@@ -180,8 +187,11 @@ class WelchAccumulator:
             _k._accumulate_linear(F, Y, self.Gff, self.Gfy, self.Gyy)
             self.count += starts.size
         else:
-            self.count = int(_k._accumulate_exponential(
-                F, Y, self.Gff, self.Gfy, self.Gyy, self.count, self.n_average))
+            self.count = int(
+                _k._accumulate_exponential(
+                    F, Y, self.Gff, self.Gfy, self.Gyy, self.count, self.n_average
+                )
+            )
 
     def spectra(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Averaged one-sided densities ``Gff`` (ref, ref, f), ``Gfy`` (ref, point, f), ``Gyy``."""
@@ -216,42 +226,89 @@ def _spectral_helper(x, y, fs, window, nperseg, noverlap, nfft, detrend, average
     nperseg, noverlap, nfft = check_segments(x2.shape[-1], nperseg, noverlap, nfft)
     w = resolve_window(window, nperseg)
     acc = WelchAccumulator(
-        x2.shape[0], y2.shape[0], fs=fs, nperseg=nperseg, noverlap=noverlap, nfft=nfft,
-        force_window=w, response_window=w, detrend=detrend, average=average, n_average=n_average,
+        x2.shape[0],
+        y2.shape[0],
+        fs=fs,
+        nperseg=nperseg,
+        noverlap=noverlap,
+        nfft=nfft,
+        force_window=w,
+        response_window=w,
+        detrend=detrend,
+        average=average,
+        n_average=n_average,
     )
     acc.feed(x2, y2)
     Gxx, Gxy, Gyy = acc.spectra()
     return acc.frequency, Gxx, Gxy, Gyy
 
 
-def csd(x, y, fs: float = 1.0, window="hann", nperseg: int = 256, noverlap: int | None = None,
-        nfft: int | None = None, detrend="constant", average: str = "linear",
-        n_average: int = 8) -> tuple[np.ndarray, np.ndarray]:
+def csd(
+    x,
+    y,
+    fs: float = 1.0,
+    window="hann",
+    nperseg: int = 256,
+    noverlap: int | None = None,
+    nfft: int | None = None,
+    detrend="constant",
+    average: str = "linear",
+    n_average: int = 8,
+) -> tuple[np.ndarray, np.ndarray]:
     """Cross power spectral density ``E[conj(X) Y]`` of 1-D ``x`` and ``y`` (n,) or (channel, n).
 
     Same parameters and results as ``scipy.signal.csd`` (one-sided, density, mean average);
     ``average="exponential"`` gives the running average of :class:`WelchAccumulator`.
     """
-    f, _, Gxy, _ = _spectral_helper(x, y, fs, window, nperseg, noverlap, nfft, detrend,
-                                    average, n_average)
+    f, _, Gxy, _ = _spectral_helper(
+        x, y, fs, window, nperseg, noverlap, nfft, detrend, average, n_average
+    )
     out = Gxy[0]
     return f, out[0] if np.ndim(y) == 1 else out
 
 
-def welch(x, fs: float = 1.0, window="hann", nperseg: int = 256, noverlap: int | None = None,
-          nfft: int | None = None, detrend="constant", average: str = "linear",
-          n_average: int = 8) -> tuple[np.ndarray, np.ndarray]:
+def welch(
+    x,
+    fs: float = 1.0,
+    window="hann",
+    nperseg: int = 256,
+    noverlap: int | None = None,
+    nfft: int | None = None,
+    detrend="constant",
+    average: str = "linear",
+    n_average: int = 8,
+) -> tuple[np.ndarray, np.ndarray]:
     """Power spectral density of ``x`` (n,) or (channel, n), as ``scipy.signal.welch``."""
-    f, _, _, Gyy = _spectral_helper(np.zeros(np.shape(x)[-1]), x, fs, window, nperseg, noverlap,
-                                    nfft, detrend, average, n_average)
+    f, _, _, Gyy = _spectral_helper(
+        np.zeros(np.shape(x)[-1]),
+        x,
+        fs,
+        window,
+        nperseg,
+        noverlap,
+        nfft,
+        detrend,
+        average,
+        n_average,
+    )
     return f, Gyy[0] if np.ndim(x) == 1 else Gyy
 
 
-def coherence(x, y, fs: float = 1.0, window="hann", nperseg: int = 256,
-              noverlap: int | None = None, nfft: int | None = None, detrend="constant",
-              average: str = "linear", n_average: int = 8) -> tuple[np.ndarray, np.ndarray]:
+def coherence(
+    x,
+    y,
+    fs: float = 1.0,
+    window="hann",
+    nperseg: int = 256,
+    noverlap: int | None = None,
+    nfft: int | None = None,
+    detrend="constant",
+    average: str = "linear",
+    n_average: int = 8,
+) -> tuple[np.ndarray, np.ndarray]:
     """Ordinary coherence ``|Gxy|^2 / (Gxx Gyy)`` of 1-D ``x`` and ``y`` (n,) or (channel, n)."""
-    f, Gxx, Gxy, Gyy = _spectral_helper(x, y, fs, window, nperseg, noverlap, nfft, detrend,
-                                        average, n_average)
+    f, Gxx, Gxy, Gyy = _spectral_helper(
+        x, y, fs, window, nperseg, noverlap, nfft, detrend, average, n_average
+    )
     _, coh = _k.frf_from_spectra(Gxx, Gxy, Gyy, "H1")
     return f, coh[0] if np.ndim(y) == 1 else coh
