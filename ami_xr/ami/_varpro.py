@@ -13,9 +13,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
 
-from ami_xr.kernels.refine import model_columns, normal_equations
+from ami_xr.kernels.refine import (
+    gram,
+    matmul_small,
+    model_columns,
+    normal_equations,
+    project_points,
+)
 
 # |r_j|^2 is floored at (RSS_FLOOR |y_j|)^2 so that noise-free data (residual at rounding
 # level) keep a finite objective.
@@ -26,7 +31,7 @@ RSS_FLOOR = 1e-14
 class Problem:
     """The data and model choices of one refinement, in real-stacked form."""
 
-    y: np.ndarray  # (2L, P) real-stacked, line-weighted data
+    y: np.ndarray  # (P, 2L) real-stacked, line-weighted data, one row per point
     omega: np.ndarray  # (L,) rad/s
     line_weight: np.ndarray  # (L,) sqrt weight per line (1/sqrt(2) at DC and Nyquist)
     dt: float | None
@@ -35,10 +40,14 @@ class Problem:
     y_norm2: np.ndarray = field(init=False)
 
     def __post_init__(self):
-        self.y_norm2 = np.maximum(np.sum(self.y**2, axis=0), np.finfo(float).tiny)
+        self.y_norm2 = np.maximum(np.sum(self.y**2, axis=1), np.finfo(float).tiny)
 
     @property
     def n_rows(self) -> int:
+        return self.y.shape[1]
+
+    @property
+    def n_points(self) -> int:
         return self.y.shape[0]
 
 
@@ -52,7 +61,9 @@ class Projection:
     v: np.ndarray  # (2L, 2K) derivative columns
     coef: np.ndarray  # (P, p) residue (and residual-term) coefficients
     rss: np.ndarray  # (P,) residual sum of squares per point
-    resid: np.ndarray  # (2L, P)
+    v_res: np.ndarray  # (P, 2K): V' r_j
+    qtv: np.ndarray  # (p, 2K): Q' V
+    vtv: np.ndarray  # (2K, 2K): V' V
     ok: bool
 
 
@@ -67,7 +78,7 @@ def make_problem(frf, omega, dt, n_samples, residual_terms=(), nyquist=None) -> 
     if nyquist is not None:
         w[np.isclose(omega, nyquist, rtol=1e-9, atol=0.0)] = 2**-0.5
     yc = np.asarray(frf, dtype=np.complex128) * w[None, :]
-    y = np.concatenate([yc.real, yc.imag], axis=1).T.copy()
+    y = np.ascontiguousarray(np.concatenate([yc.real, yc.imag], axis=1))
     return Problem(y, np.asarray(omega, float), w, dt, n_samples, tuple(residual_terms))
 
 
@@ -82,23 +93,21 @@ def project(prob: Problem, lam: np.ndarray) -> Projection:
     a = _stack(phi * w)
     v = _stack(dphi * w)
     ok = bool(np.all(np.isfinite(a)) and np.all(np.isfinite(v)))
+    q, r, ok = _cholesky_qr2(a) if ok else (a, np.eye(a.shape[1]), False)
     if not ok:
         nan = np.full(1, np.nan)
-        return Projection(lam, a, np.eye(a.shape[1]), v, nan, np.full(prob.y.shape[1], np.inf),
-                          nan, False)
-    q, r, ok = _cholesky_qr2(a)
-    if not ok:
-        nan = np.full(1, np.nan)
-        return Projection(lam, q, r, v, nan, np.full(prob.y.shape[1], np.inf), nan, False)
-    qty = q.T @ prob.y
-    resid = prob.y - q @ qty
-    rss = np.sum(resid**2, axis=0)
-    coef = _solve_upper(r, qty).T
-    return Projection(lam, q, r, v, coef, rss, resid, ok)
+        return Projection(lam, q, r, v, nan, np.full(prob.n_points, np.inf), nan, nan, nan, False)
+    qty, rss, v_res = project_points(prob.y, q, v)
+    g = gram(np.hstack([q, v]))
+    p = q.shape[1]
+    coef = _solve_upper(r, qty.T).T
+    return Projection(lam, q, r, v, coef, rss, v_res, g[:p, p:], g[p:, p:], ok)
 
 
 def _solve_upper(r, b):
-    return scipy.linalg.solve_triangular(r, b, lower=False)
+    # np.linalg.solve, not scipy's solve_triangular: the latter calls a BLAS-3 kernel whose
+    # threads stall on a busy machine, even for an 8 x 8 system.
+    return np.linalg.solve(r, b)
 
 
 def _cholesky_qr2(a):
@@ -114,9 +123,9 @@ def _cholesky_qr2(a):
         return a, np.eye(a.shape[1]), False
     a_s = a / scale
     try:
-        r1 = np.linalg.cholesky(a_s.T @ a_s).T
+        r1 = np.linalg.cholesky(gram(a_s)).T
         q1 = _solve_upper_right(a_s, r1)
-        r2 = np.linalg.cholesky(q1.T @ q1).T
+        r2 = np.linalg.cholesky(gram(q1)).T
         q = _solve_upper_right(q1, r2)
     except np.linalg.LinAlgError:
         return a, np.eye(a.shape[1]), False
@@ -130,7 +139,7 @@ def _solve_upper_right(a, r):
     """``a @ inv(r)`` for a small upper-triangular ``r``: the explicit inverse of ``r`` is as
     accurate here as a triangular solve and much faster on a tall ``a`` when BLAS threads are
     contended."""
-    return a @ scipy.linalg.solve_triangular(r, np.eye(r.shape[0]), lower=False)
+    return matmul_small(a, np.linalg.inv(r))
 
 
 def objective(prob: Problem, proj: Projection) -> float:
@@ -144,10 +153,8 @@ def objective(prob: Problem, proj: Projection) -> float:
 def gauss_newton(prob: Problem, proj: Projection, weight: np.ndarray):
     """Normal equations ``(h, g)`` of ``1/2 sum_j w_j |r_j|^2`` in the eigenvalue parameters."""
     n_mode = proj.lam.shape[0]
-    v_perp = proj.v - proj.q @ (proj.q.T @ proj.v)
-    s_mat = v_perp.T @ v_perp
-    v_res = (proj.v.T @ proj.resid).T
-    return normal_equations(proj.coef, weight, s_mat, v_res, n_mode)
+    s_mat = proj.vtv - proj.qtv.T @ proj.qtv  # V' (I - Q Q') V
+    return normal_equations(proj.coef, weight, s_mat, proj.v_res, n_mode)
 
 
 def ml_weight(prob: Problem, proj: Projection) -> np.ndarray:
@@ -202,7 +209,7 @@ def levenberg_marquardt(
     converged = False
     message = "iteration cap reached"
     # Rounding level of the objective: a change below it is not a change.
-    cost_eps = 1e-13 * max(abs(cost), prob.y.shape[1])
+    cost_eps = 1e-13 * max(abs(cost), prob.n_points)
     while n_iter < max_iter:
         n_iter += 1
         w = ml_weight(prob, proj)
@@ -245,7 +252,7 @@ def levenberg_marquardt(
             nu *= 2.0
         if not accepted:
             # No descent direction at rounding level: we are at the minimum the arithmetic allows.
-            converged = decrement < 1e-6 * max(prob.y.shape[1], 1)
+            converged = decrement < 1e-6 * max(prob.n_points, 1)
             message = "no further decrease possible" if converged else "step rejected"
             break
         rel = np.max(np.abs(lam_new - lam)[free] / np.abs(lam[free]))
@@ -277,7 +284,7 @@ def covariance(prob: Problem, proj: Projection, noise_var: np.ndarray, drive_ind
     h, _ = gauss_newton(prob, proj, weight)
     cov_theta = np.linalg.pinv(h)
     # c_j = R^-1 Q' (y_j - V M_j dtheta) -> dc_j/dtheta = -G0 M_j with G0 = R^-1 Q' V
-    g0 = np.linalg.solve(proj.r, proj.q.T @ proj.v)  # (p, 2K)
+    g0 = np.linalg.solve(proj.r, proj.qtv)  # (p, 2K)
     rinv = np.linalg.inv(proj.r)
     cov_lin = rinv @ rinv.T  # (R'R)^-1
     a1 = proj.coef[:, 0 : 2 * n_mode : 2]
