@@ -156,7 +156,12 @@ def state_space_modes(
     # quadratic problem D(lam) = lam^2 M + lam C + K: a Rayleigh-quotient root of
     # phi^T D(lam) phi = 0 (the problem is complex symmetric, so phi^T is the left vector) and
     # one inverse-iteration step; cubically convergent, a few sweeps suffice.
-    for k in range(n):
+    # Only modes whose backward error on their own scale is above a few eps need it.
+    Mp, Cp, Kp = M @ phi, C @ phi, K @ phi
+    resid = np.linalg.norm(Mp * lam**2 + Cp * lam + Kp, axis=0)
+    scale = (np.abs(lam) ** 2 * np.linalg.norm(Mp, axis=0) + np.abs(lam) * np.linalg.norm(
+        Cp, axis=0) + np.linalg.norm(Kp, axis=0))
+    for k in np.flatnonzero(resid > 1e-14 * scale):
         lam[k], phi[:, k] = _polish(M, C, K, lam[k], phi[:, k])
     order = np.lexsort((lam.imag, np.abs(lam)))
     lam = lam[order]
