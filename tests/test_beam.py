@@ -179,6 +179,8 @@ def test_benchmark_bad_input():
         benchmark(noise=-1)
     with pytest.raises(AmiXrValueError, match="time"):
         benchmark(n_samples=1)
+    with pytest.raises(AmiXrValueError, match="kind"):
+        benchmark(noise=0.0, kind="pink")
 
 
 SAMPLE_FILES = (

@@ -38,6 +38,8 @@ from scipy.optimize import brentq
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.simulate.modal import (
+    ATTR_NOISE_LEVEL,
+    NOISE_KINDS,
     add_noise,
     impulse_response,
     modal_model,
@@ -233,11 +235,15 @@ def benchmark(
         Exact eigenvalues, natural frequencies, damping ratios, mode vectors and residues at the
         measured points [tip, m1, m2, m3] (all J + 3 modes; modes 1-4 are the paper's).
     """
+    if kind not in NOISE_KINDS:
+        raise AmiXrValueError(f"kind: expected one of {NOISE_KINDS}, got {kind!r}")
     truth = benchmark_model(J)
     t = time_axis((duration, n_samples))
     ts = impulse_response(truth, t, DRIVE_POINT)
     if noise:
         ts = add_noise(ts, noise, seed=seed, kind=kind)
+    else:
+        ts.attrs[ATTR_NOISE_LEVEL] = 0.0
     ts.attrs["ritz_terms"] = int(J)
     g = frf_from_impulse(ts)
     g.attrs["ritz_terms"] = int(J)
