@@ -400,6 +400,26 @@ def test_truncated_file(tmp_path, frf_dataset, keep, lazy):
         open_dataset(path, lazy=lazy)
 
 
+@pytest.mark.parametrize("fmt", ["NETCDF4", "NETCDF4_CLASSIC", "NETCDF3_64BIT"])
+def test_opens_files_not_written_by_ami_xr(tmp_path, fmt):
+    ds = xr.Dataset({"y": (("t",), np.arange(4.0))}, coords={"t": np.arange(4)}, attrs={"a": 1})
+    path = tmp_path / "plain.nc"
+    ds.to_netcdf(path, format=fmt, engine="netcdf4")
+    back = open_dataset(path)
+    np.testing.assert_array_equal(back.y.values, ds.y.values)
+    assert back.attrs["a"] == 1 and back.attrs[names.ATTR_SOURCE_FILE] == str(path)
+
+
+def test_rewriting_a_plainly_opened_file_points_to_open_dataset(tmp_path, frf_dataset):
+    raw = xr.open_dataset(to_netcdf(frf_dataset.assign_attrs(flag=True), tmp_path / "frf.nc"))
+    with pytest.raises(AmiXrValueError, match=r"reserved .*ami_xr.open_dataset"):
+        to_netcdf(raw, tmp_path / "again.nc")
+    raw_attrs = raw.drop_dims(names.COMPLEX)
+    with pytest.raises(AmiXrValueError, match=r"reserved .*use ami_xr.open_dataset"):
+        to_netcdf(raw_attrs, tmp_path / "again.nc")
+    raw.close()
+
+
 def test_wrongly_flagged_complex_variable_is_a_data_file_error(tmp_path):
     path = tmp_path / "odd.nc"
     xr.Dataset({"z": (("a",), [1.0, 2.0, 3.0], {netcdf.ATTR_COMPLEX: "x"})}).to_netcdf(path)

@@ -96,6 +96,13 @@ def test_lazy_dataset_validates_without_error(frf_dataset):
         validate(bad)
 
 
+def test_make_frf_dataset_keeps_dask_input_lazy(frf_dataset):
+    da = pytest.importorskip("dask.array")
+    lazy = da.from_array(frf_dataset.frf.values, chunks=(1, 50))
+    ds = make_frf_dataset(lazy, frf_dataset.frequency.values, drive_point=0)
+    assert isinstance(ds.frf.data, da.Array)
+
+
 def test_require_drive_point_false_accepts_missing_or_unknown(frf_dataset):
     missing = _without_attr(frf_dataset, names.ATTR_DRIVE_POINT)
     unknown = _with_attrs(frf_dataset, drive_point=99)

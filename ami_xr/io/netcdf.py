@@ -230,7 +230,8 @@ def _encode_attrs(attrs: dict, owner: str) -> dict:
             )
         if key in _RESERVED_ATTRS:
             raise AmiXrValueError(
-                f"attribute {key!r} of {owner}: the name is reserved for ami_xr's netCDF encoding"
+                f"attribute {key!r} of {owner}: the name is reserved for ami_xr's netCDF encoding "
+                "(was this file opened with plain xarray? use ami_xr.open_dataset)"
             )
         out[key], tag = _encode_attr(key, value, owner)
         if tag is not None:
@@ -273,7 +274,8 @@ def encode(ds: xr.Dataset) -> xr.Dataset:
     if names.COMPLEX in ds.dims:
         raise AmiXrValueError(
             f"ds: has a dim {names.COMPLEX!r}, reserved for the on-disk complex encoding; "
-            "rename it before writing"
+            "rename it before writing (or, if this came from an ami_xr file opened with plain "
+            "xarray, open it with ami_xr.open_dataset)"
         )
     variables: dict[str, xr.Variable] = {}
     for name, var in ds.variables.items():
