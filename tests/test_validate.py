@@ -128,7 +128,7 @@ FRF_CASES = {
     ),
     "reference dim": (
         lambda ds: ds.expand_dims({names.REFERENCE: [1]}),
-        r"variable 'frf': has a leading 'reference' dim: multi-reference data is not supported yet",
+        r"variable 'frf': has a leading 'reference' dim: multi-reference not supported yet",
     ),
     "on-disk complex dim": (
         lambda ds: ds.assign(

@@ -30,7 +30,7 @@ EXCITATION_UNIT_IMPULSE = "unit_impulse"
 UNIFORM_RTOL = 1e-6
 
 _MULTI_REFERENCE = (
-    f"has a leading {names.REFERENCE!r} dim: multi-reference data is not supported yet "
+    f"has a leading {names.REFERENCE!r} dim: multi-reference not supported yet "
     f"(select one reference first, e.g. ds.isel({names.REFERENCE}=0))"
 )
 
@@ -593,7 +593,7 @@ def make_frf_dataset(
     if values.ndim != 2:
         raise AmiXrValueError(
             f"frf: expected shape (n_point, n_frequency) or (n_frequency,), got {values.shape}"
-            + (" (multi-reference data is not supported yet)" if values.ndim == 3 else "")
+            + (" (multi-reference not supported yet)" if values.ndim == 3 else "")
         )
     freq = _as_array(frequency, "frequency")
     if freq.ndim != 1 or freq.shape[0] != values.shape[1]:
