@@ -27,6 +27,7 @@ identification adds it back.
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -273,6 +274,41 @@ def _load(da: xr.DataArray, r: int, a: int, b: int, argument: str) -> np.ndarray
     return block
 
 
+def _feed_all(acc: WelchAccumulator, f_da, y_da, records, blocks) -> None:
+    """Feed every block of every used record. A lazy Dataset's next block is read in a
+    background thread while this one is processed (reads and the nogil kernels overlap); at
+    most two blocks are in memory."""
+    jobs = [(int(r), a, b) for r in records for a, b in blocks]
+
+    def load(job):
+        r, a, b = job
+        return _load(f_da, r, a, b, "force"), _load(y_da, r, a, b, "response")
+
+    def run(next_block):
+        for i, (_, a, _) in enumerate(jobs):
+            if a == 0 and i > 0:
+                acc.end_record()  # segments never span two records
+            acc.feed(*next_block(i))
+
+    if not (_is_lazy(f_da) or _is_lazy(y_da)) or len(jobs) < 2:
+        run(lambda i: load(jobs[i]))
+        return
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        pending = {0: pool.submit(load, jobs[0])}
+
+        def next_block(i):
+            data = pending.pop(i).result()
+            if i + 1 < len(jobs):
+                pending[i + 1] = pool.submit(load, jobs[i + 1])
+            return data
+
+        try:
+            run(next_block)
+        finally:
+            for fut in pending.values():
+                fut.cancel()
+
+
 def _frf_kernel(gff, gfy, gyy, estimator):
     """apply_ufunc core: (ref, ref2, f), (ref, point, f), (point, f) -> H, coherence."""
     return _ks.frf_from_spectra(gff, gfy, gyy, estimator)
@@ -506,10 +542,7 @@ def frf(
         n_average=n_average,
         workers=workers,
     )
-    for r in np.flatnonzero(use):
-        for a, b in _blocks(nt, y_da, chunk_samples):
-            acc.feed(_load(f_da, r, a, b, "force"), _load(y_da, r, a, b, "response"))
-        acc.end_record()
+    _feed_all(acc, f_da, y_da, np.flatnonzero(use), _blocks(nt, y_da, chunk_samples))
     gff, gfy, gyy = acc.spectra()
     freq = acc.frequency
 
