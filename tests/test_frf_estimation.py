@@ -204,6 +204,28 @@ def test_streaming_from_netcdf_equals_in_memory(random_test, tmp_path):
         ami_xr.frf(ami_xr.open_dataset(tmp_path / "bad.nc", chunks={names.TIME: 4000}), **kw)
 
 
+def test_streaming_reads_one_chunk_at_a_time(random_test):
+    """Memory is bounded by the chunk: every block computed from the dask graph is one chunk
+    (or less) and each chunk is read once."""
+    import dask.array as da
+
+    f, y, *_ = random_test
+    n, chunk = 50_000, 4_096
+    seen = []
+
+    def block(x, block_info=None):
+        seen.append(x.shape[-1])
+        return x
+
+    lazy_y = da.from_array(y[:, :n], chunks=(2, chunk)).map_blocks(block, dtype=float)
+    ds = _time_ds(f[:n], y[:, :n])
+    ds[names.RESPONSE] = ((names.POINT, names.TIME), lazy_y, ds[names.RESPONSE].attrs)
+    out = ami_xr.frf(ds, nperseg=1000, noverlap=500)
+    assert max(seen) <= chunk and sum(seen) == n
+    ref = ami_xr.frf(_time_ds(f[:n], y[:, :n]), nperseg=1000, noverlap=500)
+    np.testing.assert_allclose(out[names.FRF].values, ref[names.FRF].values, rtol=1e-12)
+
+
 def test_exponential_averaging_runs_and_tracks(random_test):
     f, y, *_ = random_test
     ds = _time_ds(f[: 2**14], y[:, : 2**14])
@@ -269,7 +291,7 @@ def test_impact_exponential_window_damping_corrected():
         np.testing.assert_allclose(np.sort(got), np.sort(zeta_true), rtol=0.05)
 
 
-def test_impact_hit_checks_reject_bad_hits():
+def test_impact_hit_checks_reject_bad_hits(tmp_path):
     _, lam, res = _modes(3.0, 3e-4)
     n = 1024
     fv, yv = _hits(lam, res, n, [1.0, 1.1, 0.9, 1.0, 0.02])
@@ -277,7 +299,12 @@ def test_impact_hit_checks_reject_bad_hits():
     fv[2, 300:307] += 0.7 * np.sin(np.pi * (np.arange(7) + 1) / 8)  # hammer bounce
     yv[2] = _respond(fv[2], lam, res, 1 / FS)
     ds = _time_ds(fv, yv)
-    est = ami_xr.frf(ds, excitation="impact", exponential_end_value=0.01)
+    est = ami_xr.frf(ds, excitation="impact", exponential_end_value=0.01,
+                     path=tmp_path / "hits.nc")
+    back = ami_xr.open_dataset(tmp_path / "hits.nc")
+    np.testing.assert_array_equal(back[names.FRF].values, est[names.FRF].values)
+    np.testing.assert_array_equal(back[names.HIT_REJECT_REASON].values,
+                                  est[names.HIT_REJECT_REASON].values)
     rejected = est[names.HIT_REJECTED].values
     reasons = est[names.HIT_REJECT_REASON].values
     np.testing.assert_array_equal(rejected, [False, True, True, False, True])
