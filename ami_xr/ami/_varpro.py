@@ -171,6 +171,7 @@ class FitResult:
     n_iter: int
     converged: bool
     message: str
+    bad: np.ndarray | None = None  # modes that failed ``check``
 
 
 def _theta(lam):
@@ -183,14 +184,19 @@ def _lam(theta):
 
 def levenberg_marquardt(
     prob: Problem, lam0: np.ndarray, *, max_iter: int = 50, tol: float = 1e-10,
-    free: np.ndarray | None = None,
+    free: np.ndarray | None = None, trace: list | None = None, check=None,
+    stat_tol: float = 1e-6,
 ) -> FitResult:
     """Minimise :func:`objective` over the eigenvalues, starting at ``lam0``.
 
     Only steps that lower the objective are taken, so the result is never worse than the start.
     ``free`` (K,) bool marks the eigenvalues that may move (others stay at ``lam0``).
-    Converged when every free eigenvalue changes by less than ``tol`` relative to its modulus, or
-    when the predicted decrease of the objective is at rounding level.
+    Converged when every free eigenvalue changes by less than ``tol`` relative to its modulus,
+    when the Newton decrement ``g' H^-1 g`` -- the squared length of the next step in units of
+    the statistical standard errors, since ``H`` is the Fisher information -- is below
+    ``stat_tol`` (a step below 0.1 % of a standard error changes nothing that matters), or when
+    the predicted decrease is at rounding level. ``check(lam)`` (optional) returns a bool per
+    mode; the iteration stops as soon as an accepted step makes one False (``FitResult.bad``).
     """
     lam = np.asarray(lam0, dtype=np.complex128).copy()
     n_mode = lam.shape[0]
@@ -223,9 +229,15 @@ def levenberg_marquardt(
             decrement = float(gs @ np.linalg.solve(hs, gs))
         except np.linalg.LinAlgError:
             decrement = np.inf
+        if trace is not None:
+            trace.append((cost, decrement, mu))
         if decrement < 2 * cost_eps:
             converged = True
             message = "predicted decrease below rounding"
+            break
+        if decrement < stat_tol:
+            converged = True
+            message = "step below 1e-3 standard errors"
             break
         accepted = False
         while mu < 1e12:
@@ -258,6 +270,11 @@ def levenberg_marquardt(
         rel = np.max(np.abs(lam_new - lam)[free] / np.abs(lam[free]))
         decrease = cost - cost_new
         lam, proj, cost = lam_new, proj_new, cost_new
+        if check is not None:
+            good = np.asarray(check(lam), bool) | ~free
+            if not good.all():
+                return FitResult(lam, proj, cost, start, n_iter, False, "mode left its region",
+                                 ~good)
         if rel < tol or decrease < cost_eps:
             converged = True
             message = "eigenvalue change below tol" if rel < tol else "objective flat"

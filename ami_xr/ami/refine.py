@@ -55,9 +55,15 @@ _FLAG_SEPARATOR = ","
 # array core (one call per Dataset; wrapped by xr.apply_ufunc below)
 # ------------------------------------------------------------------------------------------
 def _valid_modes(lam: np.ndarray, lam0: np.ndarray, max_shift: float, min_width: float):
-    """Modes whose refined eigenvalue is physical, near its start and distinct from the others."""
+    """Modes whose refined eigenvalue is physical, near its start and distinct from the others.
+
+    Near: within ``max_shift`` half-power bandwidths of the start, and a decay rate not below
+    ``1 / (1 + max_shift)`` of the start's (a damping that collapses means the mode is fitting a
+    noise spike: maximum likelihood has no lower bound there).
+    """
     width = np.maximum(2.0 * np.abs(lam0.real), min_width)
     ok = (lam.real < 0) & (lam.imag > 0) & (np.abs(lam - lam0) <= max_shift * width)
+    ok &= -lam.real >= -lam0.real / (1.0 + max_shift)
     ok &= np.isfinite(lam)
     for k in range(lam.size):
         others = np.delete(lam, k)
@@ -81,16 +87,20 @@ def _refine_arrays(
     min_width = 2.0 * (omega[1] - omega[0]) if omega.size > 1 else 0.0
     free = np.ones(n_mode, bool)
     fit = None
+    def check(mu):
+        return _valid_modes(mu + decay, lam0, max_shift, min_width)
+
     while True:
-        fit = _varpro.levenberg_marquardt(prob, mu0, max_iter=max_iter, tol=tol, free=free)
+        fit = _varpro.levenberg_marquardt(prob, mu0, max_iter=max_iter, tol=tol, free=free,
+                                          check=check)
         if not np.isfinite(fit.cost):
             free[:] = False
             fit = _varpro.levenberg_marquardt(prob, mu0, max_iter=0, free=free)
             break
-        ok = _valid_modes(fit.lam + decay, lam0, max_shift, min_width) | ~free
-        if ok.all():
+        if fit.bad is None:
             break
-        free &= ok
+        # freeze the offending modes at their AMI values and start again
+        free &= ~fit.bad
     status = np.where(free, _STATUS_OK if fit.converged else _STATUS_NOT_CONVERGED,
                       _STATUS_FALLBACK).astype(np.int8)
     proj = fit.proj
