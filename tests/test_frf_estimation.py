@@ -226,6 +226,16 @@ def test_streaming_reads_one_chunk_at_a_time(random_test):
     np.testing.assert_allclose(out[names.FRF].values, ref[names.FRF].values, rtol=1e-12)
 
 
+def test_random_records_are_averaged_without_joining(random_test):
+    f, y, *_ = random_test
+    n = 5000
+    ds = _time_ds(np.stack([f[:n], f[n:2 * n]]), np.stack([y[:, :n], y[:, n:2 * n]]))
+    est = ami_xr.frf(ds, nperseg=1000, noverlap=0)
+    assert est.attrs[names.ATTR_N_AVERAGES] == 10  # 5 per record
+    joined = ami_xr.frf(_time_ds(f[: 2 * n], y[:, : 2 * n]), nperseg=1000, noverlap=0)
+    np.testing.assert_allclose(est[names.FRF].values, joined[names.FRF].values, rtol=1e-12)
+
+
 def test_exponential_averaging_runs_and_tracks(random_test):
     f, y, *_ = random_test
     ds = _time_ds(f[: 2**14], y[:, : 2**14])

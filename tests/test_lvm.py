@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import runpy
 from pathlib import Path
 
 import numpy as np
@@ -153,3 +154,11 @@ def test_hammer_bad_hits_found_and_frf_from_good_ones(hammer):
                       exponential_end_value=0.01,
                       force_window=est.attrs[names.ATTR_FORCE_WINDOW_WIDTH])
     np.testing.assert_allclose(good[names.FRF].values, est[names.FRF].values, rtol=1e-12)
+
+
+def test_hammer_to_modes_script(hammer, capsys):
+    script = Path(__file__).resolve().parents[1] / "scripts" / "hammer_to_modes.py"
+    main = runpy.run_path(str(script), run_name="hammer_to_modes")["main"]
+    assert main([str(HAMMER)]) == 0
+    out = capsys.readouterr().out
+    assert "overload" in out and "double impact" in out and "3 hit(s)" in out
