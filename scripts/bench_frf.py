@@ -50,8 +50,9 @@ def _system(n_points: int):
         den = np.ones(1)
         for fn in (40.0, 170.0, 420.0):
             w = 2 * np.pi * fn
-            b, a = scipy.signal.bilinear([rng.uniform(0.2, 1.0) * np.cos(p + fn)],
-                                         [1.0, 2 * 0.025 * w, w * w], fs=FS)
+            b, a = scipy.signal.bilinear(
+                [rng.uniform(0.2, 1.0) * np.cos(p + fn)], [1.0, 2 * 0.025 * w, w * w], fs=FS
+            )
             num = np.polyadd(np.polymul(num, a), np.polymul(b, den))
             den = np.polymul(den, a)
         sos_all.append(scipy.signal.tf2sos(num, den))
@@ -74,7 +75,7 @@ def _response_block(i: int, n: int, chunk: int, sos: np.ndarray) -> np.ndarray:
     out = np.empty((sos.shape[0], f.size))
     for p in range(sos.shape[0]):
         out[p] = scipy.signal.sosfilt(sos[p], f)
-    out = out[:, f.size - n:]
+    out = out[:, f.size - n :]
     out += 1e-3 * np.random.default_rng([8, i]).standard_normal(out.shape)  # output noise
     return out
 
@@ -90,11 +91,17 @@ def write(path: Path, n_points: int, n_time: int, chunk: int) -> None:
 
     sos = _system(n_points)
     sizes = (chunk,) * (n_time // chunk) + ((n_time % chunk,) if n_time % chunk else ())
-    force = da.map_blocks(lambda block_id=None: _force_block(block_id[0], sizes[block_id[0]]),
-                          chunks=(sizes,), dtype=np.float64, meta=np.empty(0))
+    force = da.map_blocks(
+        lambda block_id=None: _force_block(block_id[0], sizes[block_id[0]]),
+        chunks=(sizes,),
+        dtype=np.float64,
+        meta=np.empty(0),
+    )
     response = da.map_blocks(
         lambda block_id=None: _response_block(block_id[1], sizes[block_id[1]], chunk, sos),
-        chunks=((n_points,), sizes), dtype=np.float64, meta=np.empty((0, 0)),
+        chunks=((n_points,), sizes),
+        dtype=np.float64,
+        meta=np.empty((0, 0)),
     )
     ds = xr.Dataset(
         {
@@ -105,8 +112,12 @@ def write(path: Path, n_points: int, n_time: int, chunk: int) -> None:
             names.POINT: np.arange(n_points),
             names.TIME: (names.TIME, np.arange(n_time) / FS, {names.ATTR_UNITS: "s"}),
         },
-        attrs={names.ATTR_DRIVE_POINT: 0, names.ATTR_QUANTITY: "acceleration",
-               names.ATTR_RESPONSE_UNITS: "m/s^2", names.ATTR_FORCE_UNITS: "N"},
+        attrs={
+            names.ATTR_DRIVE_POINT: 0,
+            names.ATTR_QUANTITY: "acceleration",
+            names.ATTR_RESPONSE_UNITS: "m/s^2",
+            names.ATTR_FORCE_UNITS: "N",
+        },
     )
     with dask.config.set(scheduler="synchronous"):  # one chunk in memory at a time
         ami_xr.to_netcdf(ds, path, function="scripts/bench_frf.py")
@@ -128,12 +139,20 @@ def _scipy_h1(f: np.ndarray, y: np.ndarray, **kw):
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--points", type=int, default=16, help="response channels (default 16)")
-    ap.add_argument("--samples", type=int, default=12_000_000,
-                    help="samples per channel (default 12e6: 17 x 12e6 = 2.04e8 in all)")
+    ap.add_argument(
+        "--samples",
+        type=int,
+        default=12_000_000,
+        help="samples per channel (default 12e6: 17 x 12e6 = 2.04e8 in all)",
+    )
     ap.add_argument("--chunk", type=int, default=2**19, help="time chunk on disk read [samples]")
     ap.add_argument("--nperseg", type=int, default=2048)
-    ap.add_argument("--slice", type=int, default=2**19,
-                    help="samples per channel of the in-memory slice for the scipy comparison")
+    ap.add_argument(
+        "--slice",
+        type=int,
+        default=2**19,
+        help="samples per channel of the in-memory slice for the scipy comparison",
+    )
     ap.add_argument("--dir", default=None, help="folder for the netCDF file (default: temp)")
     ap.add_argument("--keep", action="store_true", help="keep the netCDF file")
     ap.add_argument("--write-only", default=None, help=argparse.SUPPRESS)
@@ -149,18 +168,33 @@ def main(argv=None) -> int:
     path = folder / "shaker.nc"
     n_channels = args.points + 1
     total = n_channels * args.samples
-    print(f"record: {args.points} responses + 1 force, {args.samples:,} samples each at "
-          f"{FS:g} Hz = {total:.3g} samples ({total * 8 / 2**30:.2f} GiB float64)")
+    print(
+        f"record: {args.points} responses + 1 force, {args.samples:,} samples each at "
+        f"{FS:g} Hz = {total:.3g} samples ({total * 8 / 2**30:.2f} GiB float64)"
+    )
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, __file__, "--write-only", str(path), "--points",
-                    str(args.points), "--samples", str(args.samples), "--chunk",
-                    str(args.chunk)], check=True)
+    subprocess.run(
+        [
+            sys.executable,
+            __file__,
+            "--write-only",
+            str(path),
+            "--points",
+            str(args.points),
+            "--samples",
+            str(args.samples),
+            "--chunk",
+            str(args.chunk),
+        ],
+        check=True,
+    )
     t_write = time.perf_counter() - t0
-    print(f"wrote {path} ({path.stat().st_size / 2**30:.2f} GiB) in {t_write:.1f} s; "
-          f"writer peak RSS {_peak_rss_mb(resource.RUSAGE_CHILDREN):.0f} MB")
+    print(
+        f"wrote {path} ({path.stat().st_size / 2**30:.2f} GiB) in {t_write:.1f} s; "
+        f"writer peak RSS {_peak_rss_mb(resource.RUSAGE_CHILDREN):.0f} MB"
+    )
 
-    kw = dict(nperseg=args.nperseg, noverlap=args.nperseg // 2, window="hann",
-              detrend="constant")
+    kw = dict(nperseg=args.nperseg, noverlap=args.nperseg // 2, window="hann", detrend="constant")
     try:
         ds = ami_xr.open_dataset(path, chunks={names.TIME: args.chunk})
         # warm the numba cache on a tiny slice so compile time is not counted
@@ -170,11 +204,15 @@ def main(argv=None) -> int:
         est = ami_xr.frf(ds, "H1", **kw)
         t_stream = time.perf_counter() - t0
         rss_stream = _peak_rss_mb()
-        print(f"streamed H1 + coherence: {t_stream:.1f} s, {total / t_stream:.3g} samples/s "
-              f"({est.attrs[names.ATTR_N_AVERAGES]} segments of {args.nperseg}), "
-              f"chunk {args.chunk:,} samples")
-        print(f"peak resident memory (streaming, getrusage): {rss_stream:.0f} MB "
-              f"(before the run: {rss_before:.0f} MB)")
+        print(
+            f"streamed H1 + coherence: {t_stream:.1f} s, {total / t_stream:.3g} samples/s "
+            f"({est.attrs[names.ATTR_N_AVERAGES]} segments of {args.nperseg}), "
+            f"chunk {args.chunk:,} samples"
+        )
+        print(
+            f"peak resident memory (streaming, getrusage): {rss_stream:.0f} MB "
+            f"(before the run: {rss_before:.0f} MB)"
+        )
 
         # same-slice comparison against scipy.signal, in memory
         n = min(args.slice, args.samples)
@@ -190,16 +228,28 @@ def main(argv=None) -> int:
         err_h = np.max(np.abs(ours[names.FRF].values - h_ref)) / np.max(np.abs(h_ref))
         err_c = np.max(np.abs(ours[names.COHERENCE].values - c_ref))
         slice_samples = n_channels * n
-        print(f"in-memory slice of {n:,} samples x {n_channels} channels: ami_xr.frf "
-              f"{t_ours:.3f} s ({slice_samples / t_ours:.3g} samples/s), scipy.signal csd+welch "
-              f"{t_scipy:.3f} s ({slice_samples / t_scipy:.3g} samples/s); speed ratio "
-              f"scipy/ami_xr = {t_scipy / t_ours:.2f}")
-        print(f"agreement with scipy on the slice: max |dH1|/max|H1| = {err_h:.1e}, "
-              f"max |d coherence| = {err_c:.1e}")
-        print("summary " + json.dumps({
-            "samples_total": total, "throughput_samples_per_s": round(total / t_stream),
-            "peak_rss_mb_streaming": round(rss_stream), "peak_rss_mb_total": round(_peak_rss_mb()),
-            "speed_ratio_vs_scipy": round(t_scipy / t_ours, 2)}))
+        print(
+            f"in-memory slice of {n:,} samples x {n_channels} channels: ami_xr.frf "
+            f"{t_ours:.3f} s ({slice_samples / t_ours:.3g} samples/s), scipy.signal csd+welch "
+            f"{t_scipy:.3f} s ({slice_samples / t_scipy:.3g} samples/s); speed ratio "
+            f"scipy/ami_xr = {t_scipy / t_ours:.2f}"
+        )
+        print(
+            f"agreement with scipy on the slice: max |dH1|/max|H1| = {err_h:.1e}, "
+            f"max |d coherence| = {err_c:.1e}"
+        )
+        print(
+            "summary "
+            + json.dumps(
+                {
+                    "samples_total": total,
+                    "throughput_samples_per_s": round(total / t_stream),
+                    "peak_rss_mb_streaming": round(rss_stream),
+                    "peak_rss_mb_total": round(_peak_rss_mb()),
+                    "speed_ratio_vs_scipy": round(t_scipy / t_ours, 2),
+                }
+            )
+        )
     finally:
         if not args.keep:
             path.unlink(missing_ok=True)

@@ -56,8 +56,12 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("path", help="LabVIEW .lvm file, one segment per hit")
     ap.add_argument("--estimator", default="H1", choices=("H1", "H2", "Hv"))
-    ap.add_argument("--end-value", type=float, default=0.01,
-                    help="exponential window value at the record end (default 0.01)")
+    ap.add_argument(
+        "--end-value",
+        type=float,
+        default=0.01,
+        help="exponential window value at the record end (default 0.01)",
+    )
     ap.add_argument("--fmin", type=float, default=50.0, help="band start [Hz] (default 50)")
     ap.add_argument("--fmax", type=float, default=3000.0, help="band end [Hz] (default 3000)")
     ap.add_argument("--out", default=None, help="also write the FRF Dataset (netCDF)")
@@ -66,10 +70,17 @@ def main(argv=None) -> int:
         ts = ami_xr.read_lvm(args.path)
         fs = 1.0 / float(ts[names.TIME][1] - ts[names.TIME][0])
         n_hits = ts.sizes.get(names.RECORD, 1)
-        print(f"{args.path}: {n_hits} hit(s) of {ts.sizes[names.TIME]} samples at {fs:g} Hz, "
-              f"points {ts[names.POINT].values.tolist()}")
-        est = ami_xr.frf(ts, args.estimator, excitation="impact",
-                         exponential_end_value=args.end_value, path=args.out)
+        print(
+            f"{args.path}: {n_hits} hit(s) of {ts.sizes[names.TIME]} samples at {fs:g} Hz, "
+            f"points {ts[names.POINT].values.tolist()}"
+        )
+        est = ami_xr.frf(
+            ts,
+            args.estimator,
+            excitation="impact",
+            exponential_end_value=args.end_value,
+            path=args.out,
+        )
     except ami_xr.AmiXrError as err:
         print(f"error: {err}", file=sys.stderr)
         return 1
@@ -77,23 +88,29 @@ def main(argv=None) -> int:
     for r in range(est.sizes[names.RECORD]):
         peak = float(est[names.HIT_PEAK_FORCE][r])
         bad = bool(est[names.HIT_REJECTED][r])
-        print(f"{r:>3}  {peak:10.2f}  {'no ' if bad else 'yes'}   "
-              f"{est[names.HIT_REJECT_REASON].values[r]}")
+        print(
+            f"{r:>3}  {peak:10.2f}  {'no ' if bad else 'yes'}   "
+            f"{est[names.HIT_REJECT_REASON].values[r]}"
+        )
     beta = float(est.attrs.get(names.ATTR_EXP_DECAY, 0.0))
     band = est.sel({names.FREQUENCY: slice(args.fmin, args.fmax)})
-    print(f"\nFRF: {args.estimator} over {est.attrs[names.ATTR_N_AVERAGES]} hit(s), "
-          f"{est[names.FRF].attrs[names.ATTR_UNITS]}, {est.sizes[names.FREQUENCY]} lines; "
-          f"force window {est.attrs[names.ATTR_FORCE_WINDOW_WIDTH] * 1e3:.2f} ms; exponential "
-          f"window decay {beta:.4g} 1/s; median coherence {args.fmin:g}-{args.fmax:g} Hz: "
-          f"{float(band[names.COHERENCE].median()):.4f}")
+    print(
+        f"\nFRF: {args.estimator} over {est.attrs[names.ATTR_N_AVERAGES]} hit(s), "
+        f"{est[names.FRF].attrs[names.ATTR_UNITS]}, {est.sizes[names.FREQUENCY]} lines; "
+        f"force window {est.attrs[names.ATTR_FORCE_WINDOW_WIDTH] * 1e3:.2f} ms; exponential "
+        f"window decay {beta:.4g} 1/s; median coherence {args.fmin:g}-{args.fmax:g} Hz: "
+        f"{float(band[names.COHERENCE].median()):.4f}"
+    )
     if args.out:
         print(f"wrote {args.out}")
     identify = getattr(ami_xr, "identify", None)
     if identify is not None:
         try:
             modes = identify(band)
-            print(f"\nmodes identified by ami_xr.identify ({args.fmin:g}-{args.fmax:g} Hz; "
-                  "window damping removed):")
+            print(
+                f"\nmodes identified by ami_xr.identify ({args.fmin:g}-{args.fmax:g} Hz; "
+                "window damping removed):"
+            )
             print(ami_xr.format_modal_table(modes))
             return 0
         except ami_xr.AmiXrError as err:

@@ -229,7 +229,7 @@ def test_streaming_reads_one_chunk_at_a_time(random_test):
 def test_random_records_are_averaged_without_joining(random_test):
     f, y, *_ = random_test
     n = 5000
-    ds = _time_ds(np.stack([f[:n], f[n:2 * n]]), np.stack([y[:, :n], y[:, n:2 * n]]))
+    ds = _time_ds(np.stack([f[:n], f[n : 2 * n]]), np.stack([y[:, :n], y[:, n : 2 * n]]))
     est = ami_xr.frf(ds, nperseg=1000, noverlap=0)
     assert est.attrs[names.ATTR_N_AVERAGES] == 10  # 5 per record
     joined = ami_xr.frf(_time_ds(f[: 2 * n], y[:, : 2 * n]), nperseg=1000, noverlap=0)
@@ -309,12 +309,12 @@ def test_impact_hit_checks_reject_bad_hits(tmp_path):
     fv[2, 300:307] += 0.7 * np.sin(np.pi * (np.arange(7) + 1) / 8)  # hammer bounce
     yv[2] = _respond(fv[2], lam, res, 1 / FS)
     ds = _time_ds(fv, yv)
-    est = ami_xr.frf(ds, excitation="impact", exponential_end_value=0.01,
-                     path=tmp_path / "hits.nc")
+    est = ami_xr.frf(ds, excitation="impact", exponential_end_value=0.01, path=tmp_path / "hits.nc")
     back = ami_xr.open_dataset(tmp_path / "hits.nc")
     np.testing.assert_array_equal(back[names.FRF].values, est[names.FRF].values)
-    np.testing.assert_array_equal(back[names.HIT_REJECT_REASON].values,
-                                  est[names.HIT_REJECT_REASON].values)
+    np.testing.assert_array_equal(
+        back[names.HIT_REJECT_REASON].values, est[names.HIT_REJECT_REASON].values
+    )
     rejected = est[names.HIT_REJECTED].values
     reasons = est[names.HIT_REJECT_REASON].values
     np.testing.assert_array_equal(rejected, [False, True, True, False, True])

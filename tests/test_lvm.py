@@ -81,8 +81,12 @@ def test_single_segment_and_decimal_comma(tmp_path):
 
 def test_force_channel_choice(tmp_path):
     path = _write(tmp_path / "a.lvm", [_data(10, 1)])
-    ds = ami_xr.read_lvm(path, force_channel="Acceleration (Trigger)",
-                         response_quantity="displacement", response_units="m")
+    ds = ami_xr.read_lvm(
+        path,
+        force_channel="Acceleration (Trigger)",
+        response_quantity="displacement",
+        response_units="m",
+    )
     np.testing.assert_array_equal(ds[names.FORCE].values, _data(10, 1)[:, 1])
     with pytest.raises(AmiXrValueError, match="force_channel"):
         ami_xr.read_lvm(path, force_channel="Voltage")
@@ -112,8 +116,9 @@ def test_segments_that_cannot_be_stacked(tmp_path):
     with pytest.raises(DataFileError, match="differ in samples"):
         ami_xr.read_lvm(_write(tmp_path / "n.lvm", [_data(10, 1), _data(12, 2)]))
     with pytest.raises(DataFileError, match="Delta_X"):
-        ami_xr.read_lvm(_write(tmp_path / "d.lvm", [_data(10, 1), _data(10, 2)],
-                               dxs=[0.001, 0.002]))
+        ami_xr.read_lvm(
+            _write(tmp_path / "d.lvm", [_data(10, 1), _data(10, 2)], dxs=[0.001, 0.002])
+        )
     with pytest.raises(DataFileError, match="no such file"):
         ami_xr.read_lvm(tmp_path / "missing.lvm")
 
@@ -150,9 +155,13 @@ def test_hammer_bad_hits_found_and_frf_from_good_ones(hammer):
     band = est.sel({names.FREQUENCY: slice(50.0, 3000.0)})
     assert float(band[names.COHERENCE].median()) > 0.95
     # the same FRF as averaging hits 1, 3, 4 by hand (no checks)
-    good = ami_xr.frf(hammer.isel(record=[1, 3, 4]), excitation="impact", hit_checks=False,
-                      exponential_end_value=0.01,
-                      force_window=est.attrs[names.ATTR_FORCE_WINDOW_WIDTH])
+    good = ami_xr.frf(
+        hammer.isel(record=[1, 3, 4]),
+        excitation="impact",
+        hit_checks=False,
+        exponential_end_value=0.01,
+        force_window=est.attrs[names.ATTR_FORCE_WINDOW_WIDTH],
+    )
     np.testing.assert_allclose(good[names.FRF].values, est[names.FRF].values, rtol=1e-12)
 
 

@@ -60,7 +60,7 @@ def _sampling_rate(t: xr.DataArray, argument: str, block: int = 2**20) -> float:
     dt = (t1 - t0) / (n - 1)
     lo, hi, finite = np.inf, -np.inf, math.isfinite(dt)
     for a in range(0, n - 1, block):
-        part = np.asarray(t[a: a + block + 1].values, np.float64)
+        part = np.asarray(t[a : a + block + 1].values, np.float64)
         step = np.diff(part)
         finite = finite and bool(np.all(np.isfinite(part)))
         lo, hi = min(lo, float(step.min())), max(hi, float(step.max()))
