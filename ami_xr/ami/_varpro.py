@@ -185,7 +185,7 @@ def _lam(theta):
 def levenberg_marquardt(
     prob: Problem, lam0: np.ndarray, *, max_iter: int = 50, tol: float = 1e-10,
     free: np.ndarray | None = None, trace: list | None = None, check=None,
-    stat_tol: float = 1e-6,
+    stat_tol: float = 1e-6, patience: int = 3,
 ) -> FitResult:
     """Minimise :func:`objective` over the eigenvalues, starting at ``lam0``.
 
@@ -195,8 +195,10 @@ def levenberg_marquardt(
     when the Newton decrement ``g' H^-1 g`` -- the squared length of the next step in units of
     the statistical standard errors, since ``H`` is the Fisher information -- is below
     ``stat_tol`` (a step below 0.1 % of a standard error changes nothing that matters), or when
-    the predicted decrease is at rounding level. ``check(lam)`` (optional) returns a bool per
-    mode; the iteration stops as soon as an accepted step makes one False (``FitResult.bad``).
+    the predicted decrease is at rounding level. ``check(lam)`` (optional) returns a code per
+    mode: 0 fine, 1 outside its region, 2 impossible (unstable, merged); the iteration stops with
+    ``FitResult.bad`` set as soon as a mode is impossible or has been outside its region for
+    ``patience`` accepted steps in a row (a far start may overshoot for a step or two).
     """
     lam = np.asarray(lam0, dtype=np.complex128).copy()
     n_mode = lam.shape[0]
@@ -216,6 +218,7 @@ def levenberg_marquardt(
     message = "iteration cap reached"
     # Rounding level of the objective: a change below it is not a change.
     cost_eps = 1e-13 * max(abs(cost), prob.n_points)
+    outside = np.zeros(n_mode, int)
     while n_iter < max_iter:
         n_iter += 1
         w = ml_weight(prob, proj)
@@ -271,10 +274,12 @@ def levenberg_marquardt(
         decrease = cost - cost_new
         lam, proj, cost = lam_new, proj_new, cost_new
         if check is not None:
-            good = np.asarray(check(lam), bool) | ~free
-            if not good.all():
+            code = np.where(free, np.asarray(check(lam), int), 0)
+            outside = np.where(code > 0, outside + 1, 0)
+            bad = (code == 2) | (outside >= patience)
+            if bad.any():
                 return FitResult(lam, proj, cost, start, n_iter, False, "mode left its region",
-                                 ~good)
+                                 bad)
         if rel < tol or decrease < cost_eps:
             converged = True
             message = "eigenvalue change below tol" if rel < tol else "objective flat"

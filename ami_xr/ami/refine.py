@@ -39,6 +39,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import xarray as xr
+from scipy.optimize import linear_sum_assignment
 
 from ami_xr import names
 from ami_xr._provenance import add_history
@@ -54,22 +55,42 @@ _FLAG_SEPARATOR = ","
 # ------------------------------------------------------------------------------------------
 # array core (one call per Dataset; wrapped by xr.apply_ufunc below)
 # ------------------------------------------------------------------------------------------
-def _valid_modes(lam: np.ndarray, lam0: np.ndarray, max_shift: float, min_width: float):
-    """Modes whose refined eigenvalue is physical, near its start and distinct from the others.
+def _match(lam: np.ndarray, lam0: np.ndarray, width: np.ndarray) -> np.ndarray:
+    """``perm[k]``: the start (AMI mode) that refined mode ``k`` belongs to.
 
-    Near: within ``max_shift`` half-power bandwidths of the start, and a decay rate not below
-    ``1 / (1 + max_shift)`` of the start's (a damping that collapses means the mode is fitting a
-    noise spike: maximum likelihood has no lower bound there).
+    Two close modes may trade places during the fit (same optimum, labels swapped); matching by
+    distance in bandwidths keeps each mode's label and flags with the right eigenvalue.
+    """
+    cost = np.abs(lam[:, None] - lam0[None, :]) / width[None, :]
+    cost = np.where(np.isfinite(cost), cost, 1e300)
+    rows, cols = linear_sum_assignment(cost)
+    perm = np.empty(lam.size, dtype=int)
+    perm[rows] = cols
+    return perm
+
+
+def _mode_codes(lam: np.ndarray, lam0: np.ndarray, max_shift: float, min_width: float):
+    """0: fine; 1: outside its region; 2: impossible (unstable, not finite, merged).
+
+    The region of a mode, around the AMI eigenvalue it matches: within ``max_shift`` half-power
+    bandwidths, and a decay rate not below ``1 / (1 + max_shift)`` of AMI's (a damping that
+    collapses means the mode is fitting a noise spike: the likelihood has no bound there).
     """
     width = np.maximum(2.0 * np.abs(lam0.real), min_width)
-    ok = (lam.real < 0) & (lam.imag > 0) & (np.abs(lam - lam0) <= max_shift * width)
-    ok &= -lam.real >= -lam0.real / (1.0 + max_shift)
-    ok &= np.isfinite(lam)
+    code = np.zeros(lam.size, dtype=int)
+    finite = np.isfinite(lam)
+    code[~finite | (lam.real >= 0) | (lam.imag <= 0)] = 2
+    if not finite.all():
+        return code
+    ref = lam0[_match(lam, lam0, width)]
+    w = np.maximum(2.0 * np.abs(ref.real), min_width)
+    outside = (np.abs(lam - ref) > max_shift * w) | (-lam.real < -ref.real / (1.0 + max_shift))
+    code[(code == 0) & outside] = 1
     for k in range(lam.size):
         others = np.delete(lam, k)
         if others.size and np.min(np.abs(others - lam[k])) < 1e-6 * np.abs(lam[k]):
-            ok[k] = False
-    return ok
+            code[k] = 2
+    return code
 
 
 def _refine_arrays(
@@ -88,7 +109,7 @@ def _refine_arrays(
     free = np.ones(n_mode, bool)
     fit = None
     def check(mu):
-        return _valid_modes(mu + decay, lam0, max_shift, min_width)
+        return _mode_codes(mu + decay, lam0, max_shift, min_width)
 
     while True:
         fit = _varpro.levenberg_marquardt(prob, mu0, max_iter=max_iter, tol=tol, free=free,
@@ -97,8 +118,11 @@ def _refine_arrays(
             free[:] = False
             fit = _varpro.levenberg_marquardt(prob, mu0, max_iter=0, free=free)
             break
-        if fit.bad is None:
-            break
+        if fit.bad is None:  # the optimum must lie inside every free mode's region too
+            final = np.where(free, _mode_codes(fit.lam + decay, lam0, max_shift, min_width), 0)
+            if not final.any():
+                break
+            fit.bad = final > 0
         # freeze the offending modes at their AMI values and start again
         free &= ~fit.bad
     status = np.where(free, _STATUS_OK if fit.converged else _STATUS_NOT_CONVERGED,
@@ -153,6 +177,14 @@ def _refine_arrays(
             upper = value
     # per-line complex noise std (E|e|^2 = 2 s^2 for the two real components)
     noise_std = np.sqrt(2.0 * noise_var)
+    # Output mode c is the refined mode matched to AMI mode c (close modes may swap in the fit).
+    if np.all(np.isfinite(lam)):
+        width = np.maximum(2.0 * np.abs(lam0.real), min_width)
+        order = np.argsort(_match(lam, lam0, width))
+        lam, eig_std, fn_std, zeta_std, status = (
+            a[order] for a in (lam, eig_std, fn_std, zeta_std, status))
+        residue, res_std, mode_vector, mv_std = (
+            a[:, order] for a in (residue, res_std, mode_vector, mv_std))
     return (
         lam, eig_std, fn_std, zeta_std, residue, res_std, mode_vector, mv_std, noise_std,
         lower, upper, status, np.int64(fit.n_iter), np.float64(fit.start_cost),
