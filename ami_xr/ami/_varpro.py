@@ -172,6 +172,7 @@ class FitResult:
     converged: bool
     message: str
     bad: np.ndarray | None = None  # modes that failed ``check``
+    mode_step: np.ndarray | None = None  # last step of each mode in standard-error units^2
 
 
 def _theta(lam):
@@ -219,6 +220,7 @@ def levenberg_marquardt(
     # Rounding level of the objective: a change below it is not a change.
     cost_eps = 1e-13 * max(abs(cost), prob.n_points)
     outside = np.zeros(n_mode, int)
+    mode_step = np.zeros(n_mode)
     while n_iter < max_iter:
         n_iter += 1
         w = ml_weight(prob, proj)
@@ -271,6 +273,12 @@ def levenberg_marquardt(
             message = "no further decrease possible" if converged else "step rejected"
             break
         rel = np.max(np.abs(lam_new - lam)[free] / np.abs(lam[free]))
+        full_step = np.zeros(2 * n_mode)
+        full_step[idx] = step
+        # step of each mode measured by its own block of the Fisher information
+        for k in range(n_mode):
+            blk = slice(2 * k, 2 * k + 2)
+            mode_step[k] = full_step[blk] @ h_full[blk, blk] @ full_step[blk]
         decrease = cost - cost_new
         lam, proj, cost = lam_new, proj_new, cost_new
         if check is not None:
@@ -279,12 +287,12 @@ def levenberg_marquardt(
             bad = (code == 2) | (outside >= patience)
             if bad.any():
                 return FitResult(lam, proj, cost, start, n_iter, False, "mode left its region",
-                                 bad)
+                                 bad, mode_step)
         if rel < tol or decrease < cost_eps:
             converged = True
             message = "eigenvalue change below tol" if rel < tol else "objective flat"
             break
-    return FitResult(lam, proj, cost, start, n_iter, converged, message)
+    return FitResult(lam, proj, cost, start, n_iter, converged, message, None, mode_step)
 
 
 def covariance(prob: Problem, proj: Projection, noise_var: np.ndarray, drive_index: int | None,

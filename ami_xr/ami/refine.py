@@ -111,10 +111,16 @@ def _refine_arrays(
     def check(mu):
         return _mode_codes(mu + decay, lam0, max_shift, min_width)
 
+    start_mu = mu0.copy()
+    start_cost = None
+    n_iter = 0
     while True:
-        fit = _varpro.levenberg_marquardt(prob, mu0, max_iter=max_iter, tol=tol, free=free,
-                                          check=check)
-        if not np.isfinite(fit.cost):
+        fit = _varpro.levenberg_marquardt(prob, start_mu, max_iter=max(max_iter - n_iter, 1),
+                                          tol=tol, free=free, check=check)
+        n_iter += fit.n_iter
+        start_cost = fit.start_cost if start_cost is None else start_cost
+        if not np.isfinite(fit.cost) or fit.cost > start_cost:
+            # nothing to fit, or worse than AMI's eigenvalues: fall back to them
             free[:] = False
             fit = _varpro.levenberg_marquardt(prob, mu0, max_iter=0, free=free)
             break
@@ -123,10 +129,15 @@ def _refine_arrays(
             if not final.any():
                 break
             fit.bad = final > 0
-        # freeze the offending modes at their AMI values and start again
+        # freeze the offending modes at their AMI values, go on from where the others are
         free &= ~fit.bad
-    status = np.where(free, _STATUS_OK if fit.converged else _STATUS_NOT_CONVERGED,
-                      _STATUS_FALLBACK).astype(np.int8)
+        start_mu = np.where(free, fit.lam, mu0)
+    status = np.full(n_mode, _STATUS_OK, dtype=np.int8)
+    if not fit.converged:
+        # flag the modes still moving (a mode wandering in noise must not flag the others)
+        moving = fit.mode_step > 1e-6 if fit.mode_step is not None else np.ones(n_mode, bool)
+        status[moving if moving[free].any() else np.ones(n_mode, bool)] = _STATUS_NOT_CONVERGED
+    status[~free] = _STATUS_FALLBACK
     proj = fit.proj
     lam = fit.lam + decay
     n_coef = 2 * n_mode + 2 * len(residual_terms)
@@ -187,7 +198,7 @@ def _refine_arrays(
             a[:, order] for a in (residue, res_std, mode_vector, mv_std))
     return (
         lam, eig_std, fn_std, zeta_std, residue, res_std, mode_vector, mv_std, noise_std,
-        lower, upper, status, np.int64(fit.n_iter), np.float64(fit.start_cost),
+        lower, upper, status, np.int64(n_iter), np.float64(start_cost),
         np.float64(fit.cost),
     )
 
