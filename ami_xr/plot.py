@@ -264,8 +264,33 @@ def plot_nyquist(
 
 
 # --- Subtraction residual vs noise floor -------------------------------------------------------
-def _find(ds: xr.Dataset, candidates: Sequence[str]) -> str | None:
-    return next((c for c in candidates if c in ds.variables), None)
+SUB_NOISE_FLOOR = getattr(names, "SUB_NOISE_FLOOR", "subtraction_noise_floor")
+SUB_STOP_STATISTIC = getattr(names, "SUB_STOP_STATISTIC", "subtraction_stop_statistic")
+SUB_EIGENVALUE = getattr(names, "SUB_EIGENVALUE", "subtraction_eigenvalue")
+SUB_RESIDUE = getattr(names, "SUB_RESIDUE", "subtraction_residue")
+SUB_BAND_LOW = getattr(names, "SUB_BAND_LOW", "subtraction_band_low")
+SUB_BAND_HIGH = getattr(names, "SUB_BAND_HIGH", "subtraction_band_high")
+ATTR_AMI_MODEL = getattr(names, "ATTR_AMI_MODEL", "ami_model")
+
+
+def _subtraction_residual(ds: xr.Dataset, point: Hashable) -> np.ndarray | None:
+    """FRF minus every candidate the Subtraction Phase kept, in the basis the phase used."""
+    if SUB_EIGENVALUE not in ds or SUB_RESIDUE not in ds:
+        return None
+    from ami_xr.kernels.basis import mode_contribution
+
+    sel = {names.POINT: point}
+    lam = np.atleast_1d(ds[SUB_EIGENVALUE].sel(sel).values)
+    res = np.atleast_1d(ds[SUB_RESIDUE].sel(sel).values)
+    omega = 2 * np.pi * np.asarray(ds[names.FREQUENCY].values, dtype=float)
+    discrete = ds.attrs.get(ATTR_AMI_MODEL) == "discrete"
+    dt = ds.attrs.get(names.ATTR_DT) if discrete else None
+    n = ds.attrs.get(names.ATTR_NSAMPLES) if discrete else None
+    out = np.asarray(ds[names.FRF].sel(sel).values, dtype=np.complex128).copy()
+    for lk, ak in zip(lam, res, strict=True):
+        if np.isfinite(lk) and np.isfinite(ak):
+            out -= mode_contribution(omega, complex(lk), complex(ak), dt, n)
+    return out
 
 
 def plot_subtraction(
@@ -276,56 +301,64 @@ def plot_subtraction(
 ) -> Figure:
     """What the Subtraction Phase saw: the FRF, its residual, the noise floor and the threshold.
 
-    Per point: |measured FRF| (grey), |residual| after the subtraction (or, where the result
-    holds none, after removing the identified modes), the estimated noise floor and the automatic
-    stop threshold (horizontal lines), and the frequencies of the candidates the phase kept.
-    This is the plot the paper's authors inspected by eye to stop subtracting.
+    Per point: |measured FRF| (grey); |residual| after subtracting every candidate the phase
+    kept (blue); the estimated noise standard deviation per line (green) and the automatic stop
+    threshold ``sigma * sqrt(T)`` on the residual's peak magnitude (red dashed; ``T`` is the
+    ``threshold`` attribute of the stop statistic ``|Y|^2 / sigma^2``); the candidates'
+    natural frequencies (dashed) and fit bands (shaded). This is the plot the paper's authors
+    inspected by eye to decide when to stop subtracting: the phase stops when no residual peak
+    rises above the red line.
 
     Parameters
     ----------
     ds : xarray.Dataset
-        Result of ``ami_xr.subtract`` or ``ami_xr.identify`` (``frf``, ``subtraction_noise_floor``;
-        optional residual, threshold and candidate variables).
+        Result of ``ami_xr.subtract`` or ``ami_xr.identify`` (``frf``,
+        ``subtraction_noise_floor``; candidates, bands and the stop statistic when present).
     points : sequence of point labels, optional
         Points to show.
     path : str or path-like, optional
         Save the figure there.
     """
     _require(ds, names.FRF, figure="plot_subtraction")
-    floor_name = _find(ds, _SUBTRACTION_FLOOR)
-    if floor_name is None:
+    if SUB_NOISE_FLOOR not in ds:
         raise AmiXrValueError(
-            f"plot_subtraction: the Dataset has none of {list(_SUBTRACTION_FLOOR)} "
+            f"plot_subtraction: the Dataset has no {SUB_NOISE_FLOOR!r} "
             "(run ami_xr.subtract or ami_xr.identify first)"
         )
-    residual_name = _find(ds, _SUBTRACTION_RESIDUAL)
-    threshold_name = _find(ds, _SUBTRACTION_THRESHOLD)
-    cand_name = _find(ds, _SUBTRACTION_EIGENVALUE)
+    threshold = None
+    if SUB_STOP_STATISTIC in ds and "threshold" in ds[SUB_STOP_STATISTIC].attrs:
+        threshold = float(ds[SUB_STOP_STATISTIC].attrs["threshold"])
     pts = _select_points(ds, points, "plot_subtraction")
     freq = ds[names.FREQUENCY].values
     ncol = min(len(pts), 4)
     nrow = int(np.ceil(len(pts) / ncol))
     fig = _new_figure(3.4 * ncol, 2.8 * nrow)
     axes = fig.subplots(nrow, ncol, squeeze=False)
-    for ax in axes.ravel()[len(pts) :]:
+    for ax in axes.ravel()[len(pts):]:
         ax.set_visible(False)
     for i, p in enumerate(pts):
         ax = axes.ravel()[i]
         sel = {names.POINT: p}
         g = ds[names.FRF].sel(sel).values
         ax.semilogy(freq, np.abs(g), color="0.7", lw=0.8, label="measured")
-        if residual_name is not None:
-            res = ds[residual_name].sel(sel).values
-            ax.semilogy(freq, np.abs(res), color="tab:blue", lw=0.8, label="residual")
-        floor = float(np.asarray(ds[floor_name].sel(sel).values).ravel()[0])
-        ax.axhline(floor, color="tab:green", lw=1.2, label="noise floor")
-        if threshold_name is not None:
-            thr = float(np.asarray(ds[threshold_name].sel(sel).values).ravel()[0])
-            ax.axhline(thr, color="tab:red", lw=1.2, ls="--", label="stop threshold")
-        if cand_name is not None:
-            lam = np.asarray(ds[cand_name].sel(sel).values).ravel()
+        residual = _subtraction_residual(ds, p)
+        if residual is not None:
+            ax.semilogy(freq, np.abs(residual), color="tab:blue", lw=0.7, label="residual")
+        sigma = float(np.asarray(ds[SUB_NOISE_FLOOR].sel(sel).values).ravel()[0])
+        ax.axhline(sigma, color="tab:green", lw=1.2, label="noise floor (std)")
+        if threshold is not None:
+            ax.axhline(sigma * np.sqrt(threshold), color="tab:red", lw=1.2, ls="--",
+                       label="stop threshold")
+        if SUB_EIGENVALUE in ds:
+            lam = np.atleast_1d(ds[SUB_EIGENVALUE].sel(sel).values)
             lam = lam[np.isfinite(lam)]
             _mark_modes(ax, np.abs(lam) / (2 * np.pi), [""] * lam.size, text=False)
+        if SUB_BAND_LOW in ds and SUB_BAND_HIGH in ds:
+            lo = np.atleast_1d(ds[SUB_BAND_LOW].sel(sel).values)
+            hi = np.atleast_1d(ds[SUB_BAND_HIGH].sel(sel).values)
+            for a, b in zip(lo, hi, strict=True):
+                if np.isfinite(a) and np.isfinite(b):
+                    ax.axvspan(a, b, color="tab:orange", alpha=0.15, lw=0)
         drive = " (drive point)" if p == ds.attrs.get(names.ATTR_DRIVE_POINT) else ""
         ax.set_title(f"point {p}{drive}", fontsize=9)
         ax.set_xlabel("frequency [Hz]", fontsize=8)
@@ -333,13 +366,6 @@ def plot_subtraction(
         if i == 0:
             ax.legend(fontsize=7, loc="best")
     return _finish(fig, path)
-
-
-# Names the subtraction phase may use, most specific first.
-_SUBTRACTION_FLOOR = ("subtraction_noise_floor", "noise_floor")
-_SUBTRACTION_THRESHOLD = ("subtraction_threshold", "subtraction_stop_threshold")
-_SUBTRACTION_RESIDUAL = ("subtraction_residual", FRF_RESIDUAL)
-_SUBTRACTION_EIGENVALUE = ("subtraction_eigenvalue",)
 
 
 # --- mode vectors ------------------------------------------------------------------------------
