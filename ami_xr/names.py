@@ -98,3 +98,34 @@ RECORD_START = "record_start"  # s, start time of each record (e.g. LVM segment 
 ATTR_ESTIMATOR = "estimator"  # "H1" | "H2" | "Hv"
 ATTR_N_AVERAGES = "n_averages"  # number of segments (hits) averaged
 ATTR_FORCE_WINDOW_WIDTH = "force_window_width"  # s, width of the force (transient) window
+
+# --- AMI phases (ami_xr.ami: subtract, isolate, global_fit, identify) -------------------------
+CANDIDATE = "candidate"  # dim: candidate modes of one FRF found by the Subtraction Phase
+MODE_2 = "mode_2"  # second mode dim of the MAC matrix
+RESIDUAL_TERM = "residual_term"  # dim: ("lower", "upper") residual terms of the global fit
+SUB_EIGENVALUE = "subtraction_eigenvalue"  # (point, candidate) complex rad/s
+SUB_RESIDUE = "subtraction_residue"  # (point, candidate) complex
+SUB_BAND_LOW = "subtraction_band_low"  # (point, candidate) Hz, first line of the fit band
+SUB_BAND_HIGH = "subtraction_band_high"  # (point, candidate) Hz, last line of the fit band
+SUB_NOISE_FLOOR = "subtraction_noise_floor"  # (point) noise standard deviation, FRF units
+SUB_STOP_STATISTIC = "subtraction_stop_statistic"  # (point) |Y|^2/sigma^2 of the last peak
+SUB_STOP_REASON = "subtraction_stop_reason"  # (point) str
+SUB_N_MODES = "subtraction_n_modes"  # (point) int
+DETECTED = "detected"  # (point, mode) bool: the paper's Tables 1-2 (False = its x mark)
+POINT_EIGENVALUE = "point_eigenvalue"  # (point, mode) complex, NaN where not detected
+POINT_SNR = "point_snr"  # (point, mode) peak |contribution| / noise floor
+EIGENVALUE_SPREAD = "eigenvalue_spread"  # (mode) complex: std(Re) + i std(Im) across FRFs
+ISO_ITERATIONS = "isolation_iterations"  # (point) int
+ISO_CONVERGED = "isolation_converged"  # (point) bool
+FRF_SYNTHESIZED = "frf_synthesized"  # (point, frequency) complex model of the global fit
+FRF_RESIDUAL = "frf_residual"  # (point, frequency) complex frf - frf_synthesized
+RESIDUAL_COEFFICIENT = "residual_coefficient"  # (point, residual_term) complex
+MAC = "mac"  # (mode, mode_2) modal assurance criterion
+DRIVE_POINT_SNR = "drive_point_snr"  # (mode) drive-point peak contribution / noise floor
+QUALITY_FLAGS = "quality_flags"  # (mode) str, comma-separated flags ("" when none)
+ATTR_AMI_MODEL = "ami_model"  # "discrete" | "continuous": basis used by the phases
+ATTR_AMI_PHASE = "ami_phase"  # last AMI phase run: subtract | isolate | global_fit | identify
+ATTR_AMI_DELTA = "ami_delta"
+ATTR_AMI_PFA = "ami_false_alarm_probability"
+ATTR_AMI_METHOD = "ami_method"
+ATTR_EXP_CORRECTED = "exponential_window_corrected"  # 1/s added to Re(lambda), when done

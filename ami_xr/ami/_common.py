@@ -1,0 +1,156 @@
+"""Shared helpers of the AMI phases: input checks, the data model (basis), attrs, writing."""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr._provenance import add_history
+from ami_xr.errors import IdentificationError
+
+MODELS = ("auto", "discrete", "continuous")
+MIN_LINES = 8
+
+# Variables each phase adds; a phase run again on its own output (or on a later phase's output)
+# first drops what it and the later phases made, so results never mix.
+SUBTRACT_VARS = (
+    names.SUB_EIGENVALUE, names.SUB_RESIDUE, names.SUB_BAND_LOW, names.SUB_BAND_HIGH,
+    names.SUB_NOISE_FLOOR, names.SUB_STOP_STATISTIC, names.SUB_STOP_REASON, names.SUB_N_MODES,
+)
+ISOLATE_VARS = (
+    names.EIGENVALUE, names.NATURAL_FREQUENCY, names.DAMPING_RATIO, names.DETECTED,
+    names.POINT_EIGENVALUE, names.POINT_SNR, names.EIGENVALUE_SPREAD, names.ISO_ITERATIONS,
+    names.ISO_CONVERGED,
+)
+GLOBAL_VARS = (
+    names.RESIDUE, names.MODE_VECTOR, names.FRF_SYNTHESIZED, names.FRF_RESIDUAL,
+    names.RESIDUAL_COEFFICIENT, names.MAC, names.DRIVE_POINT_SNR, names.QUALITY_FLAGS,
+)
+
+
+def check_frf(ds: Any, function: str) -> xr.Dataset:
+    """Structural checks every phase needs (cheap; values are checked per FRF in the kernels)."""
+    if not isinstance(ds, xr.Dataset):
+        raise IdentificationError(f"ds: expected an xarray.Dataset, got {type(ds).__name__}")
+    if names.FRF not in ds:
+        raise IdentificationError(f"ds: {function} needs the variable {names.FRF!r} "
+                                  f"(complex, dims ({names.POINT}, {names.FREQUENCY}))")
+    frf = ds[names.FRF]
+    if set(frf.dims) != {names.POINT, names.FREQUENCY}:
+        raise IdentificationError(f"{names.FRF}: expected dims ({names.POINT}, "
+                                  f"{names.FREQUENCY}), got {frf.dims}")
+    if not np.issubdtype(frf.dtype, np.complexfloating):
+        raise IdentificationError(f"{names.FRF}: expected a complex dtype, got {frf.dtype}")
+    f = np.asarray(ds[names.FREQUENCY].values, dtype=float)
+    if f.size < MIN_LINES:
+        raise IdentificationError(f"{names.FREQUENCY}: {f.size} lines; the single-mode fit "
+                                  f"needs at least {MIN_LINES}")
+    if not np.all(np.diff(f) > 0):
+        raise IdentificationError(f"{names.FREQUENCY}: must be strictly increasing")
+    if f[0] < 0:
+        raise IdentificationError(f"{names.FREQUENCY}: must be >= 0 Hz")
+    return ds
+
+
+def check_values(ds: xr.Dataset) -> None:
+    """All-zero or non-finite FRFs are errors naming the point (one reduction over the data)."""
+    peak = np.asarray(np.abs(ds[names.FRF]).max(names.FREQUENCY).values)
+    points = np.asarray(ds[names.POINT].values)
+    bad = ~np.isfinite(peak)
+    if np.any(bad):
+        raise IdentificationError(f"{names.FRF}: non-finite values at point(s) "
+                                  f"{points[bad].tolist()}")
+    zero = peak == 0
+    if np.any(zero):
+        raise IdentificationError(f"{names.FRF}: all-zero FRF at point(s) "
+                                  f"{points[zero].tolist()}; nothing to identify")
+
+
+def check_fraction(value: Any, argument: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise IdentificationError(f"{argument}: expected a number in (0, 1), got {value!r}")
+    if not 0.0 < v < 1.0:
+        raise IdentificationError(f"{argument}: expected a number in (0, 1), got {value!r}")
+    return v
+
+
+def check_positive_int(value: Any, argument: str, minimum: int = 1) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise IdentificationError(f"{argument}: expected an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def check_positive(value: Any, argument: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise IdentificationError(f"{argument}: expected a positive number, got {value!r}")
+    if not (v > 0 and np.isfinite(v)):
+        raise IdentificationError(f"{argument}: expected a positive number, got {value!r}")
+    return v
+
+
+def check_choice(value: Any, argument: str, choices) -> str:
+    if value not in choices:
+        raise IdentificationError(f"{argument}: expected one of {choices}, got {value!r}")
+    return value
+
+
+def resolve_model(ds: xr.Dataset, model: str) -> tuple[str, float, int]:
+    """``(model, dt, n_samples)``: the exact discrete basis when the FRF is dt * DFT of a sampled
+    impulse response (``frf_source == "impulse_response"`` with ``sample_interval``), else eq. 4.
+    """
+    check_choice(model, "model", MODELS)
+    if model == "auto":
+        stored = ds.attrs.get(names.ATTR_AMI_MODEL)
+        if stored in ("discrete", "continuous"):
+            model = stored
+        else:
+            model = ("discrete" if ds.attrs.get(names.ATTR_SOURCE) == names.SOURCE_IMPULSE
+                     and ds.attrs.get(names.ATTR_DT) else "continuous")
+    if model == "discrete":
+        dt = ds.attrs.get(names.ATTR_DT)
+        if not dt or not float(dt) > 0:
+            raise IdentificationError(f"model: 'discrete' needs the attribute {names.ATTR_DT!r} "
+                                      "(sample interval in s)")
+        n = int(ds.attrs.get(names.ATTR_NSAMPLES, 0) or 0)
+        return model, float(dt), n
+    return model, 0.0, 0
+
+
+def omega_of(ds: xr.Dataset) -> np.ndarray:
+    return 2.0 * np.pi * np.asarray(ds[names.FREQUENCY].values, dtype=np.float64)
+
+
+def drop_results(ds: xr.Dataset, groups) -> xr.Dataset:
+    drop = [v for group in groups for v in group if v in ds.variables]
+    out = ds.drop_vars(drop)
+    for dim in (names.CANDIDATE, names.MODE, names.MODE_2, names.RESIDUAL_TERM):
+        if dim in out.coords and not any(dim in out[v].dims for v in out.data_vars):
+            out = out.drop_vars(dim)
+    return out
+
+
+def finish(out: xr.Dataset, function: str, phase: str, parameters: dict,
+           path: str | os.PathLike | None) -> xr.Dataset:
+    """Record provenance and the phase, and write atomically when ``path`` is given."""
+    out.attrs[names.ATTR_AMI_PHASE] = phase
+    out = add_history(out, function, parameters)
+    if path is not None:
+        from ami_xr.io import to_netcdf
+
+        to_netcdf(out, path, function=function, parameters=parameters)
+    return out
+
+
+def frf_values(ds: xr.Dataset) -> np.ndarray:
+    """The FRF as a computed (point, frequency) complex128 array."""
+    return np.ascontiguousarray(
+        ds[names.FRF].transpose(names.POINT, names.FREQUENCY).values, dtype=np.complex128
+    )

@@ -1,0 +1,212 @@
+"""Global Mode Vector Phase: residues of all FRFs by linear least squares (eq. 9), eq. 8."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.ami import _common as c
+from ami_xr.errors import IdentificationError
+from ami_xr.kernels import ami as k
+
+RESIDUAL_KIND = {"receptance": 0, "mobility": 1, "accelerance": 2}
+FLAG_LOW_DRIVE_SNR = "low_drive_point_snr"
+FLAG_UNSCALED = "unscaled_no_drive_point"
+FLAG_NOT_CONVERGED = "not_converged"
+FLAG_SINGLE_FRF = "single_frf"
+
+
+def _band_mask(omega: np.ndarray, lam: np.ndarray, band) -> np.ndarray:
+    if isinstance(band, str):
+        if band != "all":
+            raise IdentificationError(f"band: expected a positive number or 'all', got {band!r}")
+        return np.ones(omega.size, bool)
+    h = c.check_positive(band, "band")
+    use = np.zeros(omega.size, bool)
+    for lk in lam:
+        use |= np.abs(omega - lk.imag) <= h * 2.0 * abs(lk.real)
+    return use
+
+
+def _fit_block(g, use, omega, lam, dt, n_samples, residual_kind):
+    shape = g.shape[:-1]
+    g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
+    coef = k._residues_fixed(g2, omega, lam, dt, n_samples, use, residual_kind)
+    n_k = lam.size
+    res = np.ascontiguousarray(coef[:, :n_k])
+    synth = k._synthesize(omega, lam[None, :], res, dt, n_samples)
+    if residual_kind >= 0:
+        rc = np.ascontiguousarray(coef[:, n_k:])
+        synth = synth + k._synthesize_residual_terms(omega, rc, residual_kind)
+    else:
+        rc = np.zeros((g2.shape[0], 2), np.complex128)
+    return (res.reshape(shape + (n_k,)), synth.reshape(shape + (omega.size,)),
+            rc.reshape(shape + (2,)))
+
+
+def mode_vectors(residue: np.ndarray, lam: np.ndarray, drive_index: int | None) -> np.ndarray:
+    """Eq. 8: ``Phi_P = sqrt(A_P / lam)``, ``Phi_j = A_j / (lam Phi_P)``; without a drive point
+    each column is ``A_j / A_jmax`` (unit largest entry, unscaled)."""
+    if drive_index is None:
+        jmax = np.argmax(np.abs(residue), axis=0)
+        return residue / residue[jmax, np.arange(residue.shape[1])][None, :]
+    phi_p = np.sqrt(residue[drive_index] / lam)
+    return residue / (lam * phi_p)[None, :]
+
+
+def mac_matrix(phi: np.ndarray) -> np.ndarray:
+    """Modal assurance criterion ``|phi_a^H phi_b|^2 / (|phi_a|^2 |phi_b|^2)``."""
+    num = np.abs(phi.conj().T @ phi) ** 2
+    nrm = np.sum(np.abs(phi) ** 2, axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return num / np.outer(nrm, nrm)
+
+
+def global_fit(
+    ds: xr.Dataset,
+    *,
+    band: float | str = 1.0,
+    residual_terms: bool = False,
+    drive_snr_min: float = 3.0,
+    path: str | os.PathLike | None = None,
+) -> xr.Dataset:
+    """Global Mode Vector Phase: fixed eigenvalues, residues of every FRF by linear LS (eq. 9).
+
+    The frequency set Omega is the union over modes of the lines with
+    ``|w - Im lam_k| <= band * 2 |Re lam_k|`` (``band`` half-power bandwidths each side), or every
+    line with ``band="all"``. The basis is the one the earlier phases used (exact discrete-time
+    for impulse-response FRFs, eq. 4 otherwise). The normal matrix depends only on the
+    eigenvalues, so it is formed and factorised once and solved for all FRFs.
+
+    Mode vectors follow eq. 8 scaled at the drive point (the ``drive_point`` attribute); the
+    sign of the square root is the principal branch. If the drive point is not one of the
+    points, each mode vector is normalised to a unit largest entry and flagged
+    ``unscaled_no_drive_point``.
+
+    Quality flags per mode (comma-separated in ``quality_flags``, "" when none):
+    ``low_drive_point_snr`` (the mode's peak contribution at the drive point is below
+    ``drive_snr_min`` times the drive point's noise floor: its scale, and every entry, is
+    unreliable, the paper's modes 1 and 2), ``unscaled_no_drive_point``, ``not_converged``
+    (isolation did not converge at a point that detected it), ``single_frf`` (detected in one
+    FRF only).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Output of :func:`ami_xr.isolate` (needs ``eigenvalue``).
+    band : float or "all"
+        Half-width of each band in half-power bandwidths ``2 |Re lam|``, or "all".
+    residual_terms : bool
+        Add lower and upper residual terms per FRF for out-of-band modes (for measured FRFs):
+        receptance ``R_L / (i w)^2 + R_U``, mobility ``R_L / (i w) + R_U i w``, accelerance
+        ``R_L + R_U (i w)^2``, complex coefficients.
+    drive_snr_min : float
+        Threshold of the ``low_drive_point_snr`` flag.
+    path : str or path-like, optional
+        Write the result there (atomic netCDF).
+
+    Returns
+    -------
+    xarray.Dataset
+        The input plus ``residue`` and ``mode_vector`` (point, mode), ``frf_synthesized`` and
+        ``frf_residual`` (point, frequency), ``mac`` (mode, mode_2), ``drive_point_snr`` and
+        ``quality_flags`` (mode), and ``residual_coefficient`` (point, residual_term) when
+        ``residual_terms``.
+    """
+    c.check_frf(ds, "global_fit")
+    if names.EIGENVALUE not in ds:
+        raise IdentificationError(f"ds: global_fit needs {names.EIGENVALUE!r}; run "
+                                  "ami_xr.isolate first")
+    drive_snr_min = c.check_positive(drive_snr_min, "drive_snr_min")
+    model, dt, n_samples = c.resolve_model(ds, "auto")
+    omega = c.omega_of(ds)
+    lam = np.ascontiguousarray(ds[names.EIGENVALUE].values, dtype=np.complex128)
+    n_k = lam.size
+    if n_k == 0:
+        raise IdentificationError(f"{names.EIGENVALUE}: no modes to fit (isolate found none)")
+    use = _band_mask(omega, lam, band)
+    kind = -1
+    if residual_terms:
+        kind = RESIDUAL_KIND.get(ds.attrs.get(names.ATTR_FRF_TYPE, "receptance"), 0)
+        if kind in (0, 1):
+            use &= omega > 0  # the lower residual is singular at 0 Hz
+    n_unknown = 2 * n_k + (4 if kind >= 0 else 0)
+    if 2 * int(use.sum()) < n_unknown + 1:
+        raise IdentificationError(
+            f"band: {int(use.sum())} lines selected, the residue fit needs at least "
+            f"{n_unknown // 2 + 1} ({n_k} modes{', residual terms' if kind >= 0 else ''}); "
+            "widen band or use band='all'")
+    frf = ds[names.FRF]
+    outs = xr.apply_ufunc(
+        _fit_block,
+        frf,
+        kwargs=dict(use=use, omega=omega, lam=lam, dt=dt, n_samples=n_samples,
+                    residual_kind=kind),
+        input_core_dims=[[names.FREQUENCY]],
+        output_core_dims=[[names.MODE], ["frequency_out"], [names.RESIDUAL_TERM]],
+        exclude_dims={names.FREQUENCY},
+        dask="parallelized",
+        output_dtypes=[np.complex128, np.complex128, np.complex128],
+        dask_gufunc_kwargs={"output_sizes": {names.MODE: n_k, "frequency_out": omega.size,
+                                             names.RESIDUAL_TERM: 2}},
+        keep_attrs=False,
+    )
+    res_da, synth_da, rc_da = (o.compute() for o in outs)
+    synth_da = synth_da.rename({"frequency_out": names.FREQUENCY})
+    res = np.asarray(res_da.transpose(names.POINT, names.MODE).values)
+    points = ds[names.POINT].values
+    drive = ds.attrs.get(names.ATTR_DRIVE_POINT)
+    idx = np.flatnonzero(points.astype(str) == str(drive)) if drive is not None else []
+    drive_index = int(idx[0]) if len(idx) else None
+    phi = mode_vectors(res, lam, drive_index)
+    units = frf.attrs.get(names.ATTR_UNITS, "")
+    # drive-point SNR: peak of the mode's fitted contribution over the drive point noise floor
+    if names.SUB_NOISE_FLOOR in ds:
+        sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, float)
+    else:
+        sigma = k.noise_floor(c.frf_values(ds))
+    peaks = k._contribution_peaks(omega, dt, n_samples, lam[None, :], np.ascontiguousarray(res))
+    flags = [[] for _ in range(n_k)]
+    if drive_index is None:
+        snr_drive = np.full(n_k, np.nan)
+        for f in flags:
+            f.append(FLAG_UNSCALED)
+    else:
+        snr_drive = peaks[drive_index] / sigma[drive_index]
+        for m in range(n_k):
+            if not snr_drive[m] >= drive_snr_min:
+                flags[m].append(FLAG_LOW_DRIVE_SNR)
+    if names.DETECTED in ds and names.ISO_CONVERGED in ds:
+        det = np.asarray(ds[names.DETECTED].transpose(names.POINT, names.MODE).values, bool)
+        conv = np.asarray(ds[names.ISO_CONVERGED].transpose(names.POINT).values, bool)
+        for m in range(n_k):
+            if np.any(det[:, m] & ~conv) or (not np.any(det[:, m]) and not np.all(conv)):
+                flags[m].append(FLAG_NOT_CONVERGED)
+            if det[:, m].sum() == 1:
+                flags[m].append(FLAG_SINGLE_FRF)
+    out = c.drop_results(ds, (c.GLOBAL_VARS,))
+    out = out.assign_coords({names.MODE_2: out[names.MODE].values})
+    new = {
+        names.RESIDUE: ((names.POINT, names.MODE), res, {"units": units + " rad/s"}),
+        names.MODE_VECTOR: ((names.POINT, names.MODE), phi,
+                            {"scaling": "unit largest entry (no drive point)"
+                             if drive_index is None else "eq. 8 at the drive point"}),
+        names.FRF_SYNTHESIZED: synth_da.transpose(*frf.dims).assign_attrs(units=units),
+        names.FRF_RESIDUAL: (frf - synth_da.transpose(*frf.dims)).assign_attrs(units=units),
+        names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi)),
+        names.DRIVE_POINT_SNR: ((names.MODE,), snr_drive),
+        names.QUALITY_FLAGS: ((names.MODE,), np.array([",".join(f) for f in flags], dtype=str)),
+    }
+    if kind >= 0:
+        out = out.assign_coords({names.RESIDUAL_TERM: ["lower", "upper"]})
+        new[names.RESIDUAL_COEFFICIENT] = rc_da.transpose(names.POINT, names.RESIDUAL_TERM)
+    out = out.assign(new)
+    out[names.FRF_RESIDUAL] = out[names.FRF_RESIDUAL].drop_vars(
+        [v for v in out[names.FRF_RESIDUAL].coords if v not in out[names.FRF].coords])
+    out.attrs["ami_band"] = band if isinstance(band, str) else float(band)
+    out.attrs["ami_residual_terms"] = int(bool(residual_terms))
+    params = dict(band=band, residual_terms=bool(residual_terms), drive_snr_min=drive_snr_min)
+    return c.finish(out, "ami_xr.global_fit", "global_fit", params, path)

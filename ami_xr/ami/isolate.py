@@ -1,0 +1,298 @@
+"""Isolation Phase (eq. 7), the model-order check, and matching per-FRF estimates into modes."""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import numpy as np
+import xarray as xr
+from scipy.optimize import linear_sum_assignment
+
+from ami_xr import names
+from ami_xr.ami import _common as c
+from ami_xr.errors import ConvergenceWarning, IdentificationError, NoModesWarning
+from ami_xr.kernels import ami as k
+
+METHODS = ("simo", "per_frf")
+WEIGHTINGS = ("snr", "mean")
+
+
+def _isolate_block(g, lam0, res0, n0, sigma, omega, dt, n_samples, delta, tol, max_iter, pfa,
+                   min_points, zeta_max, merge_tol, max_modes):
+    shape = g.shape[:-1]
+    g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
+    n_c = lam0.shape[-1]
+    lam_in = np.full((g2.shape[0], max_modes), np.nan + 0j)
+    res_in = np.full((g2.shape[0], max_modes), np.nan + 0j)
+    m = min(n_c, max_modes)
+    lam_in[:, :m] = lam0.reshape(-1, n_c)[:, :m]
+    res_in[:, :m] = res0.reshape(-1, n_c)[:, :m]
+    lam, res, n, it, conv = k._isolate_batch(
+        g2, omega, dt, n_samples, lam_in, res_in,
+        np.minimum(n0.reshape(-1).astype(np.int64), m), sigma.reshape(-1).astype(np.float64),
+        delta, tol, max_iter, pfa, min_points, zeta_max, merge_tol, max_modes, False, False,
+    )
+    return (lam.reshape(shape + (max_modes,)), res.reshape(shape + (max_modes,)),
+            n.reshape(shape), it.reshape(shape), conv.reshape(shape))
+
+
+def match_modes(lam: np.ndarray, snr: np.ndarray, match_tol: float) -> np.ndarray:
+    """Assign per-FRF eigenvalues to system modes.
+
+    Points are taken in order of decreasing number of estimates; each point's estimates are
+    assigned to the current modes by the Hungarian algorithm on the normalised distance
+    ``|lam_a - lam_b| / (|Re lam_a| + |Re lam_b|)`` (half-power bandwidths), accepting a pair only
+    when it is below ``match_tol``; unassigned estimates start new modes. Two estimates of the
+    same FRF therefore never share a mode. A mode's centre is the SNR-weighted mean of its members.
+
+    Returns the mode index (P, S) of every estimate, -1 for NaN slots; modes are numbered by
+    increasing natural frequency.
+    """
+    n_p, n_s = lam.shape
+    label = np.full((n_p, n_s), -1, dtype=np.int64)
+    centres: list[complex] = []
+    members: list[list[tuple[int, int]]] = []
+    counts = np.sum(np.isfinite(lam), axis=1)
+    for j in np.argsort(-counts, kind="stable"):
+        slots = np.flatnonzero(np.isfinite(lam[j]))
+        if slots.size == 0:
+            continue
+        if centres:
+            cen = np.asarray(centres)
+            a = lam[j, slots][:, None]
+            cost = np.abs(a - cen[None, :]) / (np.abs(a.real) + np.abs(cen.real)[None, :])
+            big = 1e6
+            rows, cols = linear_sum_assignment(np.where(cost < match_tol, cost, big))
+            taken = {}
+            for r, col in zip(rows, cols):
+                if cost[r, col] < match_tol:
+                    taken[r] = col
+        else:
+            taken = {}
+        for r, s in enumerate(slots):
+            if r in taken:
+                m = taken[r]
+                members[m].append((j, s))
+            else:
+                members.append([(j, s)])
+                centres.append(0j)
+                m = len(members) - 1
+            label[j, s] = m
+            w = np.array([max(snr[jj, ss], 1e-12) ** 2 for jj, ss in members[m]])
+            v = np.array([lam[jj, ss] for jj, ss in members[m]])
+            centres[m] = complex(np.sum(w * v) / np.sum(w))
+    if not centres:
+        return label
+    order = np.argsort(np.abs(np.asarray(centres)))
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    label[label >= 0] = rank[label[label >= 0]]
+    return label
+
+
+def _gather(lam: np.ndarray, label: np.ndarray, n_modes: int):
+    """(P, K) array of per-point estimates per mode, NaN where not detected."""
+    n_p = lam.shape[0]
+    out = np.full((n_p, n_modes), np.nan + 0j)
+    for j in range(n_p):
+        for s in np.flatnonzero(label[j] >= 0):
+            out[j, label[j, s]] = lam[j, s]
+    return out
+
+
+def _average(point_lam: np.ndarray, weight: np.ndarray):
+    det = np.isfinite(point_lam)
+    w = np.where(det, weight, 0.0)
+    z = np.where(det, point_lam, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = (w * z).sum(0) / w.sum(0)
+        cnt = det.sum(0)
+        re = np.where(det, point_lam.real, np.nan)
+        im = np.where(det, point_lam.imag, np.nan)
+        spread = np.where(cnt >= 2, np.nanstd(re, axis=0, ddof=1) if point_lam.shape[0] > 1
+                          else np.nan, np.nan) + 1j * np.where(
+            cnt >= 2, np.nanstd(im, axis=0, ddof=1) if point_lam.shape[0] > 1 else np.nan,
+            np.nan)
+    return mean, spread
+
+
+def isolate(
+    ds: xr.Dataset,
+    tol: float = 1e-4,
+    max_iter: int = 100,
+    *,
+    method: str = "simo",
+    weighting: str = "snr",
+    match_tol: float = 0.5,
+    snr_weighting: bool | None = None,
+    path: str | os.PathLike | None = None,
+) -> xr.Dataset:
+    """Isolation Phase: refine every mode on data with the other modes subtracted (eq. 7).
+
+    Runs on the output of :func:`ami_xr.subtract` (its candidates, noise floors, ``delta``,
+    ``pfa``, basis and limits are read from the Dataset, so a reopened file continues exactly).
+
+    Each sweep brings every mode into focus in order of its contribution, fits it on the
+    isolated data over its ``delta`` band and updates it; sweeps repeat until the real and
+    imaginary parts of every eigenvalue change by less than ``tol`` (relative), or ``max_iter``
+    sweeps (then ``isolation_converged`` is False and a ConvergenceWarning is issued; never a
+    hang). Then the paper's model-order check: modes closer than ``merge_tol`` half-power
+    bandwidths merge (the stronger stays); a mode whose peak contribution is not significant
+    (``|c|^2 / sigma^2 < t`` of the Subtraction Phase) is removed; if the subtraction residual
+    of all modes still has a significant peak (the statistic of :func:`subtract`, with the
+    residual that eigenvalue errors of size ``tol`` can leave added to the noise floor) and a
+    physical mode fits there, it is added; isolation restarts after any change.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Output of :func:`ami_xr.subtract`.
+    tol : float
+        Relative convergence tolerance on Re and Im of every eigenvalue (1e-4 = 0.01 %).
+    max_iter : int
+        Cap on isolation sweeps per restart.
+    method : {"simo", "per_frf"}
+        "per_frf" (the paper): each FRF is isolated on its own, then the estimates are matched
+        and averaged. "simo" (Allen & Ginsberg's global SIMO AMI): the subtraction candidates
+        are matched into starting modes, and each single-mode fit estimates one eigenvalue from
+        the isolated data of all FRFs at once with a residue per FRF (FRFs weighted by their
+        noise floor and, with ``snr_weighting``, by the mode's SNR in them).
+    weighting : {"snr", "mean"}
+        per_frf averaging: plain mean (the paper) or weights ``snr^2`` (peak contribution over
+        noise floor, squared: inverse variance).
+    match_tol : float
+        Largest normalised distance (half-power bandwidths) for two estimates to be one mode.
+    snr_weighting : bool, optional
+        SIMO only: weight each FRF's rows by the mode's SNR in it (default True).
+    path : str or path-like, optional
+        Write the result there (atomic netCDF).
+
+    Returns
+    -------
+    xarray.Dataset
+        The input plus, on dim ``mode``: ``eigenvalue`` (rad/s), ``natural_frequency`` (Hz),
+        ``damping_ratio``, ``eigenvalue_spread`` (std(Re) + i std(Im) across FRFs);
+        on (point, mode): ``detected``, ``point_eigenvalue`` (NaN where not detected),
+        ``point_snr``; on point: ``isolation_iterations``, ``isolation_converged``.
+    """
+    c.check_frf(ds, "isolate")
+    for v in (names.SUB_EIGENVALUE, names.SUB_RESIDUE, names.SUB_NOISE_FLOOR,
+              names.SUB_N_MODES):
+        if v not in ds:
+            raise IdentificationError(f"ds: isolate needs {v!r}; run ami_xr.subtract first")
+    tol = c.check_positive(tol, "tol")
+    max_iter = c.check_positive_int(max_iter, "max_iter")
+    c.check_choice(method, "method", METHODS)
+    c.check_choice(weighting, "weighting", WEIGHTINGS)
+    match_tol = c.check_positive(match_tol, "match_tol")
+    snr_weighting = True if snr_weighting is None else bool(snr_weighting)
+    a = ds.attrs
+    delta = float(a.get(names.ATTR_AMI_DELTA, 0.5))
+    pfa = float(a.get(names.ATTR_AMI_PFA, 1e-3))
+    max_modes = int(a.get("ami_max_modes", 20))
+    min_points = int(a.get("ami_min_points", 3))
+    zeta_max = float(a.get("ami_zeta_max", 0.25))
+    merge_tol = float(a.get("ami_merge_tol", 0.5))
+    model, dt, n_samples = c.resolve_model(ds, "auto")
+    omega = c.omega_of(ds)
+    t1 = k.peak_threshold(omega.size, pfa)
+    points = ds[names.POINT].values
+    n_p = points.size
+    sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, dtype=float)
+
+    if method == "per_frf":
+        outs = xr.apply_ufunc(
+            _isolate_block,
+            ds[names.FRF], ds[names.SUB_EIGENVALUE], ds[names.SUB_RESIDUE],
+            ds[names.SUB_N_MODES], ds[names.SUB_NOISE_FLOOR],
+            kwargs=dict(omega=omega, dt=dt, n_samples=n_samples, delta=delta, tol=tol,
+                        max_iter=max_iter, pfa=pfa, min_points=min_points, zeta_max=zeta_max,
+                        merge_tol=merge_tol, max_modes=max_modes),
+            input_core_dims=[[names.FREQUENCY], [names.CANDIDATE], [names.CANDIDATE], [], []],
+            output_core_dims=[["slot"], ["slot"], [], [], []],
+            dask="parallelized",
+            output_dtypes=[np.complex128, np.complex128, np.int64, np.int64, np.bool_],
+            dask_gufunc_kwargs={"output_sizes": {"slot": max_modes}},
+            keep_attrs=False,
+        )
+        lam_p, res_p, n_p_modes, iters, conv = (o.transpose(names.POINT, ...).values
+                                                for o in outs)
+        snr_p = k._contribution_peaks(omega, dt, n_samples, lam_p, res_p) / sigma[:, None]
+        label = match_modes(lam_p, snr_p, match_tol)
+        n_modes = int(label.max()) + 1 if np.any(label >= 0) else 0
+        point_lam = _gather(lam_p, label, n_modes)
+        point_snr = np.full((n_p, n_modes), np.nan)
+        for j in range(n_p):
+            for s in np.flatnonzero(label[j] >= 0):
+                point_snr[j, label[j, s]] = snr_p[j, s]
+        weight = np.ones_like(point_snr) if weighting == "mean" else np.nan_to_num(point_snr) ** 2
+        eig, spread = _average(point_lam, weight)
+        detected = np.isfinite(point_lam)
+        iterations = np.asarray(iters, dtype=np.int64)
+        converged = np.asarray(conv, dtype=bool)
+    else:
+        g = c.frf_values(ds)
+        lam_c = np.asarray(ds[names.SUB_EIGENVALUE].transpose(names.POINT, ...).values)
+        res_c = np.asarray(ds[names.SUB_RESIDUE].transpose(names.POINT, ...).values)
+        snr_c = k._contribution_peaks(omega, dt, n_samples, np.ascontiguousarray(lam_c),
+                                      np.ascontiguousarray(res_c)) / sigma[:, None]
+        label = match_modes(lam_c, snr_c, match_tol)
+        n0 = int(label.max()) + 1 if np.any(label >= 0) else 0
+        start = _gather(lam_c, label, n0)
+        w0 = np.where(np.isfinite(start), np.nan_to_num(_gather(snr_c + 0j, label, n0).real) ** 2,
+                      0.0)
+        lam0, _ = _average(start, w0)
+        lam_in = np.full(max_modes, np.nan + 0j)
+        m0 = min(n0, max_modes)
+        lam_in[:m0] = lam0[:m0]
+        lam_s, res_s, n_modes, it, conv = k._isolate_simo(
+            g, omega, dt, n_samples, lam_in, m0, sigma, delta, tol, max_iter, pfa, min_points,
+            zeta_max, merge_tol, max_modes, snr_weighting, False,
+        )
+        n_modes = int(n_modes)
+        order = np.argsort(np.abs(lam_s[:n_modes]))
+        eig = lam_s[:n_modes][order]
+        res_m = np.ascontiguousarray(res_s[:, :n_modes][:, order])
+        point_snr = k._contribution_peaks(omega, dt, n_samples, eig[None, :], res_m) / sigma[:, None]
+        detected = point_snr**2 >= t1
+        est = k._point_estimates(g, omega, dt, n_samples, np.ascontiguousarray(eig), res_m, delta,
+                                 min_points, zeta_max)
+        point_lam = np.where(detected, est, np.nan + 0j)
+        _, spread = _average(point_lam, np.ones(point_lam.shape))
+        iterations = np.full(n_p, int(it), dtype=np.int64)
+        converged = np.full(n_p, bool(conv))
+
+    out = c.drop_results(ds, (c.ISOLATE_VARS, c.GLOBAL_VARS))
+    mode = np.arange(1, n_modes + 1)
+    wn = np.abs(eig)
+    out = out.assign_coords({names.MODE: mode})
+    out = out.assign({
+        names.EIGENVALUE: ((names.MODE,), np.asarray(eig, np.complex128), {"units": "rad/s"}),
+        names.NATURAL_FREQUENCY: ((names.MODE,), wn / (2 * np.pi),
+                                  {"units": names.FREQUENCY_UNITS}),
+        names.DAMPING_RATIO: ((names.MODE,), -np.real(eig) / wn if n_modes else wn, {"units": "1"}),
+        names.EIGENVALUE_SPREAD: ((names.MODE,), np.asarray(spread, np.complex128),
+                                  {"units": "rad/s",
+                                   "long_name": "std(Re) + i std(Im) of the per-FRF estimates"}),
+        names.DETECTED: ((names.POINT, names.MODE), np.asarray(detected, bool)),
+        names.POINT_EIGENVALUE: ((names.POINT, names.MODE), np.asarray(point_lam, np.complex128),
+                                 {"units": "rad/s"}),
+        names.POINT_SNR: ((names.POINT, names.MODE), np.asarray(point_snr, float),
+                          {"long_name": "peak |contribution| / noise floor"}),
+        names.ISO_ITERATIONS: ((names.POINT,), iterations),
+        names.ISO_CONVERGED: ((names.POINT,), converged),
+    })
+    out.attrs[names.ATTR_AMI_METHOD] = method
+    out.attrs["ami_weighting"] = weighting
+    out.attrs["ami_tol"] = tol
+    if not np.all(converged):
+        bad = points[~converged].tolist()
+        warnings.warn(f"isolate: not converged within max_iter={max_iter} sweeps at point(s) "
+                      f"{bad} (tol={tol}); see isolation_converged", ConvergenceWarning,
+                      stacklevel=2)
+    if n_modes == 0:
+        warnings.warn("isolate: no mode identified", NoModesWarning, stacklevel=2)
+    params = dict(tol=tol, max_iter=max_iter, method=method, weighting=weighting,
+                  match_tol=match_tol, snr_weighting=snr_weighting)
+    return c.finish(out, "ami_xr.isolate", "isolate", params, path)

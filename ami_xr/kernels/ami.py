@@ -1,0 +1,1421 @@
+"""Kernels of the Algorithm of Mode Isolation: single-mode linear least squares, modal synthesis,
+the Subtraction and Isolation phases per FRF, the global SIMO isolation and the residue fit (eq. 9).
+
+Plain arrays in, plain arrays out; batch dim (point) first, frequency last. Private ``_name``
+functions are jitted and assume clean input; the public wrappers at the bottom check and raise.
+
+Single-mode linear least squares in one variable ``v`` (both data models)
+-------------------------------------------------------------------------
+One mode's contribution is a ratio of real-coefficient polynomials in a frequency variable
+``v``: monic quadratic denominator, numerator of degree <= 1::
+
+    G(v) (v^2 + c1 v + c0) = e1 v + e0                                         (*)
+
+* continuous time (eq. 4): ``v = i w / ws`` (``ws`` a scale, the band centre). Then
+  ``c0 = |lam|^2 / ws^2``, ``c1 = -2 Re(lam) / ws``, ``e1 = 2 A1 / ws``,
+  ``e0 = -2 (Re(lam) A1 + Im(lam) A2) / ws^2``: the real and imaginary parts of (*) are exactly
+  the paper's eqs. 11 and 12 in its four unknowns ``|lam|^2, Re lam, A1, Re(lam) A1 + Im(lam) A2``.
+* exact discrete time (FRF = dt * DFT of an impulse response sampled at dt): with
+  ``q = exp(-i w dt)`` and ``p = exp(lam dt)`` one mode contributes
+  ``B / (1 - p q) + conj(B) / (1 - conj(p) q)`` with ``B = dt A (1 - exp(lam N dt))``: a
+  ratio of real polynomials in ``q`` with denominator ``(1 - p q)(1 - conj(p) q)``. Substituting
+  ``v = (1 - q) / (dt ws)`` (which tends to ``i w / ws`` as ``dt -> 0``) gives (*) again, with
+  ``v1 = (1 - 1/p) / (dt ws)`` the root of the denominator.
+
+(*) is linear in ``c0, c1, e0, e1``; its real and imaginary parts over the lines of a band are
+the rows of the least-squares problem (the "equation error" of eqs. 11-12). The roots ``v1``
+(Im > 0) and ``v2`` give the pole (``lam = ws v1``, or ``lam = log(1 / (1 - dt ws v1)) / dt``), and
+the partial-fraction residue ``r = (e1 v1 + e0) / (v1 - v2)`` gives ``A = ws r`` (continuous) or
+``A = p dt ws r / (dt (1 - exp(lam N dt)))`` (discrete).
+
+Normal equations are solved after Jacobi (diagonal) scaling, with one step of iterative
+refinement, by Gaussian elimination with partial pivoting (small systems, no LAPACK call).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ami_xr.kernels._numba import jit
+
+# Stop / rejection codes of the Subtraction Phase (mapped to strings in the labeled layer).
+STOP_BELOW_FLOOR = 0
+STOP_MAX_MODES = 1
+STOP_MAX_ATTEMPTS = 2
+STOP_REASONS = ("below_noise_floor", "max_modes", "max_rejected_peaks")
+
+FIT_OK = 0
+FIT_SINGULAR = 1
+FIT_NOT_OSCILLATORY = 2
+FIT_UNSTABLE = 3
+FIT_DAMPING = 4
+FIT_OUT_OF_RANGE = 5
+FIT_TOO_FEW_POINTS = 6
+FIT_NO_DROP = 7
+
+
+# ----------------------------------------------------------------------------------------------
+# small dense solver
+# ----------------------------------------------------------------------------------------------
+@jit
+def _gauss_solve(a, b):
+    """Solve ``a x = b`` (n x n, n x m) by Gaussian elimination with partial pivoting.
+
+    Returns ``(x, ok)``; ``ok`` is False when a pivot is zero. ``a`` and ``b`` are not modified.
+    """
+    n = a.shape[0]
+    m = b.shape[1]
+    a = a.copy()
+    x = b.copy()
+    for col in range(n):
+        piv = col
+        big = abs(a[col, col])
+        for r in range(col + 1, n):
+            if abs(a[r, col]) > big:
+                big = abs(a[r, col])
+                piv = r
+        if big == 0.0 or not np.isfinite(big):
+            return x, False
+        if piv != col:
+            for c in range(n):
+                tmp = a[col, c]
+                a[col, c] = a[piv, c]
+                a[piv, c] = tmp
+            for c in range(m):
+                tmp = x[col, c]
+                x[col, c] = x[piv, c]
+                x[piv, c] = tmp
+        for r in range(col + 1, n):
+            f = a[r, col] / a[col, col]
+            if f != 0.0:
+                for c in range(col, n):
+                    a[r, c] -= f * a[col, c]
+                for c in range(m):
+                    x[r, c] -= f * x[col, c]
+    for col in range(n - 1, -1, -1):
+        for c in range(m):
+            s = x[col, c]
+            for k in range(col + 1, n):
+                s -= a[col, k] * x[k, c]
+            x[col, c] = s / a[col, col]
+    return x, True
+
+
+@jit
+def _solve_normal(nmat, rhs):
+    """Solve symmetric normal equations ``nmat x = rhs`` (rhs n x m) with Jacobi scaling and one
+    step of iterative refinement. Returns ``(x, ok)``."""
+    n = nmat.shape[0]
+    m = rhs.shape[1]
+    d = np.empty(n)
+    for i in range(n):
+        d[i] = 1.0 / math.sqrt(nmat[i, i]) if nmat[i, i] > 0.0 else 1.0
+    s = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            s[i, j] = nmat[i, j] * d[i] * d[j]
+    sr = np.empty((n, m))
+    for i in range(n):
+        for c in range(m):
+            sr[i, c] = rhs[i, c] * d[i]
+    y, ok = _gauss_solve(s, sr)
+    if not ok:
+        return y, False
+    # one refinement step on the scaled system
+    res = sr.copy()
+    for i in range(n):
+        for c in range(m):
+            acc = 0.0
+            for j in range(n):
+                acc += s[i, j] * y[j, c]
+            res[i, c] -= acc
+    dy, ok2 = _gauss_solve(s, res)
+    if ok2:
+        for i in range(n):
+            for c in range(m):
+                y[i, c] += dy[i, c]
+    x = np.empty((n, m))
+    for i in range(n):
+        for c in range(m):
+            x[i, c] = y[i, c] * d[i]
+        for c in range(m):
+            if not np.isfinite(x[i, c]):
+                return x, False
+    return x, True
+
+
+# ----------------------------------------------------------------------------------------------
+# modal basis and synthesis (eqs. 4, 6, 7)
+# ----------------------------------------------------------------------------------------------
+@jit
+def _line_variable(omega, dt):
+    """``q = exp(-i w dt)`` for the discrete model, ``i w`` for the continuous one (dt <= 0)."""
+    out = np.empty(omega.shape[0], dtype=np.complex128)
+    for i in range(omega.shape[0]):
+        if dt > 0.0:
+            out[i] = np.exp(-1j * omega[i] * dt)
+        else:
+            out[i] = 1j * omega[i]
+    return out
+
+
+@jit
+def _pole_factor(lam, dt, n_samples):
+    """``(p, scale)``: discrete ``p = exp(lam dt)``, ``scale = dt (1 - exp(lam N dt))``."""
+    if dt > 0.0:
+        scale = dt + 0j
+        if n_samples > 0:
+            scale = dt * (1.0 - np.exp(lam * (n_samples * dt)))
+        return np.exp(lam * dt), scale
+    return lam, 1.0 + 0j
+
+
+@jit
+def _basis_at(x, p, scale, dt):
+    """Unit-residue basis at one line: ``scale / (1 - p q)`` or ``1 / (i w - lam)``."""
+    if dt > 0.0:
+        return scale / (1.0 - p * x)
+    return 1.0 / (x - p)
+
+
+@jit
+def _add_mode(out, x, lam, res, dt, n_samples, sign, lo, hi):
+    """``out[lo:hi] += sign * (A b(lam) + conj(A) b(conj(lam)))`` on lines ``lo..hi-1``."""
+    p, sc = _pole_factor(lam, dt, n_samples)
+    pc = np.conj(p)
+    scc = np.conj(sc)
+    rc = np.conj(res)
+    for i in range(lo, hi):
+        out[i] += sign * (res * _basis_at(x[i], p, sc, dt) + rc * _basis_at(x[i], pc, scc, dt))
+
+
+@jit
+def _synthesize(omega, lam, res, dt, n_samples):
+    """Sum of modal contributions: ``lam`` (P, K) or broadcast, ``res`` (P, K) -> (P, F).
+
+    NaN eigenvalues (padding) are skipped.
+    """
+    n_p = res.shape[0]
+    n_k = res.shape[1]
+    n_f = omega.shape[0]
+    x = _line_variable(omega, dt)
+    out = np.zeros((n_p, n_f), dtype=np.complex128)
+    for j in range(n_p):
+        jl = j if lam.shape[0] == n_p else 0
+        for k in range(n_k):
+            lk = lam[jl, k]
+            if np.isnan(lk.real) or np.isnan(res[j, k].real):
+                continue
+            _add_mode(out[j], x, lk, res[j, k], dt, n_samples, 1.0, 0, n_f)
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# single-mode linear least squares (eqs. 10-12 and the discrete analogue)
+# ----------------------------------------------------------------------------------------------
+@jit
+def _v_at(xi, ws, dt):
+    if dt > 0.0:
+        return (1.0 - xi) / (dt * ws)
+    return xi / ws
+
+
+@jit
+def _v_of_pole(lam, ws, dt):
+    """The root ``v1`` of (*) that belongs to pole ``lam``."""
+    if dt > 0.0:
+        return (1.0 - np.exp(-lam * dt)) / (dt * ws)
+    return lam / ws
+
+
+@jit
+def _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, nss, nsl, nll, rs, rl):
+    """Accumulate the normal equations of (*) on lines lo..hi-1 of one FRF.
+
+    Unknowns: shared ``s = (c0, c1)``, local ``l = (e0, e1)``. Columns of (*) written as
+    ``G v^2 = -c0 G - c1 G v + e0 + e1 v``; the data is divided by ``gscale``.
+    Blocks: ``nss`` (2x2), ``nsl`` (2x2), ``nll`` (2x2), right sides ``rs``, ``rl`` (2).
+    When ``prev`` (a previous pole estimate) is not NaN every line is divided by
+    ``|D_prev(v)| = |(v - v1)(v - conj(v1))|`` (Sanathanan-Koerner / Steiglitz-McBride): at a
+    fixed point the equation error becomes the output error ``G - N/D``, which removes the
+    damping bias that noise in the regressor columns gives the plain eqs. 11-12.
+    """
+    cols = np.empty(4, dtype=np.complex128)
+    use_w = not np.isnan(prev.real)
+    pv = _v_of_pole(prev, ws, dt) if use_w else 0j
+    for i in range(lo, hi):
+        g = data[i] / gscale
+        v = _v_at(x[i], ws, dt)
+        wgt = 1.0
+        if use_w:
+            wgt = 1.0 / abs((v - pv) * (v - np.conj(pv)))
+        cols[0] = -g * wgt
+        cols[1] = -g * v * wgt
+        cols[2] = wgt
+        cols[3] = v * wgt
+        rhs = g * v * v * wgt
+        for a in range(2):
+            ca = np.conj(cols[a])
+            for b in range(2):
+                nss[a, b] += (ca * cols[b]).real
+                nsl[a, b] += (ca * cols[2 + b]).real
+            rs[a] += (ca * rhs).real
+            cla = np.conj(cols[2 + a])
+            for b in range(2):
+                nll[a, b] += (cla * cols[2 + b]).real
+            rl[a] += (cla * rhs).real
+
+
+@jit
+def _single_mode_rows(data, omega, ws, dt):
+    """Real rows and right side of (*) for every line: (2F, 4), (2F,) (for tests/references)."""
+    n = data.shape[0]
+    x = _line_variable(omega, dt)
+    rows = np.empty((2 * n, 4))
+    rhs = np.empty(2 * n)
+    for i in range(n):
+        g = data[i]
+        v = _v_at(x[i], ws, dt)
+        c = (-g, -g * v, 1.0 + 0j, v)
+        r = g * v * v
+        for a in range(4):
+            rows[2 * i, a] = c[a].real
+            rows[2 * i + 1, a] = c[a].imag
+        rhs[2 * i] = r.real
+        rhs[2 * i + 1] = r.imag
+    return rows, rhs
+
+
+@jit
+def _poles_from_coefficients(c0, c1, ws, dt, n_samples, zeta_max, w_lo, w_hi):
+    """Pole and partial-fraction helpers from ``v^2 + c1 v + c0``.
+
+    Returns ``(lam, v1, v2, code)``; ``code`` is FIT_OK or a rejection code.
+    """
+    disc = 4.0 * c0 - c1 * c1
+    nanc = complex(np.nan, np.nan)
+    if not (disc > 0.0) or not np.isfinite(disc):
+        return nanc, nanc, nanc, FIT_NOT_OSCILLATORY
+    sq = math.sqrt(disc)
+    v1 = complex(-0.5 * c1, 0.5 * sq)
+    v2 = complex(-0.5 * c1, -0.5 * sq)
+    if dt > 0.0:
+        q1 = 1.0 - dt * ws * v1
+        if abs(q1) == 0.0:
+            return nanc, v1, v2, FIT_UNSTABLE
+        p = 1.0 / q1
+        lam = np.log(p) / dt
+    else:
+        lam = ws * v1
+    if not (lam.real < 0.0):
+        return lam, v1, v2, FIT_UNSTABLE
+    wn = abs(lam)
+    if -lam.real / wn > zeta_max or lam.imag <= 0.0:
+        return lam, v1, v2, FIT_DAMPING
+    if wn < w_lo or wn > w_hi:
+        return lam, v1, v2, FIT_OUT_OF_RANGE
+    return lam, v1, v2, FIT_OK
+
+
+@jit
+def _residue_from(e0, e1, v1, v2, lam, ws, dt, n_samples, gscale):
+    r = (e1 * v1 + e0) / (v1 - v2) * gscale
+    if dt > 0.0:
+        p, sc = _pole_factor(lam, dt, n_samples)
+        return p * dt * ws * r / sc
+    return ws * r
+
+
+@jit
+def _fit_single(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, prev):
+    """Single-mode fit of one FRF on lines lo..hi-1: ``(lam, residue, code)``."""
+    nss = np.zeros((2, 2))
+    nsl = np.zeros((2, 2))
+    nll = np.zeros((2, 2))
+    rs = np.zeros(2)
+    rl = np.zeros(2)
+    gscale = 0.0
+    for i in range(lo, hi):
+        gscale = max(gscale, abs(data[i]))
+    nanc = complex(np.nan, np.nan)
+    if gscale == 0.0 or hi - lo < 2:
+        return nanc, nanc, FIT_SINGULAR
+    _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, nss, nsl, nll, rs, rl)
+    nmat = np.empty((4, 4))
+    rhs = np.empty((4, 1))
+    for a in range(2):
+        for b in range(2):
+            nmat[a, b] = nss[a, b]
+            nmat[a, 2 + b] = nsl[a, b]
+            nmat[2 + b, a] = nsl[a, b]
+            nmat[2 + a, 2 + b] = nll[a, b]
+        rhs[a, 0] = rs[a]
+        rhs[2 + a, 0] = rl[a]
+    sol, ok = _solve_normal(nmat, rhs)
+    if not ok:
+        return nanc, nanc, FIT_SINGULAR
+    lam, v1, v2, code = _poles_from_coefficients(
+        sol[0, 0], sol[1, 0], ws, dt, n_samples, zeta_max, w_lo, w_hi
+    )
+    if code != FIT_OK:
+        return lam, nanc, code
+    res = _residue_from(sol[2, 0], sol[3, 0], v1, v2, lam, ws, dt, n_samples, gscale)
+    return lam, res, FIT_OK
+
+
+@jit
+def _fit_single_simo(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, prev, wts,
+                     res_out):
+    """Global SIMO single-mode fit: one eigenvalue from all FRFs (rows of ``data``, already
+    divided by each FRF's noise floor), one residue per FRF written to ``res_out``.
+
+    The per-FRF unknowns ``(e0, e1)`` are eliminated by their 2x2 Schur complements, so the cost
+    is linear in the number of FRFs. Returns ``(lam, code)``.
+    """
+    n_p = data.shape[0]
+    red = np.zeros((2, 2))
+    redr = np.zeros((2, 1))
+    nll_all = np.zeros((n_p, 2, 2))
+    nsl_all = np.zeros((n_p, 2, 2))
+    rl_all = np.zeros((n_p, 2))
+    nanc = complex(np.nan, np.nan)
+    for j in range(n_p):
+        nss = np.zeros((2, 2))
+        nsl = np.zeros((2, 2))
+        nll = np.zeros((2, 2))
+        rs = np.zeros(2)
+        rl = np.zeros(2)
+        # FRF weight wts[j]: rows scaled by it (1 / wts[j] as the data scale)
+        _single_mode_blocks(data[j], x, lo, hi, ws, dt, 1.0 / wts[j], prev, nss, nsl, nll, rs,
+                            rl)
+        det = nll[0, 0] * nll[1, 1] - nll[0, 1] * nll[1, 0]
+        if det == 0.0:
+            return nanc, FIT_SINGULAR
+        inv = np.empty((2, 2))
+        inv[0, 0] = nll[1, 1] / det
+        inv[1, 1] = nll[0, 0] / det
+        inv[0, 1] = -nll[0, 1] / det
+        inv[1, 0] = -nll[1, 0] / det
+        # red += nss - nsl inv nls ; redr += rs - nsl inv rl
+        t = nsl @ inv
+        for a in range(2):
+            for b in range(2):
+                red[a, b] += nss[a, b] - (t[a, 0] * nsl[b, 0] + t[a, 1] * nsl[b, 1])
+            redr[a, 0] += rs[a] - (t[a, 0] * rl[0] + t[a, 1] * rl[1])
+        nll_all[j] = nll
+        nsl_all[j] = nsl
+        rl_all[j, 0] = rl[0]
+        rl_all[j, 1] = rl[1]
+    sol, ok = _solve_normal(red, redr)
+    if not ok:
+        return nanc, FIT_SINGULAR
+    c0 = sol[0, 0]
+    c1 = sol[1, 0]
+    lam, v1, v2, code = _poles_from_coefficients(c0, c1, ws, dt, n_samples, zeta_max, w_lo, w_hi)
+    if code != FIT_OK:
+        return lam, code
+    for j in range(n_p):
+        # nll e = rl - nls s
+        b0 = rl_all[j, 0] - (nsl_all[j, 0, 0] * c0 + nsl_all[j, 1, 0] * c1)
+        b1 = rl_all[j, 1] - (nsl_all[j, 0, 1] * c0 + nsl_all[j, 1, 1] * c1)
+        nll = nll_all[j]
+        det = nll[0, 0] * nll[1, 1] - nll[0, 1] * nll[1, 0]
+        e0 = (nll[1, 1] * b0 - nll[0, 1] * b1) / det
+        e1 = (-nll[1, 0] * b0 + nll[0, 0] * b1) / det
+        res_out[j] = _residue_from(e0, e1, v1, v2, lam, ws, dt, n_samples, 1.0 / wts[j])
+    return lam, FIT_OK
+
+
+# ----------------------------------------------------------------------------------------------
+# noise floor, thresholds, bands
+# ----------------------------------------------------------------------------------------------
+@jit
+def _noise_floor(data):
+    """Robust noise standard deviation of one FRF from first differences of adjacent lines.
+
+    For noise that is complex Gaussian, white and independent from line to line (E|n|^2 =
+    sigma^2), ``|n_{k+1} - n_k|^2`` is exponential with mean ``2 sigma^2`` and median
+    ``2 ln(2) sigma^2``. Differencing cancels the smooth modal part, and the median ignores the
+    few lines at resonances: ``sigma^2 = median |dY|^2 / (2 ln 2)``.
+    """
+    n = data.shape[0]
+    d = np.empty(n - 1)
+    for i in range(n - 1):
+        d[i] = abs(data[i + 1] - data[i]) ** 2
+    return math.sqrt(np.median(d) / (2.0 * math.log(2.0)))
+
+
+@jit
+def _peak_threshold(n_lines, pfa):
+    """Threshold ``t`` on ``|Y|^2 / sigma^2`` so that the largest of ``n_lines`` independent
+    Exp(1) variables exceeds it with probability ``pfa``: ``t = -ln(1 - (1 - pfa)^(1/n))``."""
+    return -math.log(-math.expm1(math.log1p(-pfa) / n_lines))
+
+
+@jit
+def _gamma_tail(k, t):
+    """P(Gamma(k, 1) > t) for integer k: ``exp(-t) sum_{m<k} t^m / m!``."""
+    term = 1.0
+    acc = 1.0
+    for m in range(1, k):
+        term *= t / m
+        acc += term
+    return math.exp(-t) * acc
+
+
+@jit
+def _sum_threshold(k, n_lines, pfa):
+    """Threshold on the sum of ``k`` Exp(1) variables (the SNR-weighted power of ``k`` FRFs),
+    for false-alarm probability ``pfa`` over ``n_lines`` lines (bisection)."""
+    target = -math.expm1(math.log1p(-pfa) / n_lines)
+    lo = 0.0
+    hi = 10.0 * k + 100.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if _gamma_tail(k, mid) > target:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+@jit
+def _band_around(power, peak, level):
+    """Contiguous lines around ``peak`` with ``power >= level``: ``(lo, hi)`` half-open."""
+    n = power.shape[0]
+    lo = peak
+    while lo > 0 and power[lo - 1] >= level:
+        lo -= 1
+    hi = peak + 1
+    while hi < n and power[hi] >= level:
+        hi += 1
+    return lo, hi
+
+
+@jit
+def _nearest_line(omega, w):
+    n = omega.shape[0]
+    lo = 0
+    hi = n - 1
+    if w <= omega[0]:
+        return 0
+    if w >= omega[n - 1]:
+        return n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if omega[mid] <= w:
+            lo = mid
+        else:
+            hi = mid
+    return lo if (w - omega[lo]) <= (omega[hi] - w) else hi
+
+
+@jit
+def _local_peak(power, omega, lam, dw):
+    """Index of the largest ``power`` within ``Im(lam) +- max(2 |Re lam|, 2 dw)``."""
+    half = max(2.0 * abs(lam.real), 2.0 * dw)
+    c = _nearest_line(omega, lam.imag)
+    lo = _nearest_line(omega, lam.imag - half)
+    hi = _nearest_line(omega, lam.imag + half)
+    best = c
+    for i in range(lo, hi + 1):
+        if power[i] > power[best]:
+            best = i
+    return best
+
+
+@jit
+def _model_band(omega, lam, delta, min_points):
+    """Lines where a single mode with pole ``lam`` is at least ``delta`` times its peak:
+    ``|w - Im lam| <= sqrt(1/delta^2 - 1) |Re lam|`` (the delta rule applied to the model, so the
+    band does not depend on the noise of the data), widened to ``min_points`` lines."""
+    half = math.sqrt(1.0 / (delta * delta) - 1.0) * abs(lam.real)
+    n = omega.shape[0]
+    c = _nearest_line(omega, lam.imag)
+    lo = c
+    hi = c + 1
+    while lo > 0 and omega[lo - 1] >= lam.imag - half:
+        lo -= 1
+    while hi < n and omega[hi] <= lam.imag + half:
+        hi += 1
+    while hi - lo < min_points and (lo > 0 or hi < n):
+        if lo > 0 and (hi >= n or lam.imag - omega[lo - 1] <= omega[hi] - lam.imag):
+            lo -= 1
+        else:
+            hi += 1
+    return lo, hi
+
+
+@jit
+def _contribution_peak(omega, x, lam, res, dt, n_samples):
+    """Largest |contribution| of one mode over the three lines nearest its damped frequency."""
+    c = _nearest_line(omega, lam.imag)
+    lo = max(c - 1, 0)
+    hi = min(c + 2, omega.shape[0])
+    tmp = np.zeros(omega.shape[0], dtype=np.complex128)
+    _add_mode(tmp, x, lam, res, dt, n_samples, 1.0, lo, hi)
+    best = 0.0
+    for i in range(lo, hi):
+        best = max(best, abs(tmp[i]))
+    return best
+
+
+@jit
+def _tolerance_envelope(omega, lam, res, n, tol):
+    """Envelope of the residual that eigenvalue errors of relative size ``tol`` leave behind:
+    ``tol |lam_k| |A_k| / |i w - lam_k|^2`` summed over modes (continuous-time approximation of
+    ``|d contribution / d lam| tol |lam|``). A peak inside it is not evidence of a missing mode."""
+    n_f = omega.shape[0]
+    env = np.zeros(n_f)
+    for k in range(n):
+        lk = lam[k]
+        a = tol * abs(lk) * abs(res[k])
+        for i in range(n_f):
+            d = 1j * omega[i] - lk
+            env[i] += a / (d.real * d.real + d.imag * d.imag)
+    return env
+
+
+@jit
+def _normalized_distance(a, b):
+    """|a - b| / (|Re a| + |Re b|): eigenvalue distance in units of half-power bandwidths."""
+    return abs(a - b) / (abs(a.real) + abs(b.real))
+
+
+# ----------------------------------------------------------------------------------------------
+# Subtraction Phase (eq. 6), one FRF
+# ----------------------------------------------------------------------------------------------
+@jit
+def _subtract_one(data, omega, x, dt, n_samples, delta, max_modes, pfa, min_points, zeta_max,
+                  merge_tol, lam_out, res_out, lo_out, hi_out):
+    """Subtraction Phase on one FRF; returns ``(n_modes, sigma, statistic, reason)``."""
+    n_f = data.shape[0]
+    sigma = _noise_floor(data)
+    scale_floor = 1e-14 * np.max(np.abs(data))
+    sigma = max(sigma, scale_floor)
+    t = _peak_threshold(n_f, pfa)
+    dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
+    w_lo = max(omega[0], dw)
+    w_hi = omega[n_f - 1]
+    y = data.copy()
+    power = np.empty(n_f)
+    masked = np.zeros(n_f, dtype=np.bool_)
+    n_modes = 0
+    stat = 0.0
+    reason = STOP_MAX_ATTEMPTS
+    max_attempts = 3 * max_modes + 10
+    for _attempt in range(max_attempts):
+        if n_modes >= max_modes:
+            reason = STOP_MAX_MODES
+            break
+        peak = -1
+        best = -1.0
+        for i in range(n_f):
+            power[i] = abs(y[i]) ** 2
+            if not masked[i] and power[i] > best:
+                best = power[i]
+                peak = i
+        if peak < 0:
+            reason = STOP_BELOW_FLOOR
+            stat = 0.0
+            break
+        stat = best / sigma**2
+        if stat < t:
+            reason = STOP_BELOW_FLOOR
+            break
+        lo, hi = _band_around(power, peak, delta * delta * best)
+        if hi - lo < min_points:
+            for i in range(lo, hi):
+                masked[i] = True
+            continue
+        ws = omega[peak] if omega[peak] > 0.0 else dw
+        lam, res, code = _fit_single(y, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi,
+                                     complex(np.nan, np.nan))
+        if code == FIT_OK:
+            # natural frequency must lie near the band; the band energy must drop significantly
+            bw = abs(lam.real)
+            if lam.imag < omega[lo] - 2.0 * bw - dw or lam.imag > omega[hi - 1] + 2.0 * bw + dw:
+                code = FIT_OUT_OF_RANGE
+            else:
+                trial = y.copy()
+                _add_mode(trial, x, lam, res, dt, n_samples, -1.0, 0, n_f)
+                e0 = 0.0
+                e1 = 0.0
+                for i in range(lo, hi):
+                    e0 += power[i]
+                    e1 += abs(trial[i]) ** 2
+                if (e0 - e1) / sigma**2 < t:
+                    code = FIT_NO_DROP
+        if code != FIT_OK:
+            for i in range(lo, hi):
+                masked[i] = True
+            continue
+        merged = False
+        for k in range(n_modes):
+            if _normalized_distance(lam, lam_out[k]) < merge_tol:
+                # a duplicate of an earlier candidate: the residual left near that pole; fold the
+                # residue into the earlier candidate (poles this close add their residues)
+                res_out[k] = res_out[k] + res
+                merged = True
+                break
+        if not merged:
+            lam_out[n_modes] = lam
+            res_out[n_modes] = res
+            lo_out[n_modes] = omega[lo]
+            hi_out[n_modes] = omega[hi - 1]
+            n_modes += 1
+        # recompute the residual from the data (eq. 6 with the current candidates)
+        for i in range(n_f):
+            y[i] = data[i]
+        for k in range(n_modes):
+            _add_mode(y, x, lam_out[k], res_out[k], dt, n_samples, -1.0, 0, n_f)
+    return n_modes, sigma, stat, reason
+
+
+@jit
+def _subtract_batch(data, omega, dt, n_samples, delta, max_modes, pfa, min_points, zeta_max,
+                    merge_tol):
+    n_p = data.shape[0]
+    x = _line_variable(omega, dt)
+    lam = np.full((n_p, max_modes), complex(np.nan, np.nan))
+    res = np.full((n_p, max_modes), complex(np.nan, np.nan))
+    blo = np.full((n_p, max_modes), np.nan)
+    bhi = np.full((n_p, max_modes), np.nan)
+    n_modes = np.zeros(n_p, dtype=np.int64)
+    sigma = np.zeros(n_p)
+    stat = np.zeros(n_p)
+    reason = np.zeros(n_p, dtype=np.int64)
+    for j in range(n_p):
+        n, s, st, r = _subtract_one(data[j], omega, x, dt, n_samples, delta, max_modes, pfa,
+                                    min_points, zeta_max, merge_tol, lam[j], res[j], blo[j], bhi[j])
+        n_modes[j] = n
+        sigma[j] = s
+        stat[j] = st
+        reason[j] = r
+    return lam, res, blo, bhi, sigma, stat, reason, n_modes
+
+
+# ----------------------------------------------------------------------------------------------
+# Isolation Phase (eq. 7), one FRF at a time
+# ----------------------------------------------------------------------------------------------
+@jit
+def _order_by_contribution(omega, x, lam, res, n, dt, n_samples):
+    peaks = np.empty(n)
+    for k in range(n):
+        peaks[k] = _contribution_peak(omega, x, lam[k], res[k], dt, n_samples)
+    return np.argsort(-peaks)
+
+
+@jit
+def _isolate_sweeps(data, omega, x, dt, n_samples, lam, res, n, delta, tol, max_iter,
+                    min_points, zeta_max, reweight, model_band, model, fails):
+    """Isolation sweeps until every eigenvalue's Re and Im change less than ``tol`` (relative).
+
+    ``model`` (F) holds the current sum of all modes and is kept up to date.
+    Returns ``(iterations, converged)``.
+    """
+    n_f = data.shape[0]
+    dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
+    w_lo = max(omega[0], dw)
+    w_hi = omega[n_f - 1]
+    xn = np.empty(n_f, dtype=np.complex128)
+    power = np.empty(n_f)
+    it = 0
+    order = _order_by_contribution(omega, x, lam, res, n, dt, n_samples)
+    for it in range(1, max_iter + 1):
+        change = 0.0
+        for kk in range(n):
+            k = order[kk]
+            for i in range(n_f):
+                xn[i] = data[i] - model[i]
+            _add_mode(xn, x, lam[k], res[k], dt, n_samples, 1.0, 0, n_f)
+            for i in range(n_f):
+                power[i] = abs(xn[i]) ** 2
+            if model_band:
+                lo, hi = _model_band(omega, lam[k], delta, min_points)
+                peak = _nearest_line(omega, lam[k].imag)
+            else:
+                peak = _local_peak(power, omega, lam[k], dw)
+                lo, hi = _band_around(power, peak, delta * delta * power[peak])
+            if hi - lo < min_points:
+                fails[k] += 1
+                continue
+            ws = omega[peak] if omega[peak] > 0.0 else dw
+            prev = complex(np.nan, np.nan)
+            new, r, code = _fit_single(xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi,
+                                       prev)
+            if code != FIT_OK:
+                fails[k] += 1
+                continue
+            ch = max(abs(new.real - lam[k].real) / abs(new.real),
+                     abs(new.imag - lam[k].imag) / abs(new.imag))
+            change = max(change, ch)
+            _add_mode(model, x, lam[k], res[k], dt, n_samples, -1.0, 0, n_f)
+            lam[k] = new
+            res[k] = r
+            _add_mode(model, x, new, r, dt, n_samples, 1.0, 0, n_f)
+        if change < tol:
+            return it, True
+    return it, False
+
+
+@jit
+def _remove_mode(lam, res, fails, n, k):
+    for i in range(k, n - 1):
+        lam[i] = lam[i + 1]
+        res[i] = res[i + 1]
+        fails[i] = fails[i + 1]
+    lam[n - 1] = complex(np.nan, np.nan)
+    res[n - 1] = complex(np.nan, np.nan)
+    fails[n - 1] = 0
+    return n - 1
+
+
+@jit
+def _isolate_one(data, omega, x, dt, n_samples, lam, res, n, sigma, delta, tol, max_iter,
+                 pfa, min_points, zeta_max, merge_tol, max_modes, reweight, model_band):
+    """Isolation Phase with the model-order check on one FRF (``lam``/``res`` updated in place,
+    length ``max_modes``). Returns ``(n_modes, iterations, converged)``."""
+    n_f = data.shape[0]
+    t = _peak_threshold(n_f, pfa)
+    dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
+    w_lo = max(omega[0], dw)
+    w_hi = omega[n_f - 1]
+    fails = np.zeros(max_modes, dtype=np.int64)
+    total_it = 0
+    converged = False
+    model = np.zeros(n_f, dtype=np.complex128)
+    power = np.empty(n_f)
+    masked = np.zeros(n_f, dtype=np.bool_)
+    for _restart in range(max_modes + 4):
+        for i in range(n_f):
+            model[i] = 0.0
+        for k in range(n):
+            _add_mode(model, x, lam[k], res[k], dt, n_samples, 1.0, 0, n_f)
+        it, converged = _isolate_sweeps(data, omega, x, dt, n_samples, lam, res, n, delta, tol,
+                                        max_iter, min_points, zeta_max, reweight, model_band, model,
+                                        fails)
+        total_it += it
+        changed = False
+        # duplicates merge: keep the stronger of two modes closer than merge_tol bandwidths
+        k = 0
+        while k < n:
+            dup = -1
+            for m in range(n):
+                if m != k and _normalized_distance(lam[k], lam[m]) < merge_tol:
+                    dup = m
+                    break
+            if dup >= 0:
+                pk = _contribution_peak(omega, x, lam[k], res[k], dt, n_samples)
+                pm = _contribution_peak(omega, x, lam[dup], res[dup], dt, n_samples)
+                drop = dup if pm <= pk else k
+                n = _remove_mode(lam, res, fails, n, drop)
+                changed = True
+                continue
+            k += 1
+        # insignificant modes (contribution not above the noise floor, or never fitted) removed
+        k = 0
+        while k < n:
+            pk = _contribution_peak(omega, x, lam[k], res[k], dt, n_samples)
+            if pk * pk / sigma**2 < t or fails[k] > max_iter // 2:
+                n = _remove_mode(lam, res, fails, n, k)
+                changed = True
+                continue
+            k += 1
+        if changed:
+            continue
+        # model-order check: a significant, physical peak left in the residual adds a mode
+        if n >= max_modes:
+            break
+        added = False
+        env = _tolerance_envelope(omega, lam, res, n, tol)
+        for _try in range(8):
+            best = -1.0
+            peak = -1
+            for i in range(n_f):
+                power[i] = abs(data[i] - model[i]) ** 2
+                stat_i = power[i] / (sigma**2 + env[i] ** 2)
+                if not masked[i] and stat_i > best:
+                    best = stat_i
+                    peak = i
+            if peak < 0 or best < t:
+                break
+            best = power[peak]
+            lo, hi = _band_around(power, peak, delta * delta * best)
+            if hi - lo < min_points:
+                for i in range(lo, hi):
+                    masked[i] = True
+                continue
+            y = data - model
+            ws = omega[peak] if omega[peak] > 0.0 else dw
+            new, r, code = _fit_single(y, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi,
+                                       complex(np.nan, np.nan))
+            if code == FIT_OK:
+                for m in range(n):
+                    if _normalized_distance(new, lam[m]) < merge_tol:
+                        code = FIT_OUT_OF_RANGE
+                        break
+            if code == FIT_OK:
+                trial = y.copy()
+                _add_mode(trial, x, new, r, dt, n_samples, -1.0, 0, n_f)
+                e0 = 0.0
+                e1 = 0.0
+                for i in range(lo, hi):
+                    e0 += power[i]
+                    e1 += abs(trial[i]) ** 2
+                if (e0 - e1) / sigma**2 < t:
+                    code = FIT_NO_DROP
+            if code != FIT_OK:
+                for i in range(lo, hi):
+                    masked[i] = True
+                continue
+            lam[n] = new
+            res[n] = r
+            fails[n] = 0
+            n += 1
+            added = True
+            break
+        if not added:
+            break
+    return n, total_it, converged
+
+
+@jit
+def _isolate_batch(data, omega, dt, n_samples, lam0, res0, n0, sigma, delta, tol, max_iter, pfa,
+                   min_points, zeta_max, merge_tol, max_modes, reweight, model_band):
+    n_p = data.shape[0]
+    x = _line_variable(omega, dt)
+    lam = np.full((n_p, max_modes), complex(np.nan, np.nan))
+    res = np.full((n_p, max_modes), complex(np.nan, np.nan))
+    n_modes = np.zeros(n_p, dtype=np.int64)
+    iters = np.zeros(n_p, dtype=np.int64)
+    conv = np.zeros(n_p, dtype=np.bool_)
+    for j in range(n_p):
+        n = min(n0[j], max_modes)
+        for k in range(n):
+            lam[j, k] = lam0[j, k]
+            res[j, k] = res0[j, k]
+        if n == 0:
+            conv[j] = True
+            continue
+        nn, it, c = _isolate_one(data[j], omega, x, dt, n_samples, lam[j], res[j], n, sigma[j],
+                                 delta, tol, max_iter, pfa, min_points, zeta_max, merge_tol,
+                                 max_modes, reweight, model_band)
+        n_modes[j] = nn
+        iters[j] = it
+        conv[j] = c
+    return lam, res, n_modes, iters, conv
+
+
+# ----------------------------------------------------------------------------------------------
+# global SIMO isolation (Allen & Ginsberg): one eigenvalue per mode from all FRFs at once
+# ----------------------------------------------------------------------------------------------
+@jit
+def _remove_simo(lam, res, fails, n, k):
+    for j in range(res.shape[0]):
+        for i in range(k, n - 1):
+            res[j, i] = res[j, i + 1]
+        res[j, n - 1] = complex(np.nan, np.nan)
+    for i in range(k, n - 1):
+        lam[i] = lam[i + 1]
+        fails[i] = fails[i + 1]
+    lam[n - 1] = complex(np.nan, np.nan)
+    fails[n - 1] = 0
+    return n - 1
+
+
+@jit
+def _simo_band(xw, omega, lam, dw, delta):
+    n_p = xw.shape[0]
+    n_f = xw.shape[1]
+    power = np.zeros(n_f)
+    for j in range(n_p):
+        for i in range(n_f):
+            power[i] += abs(xw[j, i]) ** 2
+    peak = _local_peak(power, omega, lam, dw)
+    lo, hi = _band_around(power, peak, delta * delta * power[peak])
+    return peak, lo, hi
+
+
+@jit
+def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_iter, pfa,
+                  min_points, zeta_max, merge_tol, max_modes, reweight, model_band):
+    """Global SIMO isolation with the model-order check.
+
+    ``data`` (P, F); ``lam0`` (max_modes,) starting eigenvalues (first ``n0`` used); ``sigma`` (P)
+    noise floors. Returns ``(lam (max_modes,), res (P, max_modes), n, iterations, converged)``.
+    """
+    n_p = data.shape[0]
+    n_f = data.shape[1]
+    x = _line_variable(omega, dt)
+    dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
+    w_lo = max(omega[0], dw)
+    w_hi = omega[n_f - 1]
+    t1 = _peak_threshold(n_f, pfa)
+    tsum = _sum_threshold(n_p, n_f, pfa)
+    # work in units of each FRF's noise floor (SNR weighting of the FRFs)
+    dw_data = np.empty((n_p, n_f), dtype=np.complex128)
+    for j in range(n_p):
+        for i in range(n_f):
+            dw_data[j, i] = data[j, i] / sigma[j]
+    lam = np.full(max_modes, complex(np.nan, np.nan))
+    res = np.full((n_p, max_modes), complex(np.nan, np.nan))
+    n = min(n0, max_modes)
+    for k in range(n):
+        lam[k] = lam0[k]
+    fails = np.zeros(max_modes, dtype=np.int64)
+    model = np.zeros((n_p, n_f), dtype=np.complex128)
+    xn = np.empty((n_p, n_f), dtype=np.complex128)
+    rtmp = np.empty(n_p, dtype=np.complex128)
+    wts = np.ones(n_p)
+    wts_all = np.ones((max_modes, n_p))
+    ones = np.ones(n_p)
+    masked = np.zeros(n_f, dtype=np.bool_)
+    total_it = 0
+    converged = False
+    # starting residues: linear LS with the eigenvalues fixed, over all lines
+    if n > 0:
+        r0 = _residues_fixed(dw_data, omega, lam[:n], dt, n_samples, np.ones(n_f, np.bool_), -1)
+        for j in range(n_p):
+            for k in range(n):
+                res[j, k] = r0[j, k]
+    for _restart in range(max_modes + 4):
+        for j in range(n_p):
+            for i in range(n_f):
+                model[j, i] = 0.0
+            for k in range(n):
+                _add_mode(model[j], x, lam[k], res[j, k], dt, n_samples, 1.0, 0, n_f)
+        it = 0
+        converged = n == 0
+        for it in range(1, max_iter + 1):
+            if n == 0:
+                break
+            # order by total SNR of each mode's contribution
+            tot = np.zeros(n)
+            for k in range(n):
+                for j in range(n_p):
+                    tot[k] += _contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples) ** 2
+            order = np.argsort(-tot)
+            change = 0.0
+            for kk in range(n):
+                k = order[kk]
+                for j in range(n_p):
+                    for i in range(n_f):
+                        xn[j, i] = dw_data[j, i] - model[j, i]
+                    _add_mode(xn[j], x, lam[k], res[j, k], dt, n_samples, 1.0, 0, n_f)
+                if model_band:
+                    lo, hi = _model_band(omega, lam[k], delta, min_points)
+                    peak = _nearest_line(omega, lam[k].imag)
+                else:
+                    peak, lo, hi = _simo_band(xn, omega, lam[k], dw, delta)
+                if hi - lo < min_points:
+                    fails[k] += 1
+                    continue
+                ws = omega[peak] if omega[peak] > 0.0 else dw
+                prev = complex(np.nan, np.nan)
+                if reweight and it <= 3:
+                    # weight each FRF by its SNR for this mode (frozen after 3 sweeps so the
+                    # iteration has a fixed point), so FRFs where the mode is buried in noise
+                    # do not bias the shared eigenvalue
+                    for j in range(n_p):
+                        wts_all[k, j] = max(_contribution_peak(omega, x, lam[k], res[j, k], dt,
+                                                               n_samples), 1.0)
+                for j in range(n_p):
+                    wts[j] = wts_all[k, j] if reweight else 1.0
+                new, code = _fit_single_simo(xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo,
+                                             w_hi, prev, wts, rtmp)
+                if code != FIT_OK:
+                    fails[k] += 1
+                    continue
+                ch = max(abs(new.real - lam[k].real) / abs(new.real),
+                         abs(new.imag - lam[k].imag) / abs(new.imag))
+                change = max(change, ch)
+                for j in range(n_p):
+                    _add_mode(model[j], x, lam[k], res[j, k], dt, n_samples, -1.0, 0, n_f)
+                    res[j, k] = rtmp[j]
+                    _add_mode(model[j], x, new, rtmp[j], dt, n_samples, 1.0, 0, n_f)
+                lam[k] = new
+            if change < tol:
+                converged = True
+                break
+        total_it += it
+        changed = False
+        k = 0
+        while k < n:
+            dup = -1
+            for m in range(n):
+                if m != k and _normalized_distance(lam[k], lam[m]) < merge_tol:
+                    dup = m
+                    break
+            if dup >= 0:
+                pk = 0.0
+                pm = 0.0
+                for j in range(n_p):
+                    pk += _contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples) ** 2
+                    pm += _contribution_peak(omega, x, lam[dup], res[j, dup], dt, n_samples) ** 2
+                drop = dup if pm <= pk else k
+                n = _remove_simo(lam, res, fails, n, drop)
+                changed = True
+                continue
+            k += 1
+        k = 0
+        while k < n:
+            best = 0.0
+            for j in range(n_p):
+                best = max(best, _contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples))
+            if best * best < t1 or fails[k] > max_iter // 2:
+                n = _remove_simo(lam, res, fails, n, k)
+                changed = True
+                continue
+            k += 1
+        if changed:
+            continue
+        if n >= max_modes:
+            break
+        added = False
+        power = np.zeros(n_f)
+        stat = np.zeros(n_f)
+        for j in range(n_p):
+            env = _tolerance_envelope(omega, lam, res[j], n, tol)
+            for i in range(n_f):
+                xn[j, i] = dw_data[j, i] - model[j, i]
+                power[i] += abs(xn[j, i]) ** 2
+                stat[i] += abs(xn[j, i]) ** 2 / (1.0 + env[i] ** 2)
+        for _try in range(8):
+            best = -1.0
+            peak = -1
+            for i in range(n_f):
+                if not masked[i] and stat[i] > best:
+                    best = stat[i]
+                    peak = i
+            if peak < 0 or best < tsum:
+                break
+            best = power[peak]
+            lo, hi = _band_around(power, peak, delta * delta * best)
+            if hi - lo < min_points:
+                for i in range(lo, hi):
+                    masked[i] = True
+                continue
+            ws = omega[peak] if omega[peak] > 0.0 else dw
+            new, code = _fit_single_simo(xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi,
+                                         complex(np.nan, np.nan), ones, rtmp)
+            if code == FIT_OK:
+                for m in range(n):
+                    if _normalized_distance(new, lam[m]) < merge_tol:
+                        code = FIT_OUT_OF_RANGE
+                        break
+            if code == FIT_OK:
+                e0 = 0.0
+                e1 = 0.0
+                trial = np.zeros(n_f, dtype=np.complex128)
+                for j in range(n_p):
+                    for i in range(n_f):
+                        trial[i] = xn[j, i]
+                    _add_mode(trial, x, new, rtmp[j], dt, n_samples, -1.0, lo, hi)
+                    for i in range(lo, hi):
+                        e0 += abs(xn[j, i]) ** 2
+                        e1 += abs(trial[i]) ** 2
+                if e0 - e1 < tsum:
+                    code = FIT_NO_DROP
+            if code != FIT_OK:
+                for i in range(lo, hi):
+                    masked[i] = True
+                continue
+            lam[n] = new
+            for j in range(n_p):
+                res[j, n] = rtmp[j]
+            fails[n] = 0
+            n += 1
+            added = True
+            break
+        if not added:
+            break
+    # residues back to data units
+    for j in range(n_p):
+        for k in range(n):
+            res[j, k] = res[j, k] * sigma[j]
+    return lam, res, n, total_it, converged
+
+
+# ----------------------------------------------------------------------------------------------
+# residue least squares with fixed eigenvalues (eq. 9)
+# ----------------------------------------------------------------------------------------------
+@jit
+def _residual_basis(w, kind, which):
+    """Residual-term basis at angular frequency ``w``: lower (which=0) / upper (which=1).
+
+    ``kind``: 0 receptance (``1/(i w)^2``, ``1``), 1 mobility (``1/(i w)``, ``i w``),
+    2 accelerance (``1``, ``(i w)^2``).
+    """
+    s = 1j * w
+    if w == 0.0 and ((kind == 0 and which == 0) or (kind == 1 and which == 0)):
+        return 0.0 + 0j  # singular at DC: the term is left out there
+    if kind == 0:
+        return 1.0 / (s * s) if which == 0 else 1.0 + 0j
+    if kind == 1:
+        return 1.0 / s if which == 0 else s
+    return 1.0 + 0j if which == 0 else s * s
+
+
+@jit
+def _residue_columns(omega, lam, dt, n_samples, use, residual_kind):
+    """Complex columns of eq. 9 on the used lines: (n_unknown, n_used).
+
+    Unknowns per mode ``(A1, A2)``: columns ``b + conj-b`` and ``i (b - conj-b)``; with
+    ``residual_kind >= 0`` two complex residual terms (lower, upper) follow, 2 real unknowns each.
+    """
+    n_k = lam.shape[0]
+    n_f = omega.shape[0]
+    n_used = 0
+    for i in range(n_f):
+        if use[i]:
+            n_used += 1
+    n_u = 2 * n_k + (4 if residual_kind >= 0 else 0)
+    cols = np.empty((n_u, n_used), dtype=np.complex128)
+    x = _line_variable(omega, dt)
+    for k in range(n_k):
+        p, sc = _pole_factor(lam[k], dt, n_samples)
+        pc = np.conj(p)
+        scc = np.conj(sc)
+        m = 0
+        for i in range(n_f):
+            if use[i]:
+                b = _basis_at(x[i], p, sc, dt)
+                bc = _basis_at(x[i], pc, scc, dt)
+                cols[2 * k, m] = b + bc
+                cols[2 * k + 1, m] = 1j * (b - bc)
+                m += 1
+    if residual_kind >= 0:
+        m = 0
+        for i in range(n_f):
+            if use[i]:
+                lo = _residual_basis(omega[i], residual_kind, 0)
+                up = _residual_basis(omega[i], residual_kind, 1)
+                cols[2 * n_k, m] = lo
+                cols[2 * n_k + 1, m] = 1j * lo
+                cols[2 * n_k + 2, m] = up
+                cols[2 * n_k + 3, m] = 1j * up
+                m += 1
+    return cols
+
+
+@jit
+def _residue_normal_equations(data, cols, use):
+    """Normal matrix (n_u, n_u) shared by all FRFs, and right sides (n_u, P)."""
+    n_u = cols.shape[0]
+    n_used = cols.shape[1]
+    n_p = data.shape[0]
+    nmat = np.zeros((n_u, n_u))
+    for a in range(n_u):
+        for b in range(a, n_u):
+            acc = 0.0
+            for m in range(n_used):
+                acc += (np.conj(cols[a, m]) * cols[b, m]).real
+            nmat[a, b] = acc
+            nmat[b, a] = acc
+    rhs = np.zeros((n_u, n_p))
+    idx = np.empty(n_used, dtype=np.int64)
+    m = 0
+    for i in range(use.shape[0]):
+        if use[i]:
+            idx[m] = i
+            m += 1
+    for j in range(n_p):
+        for a in range(n_u):
+            acc = 0.0
+            for m in range(n_used):
+                acc += (np.conj(cols[a, m]) * data[j, idx[m]]).real
+            rhs[a, j] = acc
+    return nmat, rhs
+
+
+@jit
+def _residues_fixed(data, omega, lam, dt, n_samples, use, residual_kind):
+    """Residues (P, K) (and residual coefficients (P, 2) when ``residual_kind >= 0``) of eq. 9."""
+    n_k = lam.shape[0]
+    cols = _residue_columns(omega, lam, dt, n_samples, use, residual_kind)
+    nmat, rhs = _residue_normal_equations(data, cols, use)
+    sol, ok = _solve_normal(nmat, rhs)
+    n_p = data.shape[0]
+    n_r = 2 if residual_kind >= 0 else 0
+    out = np.full((n_p, n_k + n_r), complex(np.nan, np.nan))
+    if not ok:
+        return out
+    for j in range(n_p):
+        for k in range(n_k + n_r):
+            out[j, k] = complex(sol[2 * k, j], sol[2 * k + 1, j])
+    return out
+
+
+@jit
+def _synthesize_residual_terms(omega, coef, residual_kind):
+    n_p = coef.shape[0]
+    n_f = omega.shape[0]
+    out = np.zeros((n_p, n_f), dtype=np.complex128)
+    for j in range(n_p):
+        for i in range(n_f):
+            if omega[i] == 0.0 and residual_kind == 0:
+                continue
+            out[j, i] = (coef[j, 0] * _residual_basis(omega[i], residual_kind, 0)
+                         + coef[j, 1] * _residual_basis(omega[i], residual_kind, 1))
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# public wrappers (validate, then call the jitted kernels)
+# ----------------------------------------------------------------------------------------------
+def _as_omega(omega):
+    omega = np.ascontiguousarray(omega, dtype=np.float64)
+    if omega.ndim != 1 or omega.size < 2 or not np.all(np.diff(omega) > 0):
+        raise ValueError("omega: expected a 1-D, strictly increasing array of angular frequencies")
+    return omega
+
+
+def _dt(dt):
+    return float(dt) if dt else 0.0
+
+
+def single_mode_rows(data, omega, scale, dt=None):
+    """Real least-squares rows ``(2F, 4)`` and right side ``(2F,)`` of the single-mode equation
+    (*) (eqs. 11-12 when ``dt`` is None) for one FRF ``data`` (F,) at ``omega`` (rad/s)."""
+    omega = _as_omega(omega)
+    data = np.ascontiguousarray(data, dtype=np.complex128)
+    if data.shape != omega.shape:
+        raise ValueError(f"data: expected shape {omega.shape}, got {data.shape}")
+    return _single_mode_rows(data, omega, float(scale), _dt(dt))
+
+
+def fit_single_mode(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, prev=None):
+    """Linear least-squares single-mode fit over all given lines: ``(lam, residue, code)``.
+
+    ``code`` is 0 for a physical fit (see the ``FIT_*`` constants otherwise).
+    """
+    omega = _as_omega(omega)
+    data = np.ascontiguousarray(data, dtype=np.complex128)
+    if data.shape != omega.shape:
+        raise ValueError(f"data: expected shape {omega.shape}, got {data.shape}")
+    x = _line_variable(omega, _dt(dt))
+    ws = float(np.mean(omega)) or 1.0
+    return _fit_single(data, x, 0, omega.size, ws, _dt(dt), int(n_samples or 0), float(zeta_max),
+                       0.0, np.inf, complex(np.nan, np.nan) if prev is None else complex(prev))
+
+
+def fit_single_mode_simo(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, prev=None):
+    """Global SIMO single-mode fit of all rows of ``data`` (P, F): ``(lam, residues (P,), code)``."""
+    omega = _as_omega(omega)
+    data = np.ascontiguousarray(np.atleast_2d(data), dtype=np.complex128)
+    if data.shape[-1] != omega.size:
+        raise ValueError(f"data: expected last dim {omega.size}, got {data.shape}")
+    x = _line_variable(omega, _dt(dt))
+    res = np.full(data.shape[0], complex(np.nan, np.nan))
+    ws = float(np.mean(omega)) or 1.0
+    lam, code = _fit_single_simo(data, x, 0, omega.size, ws, _dt(dt), int(n_samples or 0),
+                                 float(zeta_max), 0.0, np.inf,
+                                 complex(np.nan, np.nan) if prev is None else complex(prev),
+                                 np.ones(data.shape[0]), res)
+    return lam, res, code
+
+
+def synthesize(omega, lam, residue, dt=None, n_samples=None):
+    """Sum of modal contributions (eq. 4 or its exact discrete form).
+
+    ``lam`` (K,) or (P, K); ``residue`` (P, K); returns (P, F). NaN modes are skipped.
+    """
+    omega = _as_omega(omega)
+    residue = np.ascontiguousarray(np.atleast_2d(residue), dtype=np.complex128)
+    lam = np.ascontiguousarray(np.atleast_2d(lam), dtype=np.complex128)
+    if lam.shape[-1] != residue.shape[-1] or lam.shape[0] not in (1, residue.shape[0]):
+        raise ValueError(f"lam: shape {lam.shape} does not match residue shape {residue.shape}")
+    return _synthesize(omega, lam, residue, _dt(dt), int(n_samples or 0))
+
+
+def residue_normal_equations(data, omega, lam, use=None, dt=None, n_samples=None,
+                             residual_kind=-1):
+    """Normal matrix (n_u, n_u) and right sides (n_u, P) of eq. 9 (unknowns A1, A2 per mode)."""
+    omega = _as_omega(omega)
+    data = np.ascontiguousarray(np.atleast_2d(data), dtype=np.complex128)
+    lam = np.ascontiguousarray(np.atleast_1d(lam), dtype=np.complex128)
+    use = np.ones(omega.size, np.bool_) if use is None else np.ascontiguousarray(use, np.bool_)
+    cols = _residue_columns(omega, lam, _dt(dt), int(n_samples or 0), use, int(residual_kind))
+    return _residue_normal_equations(data, cols, use)
+
+
+def residues_fixed(data, omega, lam, use=None, dt=None, n_samples=None, residual_kind=-1):
+    """Residues (P, K) [+ (P, 2) residual coefficients] by linear least squares, eq. 9."""
+    omega = _as_omega(omega)
+    data = np.ascontiguousarray(np.atleast_2d(data), dtype=np.complex128)
+    lam = np.ascontiguousarray(np.atleast_1d(lam), dtype=np.complex128)
+    use = np.ones(omega.size, np.bool_) if use is None else np.ascontiguousarray(use, np.bool_)
+    if 2 * int(use.sum()) < 2 * lam.size + (4 if residual_kind >= 0 else 0):
+        raise ValueError("use: fewer lines than the residue fit needs")
+    return _residues_fixed(data, omega, lam, _dt(dt), int(n_samples or 0), use,
+                           int(residual_kind))
+
+
+def noise_floor(data):
+    """Robust noise standard deviation per FRF (..., F) from adjacent-line differences."""
+    data = np.ascontiguousarray(data, dtype=np.complex128)
+    flat = data.reshape(-1, data.shape[-1])
+    return np.array([_noise_floor(row) for row in flat]).reshape(data.shape[:-1])
+
+
+def peak_threshold(n_lines, pfa):
+    """Single-line detection threshold on ``|Y|^2 / sigma^2`` (see :func:`_peak_threshold`)."""
+    return _peak_threshold(int(n_lines), float(pfa))
+
+
+# ----------------------------------------------------------------------------------------------
+# per-point diagnostics
+# ----------------------------------------------------------------------------------------------
+@jit
+def _contribution_peaks(omega, dt, n_samples, lam, res):
+    """Peak |contribution| of every (point, mode): ``lam`` (P or 1, K), ``res`` (P, K)."""
+    n_p = res.shape[0]
+    n_k = res.shape[1]
+    x = _line_variable(omega, dt)
+    out = np.full((n_p, n_k), np.nan)
+    for j in range(n_p):
+        jl = j if lam.shape[0] == n_p else 0
+        for kk in range(n_k):
+            if np.isnan(lam[jl, kk].real) or np.isnan(res[j, kk].real):
+                continue
+            out[j, kk] = _contribution_peak(omega, x, lam[jl, kk], res[j, kk], dt, n_samples)
+    return out
+
+
+@jit
+def _point_estimates(data, omega, dt, n_samples, lam, res, delta, min_points, zeta_max):
+    """Per-FRF single-mode estimates of each system mode on its isolated data (eq. 7 with the
+    system eigenvalues and the per-FRF residues): ``(P, K)`` complex, NaN where the fit fails."""
+    n_p = data.shape[0]
+    n_f = data.shape[1]
+    n_k = lam.shape[0]
+    x = _line_variable(omega, dt)
+    dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
+    w_lo = max(omega[0], dw)
+    w_hi = omega[n_f - 1]
+    out = np.full((n_p, n_k), complex(np.nan, np.nan))
+    xn = np.empty(n_f, dtype=np.complex128)
+    power = np.empty(n_f)
+    for j in range(n_p):
+        model = np.zeros(n_f, dtype=np.complex128)
+        for kk in range(n_k):
+            _add_mode(model, x, lam[kk], res[j, kk], dt, n_samples, 1.0, 0, n_f)
+        for kk in range(n_k):
+            for i in range(n_f):
+                xn[i] = data[j, i] - model[i]
+            _add_mode(xn, x, lam[kk], res[j, kk], dt, n_samples, 1.0, 0, n_f)
+            for i in range(n_f):
+                power[i] = abs(xn[i]) ** 2
+            peak = _local_peak(power, omega, lam[kk], dw)
+            lo, hi = _band_around(power, peak, delta * delta * power[peak])
+            if hi - lo < min_points:
+                continue
+            ws = omega[peak] if omega[peak] > 0.0 else dw
+            new, r, code = _fit_single(xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi,
+                                       complex(np.nan, np.nan))
+            if code == FIT_OK:
+                out[j, kk] = new
+    return out
