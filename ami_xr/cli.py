@@ -37,7 +37,12 @@ DEFAULT_DEMO_DIR = "ami_xr_demo"
 
 
 class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
-    """Show defaults and keep the description's line breaks."""
+    """Show defaults (unless the help states its own) and keep the description's line breaks."""
+
+    def _get_help_string(self, action):
+        if "(default:" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)
 
 
 # --- helpers -------------------------------------------------------------------------------------
@@ -80,6 +85,15 @@ def _drop_none(options: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in options.items() if v is not None}
 
 
+def _non_default(args: argparse.Namespace, options: dict[str, Any],
+                 dests: dict[str, str]) -> dict[str, Any]:
+    """Only the options the user changed: the library applies its own defaults (which the help
+    shows), and batch parameter hashes match a Python call with the same settings."""
+    parser: argparse.ArgumentParser = args._parser
+    return {k: v for k, v in options.items()
+            if v is not None and v != parser.get_default(dests.get(k, k))}
+
+
 def _add_output(p: argparse.ArgumentParser, what: str, required: bool = True,
                 default: str | None = None) -> None:
     p.add_argument("-o", "--output", required=required, default=default, metavar="PATH",
@@ -87,15 +101,51 @@ def _add_output(p: argparse.ArgumentParser, what: str, required: bool = True,
 
 
 # --- identify options (shared by identify, batch and demo) ------------------------------------
+def _band(text: str) -> float | str:
+    if text == "all":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or 'all', got {text!r}") from None
+
+
 def _add_identify_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("identification options (ami_xr.identify)")
-    g.add_argument("--method", default=None,
-                   help="identification method passed to ami_xr.identify (default: the "
-                        "library's default)")
+    g.add_argument("--method", default="simo", choices=("simo", "per_frf", "paper"),
+                   help="simo: one eigenvalue fit over all FRFs per mode; per_frf: the paper's "
+                        "per-FRF fits averaged with SNR weights; paper: the paper's AMI exactly "
+                        "(plain mean, eq. 9 over bands, continuous basis, no refinement)")
+    g.add_argument("--refine", dest="refine", action="store_const", const=True, default=None,
+                   help="force the joint maximum-likelihood refinement (default: on unless "
+                        "--method paper)")
+    g.add_argument("--no-refine", dest="refine", action="store_const", const=False,
+                   help="skip the joint refinement (default: refine unless --method paper)")
+    g.add_argument("--delta", type=float, default=0.5,
+                   help="subtraction: fit the lines with |G| >= delta * peak, in (0, 1)")
+    g.add_argument("--pfa", type=float, default=1e-3,
+                   help="subtraction: false-alarm probability of the automatic stop (a noise "
+                        "peak is taken for a mode with this probability)")
+    g.add_argument("--max-modes", type=int, default=20,
+                   help="subtraction: most modes per FRF")
+    g.add_argument("--tol", type=float, default=1e-4,
+                   help="isolation: relative change of Re and Im of every eigenvalue that "
+                        "ends the iteration (1e-4 = 0.01 %%)")
+    g.add_argument("--max-iter", type=int, default=100, help="isolation: iteration cap")
+    g.add_argument("--band", type=_band, default=1.0,
+                   help="global fit: half-width of the band around each mode in half-power "
+                        "bandwidths 2|Re lambda| [rad/s], or 'all' for every line")
+    g.add_argument("--residual-terms", action="store_true",
+                   help="global fit: add lower and upper residual terms for out-of-band modes "
+                        "(measured FRFs)")
 
 
 def _identify_options(args: argparse.Namespace) -> dict[str, Any]:
-    return _drop_none({"method": args.method})
+    return _non_default(args, {
+        "method": args.method, "refine": args.refine, "delta": args.delta, "pfa": args.pfa,
+        "max_modes": args.max_modes, "tol": args.tol, "max_iter": args.max_iter,
+        "band": args.band, "residual_terms": args.residual_terms,
+    }, {})
 
 
 # --- subcommands ---------------------------------------------------------------------------------
@@ -183,20 +233,76 @@ def _frf_options(args: argparse.Namespace) -> dict[str, Any]:
         "average": args.average, "n_average": args.n_average,
         "force_window": args.force_window, "exponential_decay": args.exponential_decay,
         "exponential_end_value": args.exponential_end_value,
-        "hit_checks": not args.no_hit_checks,
         "double_impact_threshold": args.double_impact_threshold,
         "overload_samples": args.overload_samples, "min_force": args.min_force,
         "weak_force_ratio": args.weak_force_ratio,
     }
+    options = _non_default(args, options, {})
+    if args.no_hit_checks:
+        options["hit_checks"] = False
     if args.excitation != "auto":
         options["excitation"] = args.excitation
-    return _drop_none(options)
+    return options
+
+
+class _Activity:
+    """Progress indicator while one long call runs (identification has no finer progress hook):
+    a tqdm bar (or a plain line) on stderr with the elapsed time, refreshed from a thread."""
+
+    def __init__(self, desc: str, enabled: bool):
+        self.desc, self.enabled = desc, enabled
+
+    def __enter__(self):
+        if not self.enabled:
+            return self
+        import threading
+        import time
+
+        self._stop = threading.Event()
+        self._start = time.perf_counter()
+        try:
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=None, desc=self.desc, file=sys.stderr,
+                             bar_format="{desc}: {elapsed}")
+        except ImportError:
+            self._bar = None
+
+        def tick():
+            while not self._stop.wait(0.25):
+                if self._bar is not None:
+                    self._bar.refresh()
+                else:
+                    sys.stderr.write(f"\r{self.desc}: {time.perf_counter() - self._start:.1f} s")
+                    sys.stderr.flush()
+
+        self._thread = threading.Thread(target=tick, daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        if not self.enabled:
+            return False
+        self._stop.set()
+        self._thread.join()
+        if self._bar is not None:
+            self._bar.close()
+        else:
+            sys.stderr.write("\n")
+        return False
+
+
+#: Show the progress indicator from this many FRFs on (small jobs finish in a blink).
+PROGRESS_MIN_POINTS = 8
 
 
 def _identify_with_progress(ds, options: dict[str, Any], show: bool):
     import ami_xr
+    from ami_xr import names
 
-    return ami_xr.identify(ds, **options)
+    n = ds.sizes.get(names.POINT, 0)
+    with _Activity(f"identify: {n} FRFs", show and n >= PROGRESS_MIN_POINTS):
+        return ami_xr.identify(ds, **options)
 
 
 def _cmd_identify(args: argparse.Namespace) -> int:
@@ -279,7 +385,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
          f"{g.sizes['frequency']} lines, 0-{float(g['frequency'][-1]):.4g} Hz, drive point "
          f"{g.attrs.get('drive_point')}\n")
     options = _identify_options(args)
-    result = ami_xr.identify(g, **options)
+    result = _identify_with_progress(g, options, show=True)
     lam = np.atleast_1d(result["eigenvalue"].values) if "eigenvalue" in result else np.zeros(0)
     exact = np.asarray(truth["eigenvalue"].values)
     paper = np.asarray(PAPER_AMI_EIGENVALUES)
@@ -344,8 +450,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     def add(name: str, help_text: str, description: str) -> argparse.ArgumentParser:
-        return sub.add_parser(name, help=help_text, description=description,
-                              formatter_class=_Formatter, parents=[common])
+        p = sub.add_parser(name, help=help_text, description=description,
+                           formatter_class=_Formatter, parents=[common])
+        p.set_defaults(_parser=p)
+        return p
 
     p = add("demo", "identify the paper's benchmark and compare with the paper",
             "Load the shipped benchmark FRFs (sample_data/, or simulate them when absent), run "
