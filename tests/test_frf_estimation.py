@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
+
 import numpy as np
 import pytest
 import scipy.signal
@@ -274,6 +277,14 @@ def _esprit(h: np.ndarray, order: int, dt: float) -> np.ndarray:
     return lam[np.argsort(lam.imag)]
 
 
+def _identify():
+    """ami_xr.identify (the AMI phases), or None where this version does not have it."""
+    found = getattr(ami_xr, "identify", None)
+    if found is None and importlib.util.find_spec("ami_xr.ami.identify") is not None:
+        found = importlib.import_module("ami_xr.ami.identify").identify
+    return found
+
+
 def test_impact_exponential_window_damping_corrected():
     """A lightly damped system hit once; the record is too short for the response to decay.
     With a strong exponential window the FRF is that of the system with poles shifted by
@@ -295,10 +306,11 @@ def test_impact_exponential_window_damping_corrected():
     assert np.all(zeta_raw > 3 * zeta_true)  # the window adds a lot of damping ...
     np.testing.assert_allclose(zeta_corr, zeta_true, rtol=1e-4)  # ... and it comes back out
     np.testing.assert_allclose(lam_corr.imag, lam.imag, rtol=1e-6)
-    if hasattr(ami_xr, "identify"):  # the AMI phases subtract exponential_window_decay
-        modes = ami_xr.identify(est.sel({names.FREQUENCY: slice(2.0, 80.0)}))
+    identify = _identify()
+    if identify is not None:  # the AMI phases add exponential_window_decay back
+        modes = identify(est.sel({names.FREQUENCY: slice(2.0, 80.0)}))
         got = np.sort(modes[names.DAMPING_RATIO].values)
-        np.testing.assert_allclose(np.sort(got), np.sort(zeta_true), rtol=0.05)
+        np.testing.assert_allclose(got, np.sort(zeta_true), rtol=1e-3)
 
 
 def test_impact_hit_checks_reject_bad_hits(tmp_path):
