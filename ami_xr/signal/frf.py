@@ -12,7 +12,9 @@ Processing path (the same for data in memory and data opened lazily from a file)
 A dask-backed Dataset is read one time chunk at a time (or ``chunk_samples`` at a time); the
 samples of a segment that straddles a chunk border are carried to the next chunk, so memory is
 bounded by the chunk size and the result equals the in-memory computation. Segments never span
-two records.
+two records. (The accumulation over time is a loop over blocks rather than an ``apply_ufunc``
+over ``time``: its state, the carried samples and the running sums, crosses chunk borders, which
+``dask="parallelized"`` cannot express; the per-frequency division is the ``apply_ufunc``.)
 
 Impact tests (``excitation="impact"``): every record is one hit. Each hit is checked before use
 (overload, double impact, weak force); rejected hits are listed with their reason in
