@@ -71,7 +71,7 @@ def test_noise_free_analytic_continuous_model(clean):
     out2 = refine(_start(g2, truth, 0.002))
     assert out2.attrs["refine_residual_terms"] == "lower,upper"
     assert (np.abs(out2[names.EIGENVALUE].values - lam) / np.abs(lam)).max() < 1e-8
-    assert np.abs(out2[names.RESIDUAL_UPPER].values).max() < 1e-9 * np.abs(g.frf.values).max()
+    assert np.abs(out2[names.RESIDUAL_COEFFICIENT].values).max() < 1e-9 * np.abs(g.frf.values).max()
 
 
 @pytest.mark.parametrize("seed", [3, 4])
@@ -253,3 +253,29 @@ def test_small_monte_carlo_near_crb():
     assert np.all(fn_ratio < 2.5), fn_ratio
     assert np.all(z_ratio < 2.5), z_ratio
     assert np.mean(fn_ratio) < 1.6 and np.mean(z_ratio) < 1.6
+
+
+# ------------------------------------------------------------------------------------------
+# model-order check: modes AMI missed
+# ------------------------------------------------------------------------------------------
+def test_missing_mode_of_close_pair_is_added():
+    _, g, truth = benchmark(noise=0.15, seed=11)
+    start = _start(g, truth, 0.001).isel({names.MODE: [0, 1, 2]})  # mode 4 missing
+    out = refine(start)
+    assert out.sizes[names.MODE] == 4
+    lam = truth[names.EIGENVALUE].values
+    fit = out[names.EIGENVALUE].values
+    np.testing.assert_array_equal(out[names.MODE].values, [1, 2, 3, 4])  # frequency order
+    assert np.all(np.abs(fit - lam) < 0.5 * np.abs(lam.real))
+    flags = list(out["quality_flags"].values)
+    assert "added_by_refine" in flags[3] and all("added_by_refine" not in f for f in flags[:3])
+    assert np.isnan(out["ami_eigenvalue"].values[3])
+    # without the check the model stays at AMI's order
+    assert refine(start, add_modes=0).sizes[names.MODE] == 3
+
+
+@pytest.mark.parametrize("seed", [20, 21, 22])
+def test_no_spurious_mode_added(seed):
+    _, g, truth = benchmark(noise=0.15, seed=seed)
+    out = refine(_start(g, truth, 0.002))
+    assert out.sizes[names.MODE] == 4

@@ -37,6 +37,7 @@ class Problem:
     dt: float | None
     n_samples: int | None
     residual_terms: tuple[str, ...] = ()
+    residual_kind: int = 0
     y_norm2: np.ndarray = field(init=False)
 
     def __post_init__(self):
@@ -67,7 +68,8 @@ class Projection:
     ok: bool
 
 
-def make_problem(frf, omega, dt, n_samples, residual_terms=(), nyquist=None) -> Problem:
+def make_problem(frf, omega, dt, n_samples, residual_terms=(), nyquist=None,
+                 residual_kind=0) -> Problem:
     """Real-stack complex FRFs ``frf`` (P, L); DC and Nyquist lines get weight 1/sqrt(2)."""
     w = np.ones(omega.shape[0])
     # A real impulse response gives real DC and Nyquist lines: their noise is all in the real
@@ -79,7 +81,8 @@ def make_problem(frf, omega, dt, n_samples, residual_terms=(), nyquist=None) -> 
         w[np.isclose(omega, nyquist, rtol=1e-9, atol=0.0)] = 2**-0.5
     yc = np.asarray(frf, dtype=np.complex128) * w[None, :]
     y = np.ascontiguousarray(np.concatenate([yc.real, yc.imag], axis=1))
-    return Problem(y, np.asarray(omega, float), w, dt, n_samples, tuple(residual_terms))
+    return Problem(y, np.asarray(omega, float), w, dt, n_samples, tuple(residual_terms),
+                   int(residual_kind))
 
 
 def _stack(z):
@@ -88,7 +91,8 @@ def _stack(z):
 
 def project(prob: Problem, lam: np.ndarray) -> Projection:
     """Residues by linear least squares for eigenvalues ``lam`` (all points at once)."""
-    phi, dphi = model_columns(prob.omega, lam, prob.dt, prob.n_samples, prob.residual_terms)
+    phi, dphi = model_columns(prob.omega, lam, prob.dt, prob.n_samples, prob.residual_terms,
+                              prob.residual_kind)
     w = prob.line_weight[:, None]
     a = _stack(phi * w)
     v = _stack(dphi * w)
@@ -186,7 +190,7 @@ def _lam(theta):
 def levenberg_marquardt(
     prob: Problem, lam0: np.ndarray, *, max_iter: int = 50, tol: float = 1e-10,
     free: np.ndarray | None = None, trace: list | None = None, check=None,
-    stat_tol: float = 1e-6, patience: int = 3,
+    stat_tol: float = 1e-4, patience: int = 3,
 ) -> FitResult:
     """Minimise :func:`objective` over the eigenvalues, starting at ``lam0``.
 
@@ -195,7 +199,7 @@ def levenberg_marquardt(
     Converged when every free eigenvalue changes by less than ``tol`` relative to its modulus,
     when the Newton decrement ``g' H^-1 g`` -- the squared length of the next step in units of
     the statistical standard errors, since ``H`` is the Fisher information -- is below
-    ``stat_tol`` (a step below 0.1 % of a standard error changes nothing that matters), or when
+    ``stat_tol`` (a step below 1 % of a standard error changes nothing that matters), or when
     the predicted decrease is at rounding level. ``check(lam)`` (optional) returns a code per
     mode: 0 fine, 1 outside its region, 2 impossible (unstable, merged); the iteration stops with
     ``FitResult.bad`` set as soon as a mode is impossible or has been outside its region for
@@ -242,7 +246,7 @@ def levenberg_marquardt(
             break
         if decrement < stat_tol:
             converged = True
-            message = "step below 1e-3 standard errors"
+            message = "step below 1e-2 standard errors"
             break
         accepted = False
         while mu < 1e12:

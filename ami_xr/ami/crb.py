@@ -24,7 +24,7 @@ from scipy import integrate
 from ami_xr import names
 from ami_xr._provenance import add_history
 from ami_xr.ami import _varpro
-from ami_xr.ami.refine import _QUANTITY_POWER, _model_choice
+from ami_xr.ami.refine import _model_choice
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels.refine import model_columns
 
@@ -124,9 +124,11 @@ def cramer_rao_bound(
     lam = truth[names.EIGENVALUE].values.astype(np.complex128)
     residue = residue_da.values.astype(np.complex128)
     n_point, n_mode = residue.shape
-    quantity = frf.attrs.get(names.ATTR_QUANTITY, truth.attrs.get(names.ATTR_QUANTITY,
-                                                                   "displacement"))
-    power = _QUANTITY_POWER.get(quantity, 0)
+    quantity = frf.attrs.get(names.ATTR_QUANTITY, "displacement")
+    if quantity != "displacement":
+        raise AmiXrValueError(f"frf: the bound is implemented for receptance (displacement) "
+                              f"FRFs, got response_quantity={quantity!r}")
+    power = 0
     decay = float(frf.attrs.get(names.ATTR_EXP_DECAY, 0.0) or 0.0)
 
     # Noise of one FRF line, sqrt(E|e|^2), per point.

@@ -40,15 +40,19 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 from scipy.optimize import linear_sum_assignment
+from scipy.stats import chi2
 
 from ami_xr import names
-from ami_xr._provenance import add_history
+from ami_xr._provenance import add_history, history
 from ami_xr.ami import _varpro
+from ami_xr.ami.global_fit import FLAG_LOW_DRIVE_SNR, RESIDUAL_KIND, mac_matrix, mode_vectors
 from ami_xr.errors import IdentificationError
+from ami_xr.kernels.refine import model_columns, project_points
 
-QUALITY_FLAGS = getattr(names, "QUALITY_FLAGS", "quality_flags")
-_QUANTITY_POWER = {"displacement": 0, "velocity": 1, "acceleration": 2}
+QUALITY_FLAGS = names.QUALITY_FLAGS
+DRIVE_SNR_MIN = 3.0  # global_fit's default threshold of the low_drive_point_snr flag
 _STATUS_OK, _STATUS_NOT_CONVERGED, _STATUS_FALLBACK = 0, 1, 2
+FLAG_ADDED = "added_by_refine"  # a mode AMI missed, added by the likelihood-ratio check
 _FLAG_SEPARATOR = ","
 
 
@@ -93,23 +97,17 @@ def _mode_codes(lam: np.ndarray, lam0: np.ndarray, max_shift: float, min_width: 
     return code
 
 
-def _refine_arrays(
-    frf, freq, lam0, res0, *, dt, n_samples, residual_terms, drive_index, quantity_power,
-    decay, max_iter, tol, max_shift,
-):
-    """Refine on plain arrays: frf (P, L), freq (L,) Hz, lam0 (K,), res0 (P, K)."""
-    n_point = frf.shape[0]
-    n_mode = lam0.shape[0]
-    omega = 2.0 * np.pi * np.asarray(freq, dtype=np.float64)
-    nyquist = np.pi / dt if dt else None
-    prob = _varpro.make_problem(frf, omega, dt, n_samples, residual_terms, nyquist=nyquist)
-    # An exponential window multiplies exp(lam t) by exp(-decay t): data poles are lam - decay.
-    mu0 = np.asarray(lam0, dtype=np.complex128) - decay
-    min_width = 2.0 * (omega[1] - omega[0]) if omega.size > 1 else 0.0
+def _fit_modes(prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width):
+    """Levenberg-Marquardt from ``mu0`` (data poles); a mode that leaves its region around
+    ``ref`` (physical eigenvalues) is frozen at its start and the fit goes on without it.
+
+    Returns ``(fit, free, n_iter, start_cost)``.
+    """
+    n_mode = mu0.size
     free = np.ones(n_mode, bool)
-    fit = None
+
     def check(mu):
-        return _mode_codes(mu + decay, lam0, max_shift, min_width)
+        return _mode_codes(mu + decay, ref, max_shift, min_width)
 
     start_mu = mu0.copy()
     start_cost = None
@@ -120,22 +118,115 @@ def _refine_arrays(
         n_iter += fit.n_iter
         start_cost = fit.start_cost if start_cost is None else start_cost
         if not np.isfinite(fit.cost) or fit.cost > start_cost:
-            # nothing to fit, or worse than AMI's eigenvalues: fall back to them
+            # nothing to fit, or worse than the start: fall back to it
             free[:] = False
             fit = _varpro.levenberg_marquardt(prob, mu0, max_iter=0, free=free)
             break
         if fit.bad is None:  # the optimum must lie inside every free mode's region too
-            final = np.where(free, _mode_codes(fit.lam + decay, lam0, max_shift, min_width), 0)
+            final = np.where(free, _mode_codes(fit.lam + decay, ref, max_shift, min_width), 0)
             if not final.any():
                 break
             fit.bad = final > 0
-        # freeze the offending modes at their AMI values, go on from where the others are
+        # freeze the offending modes at their start values, go on from where the others are
         free &= ~fit.bad
         start_mu = np.where(free, fit.lam, mu0)
+    return fit, free, n_iter, start_cost
+
+
+def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=0.1):
+    """Where a missing mode would be: peaks of the noise-normalised residual power.
+
+    ``S(w) = sum_j |r_j(w)|^2 / s_j^2`` is chi-square with 2P degrees of freedom per line when
+    the model is complete; a missing mode adds a coherent bump about one bandwidth wide, so ``S``
+    is smoothed over the typical bandwidth (in lines) of the modes found. Only peaks above the
+    chi-square level of false-alarm probability ``screen_pfa`` over the band are returned (a cheap
+    screen before the likelihood-ratio test): candidate data poles, damping the median of the
+    modes found.
+    """
+    proj = fit.proj
+    omega = prob.omega
+    n_line = omega.size
+    resid = _residual_rows(prob, proj)
+    s2 = np.maximum(proj.rss, 1e-300) / max(prob.n_rows - proj.coef.shape[1], 1)
+    power = np.sum((resid[:, :n_line] ** 2 + resid[:, n_line:] ** 2) / s2[:, None], axis=0)
+    lam = fit.lam
+    zeta = float(np.median(-lam.real / np.abs(lam))) if lam.size else 0.01
+    dw = omega[1] - omega[0]
+    width = 2.0 * float(np.median(np.abs(lam.real))) if lam.size else 4 * dw
+    m = int(np.clip(round(width / dw), 1, max(n_line // 20, 1)))
+    smooth = np.convolve(power, np.ones(m) / m, mode="same")
+    smooth[: m + 1] = 0.0  # not at DC or Nyquist: no room for a resonance there
+    smooth[-m - 1 :] = 0.0
+    n_point = prob.n_points
+    level = chi2.isf(screen_pfa / n_line, 2 * n_point * m) / m
+    out = []
+    for _ in range(n_candidates):
+        i = int(np.argmax(smooth))
+        if smooth[i] <= level:
+            break
+        w = omega[i]
+        out.append(-zeta * w + 1j * w * np.sqrt(1.0 - zeta**2))
+        smooth[max(i - 3 * m, 0) : i + 3 * m + 1] = 0.0
+    return out
+
+
+def _residual_rows(prob, proj):
+    """Residuals ``y_j - Q Q' y_j`` of every point (P, 2L)."""
+    qty = project_points(prob.y, proj.q, proj.v)[0]
+    return prob.y - qty @ proj.q.T
+
+
+def _refine_arrays(
+    frf, freq, lam0, res0, *, dt, n_samples, residual_terms, residual_kind, drive_index,
+    decay, max_iter, tol, max_shift, add_modes, add_pfa,
+):
+    """Refine on plain arrays: frf (P, L), freq (L,) Hz, lam0 (K,), res0 (P, K).
+
+    Returns per mode (K' >= K: modes added by the likelihood-ratio check come last).
+    """
+    n_point = frf.shape[0]
+    omega = 2.0 * np.pi * np.asarray(freq, dtype=np.float64)
+    nyquist = np.pi / dt if dt else None
+    prob = _varpro.make_problem(frf, omega, dt, n_samples, residual_terms, nyquist=nyquist,
+                                residual_kind=residual_kind)
+    # An exponential window multiplies exp(lam t) by exp(-decay t): data poles are lam - decay.
+    lam0 = np.asarray(lam0, dtype=np.complex128)
+    mu0 = lam0 - decay
+    min_width = 2.0 * (omega[1] - omega[0]) if omega.size > 1 else 0.0
+    opts = dict(decay=decay, max_iter=max_iter, tol=tol, max_shift=max_shift,
+                min_width=min_width)
+    fit, free, n_iter, start_cost = _fit_modes(prob, mu0, lam0, **opts)
+    n_ami = lam0.size
+    # Model-order check by likelihood ratio: a mode AMI missed (e.g. one of a close pair lost in
+    # noise) leaves a coherent residual; add it when the likelihood gain is significant at
+    # false-alarm probability add_pfa over all lines (2 + 2P parameters per mode).
+    threshold = chi2.isf(add_pfa / max(omega.size, 1), 2 + 2 * n_point)
+    for _ in range(add_modes):
+        if not (fit.proj.ok and np.isfinite(fit.cost)):
+            break
+        if np.max(fit.proj.rss / prob.y_norm2) < 1e-20:
+            break  # an exact fit (noise-free data): nothing is missing, the test has no noise
+        best = None
+        for cand in _residual_candidates(prob, fit):
+            ref = np.append(fit.lam + decay, cand + decay)
+            trial = _fit_modes(prob, np.append(fit.lam, cand), ref, **opts)
+            gain = 2.0 * (fit.cost - trial[0].cost)
+            if trial[1][-1] and trial[1].all() and gain > threshold and (
+                    best is None or trial[0].cost < best[0].cost):
+                best = trial
+        if best is None:
+            break
+        fit, trial_free, k_iter, _ = best
+        free = np.append(free, True) & trial_free
+        lam0 = np.append(lam0, fit.lam[-1] + decay)
+        n_iter += k_iter
+    n_mode = lam0.size
+    res0 = np.concatenate([res0, np.full((n_point, n_mode - n_ami), np.nan + 0j)], axis=1)
     status = np.full(n_mode, _STATUS_OK, dtype=np.int8)
+    added = np.arange(n_mode) >= n_ami
     if not fit.converged:
         # flag the modes still moving (a mode wandering in noise must not flag the others)
-        moving = fit.mode_step > 1e-6 if fit.mode_step is not None else np.ones(n_mode, bool)
+        moving = fit.mode_step > 1e-4 if fit.mode_step is not None else np.ones(n_mode, bool)
         status[moving if moving[free].any() else np.ones(n_mode, bool)] = _STATUS_NOT_CONVERGED
     status[~free] = _STATUS_FALLBACK
     proj = fit.proj
@@ -145,7 +236,7 @@ def _refine_arrays(
         dof = max(prob.n_rows - n_coef - 2.0 * free.sum() / max(n_point, 1), 1.0)
         noise_var = np.maximum(proj.rss, 1e-300) / dof
         cov = _varpro.covariance(prob, proj, noise_var, drive_index,
-                                 quantity_power=quantity_power, lam_shift=decay)
+                                 lam_shift=decay)
         residue = cov["residue"]
         cov_theta = cov["cov_theta"]
         res_std = np.sqrt(np.maximum(cov["residue_var"], 0.0))
@@ -176,42 +267,27 @@ def _refine_arrays(
         mode_vector = cov["mode_vector"]
         mv_std = np.sqrt(np.maximum(cov["mode_vector_var"], 0.0))
     else:
-        mode_vector = _mode_vectors(residue, lam, drive_index, quantity_power)
+        mode_vector = mode_vectors(residue, lam, drive_index)
         mv_std = np.full((n_point, n_mode), np.nan)
-    lower = np.full(n_point, np.nan + 0j)
-    upper = np.full(n_point, np.nan + 0j)
+    res_terms = np.full((n_point, 2), np.nan + 0j)  # (lower, upper)
     for r, term in enumerate(residual_terms):
         value = coef[:, 2 * n_mode + 2 * r] + 1j * coef[:, 2 * n_mode + 2 * r + 1]
-        if term == "lower":
-            lower = value
-        else:
-            upper = value
+        res_terms[:, 0 if term == "lower" else 1] = value
     # per-line complex noise std (E|e|^2 = 2 s^2 for the two real components)
     noise_std = np.sqrt(2.0 * noise_var)
     # Output mode c is the refined mode matched to AMI mode c (close modes may swap in the fit).
     if np.all(np.isfinite(lam)):
         width = np.maximum(2.0 * np.abs(lam0.real), min_width)
         order = np.argsort(_match(lam, lam0, width))
-        lam, eig_std, fn_std, zeta_std, status = (
-            a[order] for a in (lam, eig_std, fn_std, zeta_std, status))
+        lam, eig_std, fn_std, zeta_std, status, added = (
+            a[order] for a in (lam, eig_std, fn_std, zeta_std, status, added))
         residue, res_std, mode_vector, mv_std = (
             a[:, order] for a in (residue, res_std, mode_vector, mv_std))
     return (
         lam, eig_std, fn_std, zeta_std, residue, res_std, mode_vector, mv_std, noise_std,
-        lower, upper, status, np.int64(n_iter), np.float64(start_cost),
+        res_terms, status, added, np.int64(n_iter), np.float64(start_cost),
         np.float64(fit.cost),
     )
-
-
-def _mode_vectors(residue, lam, drive_index, quantity_power):
-    """Eq. 8 from (displacement) residues; unscaled ``A / lam`` when there is no drive point."""
-    a_disp = residue / lam[None, :] ** quantity_power
-    if drive_index is None:
-        return a_disp / lam[None, :]
-    phi_p = np.sqrt(a_disp[drive_index] / lam)
-    phi = a_disp / (lam[None, :] * phi_p[None, :])
-    phi[drive_index] = phi_p
-    return phi
 
 
 # ------------------------------------------------------------------------------------------
@@ -276,8 +352,9 @@ def _model_choice(ds, residual_terms):
     n = ds.attrs.get(names.ATTR_NSAMPLES)
     discrete = source == names.SOURCE_IMPULSE and dt is not None and n is not None
     if residual_terms == "auto":
+        # as global_fit did; otherwise none where the modal model is exact
         exact = source in (names.SOURCE_IMPULSE, names.SOURCE_ANALYTIC)
-        terms = () if exact else ("lower", "upper")
+        terms = () if exact and names.RESIDUAL_COEFFICIENT not in ds else ("lower", "upper")
     elif isinstance(residual_terms, str):
         terms = (residual_terms,)
     else:
@@ -294,6 +371,8 @@ def refine(
     band: str | tuple[float, float] = "all",
     residual_terms: str | Sequence[str] = "auto",
     max_shift: float = 3.0,
+    add_modes: int = 2,
+    add_pfa: float = 1e-3,
     path: str | os.PathLike | None = None,
 ) -> xr.Dataset:
     """Maximum-likelihood joint refinement of all eigenvalues and residues over all FRFs.
@@ -307,16 +386,28 @@ def refine(
         Cap on Levenberg-Marquardt iterations (a capped fit is flagged, never an error).
     tol : float
         Converged when every eigenvalue changes by less than ``tol`` times its modulus in one
-        step (or when the objective can no longer decrease at rounding level).
+        step, when the next step would be below 1 % of the standard errors (statistically
+        nothing left to gain), or when the objective can no longer decrease at rounding level.
     band : "all" or (f_min, f_max)
         Frequencies (Hz, inclusive) used by the fit; default the whole band.
     residual_terms : "auto" or subset of ("lower", "upper")
-        Extra terms per FRF for modes outside the band: ``-R_L / w^2`` and a constant ``R_U``
-        (complex). ``"auto"``: none for impulse-response and analytic FRFs (the modal model is
-        exact there), both otherwise. Lines at 0 Hz are left out when ``"lower"`` is used.
+        Extra terms per FRF for modes outside the band, complex coefficients, as in
+        :func:`ami_xr.global_fit`: for receptance ``R_L / (i w)^2`` and a constant ``R_U``
+        (mobility ``1/(i w)``, ``i w``; accelerance ``1``, ``(i w)^2``; a term singular at 0 Hz
+        is zero there). ``"auto"``: none for impulse-response and analytic FRFs (the modal model
+        is exact there), both otherwise.
     max_shift : float
         A mode that moves farther than this many half-power bandwidths ``2 |Re lam|`` from its
         AMI eigenvalue is frozen at the AMI value (flag ``refine_fallback``).
+    add_modes : int
+        At most this many modes AMI missed are added (0: never). After the fit, the peaks of the
+        noise-normalised residual power, smoothed over a typical bandwidth, are tried as extra
+        modes; one is kept when the likelihood-ratio statistic ``2 (f_K - f_K+1)`` exceeds the
+        chi-square quantile with ``2 + 2 P`` degrees of freedom at ``add_pfa / L`` (a false
+        alarm probability ``add_pfa`` over ``L`` lines). Added modes come last, flagged
+        ``added_by_refine``, with NaN AMI values.
+    add_pfa : float
+        False-alarm probability of that test, in (0, 1).
     path : str or path-like, optional
         Write the result there atomically (netCDF, :func:`ami_xr.to_netcdf`).
 
@@ -329,7 +420,7 @@ def refine(
         part + i std of the imaginary part, rad/s), ``natural_frequency_std`` (Hz),
         ``damping_ratio_std``, ``residue_std`` and ``mode_vector_std`` (point, mode: root mean
         square of the complex error); ``frf_noise_std`` (point): the estimated noise per FRF
-        line; ``residual_lower`` / ``residual_upper`` (point) when used; ``quality_flags`` with
+        line; ``residual_coefficient`` (point, residual_term) when used; ``quality_flags`` with
         ``refine_not_converged`` / ``refine_fallback`` added where they apply; attributes
         ``refine_iterations``, ``refine_converged``, ``refine_cost_start``, ``refine_cost``
         (the objective ``sum_j (n/2) log |r_j|^2``), ``refine_model``.
@@ -340,12 +431,14 @@ def refine(
         Missing ``frf`` or ``eigenvalue``, bad parameters, or too few lines in ``band``.
     """
     _check_inputs(ds, max_iter, tol, band, residual_terms, max_shift)
+    if isinstance(add_modes, bool) or not isinstance(add_modes, (int, np.integer)) or add_modes < 0:
+        raise IdentificationError(f"add_modes: expected an integer >= 0, got {add_modes!r}")
+    if not (isinstance(add_pfa, (int, float, np.floating)) and 0 < add_pfa < 1):
+        raise IdentificationError(f"add_pfa: expected a number in (0, 1), got {add_pfa!r}")
     dt, n_samples, terms = _model_choice(ds, residual_terms)
     frf = ds[names.FRF].transpose(names.POINT, names.FREQUENCY)
     if band != "all":
         frf = frf.sel({names.FREQUENCY: slice(float(band[0]), float(band[1]))})
-    if "lower" in terms:
-        frf = frf.where(frf[names.FREQUENCY] > 0, drop=True)
     # The eigenvalues are shared by all points: this step gathers, so dask data are loaded.
     frf = frf.compute() if frf.chunks else frf
     lam0 = ds[names.EIGENVALUE]
@@ -367,15 +460,17 @@ def refine(
         )
         res0 = res0.transpose(names.POINT, names.MODE)
     drive = ds.attrs.get(names.ATTR_DRIVE_POINT)
-    points = list(frf[names.POINT].values)
-    drive_index = points.index(drive) if drive in points else None
-    quantity = ds.attrs.get(names.ATTR_QUANTITY, "displacement")
-    power = _QUANTITY_POWER.get(quantity, 0)
-    decay = float(ds.attrs.get(names.ATTR_EXP_DECAY, 0.0) or 0.0)
+    idx = np.flatnonzero(frf[names.POINT].values.astype(str) == str(drive))
+    drive_index = int(idx[0]) if drive is not None and idx.size else None
+    kind = RESIDUAL_KIND.get(ds.attrs.get(names.ATTR_FRF_TYPE, "receptance"), 0)
+    # identify() corrects the eigenvalues for an exponential window after refine; if they were
+    # corrected already (attr set), the data's poles are lam - beta.
+    decay = float(ds.attrs.get(names.ATTR_EXP_CORRECTED, 0.0) or 0.0)
     freq = frf[names.FREQUENCY].astype(np.float64)
-    kwargs = dict(dt=dt, n_samples=n_samples, residual_terms=terms, drive_index=drive_index,
-                  quantity_power=power, decay=decay, max_iter=int(max_iter), tol=float(tol),
-                  max_shift=float(max_shift))
+    kwargs = dict(dt=dt, n_samples=n_samples, residual_terms=terms, residual_kind=kind,
+                  drive_index=drive_index, decay=decay, max_iter=int(max_iter), tol=float(tol),
+                  max_shift=float(max_shift), add_modes=int(add_modes),
+                  add_pfa=float(add_pfa))
     P, F, M = names.POINT, names.FREQUENCY, names.MODE
     if n_mode == 0:
         outs = None
@@ -388,25 +483,29 @@ def refine(
             res0.astype(np.complex128),
             kwargs=kwargs,
             input_core_dims=[[P, F], [F], [M], [P, M]],
-            output_core_dims=[[M], [M], [M], [M], [P, M], [P, M], [P, M], [P, M], [P], [P], [P],
-                              [M], [], [], []],
+            output_core_dims=[[M], [M], [M], [M], [P, M], [P, M], [P, M], [P, M], [P],
+                              [P, names.RESIDUAL_TERM], [M], [M], [], [], []],
+            exclude_dims={M},  # modes may be added
             dask="parallelized",
             output_dtypes=[np.complex128, np.complex128, float, float, np.complex128, float,
-                           np.complex128, float, float, np.complex128, np.complex128, np.int8,
+                           np.complex128, float, float, np.complex128, np.int8, bool,
                            np.int64, float, float],
-            dask_gufunc_kwargs={"allow_rechunk": True},
+            dask_gufunc_kwargs={"allow_rechunk": True,
+                                "output_sizes": {names.RESIDUAL_TERM: 2}},
             keep_attrs=False,
         )
         outs = [o.compute() if o.chunks else o for o in outs]
     new = {}
-    for var in (names.EIGENVALUE, names.NATURAL_FREQUENCY, names.DAMPING_RATIO, names.RESIDUE,
-                names.MODE_VECTOR):
-        if var in ds:
-            new[names.AMI_PREFIX + var] = ds[var]
     attrs = {}
     if outs is not None:
-        (lam, eig_std, fn_std, zeta_std, residue, res_std, phi, phi_std, noise_std, lower, upper,
-         status, n_iter, cost0, cost) = outs
+        (lam, eig_std, fn_std, zeta_std, residue, res_std, phi, phi_std, noise_std, res_terms,
+         status, added, n_iter, cost0, cost) = outs
+        if added.values.any():
+            ds, lam0 = _with_added_modes(ds, int(added.values.sum()))
+        for var in (names.EIGENVALUE, names.NATURAL_FREQUENCY, names.DAMPING_RATIO,
+                    names.RESIDUE, names.MODE_VECTOR):
+            if var in ds:
+                new[names.AMI_PREFIX + var] = ds[var]
         units_frf = ds[names.FRF].attrs.get(names.ATTR_UNITS)
         hz = {names.ATTR_UNITS: names.FREQUENCY_UNITS}
         new[names.EIGENVALUE] = lam.assign_attrs(units="rad/s")
@@ -421,18 +520,35 @@ def refine(
         new[names.MODE_VECTOR_STD] = phi_std.transpose(P, M)
         new[names.FRF_NOISE_STD] = noise_std.assign_attrs(
             {names.ATTR_UNITS: units_frf} if units_frf else {})
-        if "lower" in terms:
-            new[names.RESIDUAL_LOWER] = lower
-        if "upper" in terms:
-            new[names.RESIDUAL_UPPER] = upper
-        new[QUALITY_FLAGS] = _merge_flags(ds, status.values, lam0)
+        if terms:
+            new[names.RESIDUAL_COEFFICIENT] = res_terms.assign_coords(
+                {names.RESIDUAL_TERM: ["lower", "upper"]})
+        low_snr = _refresh_global_outputs(
+            ds, new, lam.values - decay, residue.transpose(P, M).values,
+            res_terms.values, phi.transpose(P, M).values, noise_std.values, terms, kind, dt,
+            n_samples, drive_index)
+        new[QUALITY_FLAGS] = _merge_flags(ds, status.values, lam0, low_snr, added.values)
         attrs["refine_iterations"] = int(n_iter)
         attrs["refine_converged"] = int(bool(np.all(status.values != _STATUS_NOT_CONVERGED)))
         attrs["refine_cost_start"] = float(cost0)
         attrs["refine_cost"] = float(cost)
     # one assignment: the results share the input's point and mode coordinates
+    if terms:
+        ds = ds.assign_coords({names.RESIDUAL_TERM: ["lower", "upper"]})
     out = ds.assign({k: v.variable if isinstance(v, xr.DataArray) else v for k, v in new.items()})
     out.attrs = {**ds.attrs, **attrs}
+    if outs is not None and added.values.any():
+        # added modes take their place in frequency order; AMI's labels 1..K become 1..K'
+        perm = np.argsort(out[names.NATURAL_FREQUENCY].values, kind="stable")
+        out = out.isel({names.MODE: perm})
+        if names.MODE_2 in out.dims:
+            out = out.isel({names.MODE_2: perm})
+        old = ds[names.MODE].values[: ds.sizes[names.MODE] - int(added.values.sum())]
+        if np.issubdtype(old.dtype, np.integer) and np.array_equal(old, np.arange(1, old.size + 1)):
+            labels = np.arange(1, out.sizes[names.MODE] + 1)
+            out = out.assign_coords({names.MODE: labels})
+            if names.MODE_2 in out.dims:
+                out = out.assign_coords({names.MODE_2: labels})
     out.attrs["refine_model"] = "discrete" if dt else "continuous"
     out.attrs["refine_residual_terms"] = ",".join(terms)
     params = {"max_iter": max_iter, "tol": tol, "band": band, "residual_terms": terms,
@@ -445,8 +561,82 @@ def refine(
     return out
 
 
-def _merge_flags(ds, status, lam0):
-    """AMI's flags per mode with the refinement's flags appended."""
+def _refresh_global_outputs(ds, new, mu, residue, res_terms, phi, noise_std, terms, kind, dt,
+                            n_samples, drive_index):
+    """Recompute what global_fit derived from the residues: the synthesised FRFs and their
+    residual (whole band), the MAC matrix and the drive-point SNR. Returns the new
+    ``low_drive_point_snr`` decision per mode (None when there is no drive point)."""
+    omega = 2 * np.pi * ds[names.FREQUENCY].values.astype(float)
+    cols, _ = model_columns(omega, mu, dt, n_samples, terms, kind)
+    n_mode = mu.size
+    coef = np.zeros((residue.shape[0], cols.shape[1]))
+    coef[:, 0 : 2 * n_mode : 2] = residue.real
+    coef[:, 1 : 2 * n_mode : 2] = residue.imag
+    for r, term in enumerate(terms):
+        value = res_terms[:, 0 if term == "lower" else 1]
+        coef[:, 2 * n_mode + 2 * r] = value.real
+        coef[:, 2 * n_mode + 2 * r + 1] = value.imag
+    P, F, M = names.POINT, names.FREQUENCY, names.MODE
+    frf = ds[names.FRF].transpose(P, F)
+    units = frf.attrs.get(names.ATTR_UNITS, "")
+    if names.FRF_SYNTHESIZED in ds or names.FRF_RESIDUAL in ds:
+        synth = coef @ cols.T
+        new[names.FRF_SYNTHESIZED] = xr.Variable((P, F), synth, {names.ATTR_UNITS: units})
+        new[names.FRF_RESIDUAL] = xr.Variable((P, F), frf.values - synth,
+                                              {names.ATTR_UNITS: units})
+    if names.MAC in ds and names.MODE_2 in ds.dims:
+        new[names.MAC] = xr.Variable((M, names.MODE_2), mac_matrix(phi))
+    if drive_index is None:
+        return None
+    a = residue[drive_index]
+    contribution = cols[:, 0 : 2 * n_mode : 2] * a.real + cols[:, 1 : 2 * n_mode : 2] * a.imag
+    peak = np.max(np.abs(contribution), axis=0)
+    if names.SUB_NOISE_FLOOR in ds:
+        sigma = float(ds[names.SUB_NOISE_FLOOR].transpose(P).values[drive_index])
+    else:
+        sigma = float(noise_std[drive_index])
+    snr = peak / sigma if sigma > 0 else np.full(n_mode, np.inf)
+    new[names.DRIVE_POINT_SNR] = xr.Variable((M,), snr)
+    threshold = DRIVE_SNR_MIN
+    for record in history(ds):
+        if record.get("function") == "ami_xr.global_fit":
+            threshold = float(record.get("parameters", {}).get("drive_snr_min", threshold))
+    return ~(snr >= threshold)
+
+
+def _with_added_modes(ds, n_added):
+    """``ds`` extended along ``mode`` by ``n_added`` modes (AMI values missing: NaN, False, "")."""
+    labels = ds[names.MODE].values
+    if np.issubdtype(labels.dtype, np.integer):
+        extra = np.arange(labels.max() + 1, labels.max() + 1 + n_added)
+    else:
+        extra = np.array([f"added_{i + 1}" for i in range(n_added)])
+    new_labels = np.concatenate([labels, extra])
+    fill = {}
+    for name, var in ds.data_vars.items():
+        if names.MODE in var.dims:
+            if var.dtype == bool:
+                fill[name] = False
+            elif var.dtype.kind in "US":
+                fill[name] = ""
+            elif var.dtype.kind in "iu":
+                fill[name] = -1
+    drop = [v for v in ds.data_vars if names.MODE_2 in ds[v].dims]
+    out = ds.drop_vars(drop).drop_vars(names.MODE_2, errors="ignore")
+    if fill:
+        out = out.reindex({names.MODE: new_labels}, fill_value=fill)
+    else:
+        out = out.reindex({names.MODE: new_labels})
+    if drop:
+        out = out.assign_coords({names.MODE_2: new_labels})
+        for v in drop:  # placeholders, recomputed by _refresh_global_outputs
+            out[v] = ((names.MODE, names.MODE_2), np.full((new_labels.size,) * 2, np.nan))
+    return out, out[names.EIGENVALUE]
+
+
+def _merge_flags(ds, status, lam0, low_snr=None, added=None):
+    """AMI's flags per mode with the refinement's flags appended (and the drive-point SNR flag
+    decided again from the refined residues)."""
     n_mode = status.shape[0]
     if QUALITY_FLAGS in ds and ds[QUALITY_FLAGS].dims == (names.MODE,):
         old = [str(v) for v in ds[QUALITY_FLAGS].values]
@@ -455,6 +645,12 @@ def _merge_flags(ds, status, lam0):
     new = []
     for k in range(n_mode):
         flags = [f for f in old[k].split(_FLAG_SEPARATOR) if f]
+        if low_snr is not None:
+            flags = [f for f in flags if f != FLAG_LOW_DRIVE_SNR]
+            if low_snr[k]:
+                flags.insert(0, FLAG_LOW_DRIVE_SNR)
+        if added is not None and added[k]:
+            flags.append(FLAG_ADDED)
         if status[k] == _STATUS_NOT_CONVERGED:
             flags.append(names.FLAG_REFINE_NOT_CONVERGED)
         elif status[k] == _STATUS_FALLBACK:

@@ -99,11 +99,14 @@ def model_columns(
     dt: float | None,
     n_samples: int | None,
     residual_terms: tuple[str, ...] = (),
+    residual_kind: int = 0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Complex columns of the real-linear model and of its derivative.
 
     Returns ``phi`` (L, 2K + 2R) -- columns multiplying ``A1_k``, ``A2_k`` for each mode and the
-    real and imaginary coefficient of each residual term -- and ``dphi`` (L, 2K) -- the vectors
+    real and imaginary coefficient of each residual term (``residual_kind`` 0 receptance:
+    lower ``1/(i w)^2``, upper ``1``; 1 mobility: ``1/(i w)``, ``i w``; 2 accelerance: ``1``,
+    ``(i w)^2``; a term singular at 0 Hz is 0 there) -- and ``dphi`` (L, 2K) -- the vectors
     ``u_k = b'(lam) + b'(conj lam)`` and ``v_k = i (b'(lam) - b'(conj lam))``, so that the
     derivative of the model of a point with residue ``A1 + i A2`` is
     ``A1 u + A2 v`` with respect to ``Re lam`` and ``A1 v - A2 u`` with respect to ``Im lam``.
@@ -122,11 +125,13 @@ def model_columns(
     phi = np.empty((omega.shape[0], 2 * n_mode + 2 * n_res), dtype=np.complex128)
     phi[:, 0 : 2 * n_mode : 2] = (b_l + b_c).T
     phi[:, 1 : 2 * n_mode : 2] = (1j * (b_l - b_c)).T
+    s = 1j * omega
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lower = (1.0 / s**2, 1.0 / s, np.ones_like(s))[residual_kind]
+    lower = np.where(omega == 0.0, 0.0, lower)
+    upper = (np.ones_like(s), s, s**2)[residual_kind]
     for r, term in enumerate(residual_terms):
-        if term == "lower":  # mass line of modes below the band: -1/w^2
-            col = -1.0 / omega**2
-        else:  # residual flexibility of modes above the band: constant
-            col = np.ones_like(omega)
+        col = lower if term == "lower" else upper
         phi[:, 2 * n_mode + 2 * r] = col
         phi[:, 2 * n_mode + 2 * r + 1] = 1j * col
     dphi = np.empty((omega.shape[0], 2 * n_mode), dtype=np.complex128)
