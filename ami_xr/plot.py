@@ -173,7 +173,7 @@ def plot_bode(
         _mark_modes(ax_mag, fn, mode_labels, text=True)
         _mark_modes(ax_ph, fn, mode_labels, text=False)
         drive = " (drive point)" if p == ds.attrs.get(names.ATTR_DRIVE_POINT) else ""
-        ax_mag.set_title(f"point {p}{drive}", fontsize=9)
+        ax_mag.set_title(f"point {p}{drive}", fontsize=9, pad=12)
         ax_mag.set_ylabel(f"|FRF| [{_units(ds, names.FRF)}]", fontsize=8)
         ax_ph.set_ylabel("phase [deg]", fontsize=8)
         ax_ph.set_xlabel("frequency [Hz]", fontsize=8)
