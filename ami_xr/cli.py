@@ -301,7 +301,9 @@ def _identify_with_progress(ds, options: dict[str, Any], show: bool):
     from ami_xr import names
 
     n = ds.sizes.get(names.POINT, 0)
-    with _Activity(f"identify: {n} FRFs", show and n >= PROGRESS_MIN_POINTS):
+    # Only on a terminal: a ticking line would clutter logs and pipes.
+    tty = sys.stderr.isatty()
+    with _Activity(f"identify: {n} FRFs", show and tty and n >= PROGRESS_MIN_POINTS):
         return ami_xr.identify(ds, **options)
 
 

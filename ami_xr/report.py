@@ -126,7 +126,19 @@ def modal_table(ds: xr.Dataset) -> list[dict[str, Any]]:
     ]
 
 
-def format_modal_table(ds: xr.Dataset, *, extra: dict[str, list[str]] | None = None) -> str:
+def _short_points(detected: str, n_points: int, max_points: int) -> str:
+    labels = detected.split() if detected not in ("-", "none") else []
+    if not labels or len(labels) <= max_points:
+        return detected
+    return f"all {n_points}" if len(labels) == n_points else f"{len(labels)} of {n_points}"
+
+
+def format_modal_table(
+    ds: xr.Dataset,
+    *,
+    extra: dict[str, list[str]] | None = None,
+    max_points: int = 6,
+) -> str:
     """The modal table as aligned text, for terminals and logs.
 
     Parameters
@@ -135,6 +147,9 @@ def format_modal_table(ds: xr.Dataset, *, extra: dict[str, list[str]] | None = N
         Identification result (see :func:`modal_table`).
     extra : dict of column name -> list of str, optional
         Additional columns (one string per mode), e.g. reference values to compare with.
+    max_points : int
+        The "detected in" column lists point labels up to this many, then says "all N" or
+        "k of N" (:func:`modal_table` and the report always list them all).
     """
     rows = modal_table(ds)
     header = ["mode", "f [Hz]", "w [rad/s]", "zeta [%]"]
@@ -152,8 +167,9 @@ def format_modal_table(ds: xr.Dataset, *, extra: dict[str, list[str]] | None = N
         for row, v in zip(body, list(values) + [""] * len(body), strict=False):
             row.append(v)
     header += ["detected in", "flags"]
+    n_points = ds.sizes.get(names.POINT, 0)
     for row, r in zip(body, rows, strict=True):
-        row += [r["detected_in"], r["flags"] or "-"]
+        row += [_short_points(r["detected_in"], n_points, max_points), r["flags"] or "-"]
     if not body:
         return "no modes identified"
     widths = [max(len(h), *(len(row[i]) for row in body)) for i, h in enumerate(header)]
