@@ -264,7 +264,7 @@ class _Activity:
             from tqdm import tqdm
 
             self._bar = tqdm(total=None, desc=self.desc, file=sys.stderr,
-                             bar_format="{desc}: {elapsed}")
+                             bar_format="{desc}: {elapsed}", leave=False)
         except ImportError:
             self._bar = None
 
