@@ -176,6 +176,14 @@ def _cmd_frf(args: argparse.Namespace) -> int:
     ts = _open_any(args.input)
     options = _frf_options(args)
     g = estimate_frf(ts, options)
+    if "hit_rejected" in g:  # impact test: say which hits were left out and why
+        rejected = g["hit_rejected"].values.astype(bool)
+        reasons = (g["hit_reject_reason"].values if "hit_reject_reason" in g
+                   else [""] * rejected.size)
+        _say(f"hits: {rejected.size}, used {int((~rejected).sum())}")
+        for i in range(rejected.size):
+            if rejected[i]:
+                _say(f"  hit {i} rejected: {reasons[i]}")
     ami_xr.to_netcdf(g, args.output, function="ami_xr.frf", parameters=options)
     _say(f"wrote FRFs ({g.sizes['point']} points x {g.sizes['frequency']} lines) to {args.output}")
     return EXIT_OK
