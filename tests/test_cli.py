@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -152,3 +153,29 @@ def test_demo_prints_paper_comparison_and_writes_results(tmp_path):
     exact = np.abs(ami_xr.simulate.paper_tables()["eigenvalue"]) / (2 * np.pi)
     assert fn.size == 4
     np.testing.assert_allclose(fn, exact, rtol=2e-3)
+
+
+HAMMER = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "impact_hammer.lvm"
+
+
+@pytest.mark.skipif(not HAMMER.is_file(), reason="shared/data folder absent")
+def test_frf_from_hammer_lvm_reports_rejected_hits(tmp_path, capsys):
+    out = tmp_path / "hammer_frf.nc"
+    assert main(["frf", str(HAMMER), "-o", str(out)]) == EXIT_OK
+    text = capsys.readouterr().out
+    assert "hit 0 rejected: overload" in text and "hit 2 rejected: double impact" in text
+    g = ami_xr.open_dataset(out)
+    ami_xr.validate(g)
+    assert names.COHERENCE in g
+
+
+def test_frf_bad_option_is_one_line(tmp_path, capsys):
+    rng = np.random.default_rng(0)
+    ts = ami_xr.make_time_dataset(rng.normal(size=(2, 512)), fs=256.0,
+                                  force=rng.normal(size=512), points=["a", "b"], drive_point="a")
+    path = ami_xr.to_netcdf(ts, tmp_path / "t.nc")
+    code = main(["frf", str(path), "-o", str(tmp_path / "f.nc"), "--nperseg", "4096"])
+    assert code == EXIT_ERROR
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "nperseg" in err[0]
+    assert main(["frf", str(path), "-o", str(tmp_path / "f.nc"), "--nperseg", "128"]) == EXIT_OK
