@@ -99,6 +99,7 @@ def identify(frf, **kwargs):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ami_xr.ConvergenceWarning)
         warnings.simplefilter("ignore", ami_xr.NoModesWarning)
+        warnings.simplefilter("ignore", RuntimeWarning)  # nan-statistics of undetected modes
         return ami_xr.identify(frf, **kwargs)
 
 
@@ -126,7 +127,7 @@ def tables(seed: int) -> None:
         print(f"-- {label}: {lam.size} modes identified")
         print(" " * 12 + "".join(f"{'mode ' + str(k + 1):>20s}" for k in range(4))
               + "   | paper " + "".join(f"{'mode ' + str(k + 1):>20s}" for k in range(4)))
-        per = per_frf_eigenvalues(res)
+        per = per_frf_eigenvalues(res) if kwargs.get("method") == "paper" else None
         points = list(frf["point"].values)
         if per is not None:
             for j, p in enumerate(points):
@@ -144,10 +145,15 @@ def tables(seed: int) -> None:
                for z, t in zip(ours, lam_t, strict=True)]
         print("  error (%) " + "".join(f"{e:>20s}" for e in err)
               + "   |       " + "".join(f"{e:>20s}" for e in PAPER["error"]))
+        if "eigenvalue_std" in res:
+            std = res["eigenvalue_std"].values
+            print("  std       " + "".join(fmt_c(std[pairs[k]]) if k in pairs else fmt_c(None)
+                                           for k in range(4))
+                  + "   | (Gauss-Newton standard errors of the real and imaginary parts)")
         if "quality_flags" in res:
             flags = res["quality_flags"].values
-            print("  flags     " + "".join(f"{str(flags[pairs[k]]) or '-':>20s}"
-                                           if k in pairs else f"{'':>20s}" for k in range(4)))
+            print("  flags: " + "; ".join(f"mode {k + 1}: {str(flags[pairs[k]]) or '-'}"
+                                          for k in range(4) if k in pairs))
         print("== Tables 3-6 equivalent: mode vectors x 1e6 (identified | exact | paper's AMI, "
               f"row q1 converted to the tip), {label} ==")
         phi_t = truth["mode_vector"].transpose("point", "mode").values

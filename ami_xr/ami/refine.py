@@ -23,9 +23,18 @@ once, by maximum likelihood:
   are taken only when they lower the objective, so the result is never worse than the start.
 
 Robustness: a mode that leaves the upper-left quadrant, moves more than ``max_shift`` half-power
-bandwidths from its AMI value, or merges with another mode is frozen at its AMI eigenvalue and
-the fit is repeated; such modes carry the flag ``refine_fallback``. A fit that stops at
-``max_iter`` carries ``refine_not_converged``.
+bandwidths from its AMI value, lets its damping collapse (it is then fitting a noise spike) or
+merges with another mode is frozen at its AMI eigenvalue and the fit goes on without it; such
+modes carry the flag ``refine_fallback``. A mode still moving when the fit stops at
+``max_iter`` carries ``refine_not_converged``. Two close modes that trade places keep their AMI
+labels (matched by distance).
+
+Model order: a mode AMI missed (typically one of a close pair lost in the noise) leaves a
+coherent residual. Peaks of the noise-normalised residual power are tried as extra modes and
+kept when the likelihood-ratio statistic is significant (``add_modes``, ``add_pfa``); they are
+flagged ``added_by_refine``. The global-fit outputs that depend on the residues
+(``frf_synthesized``, ``frf_residual``, ``mac``, ``drive_point_snr`` and its
+``low_drive_point_snr`` flag) are recomputed from the refined model.
 
 Standard errors (``eigenvalue_std``, ``natural_frequency_std``, ``damping_ratio_std``,
 ``residue_std``, ``mode_vector_std``) come from the Gauss-Newton covariance at the optimum with the
