@@ -36,13 +36,6 @@ __all__ = [
     "mac_matrix",
 ]
 
-# Variable names of identification results that ami_xr.names does not (yet) define. Looked up
-# with getattr so a name added to ami_xr.names later is picked up without an edit here.
-FRF_SYNTHESIZED = getattr(names, "FRF_SYNTHESIZED", "frf_synthesized")
-FRF_RESIDUAL = getattr(names, "FRF_RESIDUAL", "frf_residual")
-MAC = getattr(names, "MAC", "mac")
-DETECTED = getattr(names, "DETECTED", "detected")
-QUALITY_FLAGS = getattr(names, "QUALITY_FLAGS", "quality_flags")
 POINT_COORDS = tuple(f"{names.POINT}_{axis}" for axis in "xyz")
 
 _MAX_POINTS = 12  # beyond this, figures show the points with the strongest response
@@ -158,7 +151,7 @@ def plot_bode(
     nrow_pts = int(np.ceil(len(pts) / ncol))
     fig = _new_figure(3.4 * ncol, 3.6 * nrow_pts)
     grid = fig.add_gridspec(2 * nrow_pts, ncol, height_ratios=[2, 1] * nrow_pts)
-    synth = ds[FRF_SYNTHESIZED] if FRF_SYNTHESIZED in ds else None
+    synth = ds[names.FRF_SYNTHESIZED] if names.FRF_SYNTHESIZED in ds else None
     for i, p in enumerate(pts):
         r, c = divmod(i, ncol)
         ax_mag = fig.add_subplot(grid[2 * r, c])
@@ -235,7 +228,7 @@ def plot_nyquist(
     labels = _mode_labels(ds)
     fig = _new_figure(2.4 * fn.size + 0.6, 2.3 * len(pts) + 0.4)
     axes = fig.subplots(len(pts), fn.size, squeeze=False)
-    synth = ds[FRF_SYNTHESIZED] if FRF_SYNTHESIZED in ds else None
+    synth = ds[names.FRF_SYNTHESIZED] if names.FRF_SYNTHESIZED in ds else None
     for i, p in enumerate(pts):
         g = ds[names.FRF].sel({names.POINT: p}).values
         s = synth.sel({names.POINT: p}).values if synth is not None else None
@@ -264,26 +257,17 @@ def plot_nyquist(
 
 
 # --- Subtraction residual vs noise floor -------------------------------------------------------
-SUB_NOISE_FLOOR = getattr(names, "SUB_NOISE_FLOOR", "subtraction_noise_floor")
-SUB_STOP_STATISTIC = getattr(names, "SUB_STOP_STATISTIC", "subtraction_stop_statistic")
-SUB_EIGENVALUE = getattr(names, "SUB_EIGENVALUE", "subtraction_eigenvalue")
-SUB_RESIDUE = getattr(names, "SUB_RESIDUE", "subtraction_residue")
-SUB_BAND_LOW = getattr(names, "SUB_BAND_LOW", "subtraction_band_low")
-SUB_BAND_HIGH = getattr(names, "SUB_BAND_HIGH", "subtraction_band_high")
-ATTR_AMI_MODEL = getattr(names, "ATTR_AMI_MODEL", "ami_model")
-
-
 def _subtraction_residual(ds: xr.Dataset, point: Hashable) -> np.ndarray | None:
     """FRF minus every candidate the Subtraction Phase kept, in the basis the phase used."""
-    if SUB_EIGENVALUE not in ds or SUB_RESIDUE not in ds:
+    if names.SUB_EIGENVALUE not in ds or names.SUB_RESIDUE not in ds:
         return None
     from ami_xr.kernels.basis import mode_contribution
 
     sel = {names.POINT: point}
-    lam = np.atleast_1d(ds[SUB_EIGENVALUE].sel(sel).values)
-    res = np.atleast_1d(ds[SUB_RESIDUE].sel(sel).values)
+    lam = np.atleast_1d(ds[names.SUB_EIGENVALUE].sel(sel).values)
+    res = np.atleast_1d(ds[names.SUB_RESIDUE].sel(sel).values)
     omega = 2 * np.pi * np.asarray(ds[names.FREQUENCY].values, dtype=float)
-    discrete = ds.attrs.get(ATTR_AMI_MODEL) == "discrete"
+    discrete = ds.attrs.get(names.ATTR_AMI_MODEL) == "discrete"
     dt = ds.attrs.get(names.ATTR_DT) if discrete else None
     n = ds.attrs.get(names.ATTR_NSAMPLES) if discrete else None
     out = np.asarray(ds[names.FRF].sel(sel).values, dtype=np.complex128).copy()
@@ -320,14 +304,14 @@ def plot_subtraction(
         Save the figure there.
     """
     _require(ds, names.FRF, figure="plot_subtraction")
-    if SUB_NOISE_FLOOR not in ds:
+    if names.SUB_NOISE_FLOOR not in ds:
         raise AmiXrValueError(
-            f"plot_subtraction: the Dataset has no {SUB_NOISE_FLOOR!r} "
+            f"plot_subtraction: the Dataset has no {names.SUB_NOISE_FLOOR!r} "
             "(run ami_xr.subtract or ami_xr.identify first)"
         )
     threshold = None
-    if SUB_STOP_STATISTIC in ds and "threshold" in ds[SUB_STOP_STATISTIC].attrs:
-        threshold = float(ds[SUB_STOP_STATISTIC].attrs["threshold"])
+    if names.SUB_STOP_STATISTIC in ds and "threshold" in ds[names.SUB_STOP_STATISTIC].attrs:
+        threshold = float(ds[names.SUB_STOP_STATISTIC].attrs["threshold"])
     pts = _select_points(ds, points, "plot_subtraction")
     freq = ds[names.FREQUENCY].values
     ncol = min(len(pts), 4)
@@ -344,18 +328,18 @@ def plot_subtraction(
         residual = _subtraction_residual(ds, p)
         if residual is not None:
             ax.semilogy(freq, np.abs(residual), color="tab:blue", lw=0.7, label="residual")
-        sigma = float(np.asarray(ds[SUB_NOISE_FLOOR].sel(sel).values).ravel()[0])
+        sigma = float(np.asarray(ds[names.SUB_NOISE_FLOOR].sel(sel).values).ravel()[0])
         ax.axhline(sigma, color="tab:green", lw=1.2, label="noise floor (std)")
         if threshold is not None:
             ax.axhline(sigma * np.sqrt(threshold), color="tab:red", lw=1.2, ls="--",
                        label="stop threshold")
-        if SUB_EIGENVALUE in ds:
-            lam = np.atleast_1d(ds[SUB_EIGENVALUE].sel(sel).values)
+        if names.SUB_EIGENVALUE in ds:
+            lam = np.atleast_1d(ds[names.SUB_EIGENVALUE].sel(sel).values)
             lam = lam[np.isfinite(lam)]
             _mark_modes(ax, np.abs(lam) / (2 * np.pi), [""] * lam.size, text=False)
-        if SUB_BAND_LOW in ds and SUB_BAND_HIGH in ds:
-            lo = np.atleast_1d(ds[SUB_BAND_LOW].sel(sel).values)
-            hi = np.atleast_1d(ds[SUB_BAND_HIGH].sel(sel).values)
+        if names.SUB_BAND_LOW in ds and names.SUB_BAND_HIGH in ds:
+            lo = np.atleast_1d(ds[names.SUB_BAND_LOW].sel(sel).values)
+            hi = np.atleast_1d(ds[names.SUB_BAND_HIGH].sel(sel).values)
             for a, b in zip(lo, hi, strict=True):
                 if np.isfinite(a) and np.isfinite(b):
                     ax.axvspan(a, b, color="tab:orange", alpha=0.15, lw=0)
@@ -466,7 +450,7 @@ def mac_matrix(vectors: np.ndarray) -> np.ndarray:
 
 
 def plot_mac(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure:
-    """The MAC matrix of the identified mode vectors, values printed in each cell.
+    """The names.MAC matrix of the identified mode vectors, values printed in each cell.
 
     Uses the ``mac`` variable when present, otherwise computes it from ``mode_vector`` (or
     ``residue``). Off-diagonal values near 1 mean two "modes" look alike at the measured points.
@@ -478,8 +462,8 @@ def plot_mac(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure
     path : str or path-like, optional
         Save the figure there.
     """
-    if MAC in ds:
-        mac = np.asarray(ds[MAC].values, dtype=float)
+    if names.MAC in ds:
+        mac = np.asarray(ds[names.MAC].values, dtype=float)
     else:
         vec, _ = _vectors(ds, "plot_mac")
         mac = mac_matrix(vec.values)
@@ -511,9 +495,9 @@ def plot_mac(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure
 
 # --- modal table -------------------------------------------------------------------------------
 def _flags(ds: xr.Dataset) -> list[str]:
-    if QUALITY_FLAGS not in ds:
+    if names.QUALITY_FLAGS not in ds:
         return []
-    return [_as_text(f) for f in np.atleast_1d(ds[QUALITY_FLAGS].values)]
+    return [_as_text(f) for f in np.atleast_1d(ds[names.QUALITY_FLAGS].values)]
 
 
 def _as_text(value: Any) -> str:

@@ -23,8 +23,6 @@ from ami_xr.errors import AmiXrValueError, DataFileError
 
 __all__ = ["modal_table", "format_modal_table", "report", "FIGURES"]
 
-DETECTED = getattr(names, "DETECTED", "detected")
-QUALITY_FLAGS = getattr(names, "QUALITY_FLAGS", "quality_flags")
 
 #: Report figures: file stem -> (plot function name in ami_xr.plot, caption).
 FIGURES: dict[str, tuple[str, str]] = {
@@ -100,16 +98,16 @@ def modal_table(ds: xr.Dataset) -> list[dict[str, Any]]:
         else list(range(1, fn.size + 1))
     )
     detected: list[str] = ["-"] * fn.size
-    if DETECTED in ds and names.POINT in ds[DETECTED].dims:
-        det = ds[DETECTED].transpose(names.POINT, names.MODE).values.astype(bool)
+    if names.DETECTED in ds and names.POINT in ds[names.DETECTED].dims:
+        det = ds[names.DETECTED].transpose(names.POINT, names.MODE).values.astype(bool)
         pts = [str(p) for p in ds[names.POINT].values.tolist()]
         detected = [
             " ".join(p for p, d in zip(pts, det[:, k], strict=True) if d) or "none"
             for k in range(fn.size)
         ]
     flags = (
-        [_text(f) for f in np.atleast_1d(ds[QUALITY_FLAGS].values)]
-        if QUALITY_FLAGS in ds
+        [_text(f) for f in np.atleast_1d(ds[names.QUALITY_FLAGS].values)]
+        if names.QUALITY_FLAGS in ds
         else [""] * fn.size
     )
     return [
