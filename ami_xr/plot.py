@@ -450,7 +450,7 @@ def mac_matrix(vectors: np.ndarray) -> np.ndarray:
 
 
 def plot_mac(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure:
-    """The names.MAC matrix of the identified mode vectors, values printed in each cell.
+    """The MAC matrix of the identified mode vectors, values printed in each cell.
 
     Uses the ``mac`` variable when present, otherwise computes it from ``mode_vector`` (or
     ``residue``). Off-diagonal values near 1 mean two "modes" look alike at the measured points.
