@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+import warnings
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -279,3 +282,54 @@ def test_no_spurious_mode_added(seed):
     _, g, truth = benchmark(noise=0.15, seed=seed)
     out = refine(_start(g, truth, 0.002))
     assert out.sizes[names.MODE] == 4
+
+
+# ------------------------------------------------------------------------------------------
+# on AMI's output
+# ------------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def _quiet():
+    """AMI's own warnings (undetected modes, caps) are not under test here."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        yield
+
+
+@pytest.fixture(scope="module")
+def ami_result():
+    from ami_xr.ami import identify
+
+    _, g, truth = benchmark(noise=0.15, seed=1)
+    with _quiet():
+        gf = identify(g, refine=False)
+    return gf, truth
+
+
+def test_refine_on_global_fit_output_refreshes_derived_outputs(ami_result):
+    gf, truth = ami_result
+    out = refine(gf)
+    # synthesised FRFs and residual follow the refined model
+    np.testing.assert_allclose(out["frf"].values - out["frf_synthesized"].values,
+                               out["frf_residual"].values, atol=1e-15)
+    assert np.sum(np.abs(out["frf_residual"].values) ** 2) <= np.sum(
+        np.abs(gf["frf_residual"].values) ** 2)
+    mac = out["mac"].values
+    np.testing.assert_allclose(np.diag(mac), 1.0)
+    assert out["drive_point_snr"].shape == (out.sizes[names.MODE],)
+    # modes 1 and 2 are below the noise at the drive point: flagged, as by global_fit
+    flags = list(out["quality_flags"].values)
+    assert "low_drive_point_snr" in flags[0] and "low_drive_point_snr" in flags[1]
+    assert "low_drive_point_snr" not in flags[2]
+    # the AMI values are kept
+    xr.testing.assert_equal(out["ami_eigenvalue"], gf[names.EIGENVALUE].rename("ami_eigenvalue"))
+
+
+def test_identify_refines_by_default():
+    from ami_xr.ami import identify
+
+    _, g, _ = benchmark(noise=0.15, seed=2)
+    with _quiet():
+        out = identify(g)
+        paper = identify(g, method="paper")
+    assert "refine_cost" in out.attrs and names.EIGENVALUE_STD in out
+    assert "refine_cost" not in paper.attrs
