@@ -302,6 +302,11 @@ def _refine_arrays(
 # ------------------------------------------------------------------------------------------
 # labeled layer
 # ------------------------------------------------------------------------------------------
+def _as(da: xr.DataArray, dtype) -> xr.DataArray:
+    """``da`` in ``dtype`` (no copy when it already is)."""
+    return da if da.dtype == dtype else da.astype(dtype)
+
+
 def _check_inputs(ds, max_iter, tol, band, residual_terms, max_shift):
     problems = []
     if not isinstance(ds, xr.Dataset):
@@ -475,7 +480,7 @@ def refine(
     # identify() corrects the eigenvalues for an exponential window after refine; if they were
     # corrected already (attr set), the data's poles are lam - beta.
     decay = float(ds.attrs.get(names.ATTR_EXP_CORRECTED, 0.0) or 0.0)
-    freq = frf[names.FREQUENCY].astype(np.float64)
+    freq = _as(frf[names.FREQUENCY], np.float64)
     kwargs = dict(dt=dt, n_samples=n_samples, residual_terms=terms, residual_kind=kind,
                   drive_index=drive_index, decay=decay, max_iter=int(max_iter), tol=float(tol),
                   max_shift=float(max_shift), add_modes=int(add_modes),
@@ -488,8 +493,8 @@ def refine(
             _refine_arrays,
             frf,
             freq,
-            lam0.astype(np.complex128),
-            res0.astype(np.complex128),
+            _as(lam0, np.complex128),
+            _as(res0, np.complex128),
             kwargs=kwargs,
             input_core_dims=[[P, F], [F], [M], [P, M]],
             output_core_dims=[[M], [M], [M], [M], [P, M], [P, M], [P, M], [P, M], [P],
