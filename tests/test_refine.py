@@ -333,3 +333,64 @@ def test_identify_refines_by_default():
         paper = identify(g, method="paper")
     assert "refine_cost" in out.attrs and names.EIGENVALUE_STD in out
     assert "refine_cost" not in paper.attrs
+
+
+# ------------------------------------------------------------------------------------------
+# kernels against plain numpy references
+# ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("dt,n", [(None, None), (60.0 / 4096, 4096), (0.01, None)])
+def test_basis_and_derivative_against_reference(dt, n):
+    from ami_xr.kernels.basis import pole_basis
+    from ami_xr.kernels.refine import basis_and_derivative
+
+    omega = np.linspace(0.0, 200.0, 301)
+    lam = np.array([-0.4 + 65.0j, -2.0 - 30.0j])
+    b, db = basis_and_derivative(omega, lam, dt, n)
+    h = 1e-6
+    for k, lk in enumerate(lam):
+        np.testing.assert_allclose(b[k], pole_basis(omega, lk, dt, n), rtol=1e-12)
+        fd = (pole_basis(omega, lk + h, dt, n) - pole_basis(omega, lk - h, dt, n)) / (2 * h)
+        np.testing.assert_allclose(db[k], fd, rtol=1e-5, atol=1e-9 * np.abs(fd).max())
+
+
+def test_normal_equations_against_dense():
+    from ami_xr.kernels.refine import normal_equations
+
+    rng = np.random.default_rng(0)
+    n_point, n_mode = 5, 3
+    coef = rng.standard_normal((n_point, 2 * n_mode + 2))
+    weight = rng.uniform(0.5, 2.0, n_point)
+    a = rng.standard_normal((2 * n_mode, 2 * n_mode))
+    s_mat = a @ a.T
+    v_res = rng.standard_normal((n_point, 2 * n_mode))
+    h, g = normal_equations(coef, weight, s_mat, v_res, n_mode)
+    h_ref = np.zeros_like(s_mat)
+    g_ref = np.zeros(2 * n_mode)
+    for j in range(n_point):
+        m = np.zeros_like(s_mat)
+        for k in range(n_mode):
+            a1, a2 = coef[j, 2 * k], coef[j, 2 * k + 1]
+            m[2 * k : 2 * k + 2, 2 * k : 2 * k + 2] = [[a1, -a2], [a2, a1]]
+        h_ref += weight[j] * m.T @ s_mat @ m
+        g_ref -= weight[j] * m.T @ v_res[j]
+    np.testing.assert_allclose(h, h_ref, rtol=1e-12)
+    np.testing.assert_allclose(g, g_ref, rtol=1e-12)
+
+
+@pytest.mark.parametrize("n_point", [3, 700])  # serial and parallel paths
+def test_projection_kernels_against_numpy(n_point):
+    from ami_xr.kernels.refine import gram, matmul_small, project_points
+
+    rng = np.random.default_rng(1)
+    a = rng.standard_normal((4098, 6))
+    q, _ = np.linalg.qr(a)
+    v = rng.standard_normal((4098, 4))
+    y = rng.standard_normal((n_point, 4098))
+    qty, rss, vtr = project_points(y, q, v)
+    r = y - (y @ q) @ q.T
+    np.testing.assert_allclose(qty, y @ q, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(rss, np.sum(r**2, axis=1), rtol=1e-10)
+    np.testing.assert_allclose(vtr, r @ v, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(gram(a), a.T @ a, rtol=1e-12)
+    b = rng.standard_normal((6, 6))
+    np.testing.assert_allclose(matmul_small(a, b), a @ b, rtol=1e-12, atol=1e-12)
