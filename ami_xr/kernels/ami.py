@@ -428,6 +428,126 @@ def _fit_single_simo(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, p
     return lam, FIT_OK
 
 
+@jit
+def _fit_two_modes(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, wts, lam_out,
+                   res_out):
+    """Two-mode linear least squares (order-4 analogue of (*)), SIMO over the rows of ``data``:
+    ``G (v^4 + c3 v^3 + c2 v^2 + c1 v + c0) = e3 v^3 + e2 v^2 + e1 v + e0`` with shared ``c`` and
+    per-FRF ``e`` (eliminated by Schur complements). Used by the model-order check to split a
+    band that holds two close modes fitted as one. Writes ``lam_out`` (2,), ``res_out`` (P, 2);
+    returns a FIT_* code."""
+    n_p = data.shape[0]
+    m = 4
+    nll = np.zeros((m, m))
+    red = np.zeros((m, m))
+    redr = np.zeros((m, 1))
+    nsl_all = np.zeros((n_p, m, m))
+    rl_all = np.zeros((n_p, m))
+    vp = np.empty(m + 1, dtype=np.complex128)
+    for i in range(lo, hi):
+        v = _v_at(x[i], ws, dt)
+        vp[0] = 1.0
+        for a in range(1, m + 1):
+            vp[a] = vp[a - 1] * v
+        for a in range(m):
+            for b in range(m):
+                nll[a, b] += (np.conj(vp[a]) * vp[b]).real
+    nll_inv, ok = _gauss_solve(nll, np.eye(m))
+    if not ok:
+        return FIT_SINGULAR
+    for j in range(n_p):
+        nss = np.zeros((m, m))
+        nsl = np.zeros((m, m))
+        rs = np.zeros(m)
+        rl = np.zeros(m)
+        for i in range(lo, hi):
+            g = data[j, i] * wts[j]
+            v = _v_at(x[i], ws, dt)
+            vp[0] = 1.0
+            for a in range(1, m + 1):
+                vp[a] = vp[a - 1] * v
+            rhs = g * vp[m]
+            for a in range(m):
+                ca = np.conj(-g * vp[a])
+                for b in range(m):
+                    nss[a, b] += (ca * (-g * vp[b])).real
+                    nsl[a, b] += (ca * vp[b]).real
+                rs[a] += (ca * rhs).real
+                rl[a] += (np.conj(vp[a]) * rhs).real
+        t = nsl @ nll_inv
+        tn = t @ nsl.T
+        for a in range(m):
+            for b in range(m):
+                red[a, b] += nss[a, b] - tn[a, b]
+            acc = 0.0
+            for b in range(m):
+                acc += t[a, b] * rl[b]
+            redr[a, 0] += rs[a] - acc
+        nsl_all[j] = nsl
+        rl_all[j] = rl
+    sol, ok = _solve_normal(red, redr)
+    if not ok:
+        return FIT_SINGULAR
+    coef = np.empty(m + 1, dtype=np.complex128)
+    coef[0] = 1.0
+    for a in range(m):
+        coef[m - a] = sol[a, 0]
+    roots = np.roots(coef)
+    # poles: roots whose eigenvalue lies in the upper half plane
+    cnt = 0
+    vsel = np.empty(2, dtype=np.complex128)
+    for r in range(m):
+        vr = roots[r]
+        if dt > 0.0:
+            q = 1.0 - dt * ws * vr
+            if abs(q) == 0.0:
+                return FIT_UNSTABLE
+            lam = np.log(1.0 / q) / dt
+        else:
+            lam = ws * vr
+        if lam.imag > 0.0:
+            if cnt >= 2:
+                return FIT_NOT_OSCILLATORY
+            if not (lam.real < 0.0):
+                return FIT_UNSTABLE
+            wn = abs(lam)
+            if -lam.real / wn > zeta_max:
+                return FIT_DAMPING
+            if wn < w_lo or wn > w_hi:
+                return FIT_OUT_OF_RANGE
+            lam_out[cnt] = lam
+            vsel[cnt] = vr
+            cnt += 1
+    if cnt != 2:
+        return FIT_NOT_OSCILLATORY
+    for j in range(n_p):
+        b = np.empty((m, 1))
+        for a in range(m):
+            acc = rl_all[j, a]
+            for c in range(m):
+                acc -= nsl_all[j, c, a] * sol[c, 0]
+            b[a, 0] = acc
+        e = nll_inv @ b
+        for kk in range(2):
+            vr = vsel[kk]
+            num = 0j
+            vpow = 1.0 + 0j
+            for a in range(m):
+                num += e[a, 0] * vpow
+                vpow *= vr
+            den = 1.0 + 0j
+            for r in range(m):
+                if roots[r] != vr:
+                    den *= (vr - roots[r])
+            rr = num / den / wts[j]
+            if dt > 0.0:
+                p, sc = _pole_factor(lam_out[kk], dt, n_samples)
+                res_out[j, kk] = p * dt * ws * rr / sc
+            else:
+                res_out[j, kk] = ws * rr
+    return FIT_OK
+
+
 # ----------------------------------------------------------------------------------------------
 # noise floor, thresholds, bands
 # ----------------------------------------------------------------------------------------------
@@ -576,6 +696,45 @@ def _tolerance_envelope(omega, lam, res, n, tol):
             d = 1j * omega[i] - lk
             env[i] += a / (d.real * d.real + d.imag * d.imag)
     return env
+
+
+@jit
+def _band_energy_peak(stat, omega, lam, n, n_frf, pfa, min_points, masked):
+    """Model-order check near the existing modes: the sum of ``stat`` (|residual|^2 over the
+    noise variance, summed over ``n_frf`` FRFs) over the lines within ``+- 3 |Re lam_k|`` of each
+    mode is Gamma(n_lines n_frf)-distributed under noise alone. Returns the largest-``stat`` line
+    of the most significant window whose sum exceeds the threshold at ``pfa / n``, or -1.
+    This catches a coherent residual spread over a bandwidth (e.g. two close modes fitted as
+    one) that no single line shows."""
+    best_p = 1.0
+    best_line = -1
+    for k in range(n):
+        lo, hi = _model_band(omega, lam[k], 0.31622776601683794, min_points)  # +-3 |Re lam|
+        tot = 0.0
+        peak = -1
+        for i in range(lo, hi):
+            tot += stat[i]
+            if not masked[i] and (peak < 0 or stat[i] > stat[peak]):
+                peak = i
+        if peak < 0:
+            continue
+        dof = (hi - lo) * n_frf
+        pval = _gamma_tail(dof, tot)
+        if pval < pfa / n and pval < best_p:
+            best_p = pval
+            best_line = peak
+    return best_line
+
+
+@jit
+def _split_target(omega, lam, n, peak, masked):
+    """Index of the mode whose +-3 |Re lam| window holds line ``peak`` (not yet tried), or -1."""
+    best = -1
+    for k in range(n):
+        if abs(omega[peak] - lam[k].imag) <= 3.0 * abs(lam[k].real):
+            if best < 0 or abs(omega[peak] - lam[k].imag) < abs(omega[peak] - lam[best].imag):
+                best = k
+    return best
 
 
 @jit
@@ -831,18 +990,47 @@ def _isolate_one(data, omega, x, dt, n_samples, lam, res, n, sigma, delta, tol, 
             break
         added = False
         env = _tolerance_envelope(omega, lam, res, n, tol)
+        stat = np.empty(n_f)
         for _try in range(8):
             best = -1.0
             peak = -1
             for i in range(n_f):
                 power[i] = abs(data[i] - model[i]) ** 2
-                stat_i = power[i] / (sigma**2 + env[i] ** 2)
-                if not masked[i] and stat_i > best:
-                    best = stat_i
+                stat[i] = power[i] / (sigma**2 + env[i] ** 2)
+                if not masked[i] and stat[i] > best:
+                    best = stat[i]
                     peak = i
             if peak < 0 or best < t:
-                break
+                peak = _band_energy_peak(stat, omega, lam, n, 1, pfa, min_points, masked)
+                if peak < 0:
+                    break
             best = power[peak]
+            ks = _split_target(omega, lam, n, peak, masked)
+            if ks >= 0:
+                # a coherent residual inside a mode's band: two close modes were probably fitted
+                # as one. Fit two modes to that mode's isolated data over +-3 |Re lam|; if both
+                # are physical they replace it. Each window is tried once.
+                wl, wh = _model_band(omega, lam[ks], 0.31622776601683794, max(min_points, 6))
+                for i in range(wl, wh):
+                    masked[i] = True
+                iso = np.empty((1, n_f), dtype=np.complex128)
+                for i in range(n_f):
+                    iso[0, i] = data[i] - model[i]
+                _add_mode(iso[0], x, lam[ks], res[ks], dt, n_samples, 1.0, 0, n_f)
+                l2 = np.empty(2, dtype=np.complex128)
+                r2 = np.empty((1, 2), dtype=np.complex128)
+                code = _fit_two_modes(iso, x, wl, wh, omega[(wl + wh) // 2], dt, n_samples,
+                                      zeta_max, w_lo, w_hi, np.ones(1), l2, r2)
+                if code == FIT_OK:
+                    lam[ks] = l2[0]
+                    res[ks] = r2[0, 0]
+                    lam[n] = l2[1]
+                    res[n] = r2[0, 1]
+                    fails[n] = 0
+                    n += 1
+                    added = True
+                    break
+                continue
             lo, hi = _band_around(power, peak, delta * delta * best)
             if hi - lo < min_points:
                 for i in range(lo, hi):
@@ -852,11 +1040,8 @@ def _isolate_one(data, omega, x, dt, n_samples, lam, res, n, sigma, delta, tol, 
             ws = omega[peak] if omega[peak] > 0.0 else dw
             new, r, code = _fit_single(y, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi,
                                        complex(np.nan, np.nan))
-            if code == FIT_OK:
-                for m in range(n):
-                    if _normalized_distance(new, lam[m]) < merge_tol:
-                        code = FIT_OUT_OF_RANGE
-                        break
+            # no duplicate test here: a coherent residual next to a mode (two close modes fitted
+            # as one) must be able to split it; true duplicates merge after the restart
             if code == FIT_OK:
                 trial = y.copy()
                 _add_mode(trial, x, new, r, dt, n_samples, -1.0, 0, n_f)
@@ -1091,8 +1276,35 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                     best = stat[i]
                     peak = i
             if peak < 0 or best < tsum:
-                break
+                peak = _band_energy_peak(stat, omega, lam, n, n_p, pfa, min_points, masked)
+                if peak < 0:
+                    break
             best = power[peak]
+            ks = _split_target(omega, lam, n, peak, masked)
+            if ks >= 0:
+                # split a mode with a coherent residual in its band (see _isolate_one)
+                wl, wh = _model_band(omega, lam[ks], 0.31622776601683794, max(min_points, 6))
+                for i in range(wl, wh):
+                    masked[i] = True
+                iso = xn.copy()
+                for j in range(n_p):
+                    _add_mode(iso[j], x, lam[ks], res[j, ks], dt, n_samples, 1.0, 0, n_f)
+                    wts[j] = wts_all[ks, j] if reweight else 1.0
+                l2 = np.empty(2, dtype=np.complex128)
+                r2 = np.empty((n_p, 2), dtype=np.complex128)
+                code = _fit_two_modes(iso, x, wl, wh, omega[(wl + wh) // 2], dt, n_samples,
+                                      zeta_max, w_lo, w_hi, wts, l2, r2)
+                if code == FIT_OK:
+                    lam[ks] = l2[0]
+                    lam[n] = l2[1]
+                    for j in range(n_p):
+                        res[j, ks] = r2[j, 0]
+                        res[j, n] = r2[j, 1]
+                    fails[n] = 0
+                    n += 1
+                    added = True
+                    break
+                continue
             lo, hi = _band_around(power, peak, delta * delta * best)
             if hi - lo < min_points:
                 for i in range(lo, hi):
@@ -1101,11 +1313,8 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
             ws = omega[peak] if omega[peak] > 0.0 else dw
             new, code = _fit_single_simo(xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi,
                                          complex(np.nan, np.nan), ones, rtmp)
-            if code == FIT_OK:
-                for m in range(n):
-                    if _normalized_distance(new, lam[m]) < merge_tol:
-                        code = FIT_OUT_OF_RANGE
-                        break
+            # no duplicate test here: a coherent residual next to a mode (two close modes fitted
+            # as one) must be able to split it; true duplicates merge after the restart
             if code == FIT_OK:
                 e0 = 0.0
                 e1 = 0.0
