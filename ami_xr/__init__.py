@@ -31,6 +31,7 @@ from ami_xr.io import (  # noqa: E402
 from ami_xr.signal import apply_window, impulse_to_frf  # noqa: E402
 from ami_xr.signal.frf import convert_quantity, frf  # noqa: E402
 from ami_xr.io.lvm import read_lvm  # noqa: E402
+from ami_xr.ami import global_fit, identify, isolate, subtract  # noqa: E402
 from ami_xr.ami.refine import refine  # noqa: E402
 from ami_xr.ami.crb import cramer_rao_bound  # noqa: E402
 
@@ -49,6 +50,10 @@ from ami_xr.report import format_modal_table, modal_table, report  # noqa: E402
 from ami_xr import accessor as _accessor  # noqa: E402,F401  (registers ds.ami)
 
 __all__ = [
+    "subtract",
+    "isolate",
+    "global_fit",
+    "identify",
     "__version__",
     "names",
     "simulate",

@@ -72,3 +72,10 @@ from ami_xr.signal.frf import convert_quantity, frf  # noqa: E402
 
 AmiAccessor.frf = _method(frf)
 AmiAccessor.convert_quantity = _method(convert_quantity)
+
+from ami_xr.ami import global_fit, identify, isolate, subtract  # noqa: E402
+
+AmiAccessor.subtract = _method(subtract)
+AmiAccessor.isolate = _method(isolate)
+AmiAccessor.global_fit = _method(global_fit)
+AmiAccessor.identify = _method(identify)
