@@ -240,6 +240,7 @@ def _modal_summary(ds) -> tuple[int, str]:
 def _process_one(job: dict[str, Any]) -> dict[str, Any]:
     """Run the pipeline on one file (in a worker process); never raises for a bad file."""
     import ami_xr
+    from ami_xr.ami import identify
 
     inp, out = Path(job["input"]), Path(job["output"])
     row = {"file": job["rel"], "status": STATUS_FAILED, "modes": "", "frequencies_hz": "",
@@ -258,7 +259,7 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
                         f"('{names.RESPONSE}'); found variables {sorted(map(str, ds.data_vars))}"
                     )
                 ds = estimate_frf(ds, job["frf_options"])
-            result = ami_xr.identify(ds, **job["identify_options"])
+            result = identify(ds, **job["identify_options"])
             result.attrs.update({
                 ATTR_INPUT: job["rel"],
                 ATTR_INPUT_SHA: input_sha,

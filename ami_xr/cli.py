@@ -305,14 +305,14 @@ PROGRESS_MIN_POINTS = 8
 
 
 def _identify_with_progress(ds, options: dict[str, Any], show: bool):
-    import ami_xr
     from ami_xr import names
+    from ami_xr.ami import identify
 
     n = ds.sizes.get(names.POINT, 0)
     # Only on a terminal: a ticking line would clutter logs and pipes.
     tty = sys.stderr.isatty()
     with _Activity(f"identify: {n} FRFs", show and tty and n >= PROGRESS_MIN_POINTS):
-        return ami_xr.identify(ds, **options)
+        return identify(ds, **options)
 
 
 def _cmd_identify(args: argparse.Namespace) -> int:

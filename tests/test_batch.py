@@ -19,6 +19,11 @@ from ami_xr.batch import SUMMARY_NAME, batch, find_inputs
 from ami_xr.cli import EXIT_BATCH_FAILURES, EXIT_OK, main
 from ami_xr.errors import AmiXrValueError, DataFileError
 
+REPO = Path(__file__).resolve().parents[1]
+# Subprocesses import this checkout whatever the working directory or installed version.
+ENV = {**os.environ, "PYTHONPATH": os.pathsep.join(
+    [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
+
 
 def _small_frf(seed: int):
     g, _ = ami_xr.simulate.random_system(n_points=5, n_modes=5, noise=0.01, seed=seed,
@@ -154,7 +159,7 @@ def test_ctrl_c_leaves_no_partial_files_and_resumes(tmp_path):
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "ami_xr.cli", "batch", str(root), "-o",
                              str(out), "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, env=ENV)
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and proc.poll() is None:
         if list(out.rglob("*.modes.nc")):
@@ -176,11 +181,11 @@ def test_ctrl_c_leaves_no_partial_files_and_resumes(tmp_path):
 
 
 def test_batch_campaign_script(tmp_path):
-    script = Path(__file__).resolve().parents[1] / "scripts" / "batch_campaign.py"
+    script = REPO / "scripts" / "batch_campaign.py"
     cmd = [sys.executable, str(script), "--example", "2", "-o", str(tmp_path / "c")]
-    first = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    first = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=ENV)
     assert first.returncode == 0, first.stderr
     assert "2 processed" in first.stdout and "max |f error|" in first.stdout
-    second = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    second = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=ENV)
     assert second.returncode == 0, second.stderr
     assert "2 up to date" in second.stdout

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -16,11 +17,15 @@ from ami_xr import names
 from ami_xr.cli import EXIT_ERROR, EXIT_OK, EXIT_USAGE, build_parser, main
 
 COMMANDS = ("demo", "simulate", "frf", "identify", "report", "convert", "batch")
+REPO = Path(__file__).resolve().parents[1]
+# Subprocesses import this checkout whatever the working directory or installed version.
+ENV = {**os.environ, "PYTHONPATH": os.pathsep.join(
+    [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
 
 
 def _run(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "ami_xr.cli", *args], capture_output=True,
-                          text=True, timeout=timeout)
+                          text=True, timeout=timeout, env=ENV)
 
 
 def _subparsers() -> dict[str, argparse.ArgumentParser]:
@@ -70,7 +75,7 @@ def test_help_compiles_nothing_and_imports_no_extras():
         "print('COMPILED', compiled, 'EXTRAS', extras)\n"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=120)
+                          timeout=120, env=ENV)
     assert proc.returncode == 0, proc.stderr
     assert "COMPILED [] EXTRAS []" in proc.stdout
 
@@ -155,7 +160,7 @@ def test_demo_prints_paper_comparison_and_writes_results(tmp_path):
     np.testing.assert_allclose(fn, exact, rtol=2e-3)
 
 
-HAMMER = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "impact_hammer.lvm"
+HAMMER = REPO.parent / "shared" / "data" / "impact_hammer.lvm"
 
 
 @pytest.mark.skipif(not HAMMER.is_file(), reason="shared/data folder absent")

@@ -8,6 +8,7 @@ import xarray as xr
 
 import ami_xr
 from ami_xr import names
+from ami_xr.ami import identify
 from ami_xr.errors import AmiXrValueError
 from ami_xr.report import FIGURES, format_modal_table, modal_table, report
 
@@ -20,7 +21,7 @@ ALL_PNGS = {f"{stem}.png" for stem in FIGURES}
 def benchmark_result() -> xr.Dataset:
     """The identified paper benchmark (15 % noise, seed 0)."""
     _, g, _ = ami_xr.simulate.benchmark(noise=0.15, seed=0)
-    return ami_xr.identify(g)
+    return identify(g)
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +32,7 @@ def chain_result() -> xr.Dataset:
     for coord in ("point_x", "point_y", "point_z"):
         if coord in g.coords:
             g = g.drop_vars(coord)
-    return ami_xr.identify(g)
+    return identify(g)
 
 
 def _pngs(folder):

@@ -10,6 +10,7 @@ import xarray as xr
 
 import ami_xr
 from ami_xr import names
+from ami_xr.ami import identify
 from ami_xr.errors import DataFileError
 from ami_xr.io.uff import parse_point_label, point_label, read_uff, write_uff
 
@@ -186,7 +187,7 @@ def test_measurement_converts_and_identifies_without_options(tmp_path):
     assert main(["convert", str(MEASUREMENT), "-o", str(nc)]) == 0
     ds = ami_xr.open_dataset(nc)
     xr.testing.assert_equal(ds[names.FRF], read_uff(MEASUREMENT)[names.FRF])
-    result = ami_xr.identify(ds)
+    result = identify(ds)
     fn = np.atleast_1d(result[names.NATURAL_FREQUENCY].values)
     assert fn.size >= 1
     assert np.all((fn > 0) & (fn < 1000))
