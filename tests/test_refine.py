@@ -394,3 +394,17 @@ def test_projection_kernels_against_numpy(n_point):
     np.testing.assert_allclose(gram(a), a.T @ a, rtol=1e-12)
     b = rng.standard_normal((6, 6))
     np.testing.assert_allclose(matmul_small(a, b), a @ b, rtol=1e-12, atol=1e-12)
+
+
+def test_spurious_ami_mode_is_dropped():
+    _, g, truth = benchmark(noise=0.15, seed=12)
+    start = _start(g, truth, 0.001)
+    lam = np.append(start[names.EIGENVALUE].values, -0.5 + 150.0j)  # fits only noise
+    start = start.reindex({names.MODE: [1, 2, 3, 4, 5]})
+    start[names.EIGENVALUE] = (names.MODE, lam)
+    out = refine(start)
+    assert out.sizes[names.MODE] == 4
+    assert out.attrs["refine_removed_modes"] == "5"
+    np.testing.assert_array_equal(out[names.MODE].values, [1, 2, 3, 4])
+    kept = refine(start, drop_modes=False)
+    assert kept.sizes[names.MODE] == 5

@@ -187,11 +187,12 @@ def _residual_rows(prob, proj):
 
 def _refine_arrays(
     frf, freq, lam0, res0, *, dt, n_samples, residual_terms, residual_kind, drive_index,
-    decay, max_iter, tol, max_shift, add_modes, add_pfa,
+    decay, max_iter, tol, max_shift, add_modes, add_pfa, drop_modes,
 ):
     """Refine on plain arrays: frf (P, L), freq (L,) Hz, lam0 (K,), res0 (P, K).
 
-    Returns per mode (K' >= K: modes added by the likelihood-ratio check come last).
+    Returns per output mode (AMI modes that survive, in AMI order, then added ones) and
+    ``origin``: the AMI mode index of each output mode, -1 for an added one.
     """
     n_point = frf.shape[0]
     omega = 2.0 * np.pi * np.asarray(freq, dtype=np.float64)
@@ -210,11 +211,29 @@ def _refine_arrays(
     # noise) leaves a coherent residual; add it when the likelihood gain is significant at
     # false-alarm probability add_pfa over all lines (2 + 2P parameters per mode).
     threshold = chi2.isf(add_pfa / max(omega.size, 1), 2 + 2 * n_point)
-    for _ in range(add_modes):
+    origin = np.arange(n_ami)
+    # An exact fit (noise-free data) leaves no noise for the tests to refer to: order kept.
+    exact = not (fit.proj.ok and np.isfinite(fit.cost)) or np.max(
+        fit.proj.rss / prob.y_norm2) < 1e-20
+    # A mode whose removal costs less likelihood than that level is not significant (a spurious
+    # AMI mode fitting noise): dropped, the others refitted. Screened cheaply first: removing a
+    # mode without refitting the others costs at least as much as with refitting.
+    while drop_modes and not exact and fit.lam.size > 1:
+        lr = np.array([2.0 * (_varpro.objective(prob, _varpro.project(
+            prob, np.delete(fit.lam, k))) - fit.cost) for k in range(fit.lam.size)])
+        k = int(np.argmin(lr))
+        if not lr[k] < threshold:
+            break
+        trial = _fit_modes(prob, np.delete(fit.lam, k), np.delete(lam0, k), **opts)
+        if not 2.0 * (trial[0].cost - fit.cost) < threshold:
+            break
+        fit, free = trial[0], np.delete(free, k) & trial[1]
+        n_iter += trial[2]
+        lam0, origin, res0 = np.delete(lam0, k), np.delete(origin, k), np.delete(res0, k, 1)
+    n_ami = lam0.size
+    for _ in range(add_modes if not exact else 0):
         if not (fit.proj.ok and np.isfinite(fit.cost)):
             break
-        if np.max(fit.proj.rss / prob.y_norm2) < 1e-20:
-            break  # an exact fit (noise-free data): nothing is missing, the test has no noise
         best = None
         for cand in _residual_candidates(prob, fit):
             ref = np.append(fit.lam + decay, cand + decay)
@@ -231,6 +250,7 @@ def _refine_arrays(
         n_iter += k_iter
     n_mode = lam0.size
     res0 = np.concatenate([res0, np.full((n_point, n_mode - n_ami), np.nan + 0j)], axis=1)
+    origin = np.concatenate([origin, np.full(n_mode - n_ami, -1)])
     status = np.full(n_mode, _STATUS_OK, dtype=np.int8)
     added = np.arange(n_mode) >= n_ami
     if not fit.converged:
@@ -288,13 +308,13 @@ def _refine_arrays(
     if np.all(np.isfinite(lam)):
         width = np.maximum(2.0 * np.abs(lam0.real), min_width)
         order = np.argsort(_match(lam, lam0, width))
-        lam, eig_std, fn_std, zeta_std, status, added = (
-            a[order] for a in (lam, eig_std, fn_std, zeta_std, status, added))
+        lam, eig_std, fn_std, zeta_std, status, added, origin = (
+            a[order] for a in (lam, eig_std, fn_std, zeta_std, status, added, origin))
         residue, res_std, mode_vector, mv_std = (
             a[:, order] for a in (residue, res_std, mode_vector, mv_std))
     return (
         lam, eig_std, fn_std, zeta_std, residue, res_std, mode_vector, mv_std, noise_std,
-        res_terms, status, added, np.int64(n_iter), np.float64(start_cost),
+        res_terms, status, origin, np.int64(n_iter), np.float64(start_cost),
         np.float64(fit.cost),
     )
 
@@ -387,6 +407,7 @@ def refine(
     max_shift: float = 3.0,
     add_modes: int = 2,
     add_pfa: float = 1e-3,
+    drop_modes: bool = True,
     path: str | os.PathLike | None = None,
 ) -> xr.Dataset:
     """Maximum-likelihood joint refinement of all eigenvalues and residues over all FRFs.
@@ -422,6 +443,10 @@ def refine(
         ``added_by_refine``, with NaN AMI values.
     add_pfa : float
         False-alarm probability of that test, in (0, 1).
+    drop_modes : bool
+        Drop AMI modes that fail the same test (removing the mode and refitting the others
+        lowers the likelihood by less than that level: a spurious mode fitting noise). Their
+        labels go to the attribute ``refine_removed_modes``; at least one mode stays.
     path : str or path-like, optional
         Write the result there atomically (netCDF, :func:`ami_xr.to_netcdf`).
 
@@ -484,7 +509,7 @@ def refine(
     kwargs = dict(dt=dt, n_samples=n_samples, residual_terms=terms, residual_kind=kind,
                   drive_index=drive_index, decay=decay, max_iter=int(max_iter), tol=float(tol),
                   max_shift=float(max_shift), add_modes=int(add_modes),
-                  add_pfa=float(add_pfa))
+                  add_pfa=float(add_pfa), drop_modes=bool(drop_modes))
     P, F, M = names.POINT, names.FREQUENCY, names.MODE
     if n_mode == 0:
         outs = None
@@ -502,7 +527,7 @@ def refine(
             exclude_dims={M},  # modes may be added
             dask="parallelized",
             output_dtypes=[np.complex128, np.complex128, float, float, np.complex128, float,
-                           np.complex128, float, float, np.complex128, np.int8, bool,
+                           np.complex128, float, float, np.complex128, np.int8, np.int64,
                            np.int64, float, float],
             dask_gufunc_kwargs={"allow_rechunk": True,
                                 "output_sizes": {names.RESIDUAL_TERM: 2}},
@@ -513,9 +538,17 @@ def refine(
     attrs = {}
     if outs is not None:
         (lam, eig_std, fn_std, zeta_std, residue, res_std, phi, phi_std, noise_std, res_terms,
-         status, added, n_iter, cost0, cost) = outs
-        if added.values.any():
-            ds, lam0 = _with_added_modes(ds, int(added.values.sum()))
+         status, origin, n_iter, cost0, cost) = outs
+        origin = origin.values
+        added = origin < 0
+        kept = origin[~added]
+        if kept.size < n_mode:  # insignificant AMI modes dropped
+            removed = [ds[names.MODE].values[k].item() for k in range(n_mode) if k not in kept]
+            attrs["refine_removed_modes"] = ",".join(str(r) for r in removed)
+            ds = _select_modes(ds, kept)
+            lam0 = ds[names.EIGENVALUE]
+        if added.any():
+            ds, lam0 = _with_added_modes(ds, int(added.sum()))
         for var in (names.EIGENVALUE, names.NATURAL_FREQUENCY, names.DAMPING_RATIO,
                     names.RESIDUE, names.MODE_VECTOR):
             if var in ds:
@@ -541,7 +574,7 @@ def refine(
             ds, new, lam.values - decay, residue.transpose(P, M).values,
             res_terms.values, phi.transpose(P, M).values, noise_std.values, terms, kind, dt,
             n_samples, drive_index)
-        new[QUALITY_FLAGS] = _merge_flags(ds, status.values, lam0, low_snr, added.values)
+        new[QUALITY_FLAGS] = _merge_flags(ds, status.values, lam0, low_snr, added)
         attrs["refine_iterations"] = int(n_iter)
         attrs["refine_converged"] = int(bool(np.all(status.values != _STATUS_NOT_CONVERGED)))
         attrs["refine_cost_start"] = float(cost0)
@@ -551,13 +584,13 @@ def refine(
         ds = ds.assign_coords({names.RESIDUAL_TERM: ["lower", "upper"]})
     out = ds.assign({k: v.variable if isinstance(v, xr.DataArray) else v for k, v in new.items()})
     out.attrs = {**ds.attrs, **attrs}
-    if outs is not None and added.values.any():
+    if outs is not None and added.any():
         # added modes take their place in frequency order; AMI's labels 1..K become 1..K'
         perm = np.argsort(out[names.NATURAL_FREQUENCY].values, kind="stable")
         out = out.isel({names.MODE: perm})
         if names.MODE_2 in out.dims:
             out = out.isel({names.MODE_2: perm})
-        old = ds[names.MODE].values[: ds.sizes[names.MODE] - int(added.values.sum())]
+        old = ds[names.MODE].values[: ds.sizes[names.MODE] - int(added.sum())]
         if np.issubdtype(old.dtype, np.integer) and np.array_equal(old, np.arange(1, old.size + 1)):
             labels = np.arange(1, out.sizes[names.MODE] + 1)
             out = out.assign_coords({names.MODE: labels})
@@ -566,7 +599,8 @@ def refine(
     out.attrs["refine_model"] = "discrete" if dt else "continuous"
     out.attrs["refine_residual_terms"] = ",".join(terms)
     params = {"max_iter": max_iter, "tol": tol, "band": band, "residual_terms": terms,
-              "max_shift": max_shift}
+              "max_shift": max_shift, "add_modes": add_modes, "add_pfa": add_pfa,
+              "drop_modes": drop_modes}
     out = add_history(out, "ami_xr.refine", params)
     if path is not None:
         from ami_xr.io import to_netcdf
@@ -616,6 +650,14 @@ def _refresh_global_outputs(ds, new, mu, residue, res_terms, phi, noise_std, ter
         if record.get("function") == "ami_xr.global_fit":
             threshold = float(record.get("parameters", {}).get("drive_snr_min", threshold))
     return ~(snr >= threshold)
+
+
+def _select_modes(ds, keep):
+    """``ds`` restricted to the modes at positions ``keep`` (and the MAC's second mode dim)."""
+    out = ds.isel({names.MODE: keep})
+    if names.MODE_2 in out.dims:
+        out = out.isel({names.MODE_2: keep})
+    return out
 
 
 def _with_added_modes(ds, n_added):
