@@ -3,6 +3,8 @@
 Each subcommand parses its options, calls one public function (heavy imports happen inside the
 subcommand, so ``ami-xr --help`` is fast and compiles nothing), and maps errors to exit codes:
 
+* Warnings of ami_xr (e.g. no modes found, iteration cap reached) print as one line each;
+  other packages' warnings only with ``-v``.
 * 0 success; 1 a library error (bad input file, bad option value, failed identification): one
   line ``ami-xr <command>: error: ...`` on stderr, no traceback (``-v`` shows it); 2 a usage error
   (argparse); 3 ``batch`` finished but some files failed; 130 interrupted (Ctrl-C).
@@ -14,11 +16,12 @@ import argparse
 import os
 import sys
 import traceback
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ami_xr.errors import AmiXrError
+from ami_xr.errors import AmiXrError, AmiXrWarning
 
 EXIT_OK = 0
 EXIT_ERROR = 1
@@ -564,8 +567,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``ami-xr``; returns the exit code (see the module docstring)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+
+    def show_warning(message, category, filename, lineno, file=None, line=None):
+        # ami_xr's own warnings (no modes, no convergence) as one line each; warnings from
+        # other packages (numpy internals) only with -v, with their source location.
+        if issubclass(category, AmiXrWarning):
+            text = " ".join(str(message).split())
+            print(f"ami-xr {args.command}: warning: {category.__name__}: {text}", file=sys.stderr)
+        elif args.verbose:
+            print(warnings.formatwarning(message, category, filename, lineno, line).rstrip(),
+                  file=sys.stderr)
+
     try:
-        return int(args.func(args) or EXIT_OK)
+        with warnings.catch_warnings():
+            warnings.showwarning = show_warning
+            return int(args.func(args) or EXIT_OK)
     except KeyboardInterrupt:
         print("ami-xr: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
