@@ -102,18 +102,17 @@ def _gather(lam: np.ndarray, label: np.ndarray, n_modes: int):
 
 
 def _average(point_lam: np.ndarray, weight: np.ndarray):
+    """Weighted mean per mode and spread ``std(Re) + i std(Im)`` (NaN below two estimates)."""
     det = np.isfinite(point_lam)
     w = np.where(det, weight, 0.0)
     z = np.where(det, point_lam, 0.0)
+    cnt = det.sum(0)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = (w * z).sum(0) / w.sum(0)
-        cnt = det.sum(0)
-        re = np.where(det, point_lam.real, np.nan)
-        im = np.where(det, point_lam.imag, np.nan)
-        spread = np.where(cnt >= 2, np.nanstd(re, axis=0, ddof=1) if point_lam.shape[0] > 1
-                          else np.nan, np.nan) + 1j * np.where(
-            cnt >= 2, np.nanstd(im, axis=0, ddof=1) if point_lam.shape[0] > 1 else np.nan,
-            np.nan)
+        plain = z.sum(0) / cnt
+        var_re = (np.where(det, (z.real - plain.real[None, :]) ** 2, 0.0)).sum(0) / (cnt - 1)
+        var_im = (np.where(det, (z.imag - plain.imag[None, :]) ** 2, 0.0)).sum(0) / (cnt - 1)
+    spread = np.where(cnt >= 2, np.sqrt(var_re) + 1j * np.sqrt(var_im), np.nan + 0j)
     return mean, spread
 
 
