@@ -184,3 +184,18 @@ def test_frf_bad_option_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "nperseg" in err[0]
     assert main(["frf", str(path), "-o", str(tmp_path / "f.nc"), "--nperseg", "128"]) == EXIT_OK
+
+
+def test_pure_noise_gives_zero_modes_and_one_line_warnings(tmp_path, capsys):
+    rng = np.random.default_rng(0)
+    g = ami_xr.make_frf_dataset(rng.normal(size=(3, 400)) + 1j * rng.normal(size=(3, 400)),
+                                np.linspace(1, 100, 400), points=[1, 2, 3], drive_point=1)
+    path = ami_xr.to_netcdf(g, tmp_path / "noise.nc")
+    assert main(["identify", str(path), "-o", str(tmp_path / "m.nc")]) == EXIT_OK
+    captured = capsys.readouterr()
+    assert "no modes identified" in captured.out
+    warnings_lines = [line for line in captured.err.splitlines() if line.strip()]
+    assert warnings_lines
+    assert all(line.startswith("ami-xr identify: warning: NoModesWarning:")
+               for line in warnings_lines)
+    assert main(["report", str(tmp_path / "m.nc"), "-o", str(tmp_path / "rep")]) == EXIT_OK
