@@ -233,7 +233,7 @@ def _modal_summary(ds) -> tuple[int, str]:
         return 0, ""
     import numpy as np
 
-    fn = np.abs(np.atleast_1d(ds[names.EIGENVALUE].values)) / (2 * np.pi)
+    fn = np.sort(np.abs(np.atleast_1d(ds[names.EIGENVALUE].values)) / (2 * np.pi))
     return int(fn.size), " ".join(f"{f:.4f}" for f in fn)
 
 
