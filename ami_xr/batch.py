@@ -44,6 +44,7 @@ __all__ = [
     "batch",
     "BatchSummary",
     "estimate_frf",
+    "read_input",
     "find_inputs",
     "output_path",
     "INPUT_SUFFIXES",
@@ -200,7 +201,10 @@ def _remove_stale_temporaries(output_dir: Path) -> None:
 
 
 # --- one file ---------------------------------------------------------------------------------
-def _read_any(path: Path):
+def read_input(path: str | os.PathLike):
+    """Read a measurement file by its suffix: ``.nc`` (:func:`ami_xr.open_dataset`),
+    ``.uff``/``.unv`` (:func:`ami_xr.read_uff`) or ``.lvm`` (:func:`ami_xr.read_lvm`)."""
+    path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".nc":
         from ami_xr.io.netcdf import open_dataset
@@ -251,7 +255,7 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
             warnings.simplefilter("always")
             input_sha = _sha256(inp)
             st = inp.stat()
-            ds = _read_any(inp)
+            ds = read_input(inp)
             if names.FRF not in ds:
                 if names.RESPONSE not in ds:
                     raise DataFileError(

@@ -63,9 +63,9 @@ def _say(*parts: Any) -> None:
 
 def _open_any(path: str | os.PathLike):
     """Read a netCDF, UFF or LVM file into a Dataset (by suffix)."""
-    from ami_xr.batch import _read_any
+    from ami_xr.batch import read_input
 
-    return _read_any(Path(path))
+    return read_input(path)
 
 
 def _write_any(ds, path: str | os.PathLike, *, binary: bool = False, function: str,

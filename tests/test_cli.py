@@ -56,7 +56,8 @@ def test_every_option_has_help_and_default(command, capsys):
         for option in action.option_strings:
             assert option in text
         if action.option_strings and action.default is not argparse.SUPPRESS:
-            assert "(default:" in " ".join(action.help.split()) or "(default: " in text
+            shown = sub._get_formatter()._get_help_string(action)
+            assert "(default:" in shown or "%(default)" in shown, f"{command}: {action.dest}"
 
 
 def test_help_compiles_nothing_and_imports_no_extras():
