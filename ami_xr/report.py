@@ -312,7 +312,7 @@ def _html(ds, rows, made, skipped, title) -> str:
         )
         for r in rows:
             lam = r["eigenvalue"]
-            lam_text = "" if not np.isfinite(lam) else f"{lam.real:.6g} {lam.imag:+.6g}i"
+            lam_text = "" if not np.isfinite(lam) else f"{lam.real:.6g}{lam.imag:+.6g}i"
             buf.write(
                 f"<tr><td>{e(str(r['mode']))}</td><td>{r['frequency_hz']:.6g}</td>"
                 f"<td>{r['frequency_rad_s']:.6g}</td><td>{r['damping_percent']:.4g}</td>"
