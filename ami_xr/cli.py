@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 import traceback
 import warnings
@@ -50,7 +51,9 @@ class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescription
 
 # --- helpers -------------------------------------------------------------------------------------
 def _one_line(err: BaseException) -> str:
-    lines = [s.strip(" -") for s in str(err).strip().splitlines() if s.strip()]
+    # SchemaError lists its problems as "  - ..." bullets: join them into one line.
+    lines = [re.sub(r"^\s*-\s+", "", s).strip() for s in str(err).strip().splitlines()
+             if s.strip()]
     text = "; ".join(lines) if lines else type(err).__name__
     if not isinstance(err, (AmiXrError,)):
         text = f"{type(err).__name__}: {text}"
@@ -155,19 +158,35 @@ def _identify_options(args: argparse.Namespace) -> dict[str, Any]:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     import ami_xr
 
-    ts, g, truth = ami_xr.simulate.benchmark(noise=args.noise, seed=args.seed,
-                                             duration=args.duration, n_samples=args.samples)
-    params = {"system": args.system, "noise": args.noise, "seed": args.seed,
-              "duration": args.duration, "n_samples": args.samples}
-    ami_xr.to_netcdf(g, args.output, function="ami_xr.simulate.benchmark", parameters=params)
+    if args.time_output and args.system != "beam-absorbers":
+        from ami_xr.errors import AmiXrValueError
+
+        raise AmiXrValueError("--time-output: only the beam-absorbers system has impulse "
+                              "responses")
+    ts = None
+    if args.system == "beam-absorbers":
+        params = {"system": args.system, "noise": args.noise, "seed": args.seed,
+                  "duration": args.duration, "n_samples": args.samples}
+        ts, g, truth = ami_xr.simulate.benchmark(noise=args.noise, seed=args.seed,
+                                                 duration=args.duration, n_samples=args.samples)
+        function = "ami_xr.simulate.benchmark"
+    else:
+        params = {"system": args.system, "n_points": args.points, "topology": args.topology,
+                  "noise": args.noise, "seed": args.seed,
+                  "closely_spaced": args.closely_spaced, "weak_mode": args.weak_mode,
+                  "max_frequency_hz": args.max_frequency}
+        g, truth = ami_xr.simulate.random_system(
+            args.points, args.topology, noise=args.noise, seed=args.seed,
+            closely_spaced=args.closely_spaced, weak_mode=args.weak_mode,
+            max_frequency_hz=args.max_frequency)
+        function = "ami_xr.simulate.random_system"
+    ami_xr.to_netcdf(g, args.output, function=function, parameters=params)
     _say(f"wrote FRFs ({g.sizes['point']} points x {g.sizes['frequency']} lines) to {args.output}")
     if args.time_output:
-        ami_xr.to_netcdf(ts, args.time_output, function="ami_xr.simulate.benchmark",
-                         parameters=params)
+        ami_xr.to_netcdf(ts, args.time_output, function=function, parameters=params)
         _say(f"wrote impulse responses to {args.time_output}")
     if args.truth_output:
-        ami_xr.to_netcdf(truth, args.truth_output, function="ami_xr.simulate.benchmark",
-                         parameters=params)
+        ami_xr.to_netcdf(truth, args.truth_output, function=function, parameters=params)
         _say(f"wrote exact modal parameters to {args.truth_output}")
     return EXIT_OK
 
@@ -488,20 +507,35 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_demo)
 
     p = add("simulate", "simulate a test system and write its FRFs",
-            "Simulate the paper's benchmark (cantilever beam with three absorbers, unit impulse "
-            "at the tip, displacement responses) and write its FRFs as netCDF.")
-    p.add_argument("system", choices=("beam-absorbers",), help="which system")
-    _add_output(p, "FRF netCDF file to write (m/N receptance)")
+            "Simulate a system with exactly known modes and write its FRFs (displacement "
+            "receptance, m/N) as netCDF. beam-absorbers: the paper's benchmark (cantilever beam "
+            "with three absorbers, unit impulse at the tip, FRFs = dt * FFT of the noisy impulse "
+            "responses). random: a random lumped-mass chain or grid (analytic FRFs, noise on "
+            "their real and imaginary parts).")
+    p.add_argument("system", choices=("beam-absorbers", "random"), help="which system")
+    _add_output(p, "FRF netCDF file to write")
     p.add_argument("--noise", type=float, default=0.15,
-                   help="noise level alpha of eq. 15 (fraction of each impulse response's peak; "
+                   help="noise level alpha of eq. 15 (fraction of each signal's peak; "
                         "0 = noise-free)")
-    p.add_argument("--seed", type=int, default=0, help="noise seed (reproducible)")
-    p.add_argument("--duration", type=float, default=60.0, help="record length [s]")
-    p.add_argument("--samples", type=int, default=4096, help="samples per record")
-    p.add_argument("--time-output", default=None, metavar="PATH",
-                   help="also write the impulse responses [m per N s] to this netCDF file")
+    p.add_argument("--seed", type=int, default=0, help="seed of the noise (and of the random "
+                                                       "system) (reproducible)")
     p.add_argument("--truth-output", default=None, metavar="PATH",
                    help="also write the exact modal parameters to this netCDF file")
+    g = p.add_argument_group("beam-absorbers options")
+    g.add_argument("--duration", type=float, default=60.0, help="record length [s]")
+    g.add_argument("--samples", type=int, default=4096, help="samples per record")
+    g.add_argument("--time-output", default=None, metavar="PATH",
+                   help="also write the impulse responses [m per N s] to this netCDF file")
+    g = p.add_argument_group("random options")
+    g.add_argument("--points", type=int, default=8, help="measured points (5-50)")
+    g.add_argument("--topology", default="chain", choices=("chain", "grid"),
+                   help="masses in a grounded line, or on a grid clamped along one row")
+    g.add_argument("--closely-spaced", action="store_true",
+                   help="add an absorber that makes two closely spaced modes")
+    g.add_argument("--weak-mode", action="store_true",
+                   help="add a weakly excited mode")
+    g.add_argument("--max-frequency", type=float, default=50.0,
+                   help="top of the frequency grid [Hz]; the highest mode is at 0.8 x this")
     p.set_defaults(func=_cmd_simulate)
 
     p = add("frf", "estimate FRFs from force and response time histories",

@@ -200,3 +200,17 @@ def test_pure_noise_gives_zero_modes_and_one_line_warnings(tmp_path, capsys):
     assert all(line.startswith("ami-xr identify: warning: NoModesWarning:")
                for line in warnings_lines)
     assert main(["report", str(tmp_path / "m.nc"), "-o", str(tmp_path / "rep")]) == EXIT_OK
+
+
+def test_simulate_random_system(tmp_path, capsys):
+    out, truth = tmp_path / "r.nc", tmp_path / "t.nc"
+    assert main(["simulate", "random", "-o", str(out), "--points", "5", "--noise", "0.01",
+                 "--seed", "2", "--truth-output", str(truth)]) == EXIT_OK
+    g = ami_xr.validate(ami_xr.open_dataset(out))
+    assert g.sizes[names.POINT] == 5
+    assert names.EIGENVALUE in ami_xr.open_dataset(truth)
+    code = main(["simulate", "random", "-o", str(tmp_path / "x.nc"), "--time-output",
+                 str(tmp_path / "y.nc")])
+    assert code == EXIT_ERROR
+    assert "--time-output" in capsys.readouterr().err
+    assert not (tmp_path / "x.nc").exists()
