@@ -46,6 +46,8 @@ STOP_MAX_MODES = 1
 STOP_MAX_ATTEMPTS = 2
 STOP_REASONS = ("below_noise_floor", "max_modes", "max_rejected_peaks")
 
+FREEZE_CHANGE = 1e-3  # a mode's fit band is kept fixed once its eigenvalue changes less than this
+
 FIT_OK = 0
 FIT_SINGULAR = 1
 FIT_NOT_OSCILLATORY = 2
@@ -674,11 +676,14 @@ def _contribution_peak(omega, x, lam, res, dt, n_samples):
     c = _nearest_line(omega, lam.imag)
     lo = max(c - 1, 0)
     hi = min(c + 2, omega.shape[0])
-    tmp = np.zeros(omega.shape[0], dtype=np.complex128)
-    _add_mode(tmp, x, lam, res, dt, n_samples, 1.0, lo, hi)
+    p, sc = _pole_factor(lam, dt, n_samples)
+    pc = np.conj(p)
+    scc = np.conj(sc)
+    rc = np.conj(res)
     best = 0.0
     for i in range(lo, hi):
-        best = max(best, abs(tmp[i]))
+        v = res * _basis_at(x[i], p, sc, dt) + rc * _basis_at(x[i], pc, scc, dt)
+        best = max(best, abs(v))
     return best
 
 
@@ -881,6 +886,9 @@ def _isolate_sweeps(data, omega, x, dt, n_samples, lam, res, n, delta, tol, max_
     w_hi = omega[n_f - 1]
     xn = np.empty(n_f, dtype=np.complex128)
     power = np.empty(n_f)
+    band_lo = np.zeros(n, dtype=np.int64)
+    band_hi = np.zeros(n, dtype=np.int64)
+    frozen = np.zeros(n, dtype=np.bool_)
     it = 0
     order = _order_by_contribution(omega, x, lam, res, n, dt, n_samples)
     for it in range(1, max_iter + 1):
@@ -892,12 +900,22 @@ def _isolate_sweeps(data, omega, x, dt, n_samples, lam, res, n, delta, tol, max_
             _add_mode(xn, x, lam[k], res[k], dt, n_samples, 1.0, 0, n_f)
             for i in range(n_f):
                 power[i] = abs(xn[i]) ** 2
-            if model_band:
+            if (frozen[k] and omega[band_lo[k]] <= lam[k].imag
+                    and lam[k].imag <= omega[band_hi[k] - 1]):
+                # a settled mode keeps its band (while it stays inside): lines entering and
+                # leaving a data-defined band make the iteration map discontinuous and can cause
+                # limit cycles
+                lo = band_lo[k]
+                hi = band_hi[k]
+                peak = (lo + hi) // 2
+            elif model_band:
                 lo, hi = _model_band(omega, lam[k], delta, min_points)
                 peak = _nearest_line(omega, lam[k].imag)
             else:
                 peak = _local_peak(power, omega, lam[k], dw)
                 lo, hi = _band_around(power, peak, delta * delta * power[peak])
+            band_lo[k] = lo
+            band_hi[k] = hi
             if hi - lo < min_points:
                 fails[k] += 1
                 continue
@@ -911,6 +929,7 @@ def _isolate_sweeps(data, omega, x, dt, n_samples, lam, res, n, delta, tol, max_
             ch = max(abs(new.real - lam[k].real) / abs(new.real),
                      abs(new.imag - lam[k].imag) / abs(new.imag))
             change = max(change, ch)
+            frozen[k] = ch < FREEZE_CHANGE
             _add_mode(model, x, lam[k], res[k], dt, n_samples, -1.0, 0, n_f)
             lam[k] = new
             res[k] = r
@@ -1174,6 +1193,9 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                 _add_mode(model[j], x, lam[k], res[j, k], dt, n_samples, 1.0, 0, n_f)
         it = 0
         converged = n == 0
+        band_lo = np.zeros(max_modes, dtype=np.int64)
+        band_hi = np.zeros(max_modes, dtype=np.int64)
+        frozen = np.zeros(max_modes, dtype=np.bool_)
         for it in range(1, max_iter + 1):
             if n == 0:
                 break
@@ -1190,11 +1212,18 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                     for i in range(n_f):
                         xn[j, i] = dw_data[j, i] - model[j, i]
                     _add_mode(xn[j], x, lam[k], res[j, k], dt, n_samples, 1.0, 0, n_f)
-                if model_band:
+                if (frozen[k] and omega[band_lo[k]] <= lam[k].imag
+                        and lam[k].imag <= omega[band_hi[k] - 1]):
+                    lo = band_lo[k]
+                    hi = band_hi[k]
+                    peak = (lo + hi) // 2
+                elif model_band:
                     lo, hi = _model_band(omega, lam[k], delta, min_points)
                     peak = _nearest_line(omega, lam[k].imag)
                 else:
                     peak, lo, hi = _simo_band(xn, omega, lam[k], dw, delta)
+                band_lo[k] = lo
+                band_hi[k] = hi
                 if hi - lo < min_points:
                     fails[k] += 1
                     continue
@@ -1217,6 +1246,7 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                 ch = max(abs(new.real - lam[k].real) / abs(new.real),
                          abs(new.imag - lam[k].imag) / abs(new.imag))
                 change = max(change, ch)
+                frozen[k] = ch < FREEZE_CHANGE
                 for j in range(n_p):
                     _add_mode(model[j], x, lam[k], res[j, k], dt, n_samples, -1.0, 0, n_f)
                     res[j, k] = rtmp[j]
