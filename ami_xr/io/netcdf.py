@@ -36,6 +36,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr._coords import uniform_coords
 from ami_xr._provenance import add_history
 from ami_xr.errors import AmiXrValueError, DataFileError
 
@@ -324,6 +325,61 @@ def _check_dask(argument: str) -> None:
         ) from err
 
 
+# A lazily opened uniform time axis is replaced by a RangeIndex when the stored values match
+# start + i * step to this many ulp of the largest |t| (rounding of i * dt or i / fs).
+_TIME_AXIS_ULPS = 16
+_TIME_AXIS_PROBES = 4096  # strided sample of stored time values checked against the grid
+# attributes under which xarray would transform the stored values; the fast path then steps aside
+_TRANSFORMING_ATTRS = ("scale_factor", "add_offset", "calendar")
+
+
+def _uniform_time_axis(path: Path) -> xr.Coordinates | None:
+    """An O(1)-memory ``time`` coordinate for ``path``, or None to let xarray read it.
+
+    Reads only ``time[0]``, ``time[1]``, ``time[-1]`` and a strided sample of at most
+    ``_TIME_AXIS_PROBES`` values with netCDF4 (never the whole variable). Returns None unless
+    ``time`` is a 1-D float64 dimension coordinate of >= 2 finite, increasing values, without
+    CF scaling, calendar or "since" units, whose probed values all equal the grid
+    ``t0 + i * (t[-1] - t0) / (n - 1)`` to ``_TIME_AXIS_ULPS`` ulp of ``max(|t0|, |t[-1]|)``.
+    """
+    import netCDF4
+
+    dim = names.TIME
+    with netCDF4.Dataset(path, "r") as nc:
+        var = nc.variables.get(dim)
+        if var is None or var.dimensions != (dim,) or var.dtype != np.float64:
+            return None
+        n = int(var.shape[0])
+        attrs = {k: var.getncattr(k) for k in var.ncattrs()}
+        units = attrs.get(names.ATTR_UNITS)
+        if (
+            n < 2
+            or any(k in attrs for k in _TRANSFORMING_ATTRS)
+            or (isinstance(units, str) and " since " in units)
+        ):
+            return None
+        var.set_auto_maskandscale(False)  # raw stored values; fill values are checked below
+        stride = max(1, -(-(n - 1) // (_TIME_AXIS_PROBES - 1)))  # ceil
+        strided = np.asarray(var[0:n:stride], np.float64).tolist()
+        read = dict(zip(range(0, n, stride), strided, strict=True))
+        read[1], read[n - 1] = (float(v) for v in np.asarray(var[[1, n - 1]], np.float64))
+        positions = np.array(sorted(read))
+        probes = np.array([read[i] for i in positions])
+        fills = [attrs[k] for k in ("_FillValue", "missing_value") if k in attrs]
+    if not np.all(np.isfinite(probes)) or any(np.any(probes == f) for f in fills):
+        return None
+    t0, last = float(probes[0]), float(probes[-1])
+    if not last > t0:
+        return None
+    kept = {k: v for k, v in attrs.items() if k not in ("_FillValue", "missing_value")}
+    coords = uniform_coords(t0, last, n, dim, _decode_attrs(kept))
+    grid = coords[dim].variable[positions].values  # computes only the probed positions
+    tol = _TIME_AXIS_ULPS * np.finfo(np.float64).eps * max(abs(t0), abs(last))
+    if np.max(np.abs(grid - probes)) > tol:
+        return None
+    return coords
+
+
 def open_dataset(
     path: str | os.PathLike,
     chunks: dict[str, int] | int | str | None = None,
@@ -343,6 +399,19 @@ def open_dataset(
         ``LAZY_THRESHOLD_BYTES`` (256 MiB; chunks then default to ``"auto"``), eager otherwise.
         An eager open reads everything and closes the file. A lazy open keeps the file open and
         reads on compute; decoding complex variables stays lazy too.
+
+        Time axis of a lazy open: a 1-D float64 ``time`` dimension coordinate is not read into
+        a pandas index (8 bytes per sample, 8 GB for 1e9 samples). Only ``time[0]``,
+        ``time[1]``, ``time[-1]`` and a strided sample of at most 4096 values are read; when
+        they all lie on the uniform grid ``t0 + i * dt`` with ``dt = (time[-1] - t0) / (n - 1)``
+        (to 16 ulp of the largest ``|time|``, i.e. float rounding), ``time`` becomes an
+        O(1)-memory coordinate backed by ``xarray.indexes.RangeIndex`` whose values are
+        ``t0 + i * dt`` (equal to the stored ones to rounding) and whose attributes are the
+        stored ones. Otherwise (non-uniform, non-finite, CF-scaled or datetime ``time``) it is
+        read as usual. Eager opens always read the stored values. A ``RangeIndex`` selects by
+        position (``isel``) and by nearest label (``sel(time=t, method="nearest")``), not by
+        label slices; ``ds.drop_indexes("time").set_xindex("time")`` turns it into an ordinary
+        pandas index (computing every value).
 
     Returns
     -------
@@ -370,13 +439,20 @@ def open_dataset(
         _check_dask("lazy")
         chunks = "auto" if chunks is None else chunks
     try:
+        time_axis = _uniform_time_axis(path) if lazy else None
         raw = xr.open_dataset(
-            path, engine=ENGINE, chunks=chunks if lazy else None, decode_timedelta=False
+            path,
+            engine=ENGINE,
+            chunks=chunks if lazy else None,
+            decode_timedelta=False,
+            drop_variables=[names.TIME] if time_axis is not None else None,
         )
         if not lazy:
             with raw:
                 raw = raw.load()
         ds = decode(raw)
+        if time_axis is not None:
+            ds = ds.assign_coords(time_axis)
     except (OSError, RuntimeError, ValueError, KeyError, IndexError, TypeError) as err:
         raise DataFileError(
             f"{path}: cannot read it as a netCDF file (truncated, corrupt or not netCDF?): "

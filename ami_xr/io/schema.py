@@ -16,6 +16,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr._coords import RangeAxis, range_axis
 from ami_xr.errors import AmiXrValueError, SchemaError
 
 __all__ = ["validate", "make_frf_dataset", "make_time_dataset", "KINDS", "UNIFORM_RTOL"]
@@ -126,6 +127,10 @@ def _check_axis(
             f"{namer.var_attr(dim, names.ATTR_UNITS)}: expected {units!r}, "
             f"got {coord.attrs.get(names.ATTR_UNITS)!r}"
         )
+    axis = range_axis(ds, dim)
+    if axis is not None:  # RangeIndex (a lazily opened file): check start/step, read no values
+        _check_range_axis(axis, dim, subject, problems, nonnegative=nonnegative)
+        return
     values = np.asarray(coord.values, dtype=np.float64)
     if values.size == 0:
         return  # reported as an empty variable
@@ -160,6 +165,29 @@ def _check_axis(
                 f"{subject}: expected uniform steps, step {worst} is {steps[worst]!r} s "
                 f"but the mean step is {dt!r} s (relative tolerance {UNIFORM_RTOL})"
             )
+
+
+def _check_range_axis(
+    axis: RangeAxis, dim: str, subject: str, problems: list[str], *, nonnegative: bool
+) -> None:
+    """``_check_axis`` for a coordinate backed by a ``RangeIndex``: values ``start + i * step``
+    are uniform by construction, so finiteness, order and sign follow from start, step, size."""
+    if axis.size == 0:
+        return  # reported as an empty variable
+    last = axis.start + (axis.size - 1) * axis.step
+    if not (np.isfinite(axis.start) and np.isfinite(axis.step) and np.isfinite(last)):
+        problems.append(f"{subject}: expected finite values, found NaN or inf")
+        return
+    if nonnegative and min(axis.start, last) < 0:
+        problems.append(
+            f"{subject}: expected non-negative frequencies, got a range starting at "
+            f"{axis.start!r} with step {axis.step!r}"
+        )
+    if axis.size > 1 and axis.step <= 0:
+        problems.append(
+            f"{subject}: expected strictly increasing values, got a range with step "
+            f"{axis.step!r} along {dim!r}"
+        )
 
 
 def _check_points(ds: xr.Dataset, namer: _Namer, problems: list[str]) -> np.ndarray | None:

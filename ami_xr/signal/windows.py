@@ -23,6 +23,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr._coords import range_axis
 from ami_xr._provenance import add_history
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels import windows as _kw
@@ -51,6 +52,16 @@ def sample_interval(ds: xr.Dataset, dim: Hashable = names.TIME) -> float:
         raise AmiXrValueError(
             f"{dim}: the Dataset needs a {dim!r} coordinate to know the sample interval"
         )
+    axis = range_axis(ds, dim)
+    if axis is not None:  # RangeIndex (a lazily opened file): uniform by construction, no reads
+        if axis.size < 2 or not (np.isfinite(axis.start) and np.isfinite(axis.step)):
+            raise AmiXrValueError(
+                f"{dim}: needs at least 2 finite samples to give a sample interval, got "
+                f"{axis.size} from {axis.start} by {axis.step}"
+            )
+        if axis.step <= 0.0:
+            raise AmiXrValueError(f"{dim}: expected strictly increasing values, step {axis.step}")
+        return axis.step
     t = np.asarray(ds[dim].values)
     if t.ndim != 1 or not np.issubdtype(t.dtype, np.number) or np.iscomplexobj(t):
         raise AmiXrValueError(f"{dim}: expected a 1-D real coordinate (s), got dtype {t.dtype}")
