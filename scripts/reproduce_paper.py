@@ -307,9 +307,20 @@ print(f"{t1 - t0:.3f} {t3 - t2:.3f}")
 """
 
 
-def first_call_seconds(cache_dir: str) -> tuple[float, float]:
+_REFINE_SNIPPET = """
+import time, warnings
+import ami_xr
+_, frf, truth = ami_xr.simulate.benchmark(noise=0.15, seed=1)
+start = frf.assign(eigenvalue=truth["eigenvalue"] * 1.001)
+t0 = time.perf_counter()
+ami_xr.refine(start)
+print(f"0 {time.perf_counter() - t0:.3f}")
+"""
+
+
+def first_call_seconds(cache_dir: str, snippet: str = _COMPILE_SNIPPET) -> tuple[float, float]:
     env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
-    out = subprocess.run([sys.executable, "-c", _COMPILE_SNIPPET], env=env, check=True,
+    out = subprocess.run([sys.executable, "-c", snippet], env=env, check=True,
                          capture_output=True, text=True).stdout.split()
     return float(out[0]), float(out[1])
 
@@ -340,9 +351,14 @@ def speed(repeats: int = 5) -> None:
     with tempfile.TemporaryDirectory() as cache:
         imp, cold = first_call_seconds(cache)
         _, warm = first_call_seconds(cache)
+    with tempfile.TemporaryDirectory() as cache:
+        _, r_cold = first_call_seconds(cache, _REFINE_SNIPPET)
+        _, r_warm = first_call_seconds(cache, _REFINE_SNIPPET)
     print(f"  import ami_xr {imp:.2f} s; first identification in a fresh process: "
           f"{cold:.2f} s with an empty numba cache (compilation), {warm:.2f} s with the cache "
           "filled by the previous process")
+    print(f"  first ami_xr.refine in a fresh process: {r_cold:.2f} s with an empty cache, "
+          f"{r_warm:.2f} s with the cache filled")
     _, frf, _ = ami_xr.simulate.benchmark(noise=0.15, seed=1)
     for m, kwargs in METHODS.items():
         identify(frf, **kwargs)
@@ -354,15 +370,27 @@ def speed(repeats: int = 5) -> None:
         print(f"  benchmark 4 x {frf.sizes['frequency']} lines, {m}: "
               f"median {1e3 * np.median(ts):.0f} ms, best {1e3 * min(ts):.0f} ms over "
               f"{repeats} runs (target < 200 ms)")
+    ami_only = identify(frf, **METHODS["simo"])
+    ami_xr.refine(ami_only)
+    ts = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        ami_xr.refine(ami_only)
+        ts.append(time.perf_counter() - t0)
+    print(f"  of which ami_xr.refine alone: median {1e3 * np.median(ts):.0f} ms, best "
+          f"{1e3 * min(ts):.0f} ms")
     frf_big, truth_big = big_system()
     identify(frf_big.isel(point=slice(0, 20)))  # compile any size-dependent path
     t0 = time.perf_counter()
-    res = identify(frf_big)
+    ami_big = identify(frf_big, **METHODS["simo"])
+    t1 = time.perf_counter()
+    res = ami_xr.refine(ami_big)
     dt = time.perf_counter() - t0
     pairs = match_modes(res["eigenvalue"].values, truth_big["eigenvalue"].values)
     print(f"  {frf_big.sizes['point']} points x {frf_big.sizes['frequency']} lines, "
-          f"{truth_big.sizes['mode']} modes (2 % noise): {dt:.2f} s, "
-          f"{res.sizes['mode']} modes identified, {len(pairs)} matched (target < 10 s)")
+          f"{truth_big.sizes['mode']} modes (2 % noise): {dt:.2f} s (AMI {t1 - t0:.2f} s, "
+          f"refine {dt - (t1 - t0):.2f} s), {res.sizes['mode']} modes identified, "
+          f"{len(pairs)} matched (target < 10 s)")
     print()
 
 
