@@ -402,12 +402,16 @@ def main(argv=None) -> int:
     p.add_argument("--table-seed", type=int, default=0, help="seed of Tables 1-6 (default 0)")
     p.add_argument("--quick", action="store_true", help="10 seeds and no speed section")
     p.add_argument("--no-speed", action="store_true", help="skip the speed section")
+    p.add_argument("--speed-only", action="store_true", help="only the speed section")
     args = p.parse_args(argv)
     seeds = min(args.seeds, 10) if args.quick else args.seeds
     if seeds < 1:
         p.error("--seeds: expected a positive number")
     print(f"ami_xr {ami_xr.__version__}: the benchmark of Ginsberg & Allen (4 FRFs x 2049 lines, "
           "60 s at 2^12 samples, tip impulse)\n")
+    if args.speed_only:
+        speed()
+        return 0
     tables(args.table_seed)
     for noise in args.noise:
         monte_carlo(noise, seeds)
