@@ -408,3 +408,21 @@ def test_spurious_ami_mode_is_dropped():
     np.testing.assert_array_equal(out[names.MODE].values, [1, 2, 3, 4])
     kept = refine(start, drop_modes=False)
     assert kept.sizes[names.MODE] == 5
+
+
+def test_crb_bad_arguments():
+    _, g, truth = benchmark(noise=0.0)
+    with pytest.raises(ami_xr.AmiXrValueError, match="noise_level"):
+        cramer_rao_bound(truth, g)  # noise-free data: no eq. 15 level to use
+    with pytest.raises(ami_xr.AmiXrValueError, match="noise_kind"):
+        cramer_rao_bound(truth, g, noise_level=0.1, noise_kind="pink")
+    with pytest.raises(ami_xr.AmiXrValueError, match="truth"):
+        cramer_rao_bound(truth.drop_vars(names.RESIDUE), g, noise_level=0.1)
+    velocity = g.assign_attrs({names.ATTR_QUANTITY: "velocity"})
+    with pytest.raises(ami_xr.AmiXrValueError, match="receptance"):
+        cramer_rao_bound(truth, velocity, noise_level=0.1)
+    # Gaussian r has sqrt(3) times the standard deviation of uniform r
+    u = cramer_rao_bound(truth, g, noise_level=0.1)
+    n = cramer_rao_bound(truth, g, noise_level=0.1, noise_kind="gaussian")
+    np.testing.assert_allclose(n[names.NATURAL_FREQUENCY_STD] / u[names.NATURAL_FREQUENCY_STD],
+                               np.sqrt(3.0), rtol=1e-9)
