@@ -9,7 +9,8 @@ Guarantees
 * **Atomic outputs.** Each result is written with :func:`ami_xr.to_netcdf` (temporary file in the
   target folder, then a rename), so an output file is either complete or absent; a crash,
   ``kill`` or Ctrl-C never leaves a partial result (stale temporary files of an earlier crash are
-  removed at the start of the next run).
+  removed at the start of the next run). The first Ctrl-C lets the files in progress finish,
+  writes the summary and then raises ``KeyboardInterrupt``; a second one stops at once.
 * **Resumable, incremental.** Each output records the SHA-256 of its input file, the input's size
   and mtime, and a hash of the pipeline parameters (attributes ``batch_input_sha256``,
   ``batch_parameters_sha256``). A re-run skips a file whose output matches both (the content
@@ -28,7 +29,9 @@ import csv
 import hashlib
 import json
 import os
+import signal
 import sys
+import threading
 import time
 import traceback
 import warnings
@@ -340,15 +343,61 @@ def _write_summary(rows: list[dict], path: Path) -> None:
         tmp.unlink(missing_ok=True)
 
 
-def _run_jobs(jobs: list[dict], workers: int) -> Iterator[dict]:
+class _GracefulInterrupt:
+    """While a batch runs: the first Ctrl-C lets the files in progress finish (so their outputs
+    are written completely) and starts no new one; a second Ctrl-C stops at once.
+
+    Only installed in the main thread and only over Python's default SIGINT handler; the
+    previous handler is restored on exit, so nothing changes outside :func:`batch`.
+    """
+
+    def __init__(self):
+        self.requested = False
+        self._previous = None
+
+    def __enter__(self):
+        if (threading.current_thread() is threading.main_thread()
+                and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+            self._previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def _handler(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+        sys.stderr.write("\nami-xr batch: interrupted: finishing the files in progress "
+                         "(Ctrl-C again to stop at once)\n")
+        sys.stderr.flush()
+
+    def __exit__(self, *exc):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+        return False
+
+
+def _ignore_sigint() -> None:
+    # Workers share the terminal's process group: Ctrl-C reaches them too. They finish their
+    # file; the parent decides what stops.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _run_jobs(jobs: list[dict], workers: int, stop: _GracefulInterrupt) -> Iterator[dict]:
     if workers == 1 or len(jobs) <= 1:
         for job in jobs:
+            if stop.requested:
+                return
             yield _process_one(job)
         return
-    pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(jobs)))
+    pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(jobs)),
+                                  initializer=_ignore_sigint)
     try:
         futures = {pool.submit(_process_one, job): job for job in jobs}
         for fut in cf.as_completed(futures):
+            if stop.requested:
+                for other in futures:
+                    other.cancel()  # queued files are not started; running ones finish
+            if fut.cancelled():
+                continue
             try:
                 yield fut.result()
             except cf.process.BrokenProcessPool as err:
@@ -358,7 +407,8 @@ def _run_jobs(jobs: list[dict], workers: int) -> Iterator[dict]:
                        "frequencies_hz": "", "output": job["out_rel"], "seconds": 0.0,
                        "message": f"worker process died: {err}"}
     finally:
-        # Ctrl-C or an error: drop queued files; finished outputs are complete, others absent.
+        # An error or a second Ctrl-C: drop queued files; finished outputs are complete, the
+        # others absent (to_netcdf removes its temporary file).
         pool.shutdown(wait=True, cancel_futures=True)
 
 
@@ -457,11 +507,13 @@ def batch(
 
     summary = BatchSummary(csv_path=output_dir / SUMMARY_NAME)
     bar = _progress(len(jobs), progress, "ami-xr batch")
+    stop = _GracefulInterrupt()
     try:
-        for row in _run_jobs(jobs, workers):
-            rows[row["file"]] = row
-            if bar is not None:
-                bar.update(1)
+        with stop:
+            for row in _run_jobs(jobs, workers, stop):
+                rows[row["file"]] = row
+                if bar is not None:
+                    bar.update(1)
     finally:
         if bar is not None:
             bar.close()
@@ -469,6 +521,9 @@ def batch(
         summary.rows = [rows[inp.relative_to(input_dir).as_posix()] for inp in inputs
                         if rows.get(inp.relative_to(input_dir).as_posix())]
         _write_summary(summary.rows, summary.csv_path)
+    if stop.requested:
+        # The outputs written so far are complete; a re-run resumes with the rest.
+        raise KeyboardInterrupt
     return summary
 
 

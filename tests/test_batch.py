@@ -151,25 +151,35 @@ def test_bad_arguments(campaign, tmp_path):
         batch(campaign, tmp_path / "out", identify_options="paper")
 
 
-def test_ctrl_c_leaves_no_partial_files_and_resumes(tmp_path):
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_ctrl_c_leaves_no_partial_files_and_resumes(tmp_path, workers):
     root = tmp_path / "many"
     root.mkdir()
     for seed in range(6):
         ami_xr.to_netcdf(_small_frf(seed), root / f"f{seed}.nc")
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "ami_xr.cli", "batch", str(root), "-o",
-                             str(out), "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=ENV)
-    deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and proc.poll() is None:
-        if list(out.rglob("*.modes.nc")):
-            break
-        time.sleep(0.05)
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-    proc.communicate(timeout=300)
-    assert proc.returncode in (130, EXIT_OK)
+                             str(out), "-q", "--workers", workers], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=ENV)
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and proc.poll() is None:
+            if list(out.rglob("*.modes.nc")):
+                break
+            time.sleep(0.05)
+        interrupted = proc.poll() is None
+        if interrupted:
+            proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    if interrupted and proc.returncode == 130:
+        assert "finishing the files in progress" in err
+    assert proc.returncode in (130, EXIT_OK), err
     assert not list(out.rglob(".*.tmp"))
+    assert (out / SUMMARY_NAME).is_file()
     done = {p.name for p in out.rglob("*.modes.nc")}
     for path in out.rglob("*.modes.nc"):
         ami_xr.open_dataset(path)  # complete and readable
