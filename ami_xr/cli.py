@@ -55,7 +55,7 @@ def _one_line(err: BaseException) -> str:
     lines = [re.sub(r"^\s*-\s+", "", s).strip() for s in str(err).strip().splitlines()
              if s.strip()]
     text = "; ".join(lines) if lines else type(err).__name__
-    if not isinstance(err, (AmiXrError,)):
+    if not isinstance(err, AmiXrError):
         text = f"{type(err).__name__}: {text}"
     return text
 
@@ -85,10 +85,6 @@ def _write_any(ds, path: str | os.PathLike, *, binary: bool = False, function: s
     import ami_xr
 
     return ami_xr.to_netcdf(ds, path, function=function, parameters=parameters)
-
-
-def _drop_none(options: dict[str, Any]) -> dict[str, Any]:
-    return {k: v for k, v in options.items() if v is not None}
 
 
 def _non_default(args: argparse.Namespace, options: dict[str, Any],
