@@ -1131,16 +1131,19 @@ def _remove_simo(lam, res, fails, n, k):
 
 
 @jit
-def _simo_band(xw, omega, lam, dw, delta):
+def _simo_band(xw, omega, lam, dw, delta, wlo, whi):
+    """Fit band of SIMO isolation on lines ``wlo..whi-1``: the SNR-weighted power
+    ``sum_j |X_j|^2`` (data already divided by each noise floor), its largest line near the
+    mode, and the contiguous lines around it with power ``>= delta^2`` times that peak."""
     n_p = xw.shape[0]
     n_f = xw.shape[1]
     power = np.zeros(n_f)
     for j in range(n_p):
-        for i in range(n_f):
+        for i in range(wlo, whi):
             power[i] += abs(xw[j, i]) ** 2
     peak = _local_peak(power, omega, lam, dw)
     lo, hi = _band_around(power, peak, delta * delta * power[peak])
-    return peak, lo, hi
+    return peak, max(lo, wlo), min(hi, whi)
 
 
 @jit
@@ -1208,10 +1211,17 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
             change = 0.0
             for kk in range(n):
                 k = order[kk]
+                # isolated data only where the fit can look: +- max(20 |Re lam|, 40 lines)
+                wide = max(20.0 * abs(lam[k].real), 40.0 * dw)
+                wlo = _nearest_line(omega, lam[k].imag - wide)
+                whi = _nearest_line(omega, lam[k].imag + wide) + 1
+                if band_hi[k] > 0:
+                    wlo = min(wlo, band_lo[k])
+                    whi = max(whi, band_hi[k])
                 for j in range(n_p):
-                    for i in range(n_f):
+                    for i in range(wlo, whi):
                         xn[j, i] = dw_data[j, i] - model[j, i]
-                    _add_mode(xn[j], x, lam[k], res[j, k], dt, n_samples, 1.0, 0, n_f)
+                    _add_mode(xn[j], x, lam[k], res[j, k], dt, n_samples, 1.0, wlo, whi)
                 if (frozen[k] and omega[band_lo[k]] <= lam[k].imag
                         and lam[k].imag <= omega[band_hi[k] - 1]):
                     lo = band_lo[k]
@@ -1221,7 +1231,7 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                     lo, hi = _model_band(omega, lam[k], delta, min_points)
                     peak = _nearest_line(omega, lam[k].imag)
                 else:
-                    peak, lo, hi = _simo_band(xn, omega, lam[k], dw, delta)
+                    peak, lo, hi = _simo_band(xn, omega, lam[k], dw, delta, wlo, whi)
                 band_lo[k] = lo
                 band_hi[k] = hi
                 if hi - lo < min_points:
