@@ -115,14 +115,21 @@ class BatchSummary:
         if not body:
             return "no input files found"
         widths = [max(len(h), *(len(row[i]) for row in body)) for i, h in enumerate(header)]
-        lines = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)).rstrip(),
-                 "  ".join("-" * w for w in widths)]
-        lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip()
-                  for row in body]
-        counts = {s: sum(r["status"] == s for r in self.rows)
-                  for s in (STATUS_OK, STATUS_UP_TO_DATE, STATUS_FAILED)}
-        lines.append(f"{len(self.rows)} file(s): {counts[STATUS_OK]} processed, "
-                     f"{counts[STATUS_UP_TO_DATE]} up to date, {counts[STATUS_FAILED]} failed")
+        lines = [
+            "  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)).rstrip(),
+            "  ".join("-" * w for w in widths),
+        ]
+        lines += [
+            "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in body
+        ]
+        counts = {
+            s: sum(r["status"] == s for r in self.rows)
+            for s in (STATUS_OK, STATUS_UP_TO_DATE, STATUS_FAILED)
+        }
+        lines.append(
+            f"{len(self.rows)} file(s): {counts[STATUS_OK]} processed, "
+            f"{counts[STATUS_UP_TO_DATE]} up to date, {counts[STATUS_FAILED]} failed"
+        )
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -138,8 +145,9 @@ def find_inputs(input_dir: str | os.PathLike, *, exclude: Iterable[Path] = ()) -
     found = []
     for dirpath, dirnames, filenames in os.walk(root):
         here = Path(dirpath)
-        dirnames[:] = sorted(d for d in dirnames if not d.startswith(".")
-                             and (here / d).resolve() not in excluded)
+        dirnames[:] = sorted(
+            d for d in dirnames if not d.startswith(".") and (here / d).resolve() not in excluded
+        )
         for name in sorted(filenames):
             if name.startswith(".") or name.lower().endswith(OUTPUT_SUFFIX):
                 continue
@@ -186,8 +194,9 @@ def _up_to_date(inp: Path, out: Path, params_sha: str) -> bool:
     if attrs is None or attrs.get(ATTR_PARAMS_SHA) != params_sha:
         return False
     st = inp.stat()
-    same_stat = (str(attrs.get(ATTR_INPUT_SIZE)) == str(st.st_size)
-                 and str(attrs.get(ATTR_INPUT_MTIME)) == str(st.st_mtime_ns))
+    same_stat = str(attrs.get(ATTR_INPUT_SIZE)) == str(st.st_size) and str(
+        attrs.get(ATTR_INPUT_MTIME)
+    ) == str(st.st_mtime_ns)
     if same_stat and attrs.get(ATTR_INPUT_SHA):
         return True
     return attrs.get(ATTR_INPUT_SHA) == _sha256(inp)
@@ -250,8 +259,15 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
     from ami_xr.ami import identify
 
     inp, out = Path(job["input"]), Path(job["output"])
-    row = {"file": job["rel"], "status": STATUS_FAILED, "modes": "", "frequencies_hz": "",
-           "output": job["out_rel"], "seconds": 0.0, "message": ""}
+    row = {
+        "file": job["rel"],
+        "status": STATUS_FAILED,
+        "modes": "",
+        "frequencies_hz": "",
+        "output": job["out_rel"],
+        "seconds": 0.0,
+        "message": "",
+    }
     start = time.perf_counter()
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -267,14 +283,16 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
                     )
                 ds = estimate_frf(ds, job["frf_options"])
             result = identify(ds, **job["identify_options"])
-            result.attrs.update({
-                ATTR_INPUT: job["rel"],
-                ATTR_INPUT_SHA: input_sha,
-                ATTR_INPUT_SIZE: str(st.st_size),
-                ATTR_INPUT_MTIME: str(st.st_mtime_ns),
-                ATTR_PARAMS_SHA: job["params_sha"],
-                ATTR_PARAMS: json.dumps(job["parameters"], sort_keys=True, default=repr),
-            })
+            result.attrs.update(
+                {
+                    ATTR_INPUT: job["rel"],
+                    ATTR_INPUT_SHA: input_sha,
+                    ATTR_INPUT_SIZE: str(st.st_size),
+                    ATTR_INPUT_MTIME: str(st.st_mtime_ns),
+                    ATTR_PARAMS_SHA: job["params_sha"],
+                    ATTR_PARAMS: json.dumps(job["parameters"], sort_keys=True, default=repr),
+                }
+            )
             out.parent.mkdir(parents=True, exist_ok=True)
             if job["report"]:
                 from ami_xr.report import report
@@ -284,8 +302,13 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
             ami_xr.to_netcdf(result, out, function="ami_xr.batch", parameters=job["parameters"])
         row["modes"], row["frequencies_hz"] = _modal_summary(result)
         row["status"] = STATUS_OK
-        messages = sorted({f"{w.category.__name__}: {w.message}" for w in caught
-                           if issubclass(w.category, UserWarning)})
+        messages = sorted(
+            {
+                f"{w.category.__name__}: {w.message}"
+                for w in caught
+                if issubclass(w.category, UserWarning)
+            }
+        )
         row["message"] = "; ".join(messages)
     except Exception as err:  # a bad file must not stop the batch: report it and go on
         first = str(err).strip().splitlines()
@@ -307,8 +330,9 @@ class _SimpleProgress:
     def _draw(self) -> None:
         width = 30
         done = int(width * self.n / self.total) if self.total else width
-        sys.stderr.write(f"\r{self.desc}: [{'#' * done}{'.' * (width - done)}] "
-                         f"{self.n}/{self.total}")
+        sys.stderr.write(
+            f"\r{self.desc}: [{'#' * done}{'.' * (width - done)}] {self.n}/{self.total}"
+        )
         sys.stderr.flush()
 
     def update(self, n: int = 1) -> None:
@@ -356,8 +380,10 @@ class _GracefulInterrupt:
         self._previous = None
 
     def __enter__(self):
-        if (threading.current_thread() is threading.main_thread()
-                and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+        if (
+            threading.current_thread() is threading.main_thread()
+            and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        ):
             self._previous = signal.signal(signal.SIGINT, self._handler)
         return self
 
@@ -365,8 +391,10 @@ class _GracefulInterrupt:
         if self.requested:
             raise KeyboardInterrupt
         self.requested = True
-        sys.stderr.write("\nami-xr batch: interrupted: finishing the files in progress "
-                         "(Ctrl-C again to stop at once)\n")
+        sys.stderr.write(
+            "\nami-xr batch: interrupted: finishing the files in progress "
+            "(Ctrl-C again to stop at once)\n"
+        )
         sys.stderr.flush()
 
     def __exit__(self, *exc):
@@ -388,8 +416,7 @@ def _run_jobs(jobs: list[dict], workers: int, stop: _GracefulInterrupt) -> Itera
                 return
             yield _process_one(job)
         return
-    pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(jobs)),
-                                  initializer=_ignore_sigint)
+    pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(jobs)), initializer=_ignore_sigint)
     try:
         futures = {pool.submit(_process_one, job): job for job in jobs}
         for fut in cf.as_completed(futures):
@@ -403,9 +430,15 @@ def _run_jobs(jobs: list[dict], workers: int, stop: _GracefulInterrupt) -> Itera
             except cf.process.BrokenProcessPool as err:
                 # A worker died (e.g. killed for memory): report the files it did not finish.
                 job = futures[fut]
-                yield {"file": job["rel"], "status": STATUS_FAILED, "modes": "",
-                       "frequencies_hz": "", "output": job["out_rel"], "seconds": 0.0,
-                       "message": f"worker process died: {err}"}
+                yield {
+                    "file": job["rel"],
+                    "status": STATUS_FAILED,
+                    "modes": "",
+                    "frequencies_hz": "",
+                    "output": job["out_rel"],
+                    "seconds": 0.0,
+                    "message": f"worker process died: {err}",
+                }
     finally:
         # An error or a second Ctrl-C: drop queued files; finished outputs are complete, the
         # others absent (to_netcdf removes its temporary file).
@@ -469,14 +502,18 @@ def batch(
         raise AmiXrValueError(f"workers: expected a positive integer, got {workers!r}")
     for argument, value in (("identify_options", identify_options), ("frf_options", frf_options)):
         if value is not None and not isinstance(value, dict):
-            raise AmiXrValueError(f"{argument}: expected a dict of keyword arguments, "
-                                  f"got {type(value).__name__}")
+            raise AmiXrValueError(
+                f"{argument}: expected a dict of keyword arguments, got {type(value).__name__}"
+            )
     if output_dir.exists() and not output_dir.is_dir():
         raise DataFileError(f"output_dir: {str(output_dir)!r} exists and is not a folder")
     output_dir.mkdir(parents=True, exist_ok=True)
     _remove_stale_temporaries(output_dir)
-    parameters = {"identify": identify_options or {}, "frf": frf_options or {},
-                  "report": bool(report)}
+    parameters = {
+        "identify": identify_options or {},
+        "frf": frf_options or {},
+        "report": bool(report),
+    }
     params_sha = _parameters_hash(parameters)
     inputs = find_inputs(input_dir, exclude=[output_dir])
 
@@ -487,23 +524,45 @@ def batch(
         rel = inp.relative_to(input_dir).as_posix()
         out_rel = out.relative_to(output_dir).as_posix()
         if out in claimed:
-            rows[rel] = {"file": rel, "status": STATUS_FAILED, "modes": "", "frequencies_hz": "",
-                         "output": out_rel, "seconds": 0.0,
-                         "message": f"output name collides with that of {claimed[out]}; "
-                                    "rename one of the files"}
+            rows[rel] = {
+                "file": rel,
+                "status": STATUS_FAILED,
+                "modes": "",
+                "frequencies_hz": "",
+                "output": out_rel,
+                "seconds": 0.0,
+                "message": f"output name collides with that of {claimed[out]}; "
+                "rename one of the files",
+            }
             continue
         claimed[out] = rel
         if not force and _up_to_date(inp, out, params_sha):
             count, freqs = _modal_summary_from_file(out)
-            rows[rel] = {"file": rel, "status": STATUS_UP_TO_DATE, "modes": count,
-                         "frequencies_hz": freqs, "output": out_rel, "seconds": 0.0,
-                         "message": ""}
+            rows[rel] = {
+                "file": rel,
+                "status": STATUS_UP_TO_DATE,
+                "modes": count,
+                "frequencies_hz": freqs,
+                "output": out_rel,
+                "seconds": 0.0,
+                "message": "",
+            }
             continue
         rows[rel] = {}
-        jobs.append({"input": str(inp), "output": str(out), "rel": rel, "out_rel": out_rel,
-                     "identify_options": identify_options or {}, "frf_options": frf_options or {},
-                     "parameters": parameters, "params_sha": params_sha, "report": report,
-                     "traceback": keep_tracebacks})
+        jobs.append(
+            {
+                "input": str(inp),
+                "output": str(out),
+                "rel": rel,
+                "out_rel": out_rel,
+                "identify_options": identify_options or {},
+                "frf_options": frf_options or {},
+                "parameters": parameters,
+                "params_sha": params_sha,
+                "report": report,
+                "traceback": keep_tracebacks,
+            }
+        )
 
     summary = BatchSummary(csv_path=output_dir / SUMMARY_NAME)
     bar = _progress(len(jobs), progress, "ami-xr batch")
@@ -518,8 +577,11 @@ def batch(
         if bar is not None:
             bar.close()
         # Also on Ctrl-C: the summary lists what is done; unfinished files have empty rows.
-        summary.rows = [rows[inp.relative_to(input_dir).as_posix()] for inp in inputs
-                        if rows.get(inp.relative_to(input_dir).as_posix())]
+        summary.rows = [
+            rows[inp.relative_to(input_dir).as_posix()]
+            for inp in inputs
+            if rows.get(inp.relative_to(input_dir).as_posix())
+        ]
         _write_summary(summary.rows, summary.csv_path)
     if stop.requested:
         # The outputs written so far are complete; a re-run resumes with the rest.

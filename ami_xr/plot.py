@@ -318,7 +318,7 @@ def plot_subtraction(
     nrow = int(np.ceil(len(pts) / ncol))
     fig = _new_figure(3.4 * ncol, 2.8 * nrow)
     axes = fig.subplots(nrow, ncol, squeeze=False)
-    for ax in axes.ravel()[len(pts):]:
+    for ax in axes.ravel()[len(pts) :]:
         ax.set_visible(False)
     for i, p in enumerate(pts):
         ax = axes.ravel()[i]
@@ -331,8 +331,9 @@ def plot_subtraction(
         sigma = float(np.asarray(ds[names.SUB_NOISE_FLOOR].sel(sel).values).ravel()[0])
         ax.axhline(sigma, color="tab:green", lw=1.2, label="noise floor (std)")
         if threshold is not None:
-            ax.axhline(sigma * np.sqrt(threshold), color="tab:red", lw=1.2, ls="--",
-                       label="stop threshold")
+            ax.axhline(
+                sigma * np.sqrt(threshold), color="tab:red", lw=1.2, ls="--", label="stop threshold"
+            )
         if names.SUB_EIGENVALUE in ds:
             lam = np.atleast_1d(ds[names.SUB_EIGENVALUE].sel(sel).values)
             lam = lam[np.isfinite(lam)]

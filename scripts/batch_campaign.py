@@ -29,8 +29,9 @@ def make_example_campaign(folder: Path, n_articles: int, seed: int = 0) -> dict[
     """Write ``n_articles`` simulated FRF files; return exact natural frequencies by file."""
     exact = {}
     for i in range(n_articles):
-        g, truth = ami_xr.simulate.random_system(n_points=5, n_modes=5, noise=0.01,
-                                                 seed=seed + i, n_frequencies=1024)
+        g, truth = ami_xr.simulate.random_system(
+            n_points=5, n_modes=5, noise=0.01, seed=seed + i, n_frequencies=1024
+        )
         day = folder / f"day{i % 2 + 1}"
         day.mkdir(parents=True, exist_ok=True)
         if i % 2:
@@ -57,12 +58,18 @@ def compare_with_truth(summary, exact: dict[str, np.ndarray]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
-                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
     parser.add_argument("campaign", nargs="?", help="folder of measurement files")
     parser.add_argument("-o", "--output", required=True, help="results folder")
-    parser.add_argument("--example", type=int, default=0, metavar="N",
-                        help="simulate N test articles into OUTPUT/campaign first")
+    parser.add_argument(
+        "--example",
+        type=int,
+        default=0,
+        metavar="N",
+        help="simulate N test articles into OUTPUT/campaign first",
+    )
     parser.add_argument("--workers", type=int, default=1, help="files in parallel")
     parser.add_argument("--report", action="store_true", help="also write report folders")
     args = parser.parse_args(argv)

@@ -21,13 +21,16 @@ from ami_xr.errors import AmiXrValueError, DataFileError
 
 REPO = Path(__file__).resolve().parents[1]
 # Subprocesses import this checkout whatever the working directory or installed version.
-ENV = {**os.environ, "PYTHONPATH": os.pathsep.join(
-    [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
+ENV = {
+    **os.environ,
+    "PYTHONPATH": os.pathsep.join([str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])]),
+}
 
 
 def _small_frf(seed: int):
-    g, _ = ami_xr.simulate.random_system(n_points=5, n_modes=5, noise=0.01, seed=seed,
-                                         n_frequencies=512)
+    g, _ = ami_xr.simulate.random_system(
+        n_points=5, n_modes=5, noise=0.01, seed=seed, n_frequencies=512
+    )
     return g
 
 
@@ -62,7 +65,10 @@ def test_bad_file_is_skipped_and_the_rest_go_on(campaign, tmp_path):
     assert summary.n_failed == 1 and not summary.ok
     # outputs mirror the input tree, and are complete identification results
     assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*.modes.nc")) == [
-        "day1/a.modes.nc", "day1/b.modes.nc", "day2/c.modes.nc"]
+        "day1/a.modes.nc",
+        "day1/b.modes.nc",
+        "day2/c.modes.nc",
+    ]
     result = ami_xr.open_dataset(out / "day1" / "a.modes.nc")
     assert names.EIGENVALUE in result and result.attrs["batch_input"] == "day1/a.nc"
     assert not list(out.rglob(".*.tmp"))
@@ -98,8 +104,9 @@ def test_rerun_skips_up_to_date_outputs_and_redoes_changed_ones(campaign, tmp_pa
     rows = _by_file(batch(campaign, out, progress=False, frf_options={"estimator": "H2"}))
     assert rows["day1/a.nc"]["status"] == "ok"
     # force -> redone
-    rows = _by_file(batch(campaign, out, progress=False, frf_options={"estimator": "H2"},
-                          force=True))
+    rows = _by_file(
+        batch(campaign, out, progress=False, frf_options={"estimator": "H2"}, force=True)
+    )
     assert rows["day1/b.uff"]["status"] == "ok"
 
 
@@ -120,7 +127,8 @@ def test_parallel_workers_give_the_same_results(campaign, tmp_path):
     serial = batch(campaign, tmp_path / "s", progress=False)
     parallel = batch(campaign, tmp_path / "p", workers=2, progress=False)
     assert [(r["file"], r["status"], r["modes"], r["frequencies_hz"]) for r in serial.rows] == [
-        (r["file"], r["status"], r["modes"], r["frequencies_hz"]) for r in parallel.rows]
+        (r["file"], r["status"], r["modes"], r["frequencies_hz"]) for r in parallel.rows
+    ]
 
 
 def test_cli_exit_code_and_summary(campaign, tmp_path, capsys):
@@ -158,9 +166,24 @@ def test_ctrl_c_leaves_no_partial_files_and_resumes(tmp_path, workers):
     for seed in range(6):
         ami_xr.to_netcdf(_small_frf(seed), root / f"f{seed}.nc")
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "ami_xr.cli", "batch", str(root), "-o",
-                             str(out), "-q", "--workers", workers], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=ENV)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "ami_xr.cli",
+            "batch",
+            str(root),
+            "-o",
+            str(out),
+            "-q",
+            "--workers",
+            workers,
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=ENV,
+    )
     try:
         deadline = time.monotonic() + 300
         while time.monotonic() < deadline and proc.poll() is None:
@@ -184,8 +207,9 @@ def test_ctrl_c_leaves_no_partial_files_and_resumes(tmp_path, workers):
     for path in out.rglob("*.modes.nc"):
         ami_xr.open_dataset(path)  # complete and readable
     rows = _by_file(batch(root, out, progress=False))
-    assert all(rows[f"f{s}.nc"]["status"] == "up to date" for s in range(6)
-               if f"f{s}.modes.nc" in done)
+    assert all(
+        rows[f"f{s}.nc"]["status"] == "up to date" for s in range(6) if f"f{s}.modes.nc" in done
+    )
     assert all(row["status"] in ("ok", "up to date") for row in rows.values())
     assert np.all([Path(out / row["output"]).is_file() for row in rows.values()])
 

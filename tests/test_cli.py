@@ -19,13 +19,20 @@ from ami_xr.cli import EXIT_ERROR, EXIT_OK, EXIT_USAGE, build_parser, main
 COMMANDS = ("demo", "simulate", "frf", "identify", "report", "convert", "batch")
 REPO = Path(__file__).resolve().parents[1]
 # Subprocesses import this checkout whatever the working directory or installed version.
-ENV = {**os.environ, "PYTHONPATH": os.pathsep.join(
-    [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
+ENV = {
+    **os.environ,
+    "PYTHONPATH": os.pathsep.join([str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])]),
+}
 
 
 def _run(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "ami_xr.cli", *args], capture_output=True,
-                          text=True, timeout=timeout, env=ENV)
+    return subprocess.run(
+        [sys.executable, "-m", "ami_xr.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=ENV,
+    )
 
 
 def _subparsers() -> dict[str, argparse.ArgumentParser]:
@@ -75,8 +82,9 @@ def test_help_compiles_nothing_and_imports_no_extras():
         "extras = [m for m in ('matplotlib', 'pyuff', 'tqdm', 'netCDF4') if m in sys.modules]\n"
         "print('COMPILED', compiled, 'EXTRAS', extras)\n"
     )
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=120, env=ENV)
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=ENV
+    )
     assert proc.returncode == 0, proc.stderr
     assert "COMPILED [] EXTRAS []" in proc.stdout
 
@@ -124,8 +132,23 @@ def test_schema_error_becomes_one_line(tmp_path, capsys):
 def test_simulate_identify_report_convert(tmp_path, capsys):
     frf = tmp_path / "bench.nc"
     truth = tmp_path / "truth.nc"
-    assert main(["simulate", "beam-absorbers", "-o", str(frf), "--noise", "0.15", "--seed", "1",
-                 "--truth-output", str(truth)]) == EXIT_OK
+    assert (
+        main(
+            [
+                "simulate",
+                "beam-absorbers",
+                "-o",
+                str(frf),
+                "--noise",
+                "0.15",
+                "--seed",
+                "1",
+                "--truth-output",
+                str(truth),
+            ]
+        )
+        == EXIT_OK
+    )
     g = ami_xr.open_dataset(frf)
     ami_xr.validate(g)
     assert g.attrs["noise_seed"] == 1
@@ -143,8 +166,7 @@ def test_simulate_identify_report_convert(tmp_path, capsys):
     assert main(["convert", str(modes), "-o", str(uff), "--binary"]) == EXIT_OK
     back = tmp_path / "back.nc"
     assert main(["convert", str(uff), "-o", str(back)]) == EXIT_OK
-    np.testing.assert_array_equal(ami_xr.open_dataset(back)[names.FRF].values,
-                                  g[names.FRF].values)
+    np.testing.assert_array_equal(ami_xr.open_dataset(back)[names.FRF].values, g[names.FRF].values)
     assert main(["convert", str(modes), "-o", str(tmp_path / "x.csv")]) == EXIT_ERROR
 
 
@@ -177,8 +199,13 @@ def test_frf_from_hammer_lvm_reports_rejected_hits(tmp_path, capsys):
 
 def test_frf_bad_option_is_one_line(tmp_path, capsys):
     rng = np.random.default_rng(0)
-    ts = ami_xr.make_time_dataset(rng.normal(size=(2, 512)), fs=256.0,
-                                  force=rng.normal(size=512), points=["a", "b"], drive_point="a")
+    ts = ami_xr.make_time_dataset(
+        rng.normal(size=(2, 512)),
+        fs=256.0,
+        force=rng.normal(size=512),
+        points=["a", "b"],
+        drive_point="a",
+    )
     path = ami_xr.to_netcdf(ts, tmp_path / "t.nc")
     code = main(["frf", str(path), "-o", str(tmp_path / "f.nc"), "--nperseg", "4096"])
     assert code == EXIT_ERROR
@@ -189,28 +216,58 @@ def test_frf_bad_option_is_one_line(tmp_path, capsys):
 
 def test_pure_noise_gives_zero_modes_and_one_line_warnings(tmp_path, capsys):
     rng = np.random.default_rng(0)
-    g = ami_xr.make_frf_dataset(rng.normal(size=(3, 400)) + 1j * rng.normal(size=(3, 400)),
-                                np.linspace(1, 100, 400), points=[1, 2, 3], drive_point=1)
+    g = ami_xr.make_frf_dataset(
+        rng.normal(size=(3, 400)) + 1j * rng.normal(size=(3, 400)),
+        np.linspace(1, 100, 400),
+        points=[1, 2, 3],
+        drive_point=1,
+    )
     path = ami_xr.to_netcdf(g, tmp_path / "noise.nc")
     assert main(["identify", str(path), "-o", str(tmp_path / "m.nc")]) == EXIT_OK
     captured = capsys.readouterr()
     assert "no modes identified" in captured.out
     warnings_lines = [line for line in captured.err.splitlines() if line.strip()]
     assert warnings_lines
-    assert all(line.startswith("ami-xr identify: warning: NoModesWarning:")
-               for line in warnings_lines)
+    assert all(
+        line.startswith("ami-xr identify: warning: NoModesWarning:") for line in warnings_lines
+    )
     assert main(["report", str(tmp_path / "m.nc"), "-o", str(tmp_path / "rep")]) == EXIT_OK
 
 
 def test_simulate_random_system(tmp_path, capsys):
     out, truth = tmp_path / "r.nc", tmp_path / "t.nc"
-    assert main(["simulate", "random", "-o", str(out), "--points", "5", "--noise", "0.01",
-                 "--seed", "2", "--truth-output", str(truth)]) == EXIT_OK
+    assert (
+        main(
+            [
+                "simulate",
+                "random",
+                "-o",
+                str(out),
+                "--points",
+                "5",
+                "--noise",
+                "0.01",
+                "--seed",
+                "2",
+                "--truth-output",
+                str(truth),
+            ]
+        )
+        == EXIT_OK
+    )
     g = ami_xr.validate(ami_xr.open_dataset(out))
     assert g.sizes[names.POINT] == 5
     assert names.EIGENVALUE in ami_xr.open_dataset(truth)
-    code = main(["simulate", "random", "-o", str(tmp_path / "x.nc"), "--time-output",
-                 str(tmp_path / "y.nc")])
+    code = main(
+        [
+            "simulate",
+            "random",
+            "-o",
+            str(tmp_path / "x.nc"),
+            "--time-output",
+            str(tmp_path / "y.nc"),
+        ]
+    )
     assert code == EXIT_ERROR
     assert "--time-output" in capsys.readouterr().err
     assert not (tmp_path / "x.nc").exists()

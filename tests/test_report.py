@@ -27,8 +27,9 @@ def benchmark_result() -> xr.Dataset:
 @pytest.fixture(scope="module")
 def chain_result() -> xr.Dataset:
     """An identified random chain without point coordinates (labels 0..n-1)."""
-    g, _ = ami_xr.simulate.random_system(n_points=5, n_modes=5, noise=0.02, seed=3,
-                                         n_frequencies=1024)
+    g, _ = ami_xr.simulate.random_system(
+        n_points=5, n_modes=5, noise=0.02, seed=3, n_frequencies=1024
+    )
     for coord in ("point_x", "point_y", "point_z"):
         if coord in g.coords:
             g = g.drop_vars(coord)
@@ -70,8 +71,7 @@ def test_mode_shape_along_structure_when_coordinates_given(chain_result):
 
 
 def test_missing_optional_variables_are_noted(tmp_path, benchmark_result):
-    optional = [v for v in benchmark_result.data_vars
-                if v not in (names.FRF, names.EIGENVALUE)]
+    optional = [v for v in benchmark_result.data_vars if v not in (names.FRF, names.EIGENVALUE)]
     bare = benchmark_result.drop_vars(optional)
     index = report(bare, tmp_path / "bare")
     pngs = _pngs(index.parent)
@@ -88,8 +88,14 @@ def test_plain_frf_dataset_gives_bode_and_notes(tmp_path, frf_dataset):
 
 
 def test_plot_functions_return_figures_and_save(tmp_path, benchmark_result):
-    for name in ("plot_bode", "plot_nyquist", "plot_subtraction", "plot_mode_vectors",
-                 "plot_mac", "plot_modal_table"):
+    for name in (
+        "plot_bode",
+        "plot_nyquist",
+        "plot_subtraction",
+        "plot_mode_vectors",
+        "plot_mac",
+        "plot_modal_table",
+    ):
         path = tmp_path / f"{name}.png"
         fig = getattr(benchmark_result.ami, name)(path=path)
         assert fig.axes and path.stat().st_size > 1000

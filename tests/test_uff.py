@@ -23,8 +23,14 @@ MEASUREMENT = DATA / "measurement.uff"
 def _frf(points, drive, seed=0, n=64):
     rng = np.random.default_rng(seed)
     values = rng.normal(size=(len(points), n)) + 1j * rng.normal(size=(len(points), n))
-    return ami_xr.make_frf_dataset(values, np.arange(n) * 0.5, points=points, drive_point=drive,
-                                   response_quantity="acceleration", response_units="m/s^2")
+    return ami_xr.make_frf_dataset(
+        values,
+        np.arange(n) * 0.5,
+        points=points,
+        drive_point=drive,
+        response_quantity="acceleration",
+        response_units="m/s^2",
+    )
 
 
 @pytest.mark.parametrize(
@@ -96,9 +102,7 @@ def test_mode_shapes_55_round_trip(tmp_path, points):
         assert back.sizes[names.POINT] == 3
         got = back[names.MODE_VECTOR].values
     else:
-        assert sorted(back[names.POINT].values.tolist()) == sorted(
-            ["1+X", "1+Z", "2+Z", "4+Y"]
-        )
+        assert sorted(back[names.POINT].values.tolist()) == sorted(["1+X", "1+Z", "2+Z", "4+Y"])
         got = back[names.MODE_VECTOR].sel({names.POINT: ["1+X", "1+Z", "2+Z", "4+Y"]}).values
         got = got * np.array([1, 1, 1, -1])[:, None]  # "4-Y" is stored as -(+Y)
     np.testing.assert_allclose(got, modes[names.MODE_VECTOR].values, rtol=1e-5)
@@ -119,9 +123,15 @@ def test_time_histories_58_round_trip(tmp_path):
     rng = np.random.default_rng(2)
     resp = rng.normal(size=(2, 3, 128))
     force = rng.normal(size=(2, 128))
-    ts = ami_xr.make_time_dataset(resp, fs=1024.0, force=force, points=["1+Z", "2+Z", "3+Z"],
-                                  drive_point="1+Z", response_quantity="acceleration",
-                                  response_units="m/s^2")
+    ts = ami_xr.make_time_dataset(
+        resp,
+        fs=1024.0,
+        force=force,
+        points=["1+Z", "2+Z", "3+Z"],
+        drive_point="1+Z",
+        response_quantity="acceleration",
+        response_units="m/s^2",
+    )
     back = read_uff(write_uff(ts, tmp_path / "t.uff", binary=True))
     np.testing.assert_array_equal(back[names.RESPONSE].values, resp)
     np.testing.assert_array_equal(back[names.FORCE].values, force)
@@ -133,8 +143,15 @@ def test_time_histories_58_round_trip(tmp_path):
 def test_node_coordinates_become_point_coords(tmp_path):
     ds = _frf(["1+Z", "2+Z", "3+Z"], "1+Z")
     path = write_uff(ds, tmp_path / "geo.uff")
-    nodes = pyuff.prepare_15(node_nums=[1, 2, 3], def_cs=[0] * 3, disp_cs=[0] * 3, color=[1] * 3,
-                             x=[0.0, 0.5, 1.0], y=[0.0] * 3, z=[0.0] * 3)
+    nodes = pyuff.prepare_15(
+        node_nums=[1, 2, 3],
+        def_cs=[0] * 3,
+        disp_cs=[0] * 3,
+        color=[1] * 3,
+        x=[0.0, 0.5, 1.0],
+        y=[0.0] * 3,
+        z=[0.0] * 3,
+    )
     pyuff.UFF(str(path)).write_sets([nodes], mode="add")
     back = read_uff(path)
     np.testing.assert_allclose(back["point_x"].values, [0.0, 0.5, 1.0])
@@ -150,11 +167,27 @@ def test_errors_name_the_file(tmp_path):
     # Several responses AND several references: multi-reference data is refused clearly.
     recs = []
     for rsp, ref in [(1, 1), (2, 2)]:
-        recs.append(pyuff.prepare_58(
-            binary=0, func_type=4, rsp_node=rsp, rsp_dir=3, ref_node=ref, ref_dir=3,
-            data=np.ones(4, complex), x=np.arange(4.0), abscissa_spacing=1, abscissa_min=0.0,
-            abscissa_inc=1.0, ordinate_spec_data_type=12, orddenom_spec_data_type=13,
-            abscissa_spec_data_type=18, id1="x", rsp_ent_name="a", ref_ent_name="a"))
+        recs.append(
+            pyuff.prepare_58(
+                binary=0,
+                func_type=4,
+                rsp_node=rsp,
+                rsp_dir=3,
+                ref_node=ref,
+                ref_dir=3,
+                data=np.ones(4, complex),
+                x=np.arange(4.0),
+                abscissa_spacing=1,
+                abscissa_min=0.0,
+                abscissa_inc=1.0,
+                ordinate_spec_data_type=12,
+                orddenom_spec_data_type=13,
+                abscissa_spec_data_type=18,
+                id1="x",
+                rsp_ent_name="a",
+                ref_ent_name="a",
+            )
+        )
     multi = tmp_path / "multi.uff"
     pyuff.UFF(str(multi)).write_sets(recs, mode="add")
     with pytest.raises(DataFileError, match="reference"):
