@@ -61,6 +61,7 @@ from ami_xr.kernels.refine import model_columns, project_points
 QUALITY_FLAGS = names.QUALITY_FLAGS
 DRIVE_SNR_MIN = 3.0  # global_fit's default threshold of the low_drive_point_snr flag
 _STATUS_OK, _STATUS_NOT_CONVERGED, _STATUS_FALLBACK = 0, 1, 2
+TRIAL_ITERATIONS = 10  # cap of the trial fits of the model-order tests
 FLAG_ADDED = "added_by_refine"  # a mode AMI missed, added by the likelihood-ratio check
 _FLAG_SEPARATOR = ","
 
@@ -106,14 +107,14 @@ def _mode_codes(lam: np.ndarray, lam0: np.ndarray, max_shift: float, min_width: 
     return code
 
 
-def _fit_modes(prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width):
+def _fit_modes(prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width, free=None):
     """Levenberg-Marquardt from ``mu0`` (data poles); a mode that leaves its region around
     ``ref`` (physical eigenvalues) is frozen at its start and the fit goes on without it.
 
     Returns ``(fit, free, n_iter, start_cost)``.
     """
     n_mode = mu0.size
-    free = np.ones(n_mode, bool)
+    free = np.ones(n_mode, bool) if free is None else np.array(free, bool)
 
     def check(mu):
         return _mode_codes(mu + decay, ref, max_shift, min_width)
@@ -179,6 +180,24 @@ def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=0.1):
     return out
 
 
+def _costs_without_each_mode(prob, proj):
+    """Objective with each mode left out, the other eigenvalues fixed and all residues refitted.
+
+    The "extra sum of squares" of a linear fit: leaving out the two columns ``c`` of mode ``k``
+    raises ``|r_j|^2`` by ``a_jc' [(R'R)^-1]_cc^-1 a_jc`` -- no new projection needed.
+    """
+    rinv = np.linalg.inv(proj.r)
+    cov = rinv @ rinv.T
+    floor = (_varpro.RSS_FLOOR**2) * prob.y_norm2
+    out = np.empty(proj.lam.size)
+    for k in range(proj.lam.size):
+        c = slice(2 * k, 2 * k + 2)
+        a = proj.coef[:, c]
+        extra = np.einsum("ja,ab,jb->j", a, np.linalg.inv(cov[c, c]), a)
+        out[k] = 0.5 * prob.n_rows * np.sum(np.log(np.maximum(proj.rss + extra, floor)))
+    return out
+
+
 def _residual_rows(prob, proj):
     """Residuals ``y_j - Q Q' y_j`` of every point (P, 2L)."""
     qty = project_points(prob.y, proj.q, proj.v)[0]
@@ -205,7 +224,11 @@ def _refine_arrays(
     min_width = 2.0 * (omega[1] - omega[0]) if omega.size > 1 else 0.0
     opts = dict(decay=decay, max_iter=max_iter, tol=tol, max_shift=max_shift,
                 min_width=min_width)
+    # Trial fits of the order tests stop early: an unfinished fit only overstates the cost of
+    # the smaller model (conservative for dropping) and the kept model is polished at the end.
+    trial_opts = dict(opts, max_iter=min(max_iter, TRIAL_ITERATIONS))
     fit, free, n_iter, start_cost = _fit_modes(prob, mu0, lam0, **opts)
+    changed = False
     n_ami = lam0.size
     # Model-order check by likelihood ratio: a mode AMI missed (e.g. one of a close pair lost in
     # noise) leaves a coherent residual; add it when the likelihood gain is significant at
@@ -219,16 +242,16 @@ def _refine_arrays(
     # AMI mode fitting noise): dropped, the others refitted. Screened cheaply first: removing a
     # mode without refitting the others costs at least as much as with refitting.
     while drop_modes and not exact and fit.lam.size > 1:
-        lr = np.array([2.0 * (_varpro.objective(prob, _varpro.project(
-            prob, np.delete(fit.lam, k))) - fit.cost) for k in range(fit.lam.size)])
+        lr = 2.0 * (_costs_without_each_mode(prob, fit.proj) - fit.cost)
         k = int(np.argmin(lr))
         if not lr[k] < threshold:
             break
-        trial = _fit_modes(prob, np.delete(fit.lam, k), np.delete(lam0, k), **opts)
+        trial = _fit_modes(prob, np.delete(fit.lam, k), np.delete(lam0, k), **trial_opts)
+        n_iter += trial[2]
         if not 2.0 * (trial[0].cost - fit.cost) < threshold:
             break
         fit, free = trial[0], np.delete(free, k) & trial[1]
-        n_iter += trial[2]
+        changed = True
         lam0, origin, res0 = np.delete(lam0, k), np.delete(origin, k), np.delete(res0, k, 1)
     n_ami = lam0.size
     for _ in range(add_modes if not exact else 0):
@@ -237,17 +260,25 @@ def _refine_arrays(
         best = None
         for cand in _residual_candidates(prob, fit):
             ref = np.append(fit.lam + decay, cand + decay)
-            trial = _fit_modes(prob, np.append(fit.lam, cand), ref, **opts)
+            trial = _fit_modes(prob, np.append(fit.lam, cand), ref, **trial_opts)
+            n_iter += trial[2]
             gain = 2.0 * (fit.cost - trial[0].cost)
             if trial[1][-1] and trial[1].all() and gain > threshold and (
                     best is None or trial[0].cost < best[0].cost):
                 best = trial
         if best is None:
             break
-        fit, trial_free, k_iter, _ = best
+        fit, trial_free, _, _ = best
         free = np.append(free, True) & trial_free
         lam0 = np.append(lam0, fit.lam[-1] + decay)
-        n_iter += k_iter
+        changed = True
+    if changed and np.isfinite(fit.cost):  # polish the new model (frozen modes stay frozen)
+        ref = np.where(free, lam0, fit.lam + decay)
+        polish = _fit_modes(prob, fit.lam, ref, free=free,
+                            **dict(opts, max_iter=max(max_iter - n_iter, 5)))
+        n_iter += polish[2]
+        if polish[0].cost <= fit.cost:
+            fit, free = polish[0], free & polish[1]
     n_mode = lam0.size
     res0 = np.concatenate([res0, np.full((n_point, n_mode - n_ami), np.nan + 0j)], axis=1)
     origin = np.concatenate([origin, np.full(n_mode - n_ami, -1)])
