@@ -2,7 +2,8 @@
 
 Variable projection: for given eigenvalues the residues of every FRF follow by linear least
 squares on a basis that all FRFs share (one QR factorisation per evaluation); the eigenvalues,
-shared by all FRFs, follow by Levenberg-Marquardt on the Kaufman Jacobian. The objective is the
+shared by all FRFs, follow by Levenberg-Marquardt on the Kaufman Jacobian plus a secant estimate
+of the curvature Gauss-Newton leaves out (Dennis-Gay-Welsch / NL2SOL idea). The objective is the
 negative log-likelihood of independent Gaussian frequency lines whose variance is unknown per
 FRF and profiled out, ``f = sum_j (n / 2) log |r_j|^2``, so each FRF is weighted by its own noise
 level ``n / |r_j|^2`` at every iteration (maximum likelihood, not equal weights).

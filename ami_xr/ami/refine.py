@@ -19,8 +19,9 @@ once, by maximum likelihood:
   ``sum_j (n / 2) log |r_j|^2``: every FRF is weighted by its own estimated noise level;
 * variable projection: for given eigenvalues the residues of FRF ``j`` follow from FRF ``j`` alone
   by linear least squares on a basis all FRFs share (one QR factorisation per evaluation); the
-  eigenvalues, shared by all FRFs, follow by Levenberg-Marquardt on the Kaufman Jacobian. Steps
-  are taken only when they lower the objective, so the result is never worse than the start.
+  eigenvalues, shared by all FRFs, follow by Levenberg-Marquardt on the Kaufman Jacobian (with a
+  secant correction of the curvature). Steps are taken only when they lower the objective, so
+  the result is never worse than the start.
 
 Robustness: a mode that leaves the upper-left quadrant, moves more than ``max_shift`` half-power
 bandwidths from its AMI value, lets its damping collapse (it is then fitting a noise spike) or
@@ -32,7 +33,8 @@ labels (matched by distance).
 Model order: a mode AMI missed (typically one of a close pair lost in the noise) leaves a
 coherent residual. Peaks of the noise-normalised residual power are tried as extra modes and
 kept when the likelihood-ratio statistic is significant (``add_modes``, ``add_pfa``); they are
-flagged ``added_by_refine``. The global-fit outputs that depend on the residues
+flagged ``added_by_refine``. An AMI mode that fails the same test is dropped (``drop_modes``).
+The global-fit outputs that depend on the residues
 (``frf_synthesized``, ``frf_residual``, ``mac``, ``drive_point_snr`` and its
 ``low_drive_point_snr`` flag) are recomputed from the refined model.
 
