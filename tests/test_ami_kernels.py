@@ -63,7 +63,8 @@ def test_single_mode_matches_lstsq(dt, n):
     lam, a = -0.6 + 40.0j, 2e-3 - 1e-3j
     sel = _band(38, 42)
     g = mode_contribution(OMEGA, lam, a, dt, n)[sel]
-    g = g + 0.02 * np.abs(g).max() * (rng.standard_normal(g.size) + 1j * rng.standard_normal(g.size))
+    scale = 0.02 * np.abs(g).max()
+    g = g + scale * (rng.standard_normal(g.size) + 1j * rng.standard_normal(g.size))
     ws = float(np.mean(OMEGA[sel]))
     rows, rhs = k.single_mode_rows(g, OMEGA[sel], ws, dt)
     sol = np.linalg.lstsq(rows, rhs, rcond=None)[0]
@@ -91,8 +92,8 @@ def test_simo_single_mode_exact(dt, n):
 def test_two_mode_fit_exact(dt, n):
     l1, l2 = -0.39 + 65.0j, -0.59 + 65.9j
     r = np.array([[1e-3 + 2e-3j, -2e-3 + 1e-3j], [3e-3 - 2e-3j, 1e-3 + 1e-3j]])
-    g = np.stack([mode_contribution(OMEGA, l1, ri[0], dt, n) + mode_contribution(OMEGA, l2, ri[1], dt, n)
-                  for ri in r])
+    g = np.stack([mode_contribution(OMEGA, l1, ri[0], dt, n)
+                  + mode_contribution(OMEGA, l2, ri[1], dt, n) for ri in r])
     idx = np.flatnonzero(_band(63.5, 67.5))
     x = k._line_variable(OMEGA, dt or 0.0)
     lam = np.zeros(2, complex)
@@ -153,7 +154,8 @@ def test_residues_fixed_exact(dt, n):
 def test_noise_floor_and_threshold():
     rng = np.random.default_rng(3)
     sigma = 0.7
-    noise = sigma / np.sqrt(2) * (rng.standard_normal((4, 20000)) + 1j * rng.standard_normal((4, 20000)))
+    shape = (4, 20000)
+    noise = sigma / np.sqrt(2) * (rng.standard_normal(shape) + 1j * rng.standard_normal(shape))
     np.testing.assert_allclose(k.noise_floor(noise), sigma, rtol=0.03)
     t = k.peak_threshold(2049, 1e-3)
     assert abs((1 - math.exp(-t)) ** 2049 - (1 - 1e-3)) < 1e-12

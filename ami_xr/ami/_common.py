@@ -74,7 +74,8 @@ def check_fraction(value: Any, argument: str) -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise IdentificationError(f"{argument}: expected a number in (0, 1), got {value!r}")
+        raise IdentificationError(
+            f"{argument}: expected a number in (0, 1), got {value!r}") from None
     if not 0.0 < v < 1.0:
         raise IdentificationError(f"{argument}: expected a number in (0, 1), got {value!r}")
     return v
@@ -90,7 +91,8 @@ def check_positive(value: Any, argument: str) -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise IdentificationError(f"{argument}: expected a positive number, got {value!r}")
+        raise IdentificationError(
+            f"{argument}: expected a positive number, got {value!r}") from None
     if not (v > 0 and np.isfinite(v)):
         raise IdentificationError(f"{argument}: expected a positive number, got {value!r}")
     return v

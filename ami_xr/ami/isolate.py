@@ -65,7 +65,7 @@ def match_modes(lam: np.ndarray, snr: np.ndarray, match_tol: float) -> np.ndarra
             big = 1e6
             rows, cols = linear_sum_assignment(np.where(cost < match_tol, cost, big))
             taken = {}
-            for r, col in zip(rows, cols):
+            for r, col in zip(rows, cols, strict=True):
                 if cost[r, col] < match_tol:
                     taken[r] = col
         else:
@@ -253,7 +253,8 @@ def isolate(
         order = np.argsort(np.abs(lam_s[:n_modes]))
         eig = lam_s[:n_modes][order]
         res_m = np.ascontiguousarray(res_s[:, :n_modes][:, order])
-        point_snr = k._contribution_peaks(omega, dt, n_samples, eig[None, :], res_m) / sigma[:, None]
+        peaks = k._contribution_peaks(omega, dt, n_samples, eig[None, :], res_m)
+        point_snr = peaks / sigma[:, None]
         detected = point_snr**2 >= t1
         est = k._point_estimates(g, omega, dt, n_samples, np.ascontiguousarray(eig), res_m, delta,
                                  min_points, zeta_max)

@@ -1552,7 +1552,7 @@ def fit_single_mode(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, prev=
 
 
 def fit_single_mode_simo(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, prev=None):
-    """Global SIMO single-mode fit of all rows of ``data`` (P, F): ``(lam, residues (P,), code)``."""
+    """Global SIMO single-mode fit of all rows of ``data`` (P, F): ``(lam, residues, code)``."""
     omega = _as_omega(omega)
     data = np.ascontiguousarray(np.atleast_2d(data), dtype=np.complex128)
     if data.shape[-1] != omega.size:
