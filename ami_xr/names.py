@@ -35,6 +35,8 @@ ATTR_EXP_DECAY = "exponential_window_decay"  # 1/s, decay rate an exponential wi
 ATTR_HISTORY = "ami_xr_history"  # provenance: JSON list of {function, parameters, time, ...}
 ATTR_VERSION = "ami_xr_version"
 ATTR_SOURCE_FILE = "source_file"
+ATTR_EXCITATION = "excitation"  # on time Datasets: "unit_impulse" when there is no force record
+EXCITATION_UNIT_IMPULSE = "unit_impulse"
 
 # --- allowed values ---------------------------------------------------------------------------
 QUANTITY_TO_FRF_TYPE = {
@@ -88,7 +90,8 @@ FLAG_REFINE_FALLBACK = "refine_fallback"
 # --- FRF estimation from time histories (ami_xr.frf) ------------------------------------------
 FORCE_AUTOSPECTRUM = "force_autospectrum"  # Gff, one-sided density, dims ([reference,] frequency)
 RESPONSE_AUTOSPECTRUM = "response_autospectrum"  # Gyy, dims (point, frequency)
-CROSS_SPECTRUM = "cross_spectrum"  # Gfy = E[conj(F) Y], complex, dims ([reference,] point, frequency)
+# Gfy = E[conj(F) Y], complex, dims ([reference,] point, frequency)
+CROSS_SPECTRUM = "cross_spectrum"
 HIT_REJECTED = "hit_rejected"  # bool, dims (record): impact hit left out of the average
 HIT_REJECT_REASON = "hit_reject_reason"  # str, dims (record): why ("" when accepted)
 HIT_PEAK_FORCE = "hit_peak_force"  # largest |force| of each hit, dims (record)

@@ -24,8 +24,6 @@ __all__ = ["validate", "make_frf_dataset", "make_time_dataset", "KINDS", "UNIFOR
 KINDS = ("frf", "time")
 
 # Dataset attribute of impulse-response time Datasets that carry no force record.
-ATTR_EXCITATION = "excitation"
-EXCITATION_UNIT_IMPULSE = "unit_impulse"
 
 # Time steps may differ from their mean by this fraction of the step (float rounding of t = i*dt).
 UNIFORM_RTOL = 1e-6
@@ -408,11 +406,11 @@ def _time_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool
         problems += _signal_problems(ds, names.RESPONSE, ((p, t), (r, p, t)), check_values, namer)
     if names.FORCE in ds.data_vars:
         problems += _signal_problems(ds, names.FORCE, ((t,), (r, t)), check_values, namer)
-    elif ds.attrs.get(ATTR_EXCITATION) != EXCITATION_UNIT_IMPULSE:
+    elif ds.attrs.get(names.ATTR_EXCITATION) != names.EXCITATION_UNIT_IMPULSE:
         problems.append(
             f"{namer.var(names.FORCE)}: missing (expected float force with dims {(t,)} or "
-            f"{(r, t)}, or attribute {ATTR_EXCITATION}={EXCITATION_UNIT_IMPULSE!r} for impulse "
-            "responses)"
+            f"{(r, t)}, or attribute {names.ATTR_EXCITATION}="
+            f"{names.EXCITATION_UNIT_IMPULSE!r} for impulse responses)"
         )
     _check_axis(ds, t, names.TIME_UNITS, namer, problems, uniform=True)
     labels = _check_points(ds, namer, problems)
@@ -728,7 +726,7 @@ def make_time_dataset(
         coords[names.RECORD] = np.arange(values.shape[0])
     ds_attrs = _std_attrs(drive_point, response_quantity, response_units, force_units)
     if force is None:
-        ds_attrs[ATTR_EXCITATION] = EXCITATION_UNIT_IMPULSE
+        ds_attrs[names.ATTR_EXCITATION] = names.EXCITATION_UNIT_IMPULSE
     else:
         f = _as_array(force, "force")
         want = values.shape[:1] + (n_time,) if values.ndim == 3 else (n_time,)

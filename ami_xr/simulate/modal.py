@@ -34,8 +34,6 @@ from ami_xr._provenance import add_history
 from ami_xr.errors import AmiXrValueError
 
 # Attributes this module adds beyond ami_xr.names (simulator-specific).
-ATTR_EXCITATION = "excitation"
-EXCITATION_UNIT_IMPULSE = "unit_impulse"
 ATTR_NOISE_LEVEL = "noise_level"  # alpha of eq. 15
 ATTR_NOISE_KIND = "noise_kind"  # "uniform" | "gaussian"
 ATTR_NOISE_SEED = "noise_seed"
@@ -539,7 +537,7 @@ def impulse_response(
         names.ATTR_QUANTITY: "displacement",
         names.ATTR_RESPONSE_UNITS: ru,
         names.ATTR_FORCE_UNITS: fu,
-        ATTR_EXCITATION: EXCITATION_UNIT_IMPULSE,
+        names.ATTR_EXCITATION: names.EXCITATION_UNIT_IMPULSE,
     }
     return add_history(
         ds,
