@@ -1189,11 +1189,6 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
             for k in range(n):
                 res[j, k] = r0[j, k]
     for _restart in range(max_modes + 4):
-        for j in range(n_p):
-            for i in range(n_f):
-                model[j, i] = 0.0
-            for k in range(n):
-                _add_mode(model[j], x, lam[k], res[j, k], dt, n_samples, 1.0, 0, n_f)
         it = 0
         converged = n == 0
         band_lo = np.zeros(max_modes, dtype=np.int64)
@@ -1218,10 +1213,15 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                 if band_hi[k] > 0:
                     wlo = min(wlo, band_lo[k])
                     whi = max(whi, band_hi[k])
+                # eq. 7 on the window only (the other modes synthesised there): the cost does
+                # not grow with the number of lines
                 for j in range(n_p):
                     for i in range(wlo, whi):
-                        xn[j, i] = dw_data[j, i] - model[j, i]
-                    _add_mode(xn[j], x, lam[k], res[j, k], dt, n_samples, 1.0, wlo, whi)
+                        xn[j, i] = dw_data[j, i]
+                    for m in range(n):
+                        if m != k:
+                            _add_mode(xn[j], x, lam[m], res[j, m], dt, n_samples, -1.0, wlo,
+                                      whi)
                 if (frozen[k] and omega[band_lo[k]] <= lam[k].imag
                         and lam[k].imag <= omega[band_hi[k] - 1]):
                     lo = band_lo[k]
@@ -1258,14 +1258,17 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                 change = max(change, ch)
                 frozen[k] = ch < FREEZE_CHANGE
                 for j in range(n_p):
-                    _add_mode(model[j], x, lam[k], res[j, k], dt, n_samples, -1.0, 0, n_f)
                     res[j, k] = rtmp[j]
-                    _add_mode(model[j], x, new, rtmp[j], dt, n_samples, 1.0, 0, n_f)
                 lam[k] = new
             if change < tol:
                 converged = True
                 break
         total_it += it
+        for j in range(n_p):
+            for i in range(n_f):
+                model[j, i] = 0.0
+            for k in range(n):
+                _add_mode(model[j], x, lam[k], res[j, k], dt, n_samples, 1.0, 0, n_f)
         changed = False
         k = 0
         while k < n:
