@@ -1263,6 +1263,20 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
             if change < tol:
                 converged = True
                 break
+            if it == 3:
+                # early pruning: once residues have been fitted, leave the sweeps to drop
+                # insignificant modes (spurious candidates of single FRFs), so the remaining
+                # sweeps do not carry them
+                prune = False
+                for k in range(n):
+                    best = 0.0
+                    for j in range(n_p):
+                        best = max(best, _contribution_peak(omega, x, lam[k], res[j, k], dt,
+                                                            n_samples))
+                    if best * best < t1:
+                        prune = True
+                if prune:
+                    break
         total_it += it
         for j in range(n_p):
             for i in range(n_f):
