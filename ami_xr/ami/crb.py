@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import numpy as np
 import xarray as xr
-from scipy import integrate
 
 from ami_xr import names
 from ami_xr._provenance import add_history
@@ -39,6 +38,8 @@ def expected_norm(cov: np.ndarray) -> float:
     Uses ``E|x| = (1/sqrt(pi)) int_0^inf (1 - prod_i (1 + 2 u^2 l_i)^(-1/2)) / u^2 du`` with
     ``l_i`` the eigenvalues of ``cov``; for one dimension this is ``sqrt(2/pi) sigma``.
     """
+    from scipy import integrate  # lazy: keeps `import ami_xr` fast
+
     lam = np.clip(np.linalg.eigvalsh(np.asarray(cov, dtype=float)), 0.0, None)
     total = lam.sum()
     if total <= 0:

@@ -50,8 +50,6 @@ from collections.abc import Sequence
 
 import numpy as np
 import xarray as xr
-from scipy.optimize import linear_sum_assignment
-from scipy.stats import chi2
 
 from ami_xr import names
 from ami_xr._provenance import add_history, history
@@ -77,6 +75,8 @@ def _match(lam: np.ndarray, lam0: np.ndarray, width: np.ndarray) -> np.ndarray:
     Two close modes may trade places during the fit (same optimum, labels swapped); matching by
     distance in bandwidths keeps each mode's label and flags with the right eigenvalue.
     """
+    from scipy.optimize import linear_sum_assignment  # lazy: keeps `import ami_xr` fast
+
     cost = np.abs(lam[:, None] - lam0[None, :]) / width[None, :]
     cost = np.where(np.isfinite(cost), cost, 1e300)
     rows, cols = linear_sum_assignment(cost)
@@ -155,6 +155,8 @@ def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=0.1):
     screen before the likelihood-ratio test): candidate data poles, damping the median of the
     modes found.
     """
+    from scipy.stats import chi2  # lazy: scipy.stats is slow to import
+
     proj = fit.proj
     omega = prob.omega
     n_line = omega.size
@@ -215,6 +217,8 @@ def _refine_arrays(
     Returns per output mode (AMI modes that survive, in AMI order, then added ones) and
     ``origin``: the AMI mode index of each output mode, -1 for an added one.
     """
+    from scipy.stats import chi2  # lazy: scipy.stats is slow to import
+
     n_point = frf.shape[0]
     omega = 2.0 * np.pi * np.asarray(freq, dtype=np.float64)
     nyquist = np.pi / dt if dt else None

@@ -34,7 +34,6 @@ from collections.abc import Sequence
 
 import numpy as np
 import xarray as xr
-from scipy.optimize import brentq
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.simulate.modal import (
@@ -80,6 +79,8 @@ PAPER_MODE_VECTORS = 1e-6 * np.array(
 
 def clamped_free_roots(J: int) -> np.ndarray:
     """The first ``J`` roots ``b_j`` of ``cos b cosh b = -1`` (b_1 = 1.87510...)."""
+    from scipy.optimize import brentq  # lazy: keeps `import ami_xr` fast
+
     _check_J(J)
     # cos b = -1/cosh b: root j lies within 0.31 of (j - 1/2) pi.
     f = lambda b: np.cos(b) + 1.0 / np.cosh(b)  # noqa: E731
