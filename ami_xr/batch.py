@@ -253,21 +253,26 @@ def _modal_summary(ds) -> tuple[int, str]:
     return int(fn.size), " ".join(f"{f:.4f}" for f in fn)
 
 
+def _row(rel: str, out_rel: str, status: str, message: str = "", modes="", frequencies_hz=""):
+    """One summary row (the fields of SUMMARY_FIELDS)."""
+    return {
+        "file": rel,
+        "status": status,
+        "modes": modes,
+        "frequencies_hz": frequencies_hz,
+        "output": out_rel,
+        "seconds": 0.0,
+        "message": message,
+    }
+
+
 def _process_one(job: dict[str, Any]) -> dict[str, Any]:
     """Run the pipeline on one file (in a worker process); never raises for a bad file."""
     import ami_xr
     from ami_xr.ami import identify
 
     inp, out = Path(job["input"]), Path(job["output"])
-    row = {
-        "file": job["rel"],
-        "status": STATUS_FAILED,
-        "modes": "",
-        "frequencies_hz": "",
-        "output": job["out_rel"],
-        "seconds": 0.0,
-        "message": "",
-    }
+    row = _row(job["rel"], job["out_rel"], STATUS_FAILED)
     start = time.perf_counter()
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -430,15 +435,7 @@ def _run_jobs(jobs: list[dict], workers: int, stop: _GracefulInterrupt) -> Itera
             except cf.process.BrokenProcessPool as err:
                 # A worker died (e.g. killed for memory): report the files it did not finish.
                 job = futures[fut]
-                yield {
-                    "file": job["rel"],
-                    "status": STATUS_FAILED,
-                    "modes": "",
-                    "frequencies_hz": "",
-                    "output": job["out_rel"],
-                    "seconds": 0.0,
-                    "message": f"worker process died: {err}",
-                }
+                yield _row(job["rel"], job["out_rel"], STATUS_FAILED, f"worker process died: {err}")
     finally:
         # An error or a second Ctrl-C: drop queued files; finished outputs are complete, the
         # others absent (to_netcdf removes its temporary file).
@@ -524,29 +521,17 @@ def batch(
         rel = inp.relative_to(input_dir).as_posix()
         out_rel = out.relative_to(output_dir).as_posix()
         if out in claimed:
-            rows[rel] = {
-                "file": rel,
-                "status": STATUS_FAILED,
-                "modes": "",
-                "frequencies_hz": "",
-                "output": out_rel,
-                "seconds": 0.0,
-                "message": f"output name collides with that of {claimed[out]}; "
-                "rename one of the files",
-            }
+            rows[rel] = _row(
+                rel,
+                out_rel,
+                STATUS_FAILED,
+                f"output name collides with that of {claimed[out]}; rename one of the files",
+            )
             continue
         claimed[out] = rel
         if not force and _up_to_date(inp, out, params_sha):
             count, freqs = _modal_summary_from_file(out)
-            rows[rel] = {
-                "file": rel,
-                "status": STATUS_UP_TO_DATE,
-                "modes": count,
-                "frequencies_hz": freqs,
-                "output": out_rel,
-                "seconds": 0.0,
-                "message": "",
-            }
+            rows[rel] = _row(rel, out_rel, STATUS_UP_TO_DATE, modes=count, frequencies_hz=freqs)
             continue
         rows[rel] = {}
         jobs.append(
