@@ -145,39 +145,26 @@ def _parse(path: Path) -> tuple[dict, list[dict]]:
             )
         except ValueError:
             values = None
-        if values is not None and values.shape == (len(rows), channels):
-            ch_titles = (
-                titles[1 : 1 + channels] if x_columns != "Multi" else titles[1::2][:channels]
-            )
-            segments.append(
-                {
-                    "header": seg_header,
-                    "titles": ch_titles,
-                    "values": values,
-                    "line": start + 1,
-                    "channels": channels,
-                }
-            )
-            continue
-        data = np.full((len(rows), width), np.nan)
-        for k, r in enumerate(rows):
-            fields = (r.replace(decimal, ".") if decimal != "." else r).split(sep)
-            if len(fields) < width:
-                raise DataFileError(
-                    f"{path}: line {rows_start + k + 1}: expected {width} columns, "
-                    f"got {len(fields)}"
-                )
-            try:
-                data[k] = [float(v) if v.strip() else np.nan for v in fields[:width]]
-            except ValueError as err:
-                raise DataFileError(f"{path}: line {rows_start + k + 1}: {err}") from None
-        if x_columns == "Multi":
-            values = data[:, 1::2]
-        else:
-            values = data[:, 1 : 1 + channels]
-        if np.isnan(values).any():
-            bad = int(np.argwhere(np.isnan(values))[0, 0])
-            raise DataFileError(f"{path}: line {rows_start + bad + 1}: missing sample value")
+        if values is None or values.shape != (len(rows), channels):
+            data = np.full((len(rows), width), np.nan)
+            for k, r in enumerate(rows):
+                fields = (r.replace(decimal, ".") if decimal != "." else r).split(sep)
+                if len(fields) < width:
+                    raise DataFileError(
+                        f"{path}: line {rows_start + k + 1}: expected {width} columns, "
+                        f"got {len(fields)}"
+                    )
+                try:
+                    data[k] = [float(v) if v.strip() else np.nan for v in fields[:width]]
+                except ValueError as err:
+                    raise DataFileError(f"{path}: line {rows_start + k + 1}: {err}") from None
+            if x_columns == "Multi":
+                values = data[:, 1::2]
+            else:
+                values = data[:, 1 : 1 + channels]
+            if np.isnan(values).any():
+                bad = int(np.argwhere(np.isnan(values))[0, 0])
+                raise DataFileError(f"{path}: line {rows_start + bad + 1}: missing sample value")
         ch_titles = titles[1 : 1 + channels] if x_columns != "Multi" else titles[1::2][:channels]
         segments.append(
             {
