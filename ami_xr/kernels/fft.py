@@ -13,14 +13,12 @@ division) is numba.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import scipy.fft
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
-from ami_xr.kernels.windows import _check_window_array
+from ami_xr.kernels.windows import _check_window_array, _positive_float, _samples
 
 
 @jit
@@ -47,25 +45,13 @@ def _divide_spectra(num, den):
 
 def rfft_frequencies(n: int, dt: float) -> np.ndarray:
     """One-sided FFT frequencies ``k / (n dt)`` in Hz, ``k = 0 .. n // 2`` (as ``rfftfreq``)."""
-    n = _check_samples(n)
+    n = _samples(n, "n", 1)
     dt = _check_dt(dt)
     return np.arange(n // 2 + 1, dtype=np.float64) / (n * dt)
 
 
-def _check_samples(n) -> int:
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise AmiXrValueError(f"n: expected a number of samples >= 1, got {n!r}")
-    return int(n)
-
-
 def _check_dt(dt) -> float:
-    try:
-        out = float(dt)
-    except (TypeError, ValueError):
-        raise AmiXrValueError(f"dt: expected a sample interval in s > 0, got {dt!r}") from None
-    if not math.isfinite(out) or out <= 0.0:
-        raise AmiXrValueError(f"dt: expected a finite sample interval in s > 0, got {dt!r}")
-    return out
+    return _positive_float(dt, "dt", "sample interval in s")
 
 
 def _check_record(x, argument: str) -> np.ndarray:

@@ -139,13 +139,13 @@ def _check_n(n) -> int:
     return int(n)
 
 
-def _positive_float(value, argument: str) -> float:
+def _positive_float(value, argument: str, what: str = "number") -> float:
     try:
         out = float(value)
     except (TypeError, ValueError):
-        raise AmiXrValueError(f"{argument}: expected a positive number, got {value!r}") from None
+        raise AmiXrValueError(f"{argument}: expected a positive {what}, got {value!r}") from None
     if not math.isfinite(out) or out <= 0.0:
-        raise AmiXrValueError(f"{argument}: expected a finite number > 0, got {value!r}")
+        raise AmiXrValueError(f"{argument}: expected a finite {what} > 0, got {value!r}")
     return out
 
 
