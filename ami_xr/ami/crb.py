@@ -23,7 +23,7 @@ import xarray as xr
 from ami_xr import names
 from ami_xr._provenance import add_history
 from ami_xr.ami import _varpro
-from ami_xr.ami.refine import _model_choice
+from ami_xr.ami.refine import _model_choice, modal_std
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels.refine import model_columns
 
@@ -178,15 +178,7 @@ def cramer_rao_bound(
     c_t = cov["cov_theta"]
     wn = np.abs(lam)
     zeta = -lam.real / wn
-    fn_std = np.empty(n_mode)
-    z_std = np.empty(n_mode)
-    for k in range(n_mode):
-        c = c_t[2 * k : 2 * k + 2, 2 * k : 2 * k + 2]
-        g_wn = np.array([lam[k].real, lam[k].imag]) / wn[k]
-        g_z = np.array([-lam[k].imag ** 2, lam[k].real * lam[k].imag]) / wn[k] ** 3
-        fn_std[k] = np.sqrt(g_wn @ c @ g_wn) / (2 * np.pi)
-        z_std[k] = np.sqrt(g_z @ c @ g_z)
-    eig_std = np.sqrt(np.diag(c_t)[0::2]) + 1j * np.sqrt(np.diag(c_t)[1::2])
+    eig_std, fn_std, z_std = modal_std(lam, c_t)
     k_abs = np.sqrt(2.0 / np.pi)
     mode = truth[names.EIGENVALUE][names.MODE].values
     P, M = names.POINT, names.MODE

@@ -208,6 +208,28 @@ def _residual_rows(prob, proj):
     return prob.y - qty @ proj.q.T
 
 
+def modal_std(lam: np.ndarray, cov_theta: np.ndarray):
+    """Standard deviations of the eigenvalues, natural frequencies (Hz) and damping ratios.
+
+    ``cov_theta`` (2K, 2K) is the covariance of ``(Re lam_1, Im lam_1, Re lam_2, ...)``; the
+    frequency and damping ratio follow by the delta method (``wn = |lam|``,
+    ``zeta = -Re lam / wn``). Variances that rounding makes slightly negative count as 0.
+    """
+    var_re = np.diag(cov_theta)[0::2]
+    var_im = np.diag(cov_theta)[1::2]
+    eig_std = np.sqrt(np.maximum(var_re, 0.0)) + 1j * np.sqrt(np.maximum(var_im, 0.0))
+    wn = np.abs(lam)
+    fn_std = np.empty(lam.size)
+    zeta_std = np.empty(lam.size)
+    for k in range(lam.size):
+        c = cov_theta[2 * k : 2 * k + 2, 2 * k : 2 * k + 2]
+        g_wn = np.array([lam[k].real, lam[k].imag]) / wn[k]
+        g_z = np.array([-lam[k].imag ** 2, lam[k].real * lam[k].imag]) / wn[k] ** 3
+        fn_std[k] = np.sqrt(max(g_wn @ c @ g_wn, 0.0)) / (2.0 * np.pi)
+        zeta_std[k] = np.sqrt(max(g_z @ c @ g_z, 0.0))
+    return eig_std, fn_std, zeta_std
+
+
 def _refine_arrays(
     frf, freq, lam0, res0, *, dt, n_samples, residual_terms, residual_kind, drive_index,
     decay, max_iter, tol, max_shift, add_modes, add_pfa, drop_modes,
@@ -317,18 +339,7 @@ def _refine_arrays(
         cov = {}
     # Frozen modes keep AMI's eigenvalue; their residues are the projection at that eigenvalue
     # (the least-squares residues given the other modes), unless nothing could be fitted.
-    var_re = np.diag(cov_theta)[0::2]
-    var_im = np.diag(cov_theta)[1::2]
-    eig_std = np.sqrt(np.maximum(var_re, 0.0)) + 1j * np.sqrt(np.maximum(var_im, 0.0))
-    wn = np.abs(lam)
-    fn_std = np.empty(n_mode)
-    zeta_std = np.empty(n_mode)
-    for k in range(n_mode):
-        c = cov_theta[2 * k : 2 * k + 2, 2 * k : 2 * k + 2]
-        g_wn = np.array([lam[k].real, lam[k].imag]) / wn[k]
-        g_z = np.array([-lam[k].imag ** 2, lam[k].real * lam[k].imag]) / wn[k] ** 3
-        fn_std[k] = np.sqrt(max(g_wn @ c @ g_wn, 0.0)) / (2.0 * np.pi)
-        zeta_std[k] = np.sqrt(max(g_z @ c @ g_z, 0.0))
+    eig_std, fn_std, zeta_std = modal_std(lam, cov_theta)
     if "mode_vector" in cov:
         mode_vector = cov["mode_vector"]
         mv_std = np.sqrt(np.maximum(cov["mode_vector_var"], 0.0))
