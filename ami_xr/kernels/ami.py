@@ -1147,6 +1147,94 @@ def _simo_band(xw, omega, lam, dw, delta, wlo, whi):
 
 
 @jit
+def _mode_basis(x, lam, dt, n_samples, b, bc):
+    """Unit-residue bases ``b(lam)``, ``b(conj lam)`` on every line (as in :func:`_add_mode`), so
+    the SIMO sweeps synthesise modes with multiplications only (identical values)."""
+    p, sc = _pole_factor(lam, dt, n_samples)
+    pc = np.conj(p)
+    scc = np.conj(sc)
+    for i in range(x.shape[0]):
+        b[i] = _basis_at(x[i], p, sc, dt)
+        bc[i] = _basis_at(x[i], pc, scc, dt)
+
+
+@jit
+def _isolated_lines(dw_data, res, bas, basc, n, k, a, b, xn, power):
+    """eq. 7 on lines ``a..b-1`` of every FRF: ``xn = data - sum_{m != k}`` contributions (same
+    operation order as :func:`_add_mode`), and ``power[i] = sum_j |xn[j, i]|^2``."""
+    n_p = dw_data.shape[0]
+    sign = -1.0
+    for i in range(a, b):
+        power[i] = 0.0
+    for j in range(n_p):
+        for i in range(a, b):
+            xn[j, i] = dw_data[j, i]
+        for m in range(n):
+            if m == k:
+                continue
+            r = res[j, m]
+            rc = np.conj(r)
+            for i in range(a, b):
+                xn[j, i] += sign * (r * bas[m, i] + rc * basc[m, i])
+        for i in range(a, b):
+            power[i] += abs(xn[j, i]) ** 2
+
+
+@jit
+def _simo_band_lazy(dw_data, res, bas, basc, n, k, xn, power, omega, lam, dw, delta, wlo, whi):
+    """:func:`_simo_band` computing the isolated data only on the lines it looks at (the peak
+    search range and the band grown from the peak) instead of the whole window; same result."""
+    half = max(2.0 * abs(lam.real), 2.0 * dw)
+    c = _nearest_line(omega, lam.imag)
+    plo = _nearest_line(omega, lam.imag - half)
+    phi = _nearest_line(omega, lam.imag + half)
+    clo = max(min(plo, c), wlo)
+    chi = min(max(phi, c) + 1, whi)
+    if chi < clo:
+        chi = clo
+    _isolated_lines(dw_data, res, bas, basc, n, k, clo, chi, xn, power)
+    best = c
+    pbest = power[c] if (c >= wlo and c < whi) else 0.0
+    for i in range(plo, phi + 1):
+        pi = power[i] if (i >= wlo and i < whi) else 0.0
+        if pi > pbest:
+            best = i
+            pbest = pi
+    level = delta * delta * pbest
+    chunk = 16
+    n_f = omega.shape[0]
+    lo = best
+    while lo > 0:
+        i = lo - 1
+        if i < wlo or i >= whi:
+            pi = 0.0
+        else:
+            if i < clo:
+                a = max(wlo, i - chunk + 1)
+                _isolated_lines(dw_data, res, bas, basc, n, k, a, clo, xn, power)
+                clo = a
+            pi = power[i]
+        if not (pi >= level):
+            break
+        lo -= 1
+    hi = best + 1
+    while hi < n_f:
+        i = hi
+        if i < wlo or i >= whi:
+            pi = 0.0
+        else:
+            if i >= chi:
+                bnd = min(whi, i + chunk)
+                _isolated_lines(dw_data, res, bas, basc, n, k, chi, bnd, xn, power)
+                chi = bnd
+            pi = power[i]
+        if not (pi >= level):
+            break
+        hi += 1
+    return best, max(lo, wlo), min(hi, whi)
+
+
+@jit
 def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_iter, pfa,
                   min_points, zeta_max, merge_tol, max_modes, reweight, model_band):
     """Global SIMO isolation with the model-order check.
@@ -1180,6 +1268,9 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
     wts_all = np.ones((max_modes, n_p))
     ones = np.ones(n_p)
     masked = np.zeros(n_f, dtype=np.bool_)
+    bas = np.empty((max_modes, n_f), dtype=np.complex128)
+    basc = np.empty((max_modes, n_f), dtype=np.complex128)
+    power_w = np.zeros(n_f)
     total_it = 0
     converged = False
     # starting residues: linear LS with the eigenvalues fixed, over all lines
@@ -1204,6 +1295,8 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                     tot[k] += _contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples) ** 2
             order = np.argsort(-tot)
             change = 0.0
+            for k in range(n):
+                _mode_basis(x, lam[k], dt, n_samples, bas[k], basc[k])
             for kk in range(n):
                 k = order[kk]
                 # isolated data only where the fit can look: +- max(20 |Re lam|, 40 lines)
@@ -1213,25 +1306,22 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                 if band_hi[k] > 0:
                     wlo = min(wlo, band_lo[k])
                     whi = max(whi, band_hi[k])
-                # eq. 7 on the window only (the other modes synthesised there): the cost does
-                # not grow with the number of lines
-                for j in range(n_p):
-                    for i in range(wlo, whi):
-                        xn[j, i] = dw_data[j, i]
-                    for m in range(n):
-                        if m != k:
-                            _add_mode(xn[j], x, lam[m], res[j, m], dt, n_samples, -1.0, wlo,
-                                      whi)
+                # eq. 7 (the other modes synthesised from their cached bases) only on the lines
+                # the band choice and the fit look at: the cost grows with neither the number
+                # of lines nor the window width
                 if (frozen[k] and omega[band_lo[k]] <= lam[k].imag
                         and lam[k].imag <= omega[band_hi[k] - 1]):
                     lo = band_lo[k]
                     hi = band_hi[k]
                     peak = (lo + hi) // 2
+                    _isolated_lines(dw_data, res, bas, basc, n, k, lo, hi, xn, power_w)
                 elif model_band:
                     lo, hi = _model_band(omega, lam[k], delta, min_points)
                     peak = _nearest_line(omega, lam[k].imag)
+                    _isolated_lines(dw_data, res, bas, basc, n, k, lo, hi, xn, power_w)
                 else:
-                    peak, lo, hi = _simo_band(xn, omega, lam[k], dw, delta, wlo, whi)
+                    peak, lo, hi = _simo_band_lazy(dw_data, res, bas, basc, n, k, xn, power_w,
+                                                   omega, lam[k], dw, delta, wlo, whi)
                 band_lo[k] = lo
                 band_hi[k] = hi
                 if hi - lo < min_points:
@@ -1260,6 +1350,7 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                 for j in range(n_p):
                     res[j, k] = rtmp[j]
                 lam[k] = new
+                _mode_basis(x, new, dt, n_samples, bas[k], basc[k])
             if change < tol:
                 converged = True
                 break
