@@ -8,7 +8,12 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-from ami_xr import names  # noqa: E402
+# Public functions: one import line per module, kept sorted (ruff's isort rules).
+from ami_xr import names, simulate  # noqa: E402
+from ami_xr.ami import global_fit, identify, isolate, subtract  # noqa: E402
+from ami_xr.ami.crb import cramer_rao_bound  # noqa: E402
+from ami_xr.ami.refine import refine  # noqa: E402
+from ami_xr.batch import batch  # noqa: E402
 from ami_xr.errors import (  # noqa: E402
     AmiXrError,
     AmiXrValueError,
@@ -18,9 +23,6 @@ from ami_xr.errors import (  # noqa: E402
     NoModesWarning,
     SchemaError,
 )
-
-# Public functions are added below as their modules land (keep one import line per module).
-from ami_xr import simulate  # noqa: E402
 from ami_xr.io import (  # noqa: E402
     make_frf_dataset,
     make_time_dataset,
@@ -28,14 +30,7 @@ from ami_xr.io import (  # noqa: E402
     to_netcdf,
     validate,
 )
-from ami_xr.signal import apply_window, impulse_to_frf  # noqa: E402
-from ami_xr.signal.frf import convert_quantity, frf  # noqa: E402
 from ami_xr.io.lvm import read_lvm  # noqa: E402
-from ami_xr.ami import global_fit, identify, isolate, subtract  # noqa: E402
-from ami_xr.ami.refine import refine  # noqa: E402
-from ami_xr.ami.crb import cramer_rao_bound  # noqa: E402
-
-from ami_xr.batch import batch  # noqa: E402
 from ami_xr.io.uff import read_uff, write_uff  # noqa: E402
 from ami_xr.plot import (  # noqa: E402
     plot_bode,
@@ -46,8 +41,8 @@ from ami_xr.plot import (  # noqa: E402
     plot_subtraction,
 )
 from ami_xr.report import format_modal_table, modal_table, report  # noqa: E402
-
-from ami_xr import accessor as _accessor  # noqa: E402,F401  (registers ds.ami)
+from ami_xr.signal import apply_window, impulse_to_frf  # noqa: E402
+from ami_xr.signal.frf import convert_quantity, frf  # noqa: E402
 
 __all__ = [
     "subtract",
@@ -89,3 +84,6 @@ __all__ = [
     "modal_table",
     "format_modal_table",
 ]
+
+# Last: the accessor module imports the public functions it wraps.
+from ami_xr import accessor as _accessor  # noqa: E402,F401  (registers ds.ami)

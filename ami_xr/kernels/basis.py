@@ -55,7 +55,9 @@ def pole_basis(
     """
     omega = np.ascontiguousarray(omega, dtype=np.float64)
     if omega.ndim != 1:
-        raise ValueError(f"omega: expected a 1-D array of angular frequencies, got shape {omega.shape}")
+        raise ValueError(
+            f"omega: expected a 1-D array of angular frequencies, got shape {omega.shape}"
+        )
     return _pole_basis(omega, complex(lam), float(dt) if dt else 0.0, int(n_samples or 0))
 
 
@@ -66,7 +68,7 @@ def mode_contribution(
     dt: float | None = None,
     n_samples: int | None = None,
 ) -> np.ndarray:
-    """One mode's contribution ``A b(lam) + conj(A) b(conj(lam))`` (eq. 4, or its exact discrete form)."""
+    """One mode's contribution ``A b(lam) + conj(A) b(conj(lam))`` (eq. 4 or its discrete form)."""
     return residue * pole_basis(omega, lam, dt, n_samples) + np.conj(residue) * pole_basis(
         omega, np.conj(lam), dt, n_samples
     )
