@@ -24,8 +24,10 @@ class SchemaError(AmiXrValueError):
     def __init__(self, problems: list[str], what: str = "Dataset"):
         self.problems = list(problems)
         lines = "\n".join(f"  - {p}" for p in self.problems)
-        super().__init__(f"{what} does not follow the ami_xr data model "
-                         f"({len(self.problems)} problem(s)):\n{lines}")
+        super().__init__(
+            f"{what} does not follow the ami_xr data model "
+            f"({len(self.problems)} problem(s)):\n{lines}"
+        )
 
 
 class DataFileError(AmiXrValueError):

@@ -66,6 +66,7 @@ def frf_units(response_units: str, force_units: str) -> str:
     """Units string of an FRF, e.g. ``"m/N"`` for receptance in metres per newton."""
     return f"{response_units}/{force_units}"
 
+
 # --- modal results (identification outputs and simulator truth use the same names) ------------
 EIGENVALUE = "eigenvalue"  # complex, rad/s, upper half plane: -zeta*wn + i*wd
 NATURAL_FREQUENCY = "natural_frequency"  # Hz, |lambda| / (2 pi)

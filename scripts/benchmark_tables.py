@@ -34,8 +34,10 @@ def main() -> int:
         print(f"  mode {k + 1}")
         for j, row in enumerate(rows):
             p, o = PAPER_MODE_VECTORS[j, k], s * phi[j, k]
-            print(f"    {row:3s} paper {1e6 * p:>26.5g}   ours {1e6 * o:>26.5g}   "
-                  f"rel.err {abs(o - p) / abs(p):.1e}")
+            print(
+                f"    {row:3s} paper {1e6 * p:>26.5g}   ours {1e6 * o:>26.5g}   "
+                f"rel.err {abs(o - p) / abs(p):.1e}"
+            )
         print(f"    tip displacement (ours) {1e6 * s * tip[k]:.5g} = {output[0, 0]:.5f} * q1")
     return 0
 

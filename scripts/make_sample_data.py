@@ -42,8 +42,11 @@ def write_sample_data(folder: Path, noise: float = NOISE, seed: int = SEED) -> l
         ("benchmark_frf_clean.nc", g0, {**params, "noise": 0.0}),
         ("benchmark_truth.nc", truth, {"J": ami_xr.simulate.beam.DEFAULT_J}),
     ):
-        out.append(ami_xr.to_netcdf(ds, folder / name,
-                                    function="scripts/make_sample_data.py", parameters=p))
+        out.append(
+            ami_xr.to_netcdf(
+                ds, folder / name, function="scripts/make_sample_data.py", parameters=p
+            )
+        )
     return out
 
 

@@ -46,25 +46,29 @@ PAPER = {
         [None, -0.71644 + 48.041j, -0.34713 + 64.983j, -0.57261 + 65.789j],
         [None, None, -0.39469 + 65.010j, -0.59237 + 65.915j],
     ],
-    "average": [-0.46025 + 30.555j, -0.71644 + 48.041j, -0.39394 + 65.057j,
-                -0.54413 + 65.836j],
-    "analytical": [-0.45827 + 30.551j, -0.71973 + 48.025j, -0.39311 + 65.0j,
-                   -0.59137 + 65.896j],
+    "average": [-0.46025 + 30.555j, -0.71644 + 48.041j, -0.39394 + 65.057j, -0.54413 + 65.836j],
+    "analytical": [-0.45827 + 30.551j, -0.71973 + 48.025j, -0.39311 + 65.0j, -0.59137 + 65.896j],
     "error": ["0.43+0.0125i", "-0.46+0.0338i", "0.21+0.0880i", "-7.99-0.0906i"],
     "fn_avg": 0.056,  # % natural frequency, averaged over the 4 modes (one seed)
     "zeta_avg": 2.2,  # % damping ratio
     "mv34": (5.0, 8.4),  # % mode-vector error, modes 3 and 4
     # Tables 3-6, x 1e-6, AMI column (rows q1, m1, m2, m3)
-    "mv_ami": 1e-6 * np.array([
-        [394.68 + 365.5j, 211.81 + 375.55j, 919.46 - 4051.3j, 1246.7 + 2858.9j],
-        [-12153 + 10827j, -13.136 + 56.514j, -113.66 + 388.41j, -100.92 - 273.44j],
-        [521.37 + 392.8j, -33957 + 55618j, -983.9 + 3138.5j, -803.4 - 2149j],
-        [3700.6 - 17657j, 12513 - 10253j, -86751 - 146340j, 47647 - 194670j],
-    ]),
+    "mv_ami": 1e-6
+    * np.array(
+        [
+            [394.68 + 365.5j, 211.81 + 375.55j, 919.46 - 4051.3j, 1246.7 + 2858.9j],
+            [-12153 + 10827j, -13.136 + 56.514j, -113.66 + 388.41j, -100.92 - 273.44j],
+            [521.37 + 392.8j, -33957 + 55618j, -983.9 + 3138.5j, -803.4 - 2149j],
+            [3700.6 - 17657j, 12513 - 10253j, -86751 - 146340j, 47647 - 194670j],
+        ]
+    ),
 }
 # The Cramér-Rao bound stated in issue 3 (%, expected absolute error) -- recomputed below.
-ISSUE_CRB = {"fn": [0.045, 0.067, 0.012, 0.024], "zeta": [3.0, 4.5, 2.0, 2.7],
-             "mv": [np.nan, np.nan, 3.5, 4.7]}
+ISSUE_CRB = {
+    "fn": [0.045, 0.067, 0.012, 0.024],
+    "zeta": [3.0, 4.5, 2.0, 2.7],
+    "mv": [np.nan, np.nan, 3.5, 4.7],
+}
 METHODS = {  # label -> identify keyword arguments
     "paper": {"method": "paper"},
     "simo": {"method": "simo", "refine": False},
@@ -109,8 +113,11 @@ def identify(frf, **kwargs):
 def per_frf_eigenvalues(result):
     """The per-FRF eigenvalues (point, mode) of the Isolation Phase, NaN where not detected."""
     for name, var in result.data_vars.items():
-        if (set(var.dims) == {"point", "mode"} and np.iscomplexobj(var.values)
-                and "eigenvalue" in name):
+        if (
+            set(var.dims) == {"point", "mode"}
+            and np.iscomplexobj(var.values)
+            and "eigenvalue" in name
+        ):
             return var.transpose("point", "mode").values
     return None
 
@@ -122,43 +129,78 @@ def tables(seed: int) -> None:
     _, frf, truth = ami_xr.simulate.benchmark(noise=0.15, seed=seed)
     lam_t = truth["eigenvalue"].values
     print(f"== Tables 1-2 equivalent: eigenvalues (rad/s) per FRF, 15 % noise, seed {seed} ==")
-    for label, kwargs in (("paper AMI (method='paper')", METHODS["paper"]),
-                          ("refined (default)", METHODS["refined"])):
+    for label, kwargs in (
+        ("paper AMI (method='paper')", METHODS["paper"]),
+        ("refined (default)", METHODS["refined"]),
+    ):
         res = identify(frf, **kwargs)
         lam = res["eigenvalue"].values
         pairs = match_modes(lam, lam_t)
         print(f"-- {label}: {lam.size} modes identified")
-        print(" " * 12 + "".join(f"{'mode ' + str(k + 1):>20s}" for k in range(4))
-              + "   | paper " + "".join(f"{'mode ' + str(k + 1):>20s}" for k in range(4)))
+        print(
+            " " * 12
+            + "".join(f"{'mode ' + str(k + 1):>20s}" for k in range(4))
+            + "   | paper "
+            + "".join(f"{'mode ' + str(k + 1):>20s}" for k in range(4))
+        )
         per = per_frf_eigenvalues(res) if kwargs.get("method") == "paper" else None
         points = list(frf["point"].values)
         if per is not None:
             for j, p in enumerate(points):
-                row = [per[j, pairs[k]] if k in pairs and np.isfinite(per[j, pairs[k]]) else None
-                       for k in range(4)]
-                print(f"  G_{p:<8s}" + "".join(fmt_c(z) for z in row)
-                      + "   |       " + "".join(fmt_c(z) for z in PAPER["per_frf"][j]))
+                row = [
+                    per[j, pairs[k]] if k in pairs and np.isfinite(per[j, pairs[k]]) else None
+                    for k in range(4)
+                ]
+                print(
+                    f"  G_{p:<8s}"
+                    + "".join(fmt_c(z) for z in row)
+                    + "   |       "
+                    + "".join(fmt_c(z) for z in PAPER["per_frf"][j])
+                )
         ours = [lam[pairs[k]] if k in pairs else None for k in range(4)]
-        print("  result    " + "".join(fmt_c(z) for z in ours)
-              + "   |       " + "".join(fmt_c(z) for z in PAPER["average"]))
-        print("  analytic  " + "".join(fmt_c(z) for z in lam_t)
-              + "   |       " + "".join(fmt_c(z) for z in PAPER["analytical"]))
-        err = ["x" if z is None else
-               f"{100 * (z.real - t.real) / t.real:.2f}{100 * (z.imag - t.imag) / t.imag:+.4f}i"
-               for z, t in zip(ours, lam_t, strict=True)]
-        print("  error (%) " + "".join(f"{e:>20s}" for e in err)
-              + "   |       " + "".join(f"{e:>20s}" for e in PAPER["error"]))
+        print(
+            "  result    "
+            + "".join(fmt_c(z) for z in ours)
+            + "   |       "
+            + "".join(fmt_c(z) for z in PAPER["average"])
+        )
+        print(
+            "  analytic  "
+            + "".join(fmt_c(z) for z in lam_t)
+            + "   |       "
+            + "".join(fmt_c(z) for z in PAPER["analytical"])
+        )
+        err = [
+            "x"
+            if z is None
+            else f"{100 * (z.real - t.real) / t.real:.2f}{100 * (z.imag - t.imag) / t.imag:+.4f}i"
+            for z, t in zip(ours, lam_t, strict=True)
+        ]
+        print(
+            "  error (%) "
+            + "".join(f"{e:>20s}" for e in err)
+            + "   |       "
+            + "".join(f"{e:>20s}" for e in PAPER["error"])
+        )
         if "eigenvalue_std" in res:
             std = res["eigenvalue_std"].values
-            print("  std       " + "".join(fmt_c(std[pairs[k]]) if k in pairs else fmt_c(None)
-                                           for k in range(4))
-                  + "   | (Gauss-Newton standard errors of the real and imaginary parts)")
+            print(
+                "  std       "
+                + "".join(fmt_c(std[pairs[k]]) if k in pairs else fmt_c(None) for k in range(4))
+                + "   | (Gauss-Newton standard errors of the real and imaginary parts)"
+            )
         if "quality_flags" in res:
             flags = res["quality_flags"].values
-            print("  flags: " + "; ".join(f"mode {k + 1}: {str(flags[pairs[k]]) or '-'}"
-                                          for k in range(4) if k in pairs))
-        print("== Tables 3-6 equivalent: mode vectors x 1e6 (identified | exact | paper's AMI, "
-              f"row q1 converted to the tip), {label} ==")
+            print(
+                "  flags: "
+                + "; ".join(
+                    f"mode {k + 1}: {str(flags[pairs[k]]) or '-'}" for k in range(4) if k in pairs
+                )
+            )
+        print(
+            "== Tables 3-6 equivalent: mode vectors x 1e6 (identified | exact | paper's AMI, "
+            f"row q1 converted to the tip), {label} =="
+        )
         phi_t = truth["mode_vector"].transpose("point", "mode").values
         phi = res["mode_vector"].transpose("point", "mode").values
         # The paper's row q1 is the first Ritz coordinate; the tip displacement is output[0, 0] q1.
@@ -172,11 +214,16 @@ def tables(seed: int) -> None:
             closer = np.linalg.norm(ph - phi_t[:, k]) <= np.linalg.norm(ph + phi_t[:, k])
             sign = 1.0 if closer else -1.0
             e = mode_vector_error(ph, phi_t[:, k])
-            print(f"  mode {k + 1}: error {100 * e:.1f} %   (paper: "
-                  + ("5.0 %" if k == 2 else "8.4 %" if k == 3 else "> 1000 %") + ")")
+            print(
+                f"  mode {k + 1}: error {100 * e:.1f} %   (paper: "
+                + ("5.0 %" if k == 2 else "8.4 %" if k == 3 else "> 1000 %")
+                + ")"
+            )
             for j, p in enumerate(points):
-                print(f"    {p:>4s} {fmt_c(1e6 * sign * ph[j], 2)} | {fmt_c(1e6 * phi_t[j, k], 2)}"
-                      f"   paper AMI {fmt_c(1e6 * paper_ami[j, k], 2)}")
+                print(
+                    f"    {p:>4s} {fmt_c(1e6 * sign * ph[j], 2)} | {fmt_c(1e6 * phi_t[j, k], 2)}"
+                    f"   paper AMI {fmt_c(1e6 * paper_ami[j, k], 2)}"
+                )
     print()
 
 
@@ -190,8 +237,18 @@ def monte_carlo(noise: float, seeds: int) -> dict:
     zeta_t = -lam_t.real / fn_t
     phi_t = truth["mode_vector"].transpose("point", "mode").values
     crb = ami_xr.cramer_rao_bound(truth, frf0, noise_level=noise) if noise > 0 else None
-    stats = {m: {"ok": 0, "fn": [], "zeta": [], "mv": [], "t": [], "found": np.zeros(4),
-                 "flag_dp": np.zeros(4)} for m in METHODS}
+    stats = {
+        m: {
+            "ok": 0,
+            "fn": [],
+            "zeta": [],
+            "mv": [],
+            "t": [],
+            "found": np.zeros(4),
+            "flag_dp": np.zeros(4),
+        }
+        for m in METHODS
+    }
     n_seeds = seeds if noise > 0 else 1
     for seed in range(n_seeds):
         _, frf, _ = ami_xr.simulate.benchmark(noise=noise, seed=1000 + seed)
@@ -229,19 +286,34 @@ def report(noise, n_seeds, stats, crb):
         c_z = 100 * crb["damping_ratio_error"].values
         c_mv = 100 * crb["mode_vector_error"].values
         print("  Cramér-Rao bound (expected |error|, %):")
-        print("    natural frequency " + " ".join(f"{v:8.4f}" for v in c_fn)
-              + "   (issue: " + ", ".join(f"{v:g}" for v in ISSUE_CRB["fn"]) + ")")
-        print("    damping ratio     " + " ".join(f"{v:8.3f}" for v in c_z)
-              + "   (issue: " + ", ".join(f"{v:g}" for v in ISSUE_CRB["zeta"]) + ")")
-        print("    mode vector       " + " ".join(f"{v:8.3g}" for v in c_mv)
-              + "   (issue: modes 3, 4: 3.5, 4.7; modes 1, 2: linearised bound meaningless, "
-              "drive-point residue below noise)")
+        print(
+            "    natural frequency "
+            + " ".join(f"{v:8.4f}" for v in c_fn)
+            + "   (issue: "
+            + ", ".join(f"{v:g}" for v in ISSUE_CRB["fn"])
+            + ")"
+        )
+        print(
+            "    damping ratio     "
+            + " ".join(f"{v:8.3f}" for v in c_z)
+            + "   (issue: "
+            + ", ".join(f"{v:g}" for v in ISSUE_CRB["zeta"])
+            + ")"
+        )
+        print(
+            "    mode vector       "
+            + " ".join(f"{v:8.3g}" for v in c_mv)
+            + "   (issue: modes 3, 4: 3.5, 4.7; modes 1, 2: linearised bound meaningless, "
+            "drive-point residue below noise)"
+        )
     for m, s in stats.items():
         fn, ze, mv = (np.array(s[key]) for key in ("fn", "zeta", "mv"))
-        print(f"  -- {m}: all 4 modes and no spurious mode in {s['ok']}/{n_seeds} seeds "
-              f"({100 * s['ok'] / n_seeds:.0f} %); found per mode "
-              + "/".join(str(int(v)) for v in s["found"])
-              + f"; median time per identification {1e3 * np.median(s['t']):.0f} ms")
+        print(
+            f"  -- {m}: all 4 modes and no spurious mode in {s['ok']}/{n_seeds} seeds "
+            f"({100 * s['ok'] / n_seeds:.0f} %); found per mode "
+            + "/".join(str(int(v)) for v in s["found"])
+            + f"; median time per identification {1e3 * np.median(s['t']):.0f} ms"
+        )
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             rows = [
@@ -260,31 +332,44 @@ def report(noise, n_seeds, stats, crb):
                 ref = c_fn if name.startswith("f_n") else c_z
                 extra = "   ratio to CRB " + " ".join(f"{v:5.2f}" for v in vals / ref)
             if crb is not None and name == "mode vector mean %":
-                extra = "   ratio to CRB (3, 4) " + " ".join(f"{v:5.2f}"
-                                                           for v in vals[2:] / c_mv[2:])
-            print(f"    {name:22s}" + " ".join(f.format(v) for v in vals)
-                  + f"   avg {np.nanmean(vals):8.4g}" + extra)
+                extra = "   ratio to CRB (3, 4) " + " ".join(
+                    f"{v:5.2f}" for v in vals[2:] / c_mv[2:]
+                )
+            print(
+                f"    {name:22s}"
+                + " ".join(f.format(v) for v in vals)
+                + f"   avg {np.nanmean(vals):8.4g}"
+                + extra
+            )
         if noise == 0:
             worst = np.nanmax(np.abs(np.concatenate([fn, ze, mv], axis=None))) / 100
-            print(f"    largest relative error (f_n, zeta, mode vectors 1-4): {worst:.1e}"
-                  + ("  < 1e-6" if worst < 1e-6 else "  NOT < 1e-6"))
+            print(
+                f"    largest relative error (f_n, zeta, mode vectors 1-4): {worst:.1e}"
+                + ("  < 1e-6" if worst < 1e-6 else "  NOT < 1e-6")
+            )
         elif s["flag_dp"].any():
-            print("    drive-point flag per mode (seeds): "
-                  + "/".join(str(int(v)) for v in s["flag_dp"]))
+            print(
+                "    drive-point flag per mode (seeds): "
+                + "/".join(str(int(v)) for v in s["flag_dp"])
+            )
         if crb is not None and m == "refined":
             ok_fn = np.nanmean(np.abs(fn), 0) <= TARGET_FACTOR * c_fn
             ok_z = np.nanmean(np.abs(ze), 0) <= TARGET_FACTOR * c_z
             ok_mv = np.nanmean(mv, 0)[2:] <= TARGET_FACTOR * c_mv[2:]
             ok_found = s["ok"] >= 0.95 * n_seeds
-            print(f"    targets (mean |err| <= {TARGET_FACTOR} x CRB; >= 95 % seeds complete): "
-                  f"f_n {'met' if ok_fn.all() else 'NOT met ' + str(ok_fn)}, "
-                  f"zeta {'met' if ok_z.all() else 'NOT met ' + str(ok_z)}, "
-                  f"mode vectors 3-4 {'met' if ok_mv.all() else 'NOT met ' + str(ok_mv)}, "
-                  f"modes found {'met' if ok_found else 'NOT met'}")
+            print(
+                f"    targets (mean |err| <= {TARGET_FACTOR} x CRB; >= 95 % seeds complete): "
+                f"f_n {'met' if ok_fn.all() else 'NOT met ' + str(ok_fn)}, "
+                f"zeta {'met' if ok_z.all() else 'NOT met ' + str(ok_z)}, "
+                f"mode vectors 3-4 {'met' if ok_mv.all() else 'NOT met ' + str(ok_mv)}, "
+                f"modes found {'met' if ok_found else 'NOT met'}"
+            )
     if noise == 0.15:
-        print(f"  paper (one seed): f_n average {PAPER['fn_avg']} %, damping average "
-              f"{PAPER['zeta_avg']} %, mode vectors 3, 4: {PAPER['mv34'][0]} %, "
-              f"{PAPER['mv34'][1]} %; modes 1, 2 off by more than an order of magnitude")
+        print(
+            f"  paper (one seed): f_n average {PAPER['fn_avg']} %, damping average "
+            f"{PAPER['zeta_avg']} %, mode vectors 3, 4: {PAPER['mv34'][0]} %, "
+            f"{PAPER['mv34'][1]} %; modes 1, 2 off by more than an order of magnitude"
+        )
     print()
 
 
@@ -320,8 +405,9 @@ print(f"0 {time.perf_counter() - t0:.3f}")
 
 def first_call_seconds(cache_dir: str, snippet: str = _COMPILE_SNIPPET) -> tuple[float, float]:
     env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
-    out = subprocess.run([sys.executable, "-c", snippet], env=env, check=True,
-                         capture_output=True, text=True).stdout.split()
+    out = subprocess.run(
+        [sys.executable, "-c", snippet], env=env, check=True, capture_output=True, text=True
+    ).stdout.split()
     return float(out[0]), float(out[1])
 
 
@@ -330,14 +416,18 @@ def big_system(n_points=1000, n_lines=2048, seed=7, noise=0.02):
     rng = np.random.default_rng(seed)
     n_modes = int(rng.integers(6, 13))
     frf_small, truth = ami_xr.simulate.random_system(
-        n_points=min(n_modes, 12), n_modes=n_modes, seed=seed, n_frequencies=n_lines)
+        n_points=min(n_modes, 12), n_modes=n_modes, seed=seed, n_frequencies=n_lines
+    )
     phi = truth["mode_vector"].transpose("point", "mode").values
     drive = list(truth["point"].values).index(truth.attrs["drive_point"])
     mix = rng.standard_normal((n_points, phi.shape[0]))
     mix[0] = 0.0
     mix[0, drive] = 1.0  # point 0 is the drive point
-    big = truth[["eigenvalue"]].assign(
-        mode_vector=(("point", "mode"), mix @ phi)).assign_coords(point=np.arange(n_points))
+    big = (
+        truth[["eigenvalue"]]
+        .assign(mode_vector=(("point", "mode"), mix @ phi))
+        .assign_coords(point=np.arange(n_points))
+    )
     big.attrs["drive_point"] = 0
     frf = ami_xr.simulate.frf(big, frf_small["frequency"].values)
     g = frf["frf"].values
@@ -354,11 +444,15 @@ def speed(repeats: int = 5) -> None:
     with tempfile.TemporaryDirectory() as cache:
         _, r_cold = first_call_seconds(cache, _REFINE_SNIPPET)
         _, r_warm = first_call_seconds(cache, _REFINE_SNIPPET)
-    print(f"  import ami_xr {imp:.2f} s; first identification in a fresh process: "
-          f"{cold:.2f} s with an empty numba cache (compilation), {warm:.2f} s with the cache "
-          "filled by the previous process")
-    print(f"  first ami_xr.refine in a fresh process: {r_cold:.2f} s with an empty cache, "
-          f"{r_warm:.2f} s with the cache filled")
+    print(
+        f"  import ami_xr {imp:.2f} s; first identification in a fresh process: "
+        f"{cold:.2f} s with an empty numba cache (compilation), {warm:.2f} s with the cache "
+        "filled by the previous process"
+    )
+    print(
+        f"  first ami_xr.refine in a fresh process: {r_cold:.2f} s with an empty cache, "
+        f"{r_warm:.2f} s with the cache filled"
+    )
     _, frf, _ = ami_xr.simulate.benchmark(noise=0.15, seed=1)
     for m, kwargs in METHODS.items():
         identify(frf, **kwargs)
@@ -367,9 +461,11 @@ def speed(repeats: int = 5) -> None:
             t0 = time.perf_counter()
             identify(frf, **kwargs)
             ts.append(time.perf_counter() - t0)
-        print(f"  benchmark 4 x {frf.sizes['frequency']} lines, {m}: "
-              f"median {1e3 * np.median(ts):.0f} ms, best {1e3 * min(ts):.0f} ms over "
-              f"{repeats} runs (target < 200 ms)")
+        print(
+            f"  benchmark 4 x {frf.sizes['frequency']} lines, {m}: "
+            f"median {1e3 * np.median(ts):.0f} ms, best {1e3 * min(ts):.0f} ms over "
+            f"{repeats} runs (target < 200 ms)"
+        )
     ami_only = identify(frf, **METHODS["simo"])
     ami_xr.refine(ami_only)
     ts = []
@@ -377,8 +473,10 @@ def speed(repeats: int = 5) -> None:
         t0 = time.perf_counter()
         ami_xr.refine(ami_only)
         ts.append(time.perf_counter() - t0)
-    print(f"  of which ami_xr.refine alone: median {1e3 * np.median(ts):.0f} ms, best "
-          f"{1e3 * min(ts):.0f} ms")
+    print(
+        f"  of which ami_xr.refine alone: median {1e3 * np.median(ts):.0f} ms, best "
+        f"{1e3 * min(ts):.0f} ms"
+    )
     frf_big, truth_big = big_system()
     identify(frf_big.isel(point=slice(0, 20)))  # compile any size-dependent path
     t0 = time.perf_counter()
@@ -387,18 +485,25 @@ def speed(repeats: int = 5) -> None:
     res = ami_xr.refine(ami_big)
     dt = time.perf_counter() - t0
     pairs = match_modes(res["eigenvalue"].values, truth_big["eigenvalue"].values)
-    print(f"  {frf_big.sizes['point']} points x {frf_big.sizes['frequency']} lines, "
-          f"{truth_big.sizes['mode']} modes (2 % noise): {dt:.2f} s (AMI {t1 - t0:.2f} s, "
-          f"refine {dt - (t1 - t0):.2f} s), {res.sizes['mode']} modes identified, "
-          f"{len(pairs)} matched (target < 10 s)")
+    print(
+        f"  {frf_big.sizes['point']} points x {frf_big.sizes['frequency']} lines, "
+        f"{truth_big.sizes['mode']} modes (2 % noise): {dt:.2f} s (AMI {t1 - t0:.2f} s, "
+        f"refine {dt - (t1 - t0):.2f} s), {res.sizes['mode']} modes identified, "
+        f"{len(pairs)} matched (target < 10 s)"
+    )
     print()
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=50, help="noise seeds per level (default 50)")
-    p.add_argument("--noise", type=float, nargs="+", default=[0.15, 0.05, 0.0],
-                   help="eq. 15 noise levels alpha (default 0.15 0.05 0)")
+    p.add_argument(
+        "--noise",
+        type=float,
+        nargs="+",
+        default=[0.15, 0.05, 0.0],
+        help="eq. 15 noise levels alpha (default 0.15 0.05 0)",
+    )
     p.add_argument("--table-seed", type=int, default=0, help="seed of Tables 1-6 (default 0)")
     p.add_argument("--quick", action="store_true", help="10 seeds and no speed section")
     p.add_argument("--no-speed", action="store_true", help="skip the speed section")
@@ -407,8 +512,10 @@ def main(argv=None) -> int:
     seeds = min(args.seeds, 10) if args.quick else args.seeds
     if seeds < 1:
         p.error("--seeds: expected a positive number")
-    print(f"ami_xr {ami_xr.__version__}: the benchmark of Ginsberg & Allen (4 FRFs x 2049 lines, "
-          "60 s at 2^12 samples, tip impulse)\n")
+    print(
+        f"ami_xr {ami_xr.__version__}: the benchmark of Ginsberg & Allen (4 FRFs x 2049 lines, "
+        "60 s at 2^12 samples, tip impulse)\n"
+    )
     if args.speed_only:
         speed()
         return 0

@@ -27,13 +27,22 @@ def test_rows_are_eqs_11_12():
     g = mode_contribution(OMEGA[sel], lam, a)
     ws = 65.0
     rows, rhs = k.single_mode_rows(g, OMEGA[sel], ws)
-    x = np.array([abs(lam) ** 2 / ws**2, -2 * lam.real / ws,
-                  -2 * (lam.real * a.real + lam.imag * a.imag) / ws**2, 2 * a.real / ws])
+    x = np.array(
+        [
+            abs(lam) ** 2 / ws**2,
+            -2 * lam.real / ws,
+            -2 * (lam.real * a.real + lam.imag * a.imag) / ws**2,
+            2 * a.real / ws,
+        ]
+    )
     np.testing.assert_allclose(rows @ x, rhs, atol=1e-12 * np.abs(rhs).max())
     # eq. 11 (real part) and eq. 12 (imaginary part) written out with numpy
     w = OMEGA[sel]
-    eq11 = g.real * (abs(lam) ** 2 - w**2) + 2 * w * g.imag * lam.real \
+    eq11 = (
+        g.real * (abs(lam) ** 2 - w**2)
+        + 2 * w * g.imag * lam.real
         + 2 * (lam.real * a.real + lam.imag * a.imag)
+    )
     eq12 = g.imag * (abs(lam) ** 2 - w**2) - 2 * w * g.real * lam.real - 2 * w * a.real
     np.testing.assert_allclose(eq11, 0, atol=1e-12 * np.abs(g).max() * 65**2)
     np.testing.assert_allclose(eq12, 0, atol=1e-12 * np.abs(g).max() * 65**2)
@@ -92,14 +101,19 @@ def test_simo_single_mode_exact(dt, n):
 def test_two_mode_fit_exact(dt, n):
     l1, l2 = -0.39 + 65.0j, -0.59 + 65.9j
     r = np.array([[1e-3 + 2e-3j, -2e-3 + 1e-3j], [3e-3 - 2e-3j, 1e-3 + 1e-3j]])
-    g = np.stack([mode_contribution(OMEGA, l1, ri[0], dt, n)
-                  + mode_contribution(OMEGA, l2, ri[1], dt, n) for ri in r])
+    g = np.stack(
+        [
+            mode_contribution(OMEGA, l1, ri[0], dt, n) + mode_contribution(OMEGA, l2, ri[1], dt, n)
+            for ri in r
+        ]
+    )
     idx = np.flatnonzero(_band(63.5, 67.5))
     x = k._line_variable(OMEGA, dt or 0.0)
     lam = np.zeros(2, complex)
     res = np.zeros((2, 2), complex)
-    code = k._fit_two_modes(g, x, idx[0], idx[-1] + 1, 65.4, dt or 0.0, n or 0, 0.5, 0.1, 1e9,
-                            np.ones(2), lam, res)
+    code = k._fit_two_modes(
+        g, x, idx[0], idx[-1] + 1, 65.4, dt or 0.0, n or 0, 0.5, 0.1, 1e9, np.ones(2), lam, res
+    )
     assert code == k.FIT_OK
     order = np.argsort(lam.imag)
     np.testing.assert_allclose(lam[order], [l1, l2], rtol=1e-10)
@@ -111,8 +125,12 @@ def test_synthesize_matches_basis(dt, n):
     lam = np.array([-0.4 + 30j, -0.7 + 48j, np.nan + 0j])
     res = np.array([[1e-3 + 1e-3j, 2e-3 - 1e-3j, 1.0], [-1e-3j, 5e-4 + 0j, np.nan]])
     out = k.synthesize(OMEGA, lam, res, dt, n)
-    ref = np.stack([sum(mode_contribution(OMEGA, lam[m], res[j, m], dt, n) for m in range(2))
-                    for j in range(2)])
+    ref = np.stack(
+        [
+            sum(mode_contribution(OMEGA, lam[m], res[j, m], dt, n) for m in range(2))
+            for j in range(2)
+        ]
+    )
     np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-18)
 
 

@@ -23,15 +23,24 @@ def _dataset(lam, res, *, discrete=True, noise=0.0, seed=0, drive_point=0):
     lam = np.atleast_1d(lam)
     res = np.atleast_2d(res)
     dt, n = (DT, N) if discrete else (None, None)
-    g = np.stack([sum(mode_contribution(OMEGA, lam[m], res[j, m], dt, n)
-                      for m in range(lam.size)) for j in range(res.shape[0])])
+    g = np.stack(
+        [
+            sum(mode_contribution(OMEGA, lam[m], res[j, m], dt, n) for m in range(lam.size))
+            for j in range(res.shape[0])
+        ]
+    )
     if noise:
         rng = np.random.default_rng(seed)
         g = g + noise * (rng.standard_normal(g.shape) + 1j * rng.standard_normal(g.shape))
     extra = {names.ATTR_DT: DT, names.ATTR_NSAMPLES: N} if discrete else {}
     return ami_xr.make_frf_dataset(
-        g, FREQ, points=list(range(g.shape[0])), drive_point=drive_point,
-        frf_source=names.SOURCE_IMPULSE if discrete else names.SOURCE_ANALYTIC, **extra)
+        g,
+        FREQ,
+        points=list(range(g.shape[0])),
+        drive_point=drive_point,
+        frf_source=names.SOURCE_IMPULSE if discrete else names.SOURCE_ANALYTIC,
+        **extra,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -60,8 +69,9 @@ def test_single_mode_exact_recovery(discrete):
 def test_two_close_modes():
     """Two modes closer than their half-power bandwidths (one visible peak)."""
     lam = np.array([-0.39 + 65.0j, -0.59 + 65.9j])
-    res = np.array([[1e-3 - 3e-3j, 2e-3 + 2e-3j], [-1e-3 + 1e-3j, 1e-3 + 1e-3j],
-                    [4e-3 + 0j, -3e-3 + 1e-4j]])
+    res = np.array(
+        [[1e-3 - 3e-3j, 2e-3 + 2e-3j], [-1e-3 + 1e-3j, 1e-3 + 1e-3j], [4e-3 + 0j, -3e-3 + 1e-4j]]
+    )
     ds = _dataset(lam, res, noise=1e-5, seed=2)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
@@ -120,10 +130,16 @@ def test_dask_equals_memory(method):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         mem = ami_xr.global_fit(ami_xr.isolate(ami_xr.subtract(g), method=method))
-        lazy = ami_xr.global_fit(ami_xr.isolate(ami_xr.subtract(g.chunk({names.POINT: 1})),
-                                                method=method))
-    for v in (names.SUB_EIGENVALUE, names.EIGENVALUE, names.DETECTED, names.MODE_VECTOR,
-              names.FRF_SYNTHESIZED):
+        lazy = ami_xr.global_fit(
+            ami_xr.isolate(ami_xr.subtract(g.chunk({names.POINT: 1})), method=method)
+        )
+    for v in (
+        names.SUB_EIGENVALUE,
+        names.EIGENVALUE,
+        names.DETECTED,
+        names.MODE_VECTOR,
+        names.FRF_SYNTHESIZED,
+    ):
         xr.testing.assert_identical(mem[v].compute(), lazy[v].compute())
 
 
@@ -136,9 +152,17 @@ def test_file_chain_equals_memory(tmp_path):
         ami_xr.open_dataset(tmp_path / "s.nc").ami.isolate(path=tmp_path / "i.nc")
         ami_xr.open_dataset(tmp_path / "i.nc").ami.global_fit(path=tmp_path / "g.nc")
     disk = ami_xr.open_dataset(tmp_path / "g.nc")
-    for v in (names.SUB_EIGENVALUE, names.SUB_STOP_REASON, names.EIGENVALUE, names.DETECTED,
-              names.POINT_EIGENVALUE, names.RESIDUE, names.MODE_VECTOR, names.MAC,
-              names.QUALITY_FLAGS):
+    for v in (
+        names.SUB_EIGENVALUE,
+        names.SUB_STOP_REASON,
+        names.EIGENVALUE,
+        names.DETECTED,
+        names.POINT_EIGENVALUE,
+        names.RESIDUE,
+        names.MODE_VECTOR,
+        names.MAC,
+        names.QUALITY_FLAGS,
+    ):
         np.testing.assert_array_equal(mem[v].values, disk[v].values)
     assert disk.attrs[names.ATTR_AMI_PHASE] == "global_fit"
 
@@ -151,11 +175,18 @@ def test_outputs_and_attrs():
         i = ami_xr.isolate(s, method="per_frf", weighting="mean")
         f = ami_xr.global_fit(i, residual_terms=True)
     assert s[names.SUB_EIGENVALUE].dims == (names.POINT, names.CANDIDATE)
-    for v in (names.SUB_NOISE_FLOOR, names.SUB_STOP_STATISTIC, names.SUB_STOP_REASON,
-              names.SUB_N_MODES):
+    for v in (
+        names.SUB_NOISE_FLOOR,
+        names.SUB_STOP_STATISTIC,
+        names.SUB_STOP_REASON,
+        names.SUB_N_MODES,
+    ):
         assert s[v].dims == (names.POINT,)
-    assert set(s[names.SUB_STOP_REASON].values) <= {"below_noise_floor", "max_modes",
-                                                    "max_rejected_peaks"}
+    assert set(s[names.SUB_STOP_REASON].values) <= {
+        "below_noise_floor",
+        "max_modes",
+        "max_rejected_peaks",
+    }
     assert i[names.POINT_EIGENVALUE].dims == (names.POINT, names.MODE)
     det = i[names.DETECTED].values
     assert np.array_equal(det, np.isfinite(i[names.POINT_EIGENVALUE].values))
@@ -164,12 +195,16 @@ def test_outputs_and_attrs():
     np.testing.assert_allclose(i[names.EIGENVALUE].values, np.nanmean(pe, axis=0), rtol=1e-12)
     assert f[names.MAC].dims == (names.MODE, names.MODE_2)
     np.testing.assert_allclose(np.diag(f[names.MAC].values), 1.0, rtol=1e-12)
-    np.testing.assert_allclose(f[names.FRF_RESIDUAL].values,
-                               g[names.FRF].values - f[names.FRF_SYNTHESIZED].values)
+    np.testing.assert_allclose(
+        f[names.FRF_RESIDUAL].values, g[names.FRF].values - f[names.FRF_SYNTHESIZED].values
+    )
     assert f[names.RESIDUAL_COEFFICIENT].dims == (names.POINT, names.RESIDUAL_TERM)
     hist = ami_xr._provenance.history(f)
-    assert [h["function"] for h in hist][-3:] == ["ami_xr.subtract", "ami_xr.isolate",
-                                                  "ami_xr.global_fit"]
+    assert [h["function"] for h in hist][-3:] == [
+        "ami_xr.subtract",
+        "ami_xr.isolate",
+        "ami_xr.global_fit",
+    ]
 
 
 def test_pure_noise_gives_no_modes():

@@ -43,8 +43,9 @@ def _as_printed(value: float, printed: str) -> str:
 
 def test_fundamental_beam_frequency():
     b1 = clamped_free_roots(1)[0]
-    w1 = b1**2 * np.sqrt(ami_xr.simulate.beam.E * ami_xr.simulate.beam.I_AREA /
-                         (RHO * AREA * LENGTH**4))
+    w1 = b1**2 * np.sqrt(
+        ami_xr.simulate.beam.E * ami_xr.simulate.beam.I_AREA / (RHO * AREA * LENGTH**4)
+    )
     assert f"{w1:.4f}" == "65.3594"
 
 
@@ -60,8 +61,11 @@ def test_clamped_free_roots_and_modes():
     gram = np.trapezoid(psi[:, :, None] * psi[:, None, :], xi, axis=0)
     np.testing.assert_allclose(gram, np.diag(R**2), atol=2e-6)
     # eq. 14 literally, where it is numerically safe, and the clamped end
-    direct = (np.sin(b[:4] * xi[:, None]) - np.sinh(b[:4] * xi[:, None])
-              - R[:4] * (np.cos(b[:4] * xi[:, None]) - np.cosh(b[:4] * xi[:, None])))
+    direct = (
+        np.sin(b[:4] * xi[:, None])
+        - np.sinh(b[:4] * xi[:, None])
+        - R[:4] * (np.cos(b[:4] * xi[:, None]) - np.cosh(b[:4] * xi[:, None]))
+    )
     np.testing.assert_allclose(psi[:, :4], direct, atol=1e-10)
     np.testing.assert_allclose(psi[0], 0.0, atol=1e-14)
     # stable for many terms: |Psi_j(1)| = 2 R_j (R_j -> 1), no cancellation blow-up
@@ -78,8 +82,7 @@ def test_tables_1_2_every_printed_digit_with_J1():
         assert _as_printed(value.imag, im) == _as_printed(float(im), im)
     # the text's rounded natural frequencies and damping ratios
     np.testing.assert_allclose(np.abs(lam), [30.6, 48.03, 65.0, 65.90], atol=0.06)
-    np.testing.assert_allclose(-lam.real / np.abs(lam), [0.015, 0.015, 0.006, 0.009],
-                               atol=6e-4)
+    np.testing.assert_allclose(-lam.real / np.abs(lam), [0.015, 0.015, 0.006, 0.009], atol=6e-4)
 
 
 def test_J2_no_longer_matches_the_tables():
@@ -117,8 +120,10 @@ def test_tables_q1_row_is_mass_normalised_ritz_coordinate(mode):
     np.testing.assert_allclose(ours, PAPER_MODE_VECTORS[:, mode], rtol=1e-4)
     # ... and NOT the tip displacement: tip = 0.41345 * q1 in that basis
     truth = benchmark_model()
-    tip = _sign_fixed(truth[names.MODE_VECTOR].sel({names.POINT: "tip"}).values[mode:mode + 1],
-                      PAPER_MODE_VECTORS[:1, mode])
+    tip = _sign_fixed(
+        truth[names.MODE_VECTOR].sel({names.POINT: "tip"}).values[mode : mode + 1],
+        PAPER_MODE_VECTORS[:1, mode],
+    )
     np.testing.assert_allclose(tip / PAPER_MODE_VECTORS[0, mode], output[0, 0], rtol=1e-4)
     assert output[0, 0] == pytest.approx(0.41345, abs=2e-5)
 
@@ -126,8 +131,7 @@ def test_tables_q1_row_is_mass_normalised_ritz_coordinate(mode):
 def test_bases_give_the_same_measured_model():
     a = benchmark_model()
     M, C, K, output, labels = beam_absorbers(1, basis="mass")
-    b = ami_xr.simulate.modal_model(M, C, K, output=output, point_labels=labels,
-                                    drive_point="tip")
+    b = ami_xr.simulate.modal_model(M, C, K, output=output, point_labels=labels, drive_point="tip")
     np.testing.assert_allclose(a[names.EIGENVALUE], b[names.EIGENVALUE], rtol=1e-12)
     np.testing.assert_allclose(a[names.RESIDUE], b[names.RESIDUE], rtol=1e-9, atol=1e-15)
 
@@ -150,8 +154,9 @@ def test_benchmark_datasets():
     # the paper: frequency step 0.1047 rad/s, Nyquist 214 rad/s
     assert f"{2 * np.pi / 60:.4f}" == "0.1047"
     assert f"{np.pi / dt:.0f}" == "214"
-    np.testing.assert_allclose(g[names.FRF].values, dt * np.fft.rfft(ts[names.RESPONSE].values),
-                               atol=1e-18)
+    np.testing.assert_allclose(
+        g[names.FRF].values, dt * np.fft.rfft(ts[names.RESPONSE].values), atol=1e-18
+    )
     assert truth.sizes[names.MODE] == 4 and truth.attrs[names.ATTR_DRIVE_POINT] == "tip"
     # the noise is eq. 15 with alpha = 0.15 per channel
     clean, gclean, _ = benchmark(noise=0.0)
@@ -160,13 +165,18 @@ def test_benchmark_datasets():
     assert np.all(np.abs(r) <= 1) and r.max() > 0.99
     # reproducible; another seed differs
     np.testing.assert_array_equal(benchmark()[0][names.RESPONSE].values, ts[names.RESPONSE].values)
-    assert not np.array_equal(benchmark(seed=1)[0][names.RESPONSE].values,
-                              ts[names.RESPONSE].values)
+    assert not np.array_equal(
+        benchmark(seed=1)[0][names.RESPONSE].values, ts[names.RESPONSE].values
+    )
     # noise-free FRF = the exact discrete-time modal model of the truth
     omega = 2 * np.pi * gclean[names.FREQUENCY].values
     A, lam = truth[names.RESIDUE].values, truth[names.EIGENVALUE].values
-    ref = np.array([sum(mode_contribution(omega, lam[k], A[j, k], dt, 4096) for k in range(4))
-                    for j in range(4)])
+    ref = np.array(
+        [
+            sum(mode_contribution(omega, lam[k], A[j, k], dt, 4096) for k in range(4))
+            for j in range(4)
+        ]
+    )
     np.testing.assert_allclose(gclean[names.FRF].values, ref, atol=1e-12 * np.abs(ref).max())
 
 
@@ -198,10 +208,16 @@ def test_sample_data_regenerates_identically(tmp_path):
     if not all((committed / f).exists() for f in SAMPLE_FILES):
         pytest.skip("sample_data/ not generated in this checkout")
     # the script imports the installed ami_xr; point it at this checkout
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
-    subprocess.run([sys.executable, str(script), "--output-dir", str(tmp_path)], check=True,
-                   capture_output=True, env=env)
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])]),
+    }
+    subprocess.run(
+        [sys.executable, str(script), "--output-dir", str(tmp_path)],
+        check=True,
+        capture_output=True,
+        env=env,
+    )
     for name in SAMPLE_FILES:
         new = ami_xr.open_dataset(tmp_path / name)
         old = ami_xr.open_dataset(committed / name)
@@ -224,8 +240,10 @@ def test_benchmark_frf_is_direct_solution_at_measured_points(J):
     f = np.linspace(0.0, 34.0, 400)
     g = ami_xr.simulate.frf(truth, f)
     # tip force acts on the Ritz coordinates through Psi_j(L); measured y = output @ q
-    direct = np.array([output @ np.linalg.solve(K - w**2 * M + 1j * w * C, output[0])
-                       for w in 2 * np.pi * f]).T
-    np.testing.assert_allclose(g[names.FRF].values, direct, rtol=1e-10,
-                               atol=1e-10 * np.abs(direct).max())
+    direct = np.array(
+        [output @ np.linalg.solve(K - w**2 * M + 1j * w * C, output[0]) for w in 2 * np.pi * f]
+    ).T
+    np.testing.assert_allclose(
+        g[names.FRF].values, direct, rtol=1e-10, atol=1e-10 * np.abs(direct).max()
+    )
     assert list(g[names.POINT].values) == list(labels)

@@ -24,8 +24,13 @@ def _mode_vector_error(phi, phi_true):
     out = []
     for k in range(phi_true.shape[1]):
         n = np.linalg.norm(phi_true[:, k])
-        out.append(min(np.linalg.norm(phi[:, k] - phi_true[:, k]),
-                       np.linalg.norm(phi[:, k] + phi_true[:, k])) / n)
+        out.append(
+            min(
+                np.linalg.norm(phi[:, k] - phi_true[:, k]),
+                np.linalg.norm(phi[:, k] + phi_true[:, k]),
+            )
+            / n
+        )
     return np.array(out)
 
 
@@ -34,8 +39,9 @@ def _start(g, truth, rel=0.003, damping=1.0):
     ds = g.copy()
     lam = truth[names.EIGENVALUE].values
     lam0 = lam.real * damping + 1j * lam.imag * (1 + rel * PERTURB[: lam.size])
-    ds[names.EIGENVALUE] = xr.DataArray(lam0, dims=names.MODE,
-                                        coords={names.MODE: truth[names.MODE].values})
+    ds[names.EIGENVALUE] = xr.DataArray(
+        lam0, dims=names.MODE, coords={names.MODE: truth[names.MODE].values}
+    )
     ds[names.RESIDUE] = truth[names.RESIDUE]
     return ds
 
@@ -58,8 +64,9 @@ def test_noise_free_exact_recovery(clean, rel, damping):
     assert out.attrs["refine_converged"] == 1
     assert out.attrs["refine_model"] == "discrete"
     # the start is kept
-    np.testing.assert_array_equal(out["ami_eigenvalue"].values, _start(g, truth, rel, damping)[
-        names.EIGENVALUE].values)
+    np.testing.assert_array_equal(
+        out["ami_eigenvalue"].values, _start(g, truth, rel, damping)[names.EIGENVALUE].values
+    )
 
 
 def test_noise_free_analytic_continuous_model(clean):
@@ -142,8 +149,9 @@ def test_band_and_dask_match(clean):
     assert (np.abs(out[names.EIGENVALUE].values - lam) / np.abs(lam)).max() < 1e-8
     pytest.importorskip("dask")
     out_d = refine(start.chunk({names.POINT: 2}), band=(3.0, 13.0))
-    np.testing.assert_allclose(out_d[names.EIGENVALUE].values, out[names.EIGENVALUE].values,
-                               rtol=1e-12)
+    np.testing.assert_allclose(
+        out_d[names.EIGENVALUE].values, out[names.EIGENVALUE].values, rtol=1e-12
+    )
 
 
 def test_path_writes_netcdf(clean, tmp_path):
@@ -203,12 +211,16 @@ def test_crb_single_mode_closed_form():
     omega = np.arange(100.0, 300.0, dw)
     lam = -a + 1j * b
     truth = xr.Dataset(
-        {names.EIGENVALUE: ((names.MODE,), [lam]),
-         names.RESIDUE: ((names.POINT, names.MODE), [[amp]])},
+        {
+            names.EIGENVALUE: ((names.MODE,), [lam]),
+            names.RESIDUE: ((names.POINT, names.MODE), [[amp]]),
+        },
         coords={names.MODE: [1], names.POINT: ["p"]},
     )
-    g = xr.Dataset(coords={names.FREQUENCY: omega / (2 * np.pi), names.POINT: ["p"]},
-                   attrs={names.ATTR_SOURCE: names.SOURCE_ANALYTIC, names.ATTR_DRIVE_POINT: "p"})
+    g = xr.Dataset(
+        coords={names.FREQUENCY: omega / (2 * np.pi), names.POINT: ["p"]},
+        attrs={names.ATTR_SOURCE: names.SOURCE_ANALYTIC, names.ATTR_DRIVE_POINT: "p"},
+    )
     sigma = 1e-3
     crb = cramer_rao_bound(truth, g, frf_noise_std=sigma)
     expected = np.sqrt(2 * a**3 * sigma**2 * dw / (np.pi * abs(amp) ** 2))
@@ -220,12 +232,13 @@ def test_crb_single_mode_closed_form():
 def test_crb_benchmark_matches_issue():
     _, g, truth = benchmark(noise=0.15, seed=0)
     crb = cramer_rao_bound(truth, g)
-    np.testing.assert_allclose(100 * crb[names.NATURAL_FREQUENCY_ERROR].values,
-                               [0.045, 0.067, 0.012, 0.024], rtol=0.05)
-    np.testing.assert_allclose(100 * crb[names.DAMPING_RATIO_ERROR].values,
-                               [3.0, 4.5, 2.0, 2.7], rtol=0.05)
-    np.testing.assert_allclose(100 * crb[names.MODE_VECTOR_ERROR].values[2:], [3.5, 4.7],
-                               rtol=0.05)
+    np.testing.assert_allclose(
+        100 * crb[names.NATURAL_FREQUENCY_ERROR].values, [0.045, 0.067, 0.012, 0.024], rtol=0.05
+    )
+    np.testing.assert_allclose(
+        100 * crb[names.DAMPING_RATIO_ERROR].values, [3.0, 4.5, 2.0, 2.7], rtol=0.05
+    )
+    np.testing.assert_allclose(100 * crb[names.MODE_VECTOR_ERROR].values[2:], [3.5, 4.7], rtol=0.05)
 
 
 def test_refine_std_matches_crb_at_truth():
@@ -309,10 +322,12 @@ def test_refine_on_global_fit_output_refreshes_derived_outputs(ami_result):
     gf, truth = ami_result
     out = refine(gf)
     # synthesised FRFs and residual follow the refined model
-    np.testing.assert_allclose(out["frf"].values - out["frf_synthesized"].values,
-                               out["frf_residual"].values, atol=1e-15)
+    np.testing.assert_allclose(
+        out["frf"].values - out["frf_synthesized"].values, out["frf_residual"].values, atol=1e-15
+    )
     assert np.sum(np.abs(out["frf_residual"].values) ** 2) <= np.sum(
-        np.abs(gf["frf_residual"].values) ** 2)
+        np.abs(gf["frf_residual"].values) ** 2
+    )
     mac = out["mac"].values
     np.testing.assert_allclose(np.diag(mac), 1.0)
     assert out["drive_point_snr"].shape == (out.sizes[names.MODE],)
@@ -424,5 +439,6 @@ def test_crb_bad_arguments():
     # Gaussian r has sqrt(3) times the standard deviation of uniform r
     u = cramer_rao_bound(truth, g, noise_level=0.1)
     n = cramer_rao_bound(truth, g, noise_level=0.1, noise_kind="gaussian")
-    np.testing.assert_allclose(n[names.NATURAL_FREQUENCY_STD] / u[names.NATURAL_FREQUENCY_STD],
-                               np.sqrt(3.0), rtol=1e-9)
+    np.testing.assert_allclose(
+        n[names.NATURAL_FREQUENCY_STD] / u[names.NATURAL_FREQUENCY_STD], np.sqrt(3.0), rtol=1e-9
+    )

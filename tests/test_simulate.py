@@ -72,7 +72,8 @@ def test_eigen_normalisation_and_ordering():
     for k in range(5):
         D = lam[k] ** 2 * M + lam[k] * C + K
         assert np.linalg.norm(D @ phi[:, k]) < 1e-10 * np.linalg.norm(D, 2) * np.linalg.norm(
-            phi[:, k])
+            phi[:, k]
+        )
         norm = lam[k] * phi[:, k] @ (2 * lam[k] * M + C) @ phi[:, k]
         assert abs(norm - 1) < 1e-12
     # eqs. 2-3
@@ -85,8 +86,9 @@ def test_proportional_damping_matches_classical_modes():
     K = np.array([[300.0, -100, 0], [-100, 250, -150], [0, -150, 150]])
     C = 0.001 * K + 0.2 * M
     lam, phi = state_space_modes(M, C, K)
-    w2, v = np.linalg.eigh(np.linalg.inv(np.linalg.cholesky(M)) @ K @ np.linalg.inv(
-        np.linalg.cholesky(M)).T)
+    w2, v = np.linalg.eigh(
+        np.linalg.inv(np.linalg.cholesky(M)) @ K @ np.linalg.inv(np.linalg.cholesky(M)).T
+    )
     wn = np.sqrt(w2)
     np.testing.assert_allclose(np.abs(lam), wn, rtol=1e-12)
     np.testing.assert_allclose(-lam.real / np.abs(lam), 0.0005 * wn + 0.1 / wn, rtol=1e-10)
@@ -121,8 +123,9 @@ def test_modal_model_dataset_and_residues():
     g = frf(truth, f_hz, "b")
     omega = 2 * np.pi * f_hz
     direct = np.array([T @ np.linalg.solve(K - w**2 * M + 1j * w * C, T[1]) for w in omega]).T
-    np.testing.assert_allclose(g[names.FRF].values, direct, rtol=1e-10, atol=1e-10 * np.abs(
-        direct).max())
+    np.testing.assert_allclose(
+        g[names.FRF].values, direct, rtol=1e-10, atol=1e-10 * np.abs(direct).max()
+    )
     ami_xr.validate(g)
     assert g.attrs[names.ATTR_SOURCE] == names.SOURCE_ANALYTIC
     assert g[names.FRF].attrs["units"] == "m/N"
@@ -162,8 +165,9 @@ def test_impulse_response_matches_ode_integration():
         return np.concatenate([x[n:], -Mi @ (K @ x[:n] + C @ x[n:])])
 
     x0 = np.concatenate([np.zeros(n), Mi[:, P]])
-    sol = scipy.integrate.solve_ivp(rhs, (0, 3.0), x0, t_eval=t, rtol=1e-11, atol=1e-14,
-                                    method="DOP853")
+    sol = scipy.integrate.solve_ivp(
+        rhs, (0, 3.0), x0, t_eval=t, rtol=1e-11, atol=1e-14, method="DOP853"
+    )
     ref = sol.y[:n]
     np.testing.assert_allclose(h[names.RESPONSE].values, ref, atol=1e-8 * np.abs(ref).max())
 
@@ -179,9 +183,9 @@ def test_impulse_response_fft_is_the_discrete_modal_model():
     omega = 2 * np.pi * np.fft.rfftfreq(n, dt)
     A = truth[names.RESIDUE].values
     lam = truth[names.EIGENVALUE].values
-    ref = np.array([
-        sum(mode_contribution(omega, lam[k], A[j, k], dt, n) for k in range(3)) for j in range(3)
-    ])
+    ref = np.array(
+        [sum(mode_contribution(omega, lam[k], A[j, k], dt, n) for k in range(3)) for j in range(3)]
+    )
     np.testing.assert_allclose(g, ref, atol=1e-12 * np.abs(ref).max())
 
 
@@ -278,8 +282,9 @@ def test_noise_on_datasets_and_dataarrays():
     da = ts[names.RESPONSE].transpose(names.TIME, names.POINT)
     nda = add_noise(da, 0.15, seed=0)
     assert nda.dims == da.dims
-    np.testing.assert_array_equal(nda.transpose(names.POINT, names.TIME).values,
-                                  noisy[names.RESPONSE].values)
+    np.testing.assert_array_equal(
+        nda.transpose(names.POINT, names.TIME).values, noisy[names.RESPONSE].values
+    )
 
 
 @pytest.mark.parametrize(
@@ -353,8 +358,9 @@ def test_random_system_closely_spaced_pair_is_close(topology, seed):
 @pytest.mark.parametrize("topology", ["chain", "grid"])
 @pytest.mark.parametrize("seed", [0, 3, 5])
 def test_random_system_weak_mode_is_weak(topology, seed):
-    _, truth = random_system(8, topology, weak_mode=True, closely_spaced=seed == 5, seed=seed,
-                             n_frequencies=64)
+    _, truth = random_system(
+        8, topology, weak_mode=True, closely_spaced=seed == 5, seed=seed, n_frequencies=64
+    )
     k = truth.attrs["weak_mode"] - 1
     peaks = mode_peaks(truth).values
     assert peaks[k] <= 0.01 * np.median(np.delete(peaks, k))
@@ -371,8 +377,12 @@ def test_random_system_impulse_source_and_noise():
     dt, n = g.attrs[names.ATTR_DT], g.attrs[names.ATTR_NSAMPLES]
     omega = 2 * np.pi * g[names.FREQUENCY].values
     A, lam = truth[names.RESIDUE].values, truth[names.EIGENVALUE].values
-    ref = np.array([sum(mode_contribution(omega, lam[k], A[j, k], dt, n)
-                        for k in range(lam.size)) for j in range(A.shape[0])])
+    ref = np.array(
+        [
+            sum(mode_contribution(omega, lam[k], A[j, k], dt, n) for k in range(lam.size))
+            for j in range(A.shape[0])
+        ]
+    )
     np.testing.assert_allclose(g[names.FRF].values, ref, atol=1e-10 * np.abs(ref).max())
     gn, _ = random_system(5, "chain", source="impulse_response", seed=2, noise=0.1)
     assert gn.attrs["noise_level"] == 0.1
@@ -419,5 +429,6 @@ def test_dask_backed_models_stay_lazy_and_agree():
     h = impulse_response(lazy, (5.0, 256))
     assert hasattr(g[names.FRF].data, "dask") and hasattr(h[names.RESPONSE].data, "dask")
     np.testing.assert_array_equal(g[names.FRF].values, frf(truth, f)[names.FRF].values)
-    np.testing.assert_array_equal(h[names.RESPONSE].values,
-                                  impulse_response(truth, (5.0, 256))[names.RESPONSE].values)
+    np.testing.assert_array_equal(
+        h[names.RESPONSE].values, impulse_response(truth, (5.0, 256))[names.RESPONSE].values
+    )

@@ -69,8 +69,9 @@ class Projection:
     ok: bool
 
 
-def make_problem(frf, omega, dt, n_samples, residual_terms=(), nyquist=None,
-                 residual_kind=0) -> Problem:
+def make_problem(
+    frf, omega, dt, n_samples, residual_terms=(), nyquist=None, residual_kind=0
+) -> Problem:
     """Real-stack complex FRFs ``frf`` (P, L); DC and Nyquist lines get weight 1/sqrt(2)."""
     w = np.ones(omega.shape[0])
     # A real impulse response gives real DC and Nyquist lines: their noise is all in the real
@@ -82,8 +83,9 @@ def make_problem(frf, omega, dt, n_samples, residual_terms=(), nyquist=None,
         w[np.isclose(omega, nyquist, rtol=1e-9, atol=0.0)] = 2**-0.5
     yc = np.asarray(frf, dtype=np.complex128) * w[None, :]
     y = np.ascontiguousarray(np.concatenate([yc.real, yc.imag], axis=1))
-    return Problem(y, np.asarray(omega, float), w, dt, n_samples, tuple(residual_terms),
-                   int(residual_kind))
+    return Problem(
+        y, np.asarray(omega, float), w, dt, n_samples, tuple(residual_terms), int(residual_kind)
+    )
 
 
 def _stack(z):
@@ -92,8 +94,9 @@ def _stack(z):
 
 def project(prob: Problem, lam: np.ndarray) -> Projection:
     """Residues by linear least squares for eigenvalues ``lam`` (all points at once)."""
-    phi, dphi = model_columns(prob.omega, lam, prob.dt, prob.n_samples, prob.residual_terms,
-                              prob.residual_kind)
+    phi, dphi = model_columns(
+        prob.omega, lam, prob.dt, prob.n_samples, prob.residual_terms, prob.residual_kind
+    )
     w = prob.line_weight[:, None]
     a = _stack(phi * w)
     v = _stack(dphi * w)
@@ -189,9 +192,16 @@ def _lam(theta):
 
 
 def levenberg_marquardt(
-    prob: Problem, lam0: np.ndarray, *, max_iter: int = 50, tol: float = 1e-10,
-    free: np.ndarray | None = None, trace: list | None = None, check=None,
-    stat_tol: float = 1e-4, patience: int = 3,
+    prob: Problem,
+    lam0: np.ndarray,
+    *,
+    max_iter: int = 50,
+    tol: float = 1e-10,
+    free: np.ndarray | None = None,
+    trace: list | None = None,
+    check=None,
+    stat_tol: float = 1e-4,
+    patience: int = 3,
 ) -> FitResult:
     """Minimise :func:`objective` over the eigenvalues, starting at ``lam0``.
 
@@ -247,8 +257,11 @@ def levenberg_marquardt(
                 s_corr *= min(1.0, abs(float(s_prev @ y_sharp)) / ss)
             resid = y_sharp - s_corr @ s_prev
             if sts > 0:
-                s_corr = s_corr + (np.outer(resid, s_prev) + np.outer(s_prev, resid)) / sts \
+                s_corr = (
+                    s_corr
+                    + (np.outer(resid, s_prev) + np.outer(s_prev, resid)) / sts
                     - float(resid @ s_prev) * np.outer(s_prev, s_prev) / sts**2
+                )
         d = np.sqrt(np.maximum(np.diag(h), np.finfo(float).tiny))
         hs = h / np.outer(d, d)
         gs = g / d
@@ -314,8 +327,9 @@ def levenberg_marquardt(
             outside = np.where(code > 0, outside + 1, 0)
             bad = (code == 2) | (outside >= patience)
             if bad.any():
-                return FitResult(lam, proj, cost, start, n_iter, False, "mode left its region",
-                                 bad, mode_step)
+                return FitResult(
+                    lam, proj, cost, start, n_iter, False, "mode left its region", bad, mode_step
+                )
         if rel < tol or decrease < cost_eps:
             converged = True
             message = "eigenvalue change below tol" if rel < tol else "objective flat"
@@ -323,8 +337,15 @@ def levenberg_marquardt(
     return FitResult(lam, proj, cost, start, n_iter, converged, message, None, mode_step)
 
 
-def covariance(prob: Problem, proj: Projection, noise_var: np.ndarray, drive_index: int | None,
-               *, quantity_power: int = 0, lam_shift: float = 0.0):
+def covariance(
+    prob: Problem,
+    proj: Projection,
+    noise_var: np.ndarray,
+    drive_index: int | None,
+    *,
+    quantity_power: int = 0,
+    lam_shift: float = 0.0,
+):
     """Covariances of eigenvalues, residues and mode vectors at ``proj`` (Gauss-Newton / Fisher).
 
     ``noise_var`` (P,) is the noise variance of one real component of one (weighted) line. With
@@ -396,6 +417,7 @@ def covariance(prob: Problem, proj: Projection, noise_var: np.ndarray, drive_ind
         d_aj[P_] = 0.0
         d_ap[P_] = 0.5 * phi_p / residue[P_]
         d_lam[P_] = -0.5 * (1 + quantity_power) * phi_p / lam
+
     # Linearise Phi_jk in the real variables (theta_k, c_jk, c_Pk): for a holomorphic
     # derivative f of z = x + i y, d(Re, Im)/d(x, y) = [[Re f, -Im f], [Im f, Re f]].
     def real_jac(f):
@@ -411,11 +433,14 @@ def covariance(prob: Problem, proj: Projection, noise_var: np.ndarray, drive_ind
         c_jp = hc[:, sl, :] @ hj[P_, sl, :].T  # cov(c_j, c_P) for j != P
         c_jt = hc[:, sl, sl].copy()
         c_jp[P_] = cov_cc_blocks[P_, k]
-        big = np.concatenate([
-            np.concatenate([c_tt, np.swapaxes(c_jt, 1, 2), np.swapaxes(c_pt, 1, 2)], 2),
-            np.concatenate([c_jt, c_jj, c_jp], 2),
-            np.concatenate([c_pt, np.swapaxes(c_jp, 1, 2), c_pp], 2),
-        ], 1)  # (P, 6, 6)
+        big = np.concatenate(
+            [
+                np.concatenate([c_tt, np.swapaxes(c_jt, 1, 2), np.swapaxes(c_pt, 1, 2)], 2),
+                np.concatenate([c_jt, c_jj, c_jp], 2),
+                np.concatenate([c_pt, np.swapaxes(c_jp, 1, 2), c_pp], 2),
+            ],
+            1,
+        )  # (P, 6, 6)
         jac = np.concatenate(
             [real_jac(d_lam[:, k]), real_jac(d_aj[:, k]), real_jac(d_ap[:, k])], 2
         )  # (P, 2, 6)

@@ -107,8 +107,10 @@ def cramer_rao_bound(
         ``sqrt(2/pi) std / value``) and ``mode_vector_error`` (mode; ``E |dPhi| / |Phi|``),
         plus ``frf_noise_std`` (point).
     """
-    for var, dims in ((names.EIGENVALUE, (names.MODE,)),
-                      (names.RESIDUE, (names.POINT, names.MODE))):
+    for var, dims in (
+        (names.EIGENVALUE, (names.MODE,)),
+        (names.RESIDUE, (names.POINT, names.MODE)),
+    ):
         if var not in truth or set(truth[var].dims) != set(dims):
             raise AmiXrValueError(f"truth: expected variable {var!r} with dims {dims}")
     if names.FREQUENCY not in frf.coords:
@@ -127,8 +129,10 @@ def cramer_rao_bound(
     n_point, n_mode = residue.shape
     quantity = frf.attrs.get(names.ATTR_QUANTITY, "displacement")
     if quantity != "displacement":
-        raise AmiXrValueError(f"frf: the bound is implemented for receptance (displacement) "
-                              f"FRFs, got response_quantity={quantity!r}")
+        raise AmiXrValueError(
+            f"frf: the bound is implemented for receptance (displacement) "
+            f"FRFs, got response_quantity={quantity!r}"
+        )
     power = 0
     decay = float(frf.attrs.get(names.ATTR_EXP_DECAY, 0.0) or 0.0)
 
@@ -165,16 +169,18 @@ def cramer_rao_bound(
     coef[:, 0 : 2 * n_mode : 2] = residue.real
     coef[:, 1 : 2 * n_mode : 2] = residue.imag
     model = coef @ phi.T
-    prob = _varpro.make_problem(model, omega, dt, n_samples, terms,
-                                nyquist=(np.pi / dt if dt else None))
+    prob = _varpro.make_problem(
+        model, omega, dt, n_samples, terms, nyquist=(np.pi / dt if dt else None)
+    )
     proj = _varpro.project(prob, mu)
     if not proj.ok:
         raise AmiXrValueError("truth: eigenvalues coincide; the Fisher information is singular")
     noise_var = 0.5 * line_std**2  # per real component
     drive = frf.attrs.get(names.ATTR_DRIVE_POINT, truth.attrs.get(names.ATTR_DRIVE_POINT))
     drive_index = points.index(drive) if drive in points else None
-    cov = _varpro.covariance(prob, proj, noise_var, drive_index, quantity_power=power,
-                             lam_shift=decay)
+    cov = _varpro.covariance(
+        prob, proj, noise_var, drive_index, quantity_power=power, lam_shift=decay
+    )
     c_t = cov["cov_theta"]
     wn = np.abs(lam)
     zeta = -lam.real / wn
@@ -198,16 +204,26 @@ def cramer_rao_bound(
         coords={M: mode, P: points},
     )
     if drive_index is not None:
-        mv_err = np.array([_mode_vector_error(cov, k, drive_index, noise_var, power, lam[k])
-                           for k in range(n_mode)])
+        mv_err = np.array(
+            [
+                _mode_vector_error(cov, k, drive_index, noise_var, power, lam[k])
+                for k in range(n_mode)
+            ]
+        )
         out[names.MODE_VECTOR] = ((P, M), cov["mode_vector"])
         out[names.MODE_VECTOR_STD] = ((P, M), np.sqrt(cov["mode_vector_var"]))
         out[names.MODE_VECTOR_ERROR] = ((M,), mv_err)
-    out.attrs = {names.ATTR_DRIVE_POINT: drive,
-                 "crb_model": "discrete" if dt else "continuous"}
-    return add_history(out, "ami_xr.cramer_rao_bound",
-                       {"noise_level": noise_level, "noise_kind": noise_kind, "band": band,
-                        "residual_terms": terms})
+    out.attrs = {names.ATTR_DRIVE_POINT: drive, "crb_model": "discrete" if dt else "continuous"}
+    return add_history(
+        out,
+        "ami_xr.cramer_rao_bound",
+        {
+            "noise_level": noise_level,
+            "noise_kind": noise_kind,
+            "band": band,
+            "residual_terms": terms,
+        },
+    )
 
 
 def _mode_vector_error(cov, k, drive, noise_var, power, lam_k):

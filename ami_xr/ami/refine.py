@@ -125,8 +125,9 @@ def _fit_modes(prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width, fr
     start_cost = None
     n_iter = 0
     while True:
-        fit = _varpro.levenberg_marquardt(prob, start_mu, max_iter=max(max_iter - n_iter, 1),
-                                          tol=tol, free=free, check=check)
+        fit = _varpro.levenberg_marquardt(
+            prob, start_mu, max_iter=max(max_iter - n_iter, 1), tol=tol, free=free, check=check
+        )
         n_iter += fit.n_iter
         start_cost = fit.start_cost if start_cost is None else start_cost
         if not np.isfinite(fit.cost) or fit.cost > start_cost:
@@ -224,15 +225,30 @@ def modal_std(lam: np.ndarray, cov_theta: np.ndarray):
     for k in range(lam.size):
         c = cov_theta[2 * k : 2 * k + 2, 2 * k : 2 * k + 2]
         g_wn = np.array([lam[k].real, lam[k].imag]) / wn[k]
-        g_z = np.array([-lam[k].imag ** 2, lam[k].real * lam[k].imag]) / wn[k] ** 3
+        g_z = np.array([-(lam[k].imag ** 2), lam[k].real * lam[k].imag]) / wn[k] ** 3
         fn_std[k] = np.sqrt(max(g_wn @ c @ g_wn, 0.0)) / (2.0 * np.pi)
         zeta_std[k] = np.sqrt(max(g_z @ c @ g_z, 0.0))
     return eig_std, fn_std, zeta_std
 
 
 def _refine_arrays(
-    frf, freq, lam0, res0, *, dt, n_samples, residual_terms, residual_kind, drive_index,
-    decay, max_iter, tol, max_shift, add_modes, add_pfa, drop_modes,
+    frf,
+    freq,
+    lam0,
+    res0,
+    *,
+    dt,
+    n_samples,
+    residual_terms,
+    residual_kind,
+    drive_index,
+    decay,
+    max_iter,
+    tol,
+    max_shift,
+    add_modes,
+    add_pfa,
+    drop_modes,
 ):
     """Refine on plain arrays: frf (P, L), freq (L,) Hz, lam0 (K,), res0 (P, K).
 
@@ -244,14 +260,14 @@ def _refine_arrays(
     n_point = frf.shape[0]
     omega = 2.0 * np.pi * np.asarray(freq, dtype=np.float64)
     nyquist = np.pi / dt if dt else None
-    prob = _varpro.make_problem(frf, omega, dt, n_samples, residual_terms, nyquist=nyquist,
-                                residual_kind=residual_kind)
+    prob = _varpro.make_problem(
+        frf, omega, dt, n_samples, residual_terms, nyquist=nyquist, residual_kind=residual_kind
+    )
     # An exponential window multiplies exp(lam t) by exp(-decay t): data poles are lam - decay.
     lam0 = np.asarray(lam0, dtype=np.complex128)
     mu0 = lam0 - decay
     min_width = 2.0 * (omega[1] - omega[0]) if omega.size > 1 else 0.0
-    opts = dict(decay=decay, max_iter=max_iter, tol=tol, max_shift=max_shift,
-                min_width=min_width)
+    opts = dict(decay=decay, max_iter=max_iter, tol=tol, max_shift=max_shift, min_width=min_width)
     # Trial fits of the order tests stop early: an unfinished fit only overstates the cost of
     # the smaller model (conservative for dropping) and the kept model is polished at the end.
     trial_opts = dict(opts, max_iter=min(max_iter, TRIAL_ITERATIONS))
@@ -264,8 +280,9 @@ def _refine_arrays(
     threshold = chi2.isf(add_pfa / max(omega.size, 1), 2 + 2 * n_point)
     origin = np.arange(n_ami)
     # An exact fit (noise-free data) leaves no noise for the tests to refer to: order kept.
-    exact = not (fit.proj.ok and np.isfinite(fit.cost)) or np.max(
-        fit.proj.rss / prob.y_norm2) < 1e-20
+    exact = (
+        not (fit.proj.ok and np.isfinite(fit.cost)) or np.max(fit.proj.rss / prob.y_norm2) < 1e-20
+    )
     # A mode whose removal costs less likelihood than that level is not significant (a spurious
     # AMI mode fitting noise): dropped, the others refitted. Screened cheaply first: removing a
     # mode without refitting the others costs at least as much as with refitting.
@@ -291,8 +308,12 @@ def _refine_arrays(
             trial = _fit_modes(prob, np.append(fit.lam, cand), ref, **trial_opts)
             n_iter += trial[2]
             gain = 2.0 * (fit.cost - trial[0].cost)
-            if trial[1][-1] and trial[1].all() and gain > threshold and (
-                    best is None or trial[0].cost < best[0].cost):
+            if (
+                trial[1][-1]
+                and trial[1].all()
+                and gain > threshold
+                and (best is None or trial[0].cost < best[0].cost)
+            ):
                 best = trial
         if best is None:
             break
@@ -302,8 +323,9 @@ def _refine_arrays(
         changed = True
     if changed and np.isfinite(fit.cost):  # polish the new model (frozen modes stay frozen)
         ref = np.where(free, lam0, fit.lam + decay)
-        polish = _fit_modes(prob, fit.lam, ref, free=free,
-                            **dict(opts, max_iter=max(max_iter - n_iter, 5)))
+        polish = _fit_modes(
+            prob, fit.lam, ref, free=free, **dict(opts, max_iter=max(max_iter - n_iter, 5))
+        )
         n_iter += polish[2]
         if polish[0].cost <= fit.cost:
             fit, free = polish[0], free & polish[1]
@@ -323,8 +345,7 @@ def _refine_arrays(
     if proj.ok:
         dof = max(prob.n_rows - n_coef - 2.0 * free.sum() / max(n_point, 1), 1.0)
         noise_var = np.maximum(proj.rss, 1e-300) / dof
-        cov = _varpro.covariance(prob, proj, noise_var, drive_index,
-                                 lam_shift=decay)
+        cov = _varpro.covariance(prob, proj, noise_var, drive_index, lam_shift=decay)
         residue = cov["residue"]
         cov_theta = cov["cov_theta"]
         res_std = np.sqrt(np.maximum(cov["residue_var"], 0.0))
@@ -357,12 +378,26 @@ def _refine_arrays(
         width = np.maximum(2.0 * np.abs(lam0.real), min_width)
         order = np.argsort(_match(lam, lam0, width))
         lam, eig_std, fn_std, zeta_std, status, added, origin = (
-            a[order] for a in (lam, eig_std, fn_std, zeta_std, status, added, origin))
+            a[order] for a in (lam, eig_std, fn_std, zeta_std, status, added, origin)
+        )
         residue, res_std, mode_vector, mv_std = (
-            a[:, order] for a in (residue, res_std, mode_vector, mv_std))
+            a[:, order] for a in (residue, res_std, mode_vector, mv_std)
+        )
     return (
-        lam, eig_std, fn_std, zeta_std, residue, res_std, mode_vector, mv_std, noise_std,
-        res_terms, status, origin, np.int64(n_iter), np.float64(start_cost),
+        lam,
+        eig_std,
+        fn_std,
+        zeta_std,
+        residue,
+        res_std,
+        mode_vector,
+        mv_std,
+        noise_std,
+        res_terms,
+        status,
+        origin,
+        np.int64(n_iter),
+        np.float64(start_cost),
         np.float64(fit.cost),
     )
 
@@ -382,18 +417,21 @@ def _check_inputs(ds, max_iter, tol, band, residual_terms, max_shift):
     if names.FRF not in ds:
         problems.append(f"variable {names.FRF!r} is missing (expected dims (point, frequency))")
     elif set(ds[names.FRF].dims) != {names.POINT, names.FREQUENCY}:
-        problems.append(f"variable {names.FRF!r}: expected dims (point, frequency), "
-                        f"got {ds[names.FRF].dims}")
+        problems.append(
+            f"variable {names.FRF!r}: expected dims (point, frequency), got {ds[names.FRF].dims}"
+        )
     if names.EIGENVALUE not in ds:
         problems.append(f"variable {names.EIGENVALUE!r} is missing: run global_fit first")
     elif ds[names.EIGENVALUE].dims != (names.MODE,):
-        problems.append(f"variable {names.EIGENVALUE!r}: expected dims (mode,), "
-                        f"got {ds[names.EIGENVALUE].dims}")
+        problems.append(
+            f"variable {names.EIGENVALUE!r}: expected dims (mode,), got {ds[names.EIGENVALUE].dims}"
+        )
     elif not np.all(np.isfinite(ds[names.EIGENVALUE].values)):
         problems.append(f"variable {names.EIGENVALUE!r}: contains NaN or inf")
     if names.RESIDUE in ds and set(ds[names.RESIDUE].dims) != {names.POINT, names.MODE}:
-        problems.append(f"variable {names.RESIDUE!r}: expected dims (point, mode), "
-                        f"got {ds[names.RESIDUE].dims}")
+        problems.append(
+            f"variable {names.RESIDUE!r}: expected dims (point, mode), got {ds[names.RESIDUE].dims}"
+        )
     if problems:
         raise IdentificationError("refine: " + "; ".join(problems))
     if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
@@ -403,7 +441,7 @@ def _check_inputs(ds, max_iter, tol, band, residual_terms, max_shift):
     if not (isinstance(max_shift, (int, float, np.floating)) and max_shift > 0):
         raise IdentificationError(f"max_shift: expected a positive number, got {max_shift!r}")
     if not (isinstance(band, str) and band == "all"):
-        ok = (isinstance(band, Sequence) and not isinstance(band, str) and len(band) == 2)
+        ok = isinstance(band, Sequence) and not isinstance(band, str) and len(band) == 2
         if ok:
             try:
                 lo, hi = float(band[0]), float(band[1])
@@ -554,10 +592,20 @@ def refine(
     # corrected already (attr set), the data's poles are lam - beta.
     decay = float(ds.attrs.get(names.ATTR_EXP_CORRECTED, 0.0) or 0.0)
     freq = _as(frf[names.FREQUENCY], np.float64)
-    kwargs = dict(dt=dt, n_samples=n_samples, residual_terms=terms, residual_kind=kind,
-                  drive_index=drive_index, decay=decay, max_iter=int(max_iter), tol=float(tol),
-                  max_shift=float(max_shift), add_modes=int(add_modes),
-                  add_pfa=float(add_pfa), drop_modes=bool(drop_modes))
+    kwargs = dict(
+        dt=dt,
+        n_samples=n_samples,
+        residual_terms=terms,
+        residual_kind=kind,
+        drive_index=drive_index,
+        decay=decay,
+        max_iter=int(max_iter),
+        tol=float(tol),
+        max_shift=float(max_shift),
+        add_modes=int(add_modes),
+        add_pfa=float(add_pfa),
+        drop_modes=bool(drop_modes),
+    )
     P, F, M = names.POINT, names.FREQUENCY, names.MODE
     if n_mode == 0:
         outs = None
@@ -570,23 +618,66 @@ def refine(
             _as(res0, np.complex128),
             kwargs=kwargs,
             input_core_dims=[[P, F], [F], [M], [P, M]],
-            output_core_dims=[[M], [M], [M], [M], [P, M], [P, M], [P, M], [P, M], [P],
-                              [P, names.RESIDUAL_TERM], [M], [M], [], [], []],
+            output_core_dims=[
+                [M],
+                [M],
+                [M],
+                [M],
+                [P, M],
+                [P, M],
+                [P, M],
+                [P, M],
+                [P],
+                [P, names.RESIDUAL_TERM],
+                [M],
+                [M],
+                [],
+                [],
+                [],
+            ],
             exclude_dims={M},  # modes may be added
             dask="parallelized",
-            output_dtypes=[np.complex128, np.complex128, float, float, np.complex128, float,
-                           np.complex128, float, float, np.complex128, np.int8, np.int64,
-                           np.int64, float, float],
-            dask_gufunc_kwargs={"allow_rechunk": True,
-                                "output_sizes": {names.RESIDUAL_TERM: 2}},
+            output_dtypes=[
+                np.complex128,
+                np.complex128,
+                float,
+                float,
+                np.complex128,
+                float,
+                np.complex128,
+                float,
+                float,
+                np.complex128,
+                np.int8,
+                np.int64,
+                np.int64,
+                float,
+                float,
+            ],
+            dask_gufunc_kwargs={"allow_rechunk": True, "output_sizes": {names.RESIDUAL_TERM: 2}},
             keep_attrs=False,
         )
         outs = [o.compute() if o.chunks else o for o in outs]
     new = {}
     attrs = {}
     if outs is not None:
-        (lam, eig_std, fn_std, zeta_std, residue, res_std, phi, phi_std, noise_std, res_terms,
-         status, origin, n_iter, cost0, cost) = outs
+        (
+            lam,
+            eig_std,
+            fn_std,
+            zeta_std,
+            residue,
+            res_std,
+            phi,
+            phi_std,
+            noise_std,
+            res_terms,
+            status,
+            origin,
+            n_iter,
+            cost0,
+            cost,
+        ) = outs
         origin = origin.values
         added = origin < 0
         kept = origin[~added]
@@ -597,8 +688,13 @@ def refine(
             lam0 = ds[names.EIGENVALUE]
         if added.any():
             ds, lam0 = _with_added_modes(ds, int(added.sum()))
-        for var in (names.EIGENVALUE, names.NATURAL_FREQUENCY, names.DAMPING_RATIO,
-                    names.RESIDUE, names.MODE_VECTOR):
+        for var in (
+            names.EIGENVALUE,
+            names.NATURAL_FREQUENCY,
+            names.DAMPING_RATIO,
+            names.RESIDUE,
+            names.MODE_VECTOR,
+        ):
             if var in ds:
                 new[names.AMI_PREFIX + var] = ds[var]
         units_frf = ds[names.FRF].attrs.get(names.ATTR_UNITS)
@@ -614,14 +710,26 @@ def refine(
         new[names.RESIDUE_STD] = res_std.transpose(P, M)
         new[names.MODE_VECTOR_STD] = phi_std.transpose(P, M)
         new[names.FRF_NOISE_STD] = noise_std.assign_attrs(
-            {names.ATTR_UNITS: units_frf} if units_frf else {})
+            {names.ATTR_UNITS: units_frf} if units_frf else {}
+        )
         if terms:
             new[names.RESIDUAL_COEFFICIENT] = res_terms.assign_coords(
-                {names.RESIDUAL_TERM: ["lower", "upper"]})
+                {names.RESIDUAL_TERM: ["lower", "upper"]}
+            )
         low_snr = _refresh_global_outputs(
-            ds, new, lam.values - decay, residue.transpose(P, M).values,
-            res_terms.values, phi.transpose(P, M).values, noise_std.values, terms, kind, dt,
-            n_samples, drive_index)
+            ds,
+            new,
+            lam.values - decay,
+            residue.transpose(P, M).values,
+            res_terms.values,
+            phi.transpose(P, M).values,
+            noise_std.values,
+            terms,
+            kind,
+            dt,
+            n_samples,
+            drive_index,
+        )
         new[QUALITY_FLAGS] = _merge_flags(ds, status.values, lam0, low_snr, added)
         attrs["refine_iterations"] = int(n_iter)
         attrs["refine_converged"] = int(bool(np.all(status.values != _STATUS_NOT_CONVERGED)))
@@ -646,9 +754,16 @@ def refine(
                 out = out.assign_coords({names.MODE_2: labels})
     out.attrs["refine_model"] = "discrete" if dt else "continuous"
     out.attrs["refine_residual_terms"] = ",".join(terms)
-    params = {"max_iter": max_iter, "tol": tol, "band": band, "residual_terms": terms,
-              "max_shift": max_shift, "add_modes": add_modes, "add_pfa": add_pfa,
-              "drop_modes": drop_modes}
+    params = {
+        "max_iter": max_iter,
+        "tol": tol,
+        "band": band,
+        "residual_terms": terms,
+        "max_shift": max_shift,
+        "add_modes": add_modes,
+        "add_pfa": add_pfa,
+        "drop_modes": drop_modes,
+    }
     out = add_history(out, "ami_xr.refine", params)
     if path is not None:
         from ami_xr.io import to_netcdf
@@ -657,8 +772,9 @@ def refine(
     return out
 
 
-def _refresh_global_outputs(ds, new, mu, residue, res_terms, phi, noise_std, terms, kind, dt,
-                            n_samples, drive_index):
+def _refresh_global_outputs(
+    ds, new, mu, residue, res_terms, phi, noise_std, terms, kind, dt, n_samples, drive_index
+):
     """Recompute what global_fit derived from the residues: the synthesised FRFs and their
     residual (whole band), the MAC matrix and the drive-point SNR. Returns the new
     ``low_drive_point_snr`` decision per mode (None when there is no drive point)."""
@@ -678,8 +794,7 @@ def _refresh_global_outputs(ds, new, mu, residue, res_terms, phi, noise_std, ter
     if names.FRF_SYNTHESIZED in ds or names.FRF_RESIDUAL in ds:
         synth = coef @ cols.T
         new[names.FRF_SYNTHESIZED] = xr.Variable((P, F), synth, {names.ATTR_UNITS: units})
-        new[names.FRF_RESIDUAL] = xr.Variable((P, F), frf.values - synth,
-                                              {names.ATTR_UNITS: units})
+        new[names.FRF_RESIDUAL] = xr.Variable((P, F), frf.values - synth, {names.ATTR_UNITS: units})
     if names.MAC in ds and names.MODE_2 in ds.dims:
         new[names.MAC] = xr.Variable((M, names.MODE_2), mac_matrix(phi))
     if drive_index is None:
@@ -760,5 +875,6 @@ def _merge_flags(ds, status, lam0, low_snr=None, added=None):
         elif status[k] == _STATUS_FALLBACK:
             flags.append(names.FLAG_REFINE_FALLBACK)
         new.append(_FLAG_SEPARATOR.join(flags))
-    return xr.DataArray(np.array(new, dtype=str), dims=(names.MODE,),
-                        coords={names.MODE: lam0[names.MODE].values})
+    return xr.DataArray(
+        np.array(new, dtype=str), dims=(names.MODE,), coords={names.MODE: lam0[names.MODE].values}
+    )

@@ -297,8 +297,9 @@ def matmul_small(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a = np.ascontiguousarray(a, dtype=np.float64)
     b = np.ascontiguousarray(b, dtype=np.float64)
     if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[0]:
-        raise ValueError(f"a, b: expected 2-D arrays with matching inner size, got {a.shape}, "
-                         f"{b.shape}")
+        raise ValueError(
+            f"a, b: expected 2-D arrays with matching inner size, got {a.shape}, {b.shape}"
+        )
     return _matmul_small(a, b)
 
 
@@ -314,8 +315,9 @@ def project_points(y: np.ndarray, q: np.ndarray, v: np.ndarray):
     if y.ndim != 2 or q.ndim != 2 or v.ndim != 2:
         raise ValueError("y, q, v: expected 2-D arrays")
     if q.shape[0] != y.shape[1] or v.shape[0] != y.shape[1]:
-        raise ValueError(f"q, v: expected {y.shape[1]} rows like y's columns, got {q.shape[0]}, "
-                         f"{v.shape[0]}")
+        raise ValueError(
+            f"q, v: expected {y.shape[1]} rows like y's columns, got {q.shape[0]}, {v.shape[0]}"
+        )
     if y.shape[0] * y.shape[1] * (q.shape[1] + v.shape[1]) > 5_000_000:
         return _project_points_parallel(y, q, v)
     return _project_points(y, q, v)

@@ -104,9 +104,7 @@ def _drive(model: xr.Dataset, drive_point: Hashable | None) -> Hashable:
 # --------------------------------------------------------------------------------------------
 # eigensolution
 # --------------------------------------------------------------------------------------------
-def state_space_modes(
-    M: np.ndarray, C: np.ndarray, K: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+def state_space_modes(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues (upper half plane, by natural frequency) and normalised mode vectors.
 
     Parameters
@@ -157,8 +155,11 @@ def state_space_modes(
     # Only modes whose backward error on their own scale is above a few eps need it.
     Mp, Cp, Kp = M @ phi, C @ phi, K @ phi
     resid = np.linalg.norm(Mp * lam**2 + Cp * lam + Kp, axis=0)
-    scale = (np.abs(lam) ** 2 * np.linalg.norm(Mp, axis=0) + np.abs(lam) * np.linalg.norm(
-        Cp, axis=0) + np.linalg.norm(Kp, axis=0))
+    scale = (
+        np.abs(lam) ** 2 * np.linalg.norm(Mp, axis=0)
+        + np.abs(lam) * np.linalg.norm(Cp, axis=0)
+        + np.linalg.norm(Kp, axis=0)
+    )
     for k in np.flatnonzero(resid > 1e-14 * scale):
         lam[k], phi[:, k] = _polish(M, C, K, lam[k], phi[:, k])
     order = np.lexsort((lam.imag, np.abs(lam)))
@@ -444,8 +445,11 @@ def frf(
     return add_history(
         ds,
         "ami_xr.simulate.frf",
-        {"drive_point": ds.attrs[names.ATTR_DRIVE_POINT], "response_quantity": response_quantity,
-         "n_frequencies": int(f.size)},
+        {
+            "drive_point": ds.attrs[names.ATTR_DRIVE_POINT],
+            "response_quantity": response_quantity,
+            "n_frequencies": int(f.size),
+        },
     )
 
 
@@ -542,8 +546,11 @@ def impulse_response(
     return add_history(
         ds,
         "ami_xr.simulate.impulse_response",
-        {"drive_point": ds.attrs[names.ATTR_DRIVE_POINT], "n_samples": int(t.size),
-         "sample_interval": float(t[1] - t[0])},
+        {
+            "drive_point": ds.attrs[names.ATTR_DRIVE_POINT],
+            "n_samples": int(t.size),
+            "sample_interval": float(t[1] - t[0]),
+        },
     )
 
 

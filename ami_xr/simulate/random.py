@@ -265,9 +265,12 @@ def random_system(
         pair_target = w[r]
     if weak_mode:
         # between two structural modes away from any absorber tuning, hung far from the drive
-        cands = [s for s in range(n_struct - 1)
-                 if pair_target is None or not (w[s] <= pair_target * 1.3 and
-                                                w[s + 1] >= pair_target / 1.3)]
+        cands = [
+            s
+            for s in range(n_struct - 1)
+            if pair_target is None
+            or not (w[s] <= pair_target * 1.3 and w[s + 1] >= pair_target / 1.3)
+        ]
         s = int(rng.choice(cands)) if cands else 0
         w_weak = np.sqrt(w[s] * w[s + 1])
         # far from the drive point: near the grounded end of a chain, the far corner of a grid
@@ -279,8 +282,11 @@ def random_system(
         must = [drive] + [d for d in (pair_dof, n_dof - 1 if weak_mode else None) if d is not None]
         must = list(dict.fromkeys(must))
         others = [i for i in range(n_dof) if i not in must]
-        extra = rng.choice(others, size=n_points - len(must), replace=False) if n_points > len(
-            must) else []
+        extra = (
+            rng.choice(others, size=n_points - len(must), replace=False)
+            if n_points > len(must)
+            else []
+        )
         return sorted(must + [int(i) for i in extra])
 
     points = choose_points()
@@ -289,8 +295,9 @@ def random_system(
         for _ in range(60):
             stiff = mass * w_weak**2
             M2, C2, K2 = grow(M, C, K, at, mass, stiff, 2 * 0.01 * np.sqrt(stiff * mass))
-            truth = modal_model(M2, C2, K2, output=np.eye(n_dof)[points], point_labels=points,
-                                drive_point=drive)
+            truth = modal_model(
+                M2, C2, K2, output=np.eye(n_dof)[points], point_labels=points, drive_point=drive
+            )
             weak_k, ratio = _weakest(truth, drive, n_dof - 1)
             if ratio <= weak_level and contrast(truth, weak_k, drive) <= 0.1:
                 break
@@ -299,8 +306,9 @@ def random_system(
             raise AmiXrValueError("weak_level: could not make the weak mode that weak")
         M, C, K = M2, C2, K2
     else:
-        truth = modal_model(M, C, K, output=np.eye(n_dof)[points], point_labels=points,
-                            drive_point=drive)
+        truth = modal_model(
+            M, C, K, output=np.eye(n_dof)[points], point_labels=points, drive_point=drive
+        )
 
     truth.attrs["topology"] = topology
     truth.attrs["seed"] = -1 if seed is None else seed
@@ -315,21 +323,35 @@ def random_system(
     truth = add_history(
         truth,
         "ami_xr.simulate.random_system",
-        {"n_points": n_points, "topology": topology, "n_modes": n_modes,
-         "closely_spaced": bool(closely_spaced), "weak_mode": bool(weak_mode), "seed": seed},
+        {
+            "n_points": n_points,
+            "topology": topology,
+            "n_modes": n_modes,
+            "closely_spaced": bool(closely_spaced),
+            "weak_mode": bool(weak_mode),
+            "seed": seed,
+        },
     )
 
     # ---- FRFs ----
     if source == names.SOURCE_ANALYTIC:
-        f = (np.linspace(0.0, fmax, n_frequencies) if frequency is None
-             else np.asarray(frequency, dtype=np.float64))
+        f = (
+            np.linspace(0.0, fmax, n_frequencies)
+            if frequency is None
+            else np.asarray(frequency, dtype=np.float64)
+        )
         out = frf(truth, f, drive)
         if noise:
-            re = add_noise(out[names.FRF].real, noise, seed=noise_seed, kind=noise_kind,
-                           dim=names.FREQUENCY)
-            im = add_noise(out[names.FRF].imag, noise,
-                           seed=None if noise_seed is None else noise_seed + 1,
-                           kind=noise_kind, dim=names.FREQUENCY)
+            re = add_noise(
+                out[names.FRF].real, noise, seed=noise_seed, kind=noise_kind, dim=names.FREQUENCY
+            )
+            im = add_noise(
+                out[names.FRF].imag,
+                noise,
+                seed=None if noise_seed is None else noise_seed + 1,
+                kind=noise_kind,
+                dim=names.FREQUENCY,
+            )
             out[names.FRF] = (re + 1j * im).assign_attrs(out[names.FRF].attrs)
     else:
         lam = truth[names.EIGENVALUE].values
@@ -346,8 +368,9 @@ def random_system(
         out.attrs[ATTR_NOISE_KIND] = noise_kind
         if noise_seed is not None:
             out.attrs[ATTR_NOISE_SEED] = noise_seed
-    out = add_history(out, "ami_xr.simulate.random_system",
-                      {"source": source, "noise": noise, "seed": seed})
+    out = add_history(
+        out, "ami_xr.simulate.random_system", {"source": source, "noise": noise, "seed": seed}
+    )
     return out, truth
 
 
@@ -373,7 +396,8 @@ def _weakest(truth: xr.Dataset, drive, weak_dof) -> tuple[int, float]:
     """The absorber-localized mode and its drive-point peak relative to the others' median."""
     phi = truth[names.MODE_VECTOR]
     local = np.abs(phi.sel({names.POINT: weak_dof}).values) / np.sqrt(
-        (np.abs(phi.values) ** 2).sum(axis=0))
+        (np.abs(phi.values) ** 2).sum(axis=0)
+    )
     k = int(np.argmax(local))
     peaks = _peaks(truth, drive)
     others = np.delete(peaks, k)
@@ -386,8 +410,9 @@ def mode_peaks(truth: xr.Dataset, point=None) -> xr.DataArray:
     Useful to see which modes are weakly excited (default point: the drive point).
     """
     point = truth.attrs[names.ATTR_DRIVE_POINT] if point is None else point
-    return xr.DataArray(_peaks(truth, point), dims=[names.MODE],
-                        coords={names.MODE: truth[names.MODE].values})
+    return xr.DataArray(
+        _peaks(truth, point), dims=[names.MODE], coords={names.MODE: truth[names.MODE].values}
+    )
 
 
 __all__: Sequence[str] = ("random_system", "mode_peaks", "contrast")
