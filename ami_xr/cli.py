@@ -535,15 +535,20 @@ def _cmd_batch(args: argparse.Namespace) -> int:
 
 # --- demo ----------------------------------------------------------------------------------------
 def _sample_frf_file() -> Path | None:
-    """The shipped benchmark FRF file (noisy, paper's seed) of a source checkout, if present."""
-    folder = Path(__file__).resolve().parents[1] / "sample_data"
-    if not folder.is_dir():
-        return None
-    for pattern in ("*benchmark*frf*.nc", "*frf*.nc"):
-        for path in sorted(folder.glob(pattern)):
-            name = path.name.lower()
-            if "clean" not in name and "noise_free" not in name and "noisefree" not in name:
-                return path
+    """The shipped benchmark FRF file (noisy, paper's seed), if present.
+
+    Looked for in ``./sample_data`` (the README runs the demo from the repository root, where a
+    plain ``pip install .`` leaves the package in site-packages) and then beside the package
+    (an editable install or a source checkout).
+    """
+    for folder in (Path.cwd() / "sample_data", Path(__file__).resolve().parents[1] / "sample_data"):
+        if not folder.is_dir():
+            continue
+        for pattern in ("*benchmark*frf*.nc", "*frf*.nc"):
+            for path in sorted(folder.glob(pattern)):
+                name = path.name.lower()
+                if "clean" not in name and "noise_free" not in name and "noisefree" not in name:
+                    return path
     return None
 
 
@@ -583,9 +588,16 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     )
     _say(f"\nwrote {modes_path}")
     if not args.no_report:
-        from ami_xr.report import report
+        import importlib.util
 
-        _say(f"wrote {report(result, outdir / 'report', title='ami_xr demo: paper benchmark')}")
+        if importlib.util.find_spec("matplotlib") is None:
+            # the report is the one optional part of the demo: say how to get it, do not fail
+            _say("no report: it needs matplotlib (pip install 'ami_xr[plot]')")
+        else:
+            from ami_xr.report import report
+
+            title = "ami_xr demo: paper benchmark"
+            _say(f"wrote {report(result, outdir / 'report', title=title)}")
     return EXIT_OK
 
 

@@ -183,6 +183,33 @@ def test_demo_prints_paper_comparison_and_writes_results(tmp_path):
     np.testing.assert_allclose(fn, exact, rtol=2e-3)
 
 
+def test_demo_uses_sample_data_of_working_directory_and_skips_report_without_matplotlib(
+    tmp_path, monkeypatch, capsys
+):
+    # the README runs `pip install . && ami-xr demo` from the repository root: the package then
+    # lives in site-packages, so the demo must find ./sample_data, and the report (an optional
+    # extra) must not make the main job fail
+    import importlib.util
+    import shutil
+
+    work = tmp_path / "work"
+    (work / "sample_data").mkdir(parents=True)
+    shutil.copy(REPO / "sample_data" / "benchmark_frf.nc", work / "sample_data")
+    monkeypatch.chdir(work)
+    real_find_spec = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util,
+        "find_spec",
+        lambda name, *a, **k: None if name == "matplotlib" else real_find_spec(name, *a, **k),
+    )
+    assert main(["demo", "-o", str(tmp_path / "demo")]) == EXIT_OK
+    out = capsys.readouterr().out
+    assert f"benchmark FRFs: {work / 'sample_data' / 'benchmark_frf.nc'}" in out
+    assert "no report: it needs matplotlib" in out
+    assert (tmp_path / "demo" / "modes.nc").is_file()
+    assert not (tmp_path / "demo" / "report").exists()
+
+
 HAMMER = REPO.parent / "shared" / "data" / "impact_hammer.lvm"
 
 
