@@ -165,9 +165,15 @@ def test_hammer_bad_hits_found_and_frf_from_good_ones(hammer):
     np.testing.assert_allclose(good[names.FRF].values, est[names.FRF].values, rtol=1e-12)
 
 
-def test_hammer_to_modes_script(hammer, capsys):
+def test_hammer_to_modes_script(hammer, capsys, tmp_path):
     script = Path(__file__).resolve().parents[1] / "scripts" / "hammer_to_modes.py"
     main = runpy.run_path(str(script), run_name="hammer_to_modes")["main"]
-    assert main([str(HAMMER)]) == 0
+    modes = tmp_path / "modes.nc"
+    report = tmp_path / "report"
+    assert main([str(HAMMER), "--modes", str(modes), "--report", str(report)]) == 0
     out = capsys.readouterr().out
     assert "overload" in out and "double impact" in out and "3 hit(s)" in out
+    assert "modes identified by ami_xr.identify" in out
+    identified = ami_xr.open_dataset(modes)
+    assert identified.sizes["mode"] >= 1
+    assert (report / "index.html").is_file()
