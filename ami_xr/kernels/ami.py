@@ -1147,41 +1147,51 @@ def _simo_band(xw, omega, lam, dw, delta, wlo, whi):
 
 
 @jit
-def _mode_basis(x, lam, dt, n_samples, b, bc):
-    """Unit-residue bases ``b(lam)``, ``b(conj lam)`` on every line (as in :func:`_add_mode`), so
-    the SIMO sweeps synthesise modes with multiplications only (identical values)."""
+def _mode_basis(x, lam, dt, n_samples, br, bi, bcr, bci):
+    """Unit-residue bases ``b(lam)``, ``b(conj lam)`` on every line (as in :func:`_add_mode`),
+    real and imaginary parts apart, so the SIMO sweeps synthesise modes with (vectorisable)
+    real multiplications only and identical values."""
     p, sc = _pole_factor(lam, dt, n_samples)
     pc = np.conj(p)
     scc = np.conj(sc)
     for i in range(x.shape[0]):
-        b[i] = _basis_at(x[i], p, sc, dt)
-        bc[i] = _basis_at(x[i], pc, scc, dt)
+        v = _basis_at(x[i], p, sc, dt)
+        br[i] = v.real
+        bi[i] = v.imag
+        v = _basis_at(x[i], pc, scc, dt)
+        bcr[i] = v.real
+        bci[i] = v.imag
 
 
 @jit
-def _isolated_lines(dw_data, res, bas, basc, n, k, a, b, xn, power):
-    """eq. 7 on lines ``a..b-1`` of every FRF: ``xn = data - sum_{m != k}`` contributions (same
-    operation order as :func:`_add_mode`), and ``power[i] = sum_j |xn[j, i]|^2``."""
+def _isolated_lines(dw_data, res, br, bi, bcr, bci, n, k, a, b, xn, power, tr, ti):
+    """eq. 7 on lines ``a..b-1`` of every FRF: ``xn = data - sum_{m != k}`` contributions and
+    ``power[i] = sum_j |xn[j, i]|^2``. The products are numba's complex product written out
+    (``(ac - bd) + i (ad + bc)``) in the order of :func:`_add_mode`, so the values are the same;
+    ``tr``, ``ti`` are scratch lines."""
     n_p = dw_data.shape[0]
-    sign = -1.0
     for i in range(a, b):
         power[i] = 0.0
     for j in range(n_p):
         for i in range(a, b):
-            xn[j, i] = dw_data[j, i]
+            tr[i] = dw_data[j, i].real
+            ti[i] = dw_data[j, i].imag
         for m in range(n):
             if m == k:
                 continue
-            r = res[j, m]
-            rc = np.conj(r)
+            rr = res[j, m].real
+            ri = res[j, m].imag
             for i in range(a, b):
-                xn[j, i] += sign * (r * bas[m, i] + rc * basc[m, i])
+                tr[i] -= (rr * br[m, i] - ri * bi[m, i]) + (rr * bcr[m, i] + ri * bci[m, i])
+                ti[i] -= (rr * bi[m, i] + ri * br[m, i]) + (rr * bci[m, i] - ri * bcr[m, i])
         for i in range(a, b):
+            xn[j, i] = complex(tr[i], ti[i])
             power[i] += abs(xn[j, i]) ** 2
 
 
 @jit
-def _simo_band_lazy(dw_data, res, bas, basc, n, k, xn, power, omega, lam, dw, delta, wlo, whi):
+def _simo_band_lazy(dw_data, res, br, bi, bcr, bci, n, k, xn, power, tr, ti, omega, lam, dw,
+                    delta, wlo, whi):
     """:func:`_simo_band` computing the isolated data only on the lines it looks at (the peak
     search range and the band grown from the peak) instead of the whole window; same result."""
     half = max(2.0 * abs(lam.real), 2.0 * dw)
@@ -1192,7 +1202,7 @@ def _simo_band_lazy(dw_data, res, bas, basc, n, k, xn, power, omega, lam, dw, de
     chi = min(max(phi, c) + 1, whi)
     if chi < clo:
         chi = clo
-    _isolated_lines(dw_data, res, bas, basc, n, k, clo, chi, xn, power)
+    _isolated_lines(dw_data, res, br, bi, bcr, bci, n, k, clo, chi, xn, power, tr, ti)
     best = c
     pbest = power[c] if (c >= wlo and c < whi) else 0.0
     for i in range(plo, phi + 1):
@@ -1211,7 +1221,7 @@ def _simo_band_lazy(dw_data, res, bas, basc, n, k, xn, power, omega, lam, dw, de
         else:
             if i < clo:
                 a = max(wlo, i - chunk + 1)
-                _isolated_lines(dw_data, res, bas, basc, n, k, a, clo, xn, power)
+                _isolated_lines(dw_data, res, br, bi, bcr, bci, n, k, a, clo, xn, power, tr, ti)
                 clo = a
             pi = power[i]
         if not (pi >= level):
@@ -1225,7 +1235,7 @@ def _simo_band_lazy(dw_data, res, bas, basc, n, k, xn, power, omega, lam, dw, de
         else:
             if i >= chi:
                 bnd = min(whi, i + chunk)
-                _isolated_lines(dw_data, res, bas, basc, n, k, chi, bnd, xn, power)
+                _isolated_lines(dw_data, res, br, bi, bcr, bci, n, k, chi, bnd, xn, power, tr, ti)
                 chi = bnd
             pi = power[i]
         if not (pi >= level):
@@ -1268,8 +1278,12 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
     wts_all = np.ones((max_modes, n_p))
     ones = np.ones(n_p)
     masked = np.zeros(n_f, dtype=np.bool_)
-    bas = np.empty((max_modes, n_f), dtype=np.complex128)
-    basc = np.empty((max_modes, n_f), dtype=np.complex128)
+    br = np.empty((max_modes, n_f))
+    bi = np.empty((max_modes, n_f))
+    bcr = np.empty((max_modes, n_f))
+    bci = np.empty((max_modes, n_f))
+    tr = np.empty(n_f)
+    ti = np.empty(n_f)
     power_w = np.zeros(n_f)
     total_it = 0
     converged = False
@@ -1296,7 +1310,7 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
             order = np.argsort(-tot)
             change = 0.0
             for k in range(n):
-                _mode_basis(x, lam[k], dt, n_samples, bas[k], basc[k])
+                _mode_basis(x, lam[k], dt, n_samples, br[k], bi[k], bcr[k], bci[k])
             for kk in range(n):
                 k = order[kk]
                 # isolated data only where the fit can look: +- max(20 |Re lam|, 40 lines)
@@ -1314,14 +1328,14 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                     lo = band_lo[k]
                     hi = band_hi[k]
                     peak = (lo + hi) // 2
-                    _isolated_lines(dw_data, res, bas, basc, n, k, lo, hi, xn, power_w)
+                    _isolated_lines(dw_data, res, br, bi, bcr, bci, n, k, lo, hi, xn, power_w, tr, ti)
                 elif model_band:
                     lo, hi = _model_band(omega, lam[k], delta, min_points)
                     peak = _nearest_line(omega, lam[k].imag)
-                    _isolated_lines(dw_data, res, bas, basc, n, k, lo, hi, xn, power_w)
+                    _isolated_lines(dw_data, res, br, bi, bcr, bci, n, k, lo, hi, xn, power_w, tr, ti)
                 else:
-                    peak, lo, hi = _simo_band_lazy(dw_data, res, bas, basc, n, k, xn, power_w,
-                                                   omega, lam[k], dw, delta, wlo, whi)
+                    peak, lo, hi = _simo_band_lazy(dw_data, res, br, bi, bcr, bci, n, k, xn, power_w,
+                                                   tr, ti, omega, lam[k], dw, delta, wlo, whi)
                 band_lo[k] = lo
                 band_hi[k] = hi
                 if hi - lo < min_points:
@@ -1350,7 +1364,7 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                 for j in range(n_p):
                     res[j, k] = rtmp[j]
                 lam[k] = new
-                _mode_basis(x, new, dt, n_samples, bas[k], basc[k])
+                _mode_basis(x, new, dt, n_samples, br[k], bi[k], bcr[k], bci[k])
             if change < tol:
                 converged = True
                 break
@@ -1369,11 +1383,6 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                 if prune:
                     break
         total_it += it
-        for j in range(n_p):
-            for i in range(n_f):
-                model[j, i] = 0.0
-            for k in range(n):
-                _add_mode(model[j], x, lam[k], res[j, k], dt, n_samples, 1.0, 0, n_f)
         changed = False
         k = 0
         while k < n:
@@ -1407,11 +1416,38 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
             continue
         if n >= max_modes:
             break
+        # the model of all modes (only needed here, after the model-order check left the modes
+        # unchanged), synthesised from the cached bases in the order of _add_mode
+        den = np.empty((n, n_f))
+        for k in range(n):
+            _mode_basis(x, lam[k], dt, n_samples, br[k], bi[k], bcr[k], bci[k])
+            for i in range(n_f):
+                d = 1j * omega[i] - lam[k]
+                den[k, i] = d.real * d.real + d.imag * d.imag
+        for j in range(n_p):
+            for i in range(n_f):
+                tr[i] = 0.0
+                ti[i] = 0.0
+            for k in range(n):
+                rr = res[j, k].real
+                ri = res[j, k].imag
+                for i in range(n_f):
+                    tr[i] += (rr * br[k, i] - ri * bi[k, i]) + (rr * bcr[k, i] + ri * bci[k, i])
+                    ti[i] += (rr * bi[k, i] + ri * br[k, i]) + (rr * bci[k, i] - ri * bcr[k, i])
+            for i in range(n_f):
+                model[j, i] = complex(tr[i], ti[i])
         added = False
         power = np.zeros(n_f)
         stat = np.zeros(n_f)
+        env = np.empty(n_f)
         for j in range(n_p):
-            env = _tolerance_envelope(omega, lam, res[j], n, tol)
+            # _tolerance_envelope with the denominators computed once for all FRFs
+            for i in range(n_f):
+                env[i] = 0.0
+            for k in range(n):
+                a = tol * abs(lam[k]) * abs(res[j, k])
+                for i in range(n_f):
+                    env[i] += a / den[k, i]
             for i in range(n_f):
                 xn[j, i] = dw_data[j, i] - model[j, i]
                 power[i] += abs(xn[j, i]) ** 2
@@ -1468,7 +1504,7 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                 e1 = 0.0
                 trial = np.zeros(n_f, dtype=np.complex128)
                 for j in range(n_p):
-                    for i in range(n_f):
+                    for i in range(lo, hi):
                         trial[i] = xn[j, i]
                     _add_mode(trial, x, new, rtmp[j], dt, n_samples, -1.0, lo, hi)
                     for i in range(lo, hi):
