@@ -383,25 +383,35 @@ def _fit_single_simo(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, p
     nsl_all = np.zeros((n_p, 2, 2))
     rl_all = np.zeros((n_p, 2))
     nanc = complex(np.nan, np.nan)
+    # scratch blocks reused for every FRF (no allocation per FRF)
+    nss = np.empty((2, 2))
+    nsl = np.empty((2, 2))
+    nll = np.empty((2, 2))
+    rs = np.empty(2)
+    rl = np.empty(2)
+    inv = np.empty((2, 2))
+    t = np.empty((2, 2))
     for j in range(n_p):
-        nss = np.zeros((2, 2))
-        nsl = np.zeros((2, 2))
-        nll = np.zeros((2, 2))
-        rs = np.zeros(2)
-        rl = np.zeros(2)
+        nss[:] = 0.0
+        nsl[:] = 0.0
+        nll[:] = 0.0
+        rs[:] = 0.0
+        rl[:] = 0.0
         # FRF weight wts[j]: rows scaled by it (1 / wts[j] as the data scale)
         _single_mode_blocks(data[j], x, lo, hi, ws, dt, 1.0 / wts[j], prev, nss, nsl, nll, rs,
                             rl)
         det = nll[0, 0] * nll[1, 1] - nll[0, 1] * nll[1, 0]
         if det == 0.0:
             return nanc, FIT_SINGULAR
-        inv = np.empty((2, 2))
         inv[0, 0] = nll[1, 1] / det
         inv[1, 1] = nll[0, 0] / det
         inv[0, 1] = -nll[0, 1] / det
         inv[1, 0] = -nll[1, 0] / det
-        # red += nss - nsl inv nls ; redr += rs - nsl inv rl
-        t = nsl @ inv
+        # red += nss - nsl inv nls ; redr += rs - nsl inv rl  (2x2 product by hand: a BLAS
+        # call per FRF cost more than the fit)
+        for a in range(2):
+            for b in range(2):
+                t[a, b] = nsl[a, 0] * inv[0, b] + nsl[a, 1] * inv[1, b]
         for a in range(2):
             for b in range(2):
                 red[a, b] += nss[a, b] - (t[a, 0] * nsl[b, 0] + t[a, 1] * nsl[b, 1])
