@@ -53,6 +53,8 @@ def match_modes(lam: np.ndarray, snr: np.ndarray, match_tol: float) -> np.ndarra
     label = np.full((n_p, n_s), -1, dtype=np.int64)
     centres: list[complex] = []
     members: list[list[tuple[int, int]]] = []
+    sum_w: list[float] = []
+    sum_wv: list[complex] = []
     counts = np.sum(np.isfinite(lam), axis=1)
     for j in np.argsort(-counts, kind="stable"):
         slots = np.flatnonzero(np.isfinite(lam[j]))
@@ -77,11 +79,15 @@ def match_modes(lam: np.ndarray, snr: np.ndarray, match_tol: float) -> np.ndarra
             else:
                 members.append([(j, s)])
                 centres.append(0j)
+                sum_w.append(0.0)
+                sum_wv.append(0j)
                 m = len(members) - 1
             label[j, s] = m
-            w = np.array([max(snr[jj, ss], 1e-12) ** 2 for jj, ss in members[m]])
-            v = np.array([lam[jj, ss] for jj, ss in members[m]])
-            centres[m] = complex(np.sum(w * v) / np.sum(w))
+            # running weighted sums: recomputing them over all members made this O(points^2)
+            w = max(snr[j, s], 1e-12) ** 2
+            sum_w[m] += w
+            sum_wv[m] += w * lam[j, s]
+            centres[m] = complex(sum_wv[m] / sum_w[m])
     if not centres:
         return label
     order = np.argsort(np.abs(np.asarray(centres)))
