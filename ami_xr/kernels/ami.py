@@ -1309,6 +1309,9 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
         band_lo = np.zeros(max_modes, dtype=np.int64)
         band_hi = np.zeros(max_modes, dtype=np.int64)
         frozen = np.zeros(max_modes, dtype=np.bool_)
+        # bases of the current modes (kept up to date after every fit in the sweeps)
+        for k in range(n):
+            _mode_basis(x, lam[k], dt, n_samples, br[k], bi[k], bcr[k], bci[k])
         for it in range(1, max_iter + 1):
             if n == 0:
                 break
@@ -1319,8 +1322,6 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                     tot[k] += _contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples) ** 2
             order = np.argsort(-tot)
             change = 0.0
-            for k in range(n):
-                _mode_basis(x, lam[k], dt, n_samples, br[k], bi[k], bcr[k], bci[k])
             for kk in range(n):
                 k = order[kk]
                 # isolated data only where the fit can look: +- max(20 |Re lam|, 40 lines)
