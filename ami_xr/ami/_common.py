@@ -18,17 +18,35 @@ MIN_LINES = 8
 # Variables each phase adds; a phase run again on its own output (or on a later phase's output)
 # first drops what it and the later phases made, so results never mix.
 SUBTRACT_VARS = (
-    names.SUB_EIGENVALUE, names.SUB_RESIDUE, names.SUB_BAND_LOW, names.SUB_BAND_HIGH,
-    names.SUB_NOISE_FLOOR, names.SUB_STOP_STATISTIC, names.SUB_STOP_REASON, names.SUB_N_MODES,
+    names.SUB_EIGENVALUE,
+    names.SUB_RESIDUE,
+    names.SUB_BAND_LOW,
+    names.SUB_BAND_HIGH,
+    names.SUB_NOISE_FLOOR,
+    names.SUB_STOP_STATISTIC,
+    names.SUB_STOP_REASON,
+    names.SUB_N_MODES,
 )
 ISOLATE_VARS = (
-    names.EIGENVALUE, names.NATURAL_FREQUENCY, names.DAMPING_RATIO, names.DETECTED,
-    names.POINT_EIGENVALUE, names.POINT_SNR, names.EIGENVALUE_SPREAD, names.ISO_ITERATIONS,
+    names.EIGENVALUE,
+    names.NATURAL_FREQUENCY,
+    names.DAMPING_RATIO,
+    names.DETECTED,
+    names.POINT_EIGENVALUE,
+    names.POINT_SNR,
+    names.EIGENVALUE_SPREAD,
+    names.ISO_ITERATIONS,
     names.ISO_CONVERGED,
 )
 GLOBAL_VARS = (
-    names.RESIDUE, names.MODE_VECTOR, names.FRF_SYNTHESIZED, names.FRF_RESIDUAL,
-    names.RESIDUAL_COEFFICIENT, names.MAC, names.DRIVE_POINT_SNR, names.QUALITY_FLAGS,
+    names.RESIDUE,
+    names.MODE_VECTOR,
+    names.FRF_SYNTHESIZED,
+    names.FRF_RESIDUAL,
+    names.RESIDUAL_COEFFICIENT,
+    names.MAC,
+    names.DRIVE_POINT_SNR,
+    names.QUALITY_FLAGS,
 )
 
 
@@ -37,18 +55,22 @@ def check_frf(ds: Any, function: str) -> xr.Dataset:
     if not isinstance(ds, xr.Dataset):
         raise IdentificationError(f"ds: expected an xarray.Dataset, got {type(ds).__name__}")
     if names.FRF not in ds:
-        raise IdentificationError(f"ds: {function} needs the variable {names.FRF!r} "
-                                  f"(complex, dims ({names.POINT}, {names.FREQUENCY}))")
+        raise IdentificationError(
+            f"ds: {function} needs the variable {names.FRF!r} "
+            f"(complex, dims ({names.POINT}, {names.FREQUENCY}))"
+        )
     frf = ds[names.FRF]
     if set(frf.dims) != {names.POINT, names.FREQUENCY}:
-        raise IdentificationError(f"{names.FRF}: expected dims ({names.POINT}, "
-                                  f"{names.FREQUENCY}), got {frf.dims}")
+        raise IdentificationError(
+            f"{names.FRF}: expected dims ({names.POINT}, {names.FREQUENCY}), got {frf.dims}"
+        )
     if not np.issubdtype(frf.dtype, np.complexfloating):
         raise IdentificationError(f"{names.FRF}: expected a complex dtype, got {frf.dtype}")
     f = np.asarray(ds[names.FREQUENCY].values, dtype=float)
     if f.size < MIN_LINES:
-        raise IdentificationError(f"{names.FREQUENCY}: {f.size} lines; the single-mode fit "
-                                  f"needs at least {MIN_LINES}")
+        raise IdentificationError(
+            f"{names.FREQUENCY}: {f.size} lines; the single-mode fit needs at least {MIN_LINES}"
+        )
     if not np.all(np.diff(f) > 0):
         raise IdentificationError(f"{names.FREQUENCY}: must be strictly increasing")
     if f[0] < 0:
@@ -62,12 +84,14 @@ def check_values(ds: xr.Dataset) -> None:
     points = np.asarray(ds[names.POINT].values)
     bad = ~np.isfinite(peak)
     if np.any(bad):
-        raise IdentificationError(f"{names.FRF}: non-finite values at point(s) "
-                                  f"{points[bad].tolist()}")
+        raise IdentificationError(
+            f"{names.FRF}: non-finite values at point(s) {points[bad].tolist()}"
+        )
     zero = peak == 0
     if np.any(zero):
-        raise IdentificationError(f"{names.FRF}: all-zero FRF at point(s) "
-                                  f"{points[zero].tolist()}; nothing to identify")
+        raise IdentificationError(
+            f"{names.FRF}: all-zero FRF at point(s) {points[zero].tolist()}; nothing to identify"
+        )
 
 
 def check_fraction(value: Any, argument: str) -> float:
@@ -75,7 +99,8 @@ def check_fraction(value: Any, argument: str) -> float:
         v = float(value)
     except (TypeError, ValueError):
         raise IdentificationError(
-            f"{argument}: expected a number in (0, 1), got {value!r}") from None
+            f"{argument}: expected a number in (0, 1), got {value!r}"
+        ) from None
     if not 0.0 < v < 1.0:
         raise IdentificationError(f"{argument}: expected a number in (0, 1), got {value!r}")
     return v
@@ -92,7 +117,8 @@ def check_positive(value: Any, argument: str) -> float:
         v = float(value)
     except (TypeError, ValueError):
         raise IdentificationError(
-            f"{argument}: expected a positive number, got {value!r}") from None
+            f"{argument}: expected a positive number, got {value!r}"
+        ) from None
     if not (v > 0 and np.isfinite(v)):
         raise IdentificationError(f"{argument}: expected a positive number, got {value!r}")
     return v
@@ -114,13 +140,18 @@ def resolve_model(ds: xr.Dataset, model: str) -> tuple[str, float, int]:
         if stored in ("discrete", "continuous"):
             model = stored
         else:
-            model = ("discrete" if ds.attrs.get(names.ATTR_SOURCE) == names.SOURCE_IMPULSE
-                     and ds.attrs.get(names.ATTR_DT) else "continuous")
+            model = (
+                "discrete"
+                if ds.attrs.get(names.ATTR_SOURCE) == names.SOURCE_IMPULSE
+                and ds.attrs.get(names.ATTR_DT)
+                else "continuous"
+            )
     if model == "discrete":
         dt = ds.attrs.get(names.ATTR_DT)
         if not dt or not float(dt) > 0:
-            raise IdentificationError(f"model: 'discrete' needs the attribute {names.ATTR_DT!r} "
-                                      "(sample interval in s)")
+            raise IdentificationError(
+                f"model: 'discrete' needs the attribute {names.ATTR_DT!r} (sample interval in s)"
+            )
         n = int(ds.attrs.get(names.ATTR_NSAMPLES, 0) or 0)
         return model, float(dt), n
     return model, 0.0, 0
@@ -139,8 +170,9 @@ def drop_results(ds: xr.Dataset, groups) -> xr.Dataset:
     return out
 
 
-def finish(out: xr.Dataset, function: str, phase: str, parameters: dict,
-           path: str | os.PathLike | None) -> xr.Dataset:
+def finish(
+    out: xr.Dataset, function: str, phase: str, parameters: dict, path: str | os.PathLike | None
+) -> xr.Dataset:
     """Record provenance and the phase, and write atomically when ``path`` is given."""
     out.attrs[names.ATTR_AMI_PHASE] = phase
     out = add_history(out, function, parameters)

@@ -43,8 +43,11 @@ def _fit_block(g, use, omega, lam, dt, n_samples, residual_kind):
         synth = synth + k._synthesize_residual_terms(omega, rc, residual_kind)
     else:
         rc = np.zeros((g2.shape[0], 2), np.complex128)
-    return (res.reshape(shape + (n_k,)), synth.reshape(shape + (omega.size,)),
-            rc.reshape(shape + (2,)))
+    return (
+        res.reshape(shape + (n_k,)),
+        synth.reshape(shape + (omega.size,)),
+        rc.reshape(shape + (2,)),
+    )
 
 
 def mode_vectors(residue: np.ndarray, lam: np.ndarray, drive_index: int | None) -> np.ndarray:
@@ -118,8 +121,9 @@ def global_fit(
     """
     c.check_frf(ds, "global_fit")
     if names.EIGENVALUE not in ds:
-        raise IdentificationError(f"ds: global_fit needs {names.EIGENVALUE!r}; run "
-                                  "ami_xr.isolate first")
+        raise IdentificationError(
+            f"ds: global_fit needs {names.EIGENVALUE!r}; run ami_xr.isolate first"
+        )
     drive_snr_min = c.check_positive(drive_snr_min, "drive_snr_min")
     model, dt, n_samples = c.resolve_model(ds, "auto")
     omega = c.omega_of(ds)
@@ -138,20 +142,21 @@ def global_fit(
         raise IdentificationError(
             f"band: {int(use.sum())} lines selected, the residue fit needs at least "
             f"{n_unknown // 2 + 1} ({n_k} modes{', residual terms' if kind >= 0 else ''}); "
-            "widen band or use band='all'")
+            "widen band or use band='all'"
+        )
     frf = ds[names.FRF]
     outs = xr.apply_ufunc(
         _fit_block,
         frf,
-        kwargs=dict(use=use, omega=omega, lam=lam, dt=dt, n_samples=n_samples,
-                    residual_kind=kind),
+        kwargs=dict(use=use, omega=omega, lam=lam, dt=dt, n_samples=n_samples, residual_kind=kind),
         input_core_dims=[[names.FREQUENCY]],
         output_core_dims=[[names.MODE], ["frequency_out"], [names.RESIDUAL_TERM]],
         exclude_dims={names.FREQUENCY},
         dask="parallelized",
         output_dtypes=[np.complex128, np.complex128, np.complex128],
-        dask_gufunc_kwargs={"output_sizes": {names.MODE: n_k, "frequency_out": omega.size,
-                                             names.RESIDUAL_TERM: 2}},
+        dask_gufunc_kwargs={
+            "output_sizes": {names.MODE: n_k, "frequency_out": omega.size, names.RESIDUAL_TERM: 2}
+        },
         keep_attrs=False,
     )
     res_da, synth_da, rc_da = (o.compute() for o in outs)
@@ -191,9 +196,15 @@ def global_fit(
     out = out.assign_coords({names.MODE_2: out[names.MODE].values})
     new = {
         names.RESIDUE: ((names.POINT, names.MODE), res, {"units": units + " rad/s"}),
-        names.MODE_VECTOR: ((names.POINT, names.MODE), phi,
-                            {"scaling": "unit largest entry (no drive point)"
-                             if drive_index is None else "eq. 8 at the drive point"}),
+        names.MODE_VECTOR: (
+            (names.POINT, names.MODE),
+            phi,
+            {
+                "scaling": "unit largest entry (no drive point)"
+                if drive_index is None
+                else "eq. 8 at the drive point"
+            },
+        ),
         names.FRF_SYNTHESIZED: synth_da.transpose(*frf.dims).assign_attrs(units=units),
         names.FRF_RESIDUAL: (frf - synth_da.transpose(*frf.dims)).assign_attrs(units=units),
         names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi)),
@@ -205,7 +216,8 @@ def global_fit(
         new[names.RESIDUAL_COEFFICIENT] = rc_da.transpose(names.POINT, names.RESIDUAL_TERM)
     out = out.assign(new)
     out[names.FRF_RESIDUAL] = out[names.FRF_RESIDUAL].drop_vars(
-        [v for v in out[names.FRF_RESIDUAL].coords if v not in out[names.FRF].coords])
+        [v for v in out[names.FRF_RESIDUAL].coords if v not in out[names.FRF].coords]
+    )
     out.attrs["ami_band"] = band if isinstance(band, str) else float(band)
     out.attrs["ami_residual_terms"] = int(bool(residual_terms))
     params = dict(band=band, residual_terms=bool(residual_terms), drive_snr_min=drive_snr_min)

@@ -79,10 +79,14 @@ def identify(
         fn = _refine_function()
         if fn is None and refine:
             raise IdentificationError("refine: ami_xr.ami.refine is not available")
-    out = subtract(ds, delta, pfa=pfa, max_modes=max_modes,
-                   model="continuous" if paper else "auto")
-    out = isolate(out, tol, max_iter, method="per_frf" if paper else method,
-                  weighting="mean" if paper else "snr")
+    out = subtract(ds, delta, pfa=pfa, max_modes=max_modes, model="continuous" if paper else "auto")
+    out = isolate(
+        out,
+        tol,
+        max_iter,
+        method="per_frf" if paper else method,
+        weighting="mean" if paper else "snr",
+    )
     if out.sizes.get(names.MODE, 0) == 0:
         result = out
     else:
@@ -96,7 +100,8 @@ def identify(
         result[names.EIGENVALUE] = result[names.EIGENVALUE].copy(data=lam)
         wn = np.abs(lam)
         result[names.NATURAL_FREQUENCY] = result[names.NATURAL_FREQUENCY].copy(
-            data=wn / (2 * np.pi))
+            data=wn / (2 * np.pi)
+        )
         result[names.DAMPING_RATIO] = result[names.DAMPING_RATIO].copy(data=-lam.real / wn)
         if names.RESIDUE in result:
             points = result[names.POINT].values.astype(str)
@@ -105,8 +110,18 @@ def identify(
             res = result[names.RESIDUE].transpose(names.POINT, names.MODE).values
             phi = mode_vectors(res, lam, int(idx[0]) if idx.size else None)
             result[names.MODE_VECTOR] = result[names.MODE_VECTOR].copy(
-                data=phi if result[names.MODE_VECTOR].dims[0] == names.POINT else phi.T)
+                data=phi if result[names.MODE_VECTOR].dims[0] == names.POINT else phi.T
+            )
         result.attrs[names.ATTR_EXP_CORRECTED] = beta
-    params = dict(method=method, refine=fn is not None, delta=delta, tol=tol, max_iter=max_iter,
-                  band=band, residual_terms=bool(residual_terms), pfa=pfa, max_modes=max_modes)
+    params = dict(
+        method=method,
+        refine=fn is not None,
+        delta=delta,
+        tol=tol,
+        max_iter=max_iter,
+        band=band,
+        residual_terms=bool(residual_terms),
+        pfa=pfa,
+        max_modes=max_modes,
+    )
     return c.finish(result, "ami_xr.identify", "identify", params, path)

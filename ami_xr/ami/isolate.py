@@ -18,8 +18,24 @@ METHODS = ("simo", "per_frf")
 WEIGHTINGS = ("snr", "mean")
 
 
-def _isolate_block(g, lam0, res0, n0, sigma, omega, dt, n_samples, delta, tol, max_iter, pfa,
-                   min_points, zeta_max, merge_tol, max_modes):
+def _isolate_block(
+    g,
+    lam0,
+    res0,
+    n0,
+    sigma,
+    omega,
+    dt,
+    n_samples,
+    delta,
+    tol,
+    max_iter,
+    pfa,
+    min_points,
+    zeta_max,
+    merge_tol,
+    max_modes,
+):
     shape = g.shape[:-1]
     g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
     n_c = lam0.shape[-1]
@@ -29,12 +45,32 @@ def _isolate_block(g, lam0, res0, n0, sigma, omega, dt, n_samples, delta, tol, m
     lam_in[:, :m] = lam0.reshape(-1, n_c)[:, :m]
     res_in[:, :m] = res0.reshape(-1, n_c)[:, :m]
     lam, res, n, it, conv = k._isolate_batch(
-        g2, omega, dt, n_samples, lam_in, res_in,
-        np.minimum(n0.reshape(-1).astype(np.int64), m), sigma.reshape(-1).astype(np.float64),
-        delta, tol, max_iter, pfa, min_points, zeta_max, merge_tol, max_modes, False, False,
+        g2,
+        omega,
+        dt,
+        n_samples,
+        lam_in,
+        res_in,
+        np.minimum(n0.reshape(-1).astype(np.int64), m),
+        sigma.reshape(-1).astype(np.float64),
+        delta,
+        tol,
+        max_iter,
+        pfa,
+        min_points,
+        zeta_max,
+        merge_tol,
+        max_modes,
+        False,
+        False,
     )
-    return (lam.reshape(shape + (max_modes,)), res.reshape(shape + (max_modes,)),
-            n.reshape(shape), it.reshape(shape), conv.reshape(shape))
+    return (
+        lam.reshape(shape + (max_modes,)),
+        res.reshape(shape + (max_modes,)),
+        n.reshape(shape),
+        it.reshape(shape),
+        conv.reshape(shape),
+    )
 
 
 def match_modes(lam: np.ndarray, snr: np.ndarray, match_tol: float) -> np.ndarray:
@@ -182,8 +218,7 @@ def isolate(
         ``point_snr``; on point: ``isolation_iterations``, ``isolation_converged``.
     """
     c.check_frf(ds, "isolate")
-    for v in (names.SUB_EIGENVALUE, names.SUB_RESIDUE, names.SUB_NOISE_FLOOR,
-              names.SUB_N_MODES):
+    for v in (names.SUB_EIGENVALUE, names.SUB_RESIDUE, names.SUB_NOISE_FLOOR, names.SUB_N_MODES):
         if v not in ds:
             raise IdentificationError(f"ds: isolate needs {v!r}; run ami_xr.subtract first")
     tol = c.check_positive(tol, "tol")
@@ -209,11 +244,24 @@ def isolate(
     if method == "per_frf":
         outs = xr.apply_ufunc(
             _isolate_block,
-            ds[names.FRF], ds[names.SUB_EIGENVALUE], ds[names.SUB_RESIDUE],
-            ds[names.SUB_N_MODES], ds[names.SUB_NOISE_FLOOR],
-            kwargs=dict(omega=omega, dt=dt, n_samples=n_samples, delta=delta, tol=tol,
-                        max_iter=max_iter, pfa=pfa, min_points=min_points, zeta_max=zeta_max,
-                        merge_tol=merge_tol, max_modes=max_modes),
+            ds[names.FRF],
+            ds[names.SUB_EIGENVALUE],
+            ds[names.SUB_RESIDUE],
+            ds[names.SUB_N_MODES],
+            ds[names.SUB_NOISE_FLOOR],
+            kwargs=dict(
+                omega=omega,
+                dt=dt,
+                n_samples=n_samples,
+                delta=delta,
+                tol=tol,
+                max_iter=max_iter,
+                pfa=pfa,
+                min_points=min_points,
+                zeta_max=zeta_max,
+                merge_tol=merge_tol,
+                max_modes=max_modes,
+            ),
             input_core_dims=[[names.FREQUENCY], [names.CANDIDATE], [names.CANDIDATE], [], []],
             output_core_dims=[["slot"], ["slot"], [], [], []],
             dask="parallelized",
@@ -221,8 +269,7 @@ def isolate(
             dask_gufunc_kwargs={"output_sizes": {"slot": max_modes}},
             keep_attrs=False,
         )
-        lam_p, res_p, n_p_modes, iters, conv = (o.transpose(names.POINT, ...).values
-                                                for o in outs)
+        lam_p, res_p, n_p_modes, iters, conv = (o.transpose(names.POINT, ...).values for o in outs)
         snr_p = k._contribution_peaks(omega, dt, n_samples, lam_p, res_p) / sigma[:, None]
         label = match_modes(lam_p, snr_p, match_tol)
         n_modes = int(label.max()) + 1 if np.any(label >= 0) else 0
@@ -240,20 +287,40 @@ def isolate(
         g = c.frf_values(ds)
         lam_c = np.asarray(ds[names.SUB_EIGENVALUE].transpose(names.POINT, ...).values)
         res_c = np.asarray(ds[names.SUB_RESIDUE].transpose(names.POINT, ...).values)
-        snr_c = k._contribution_peaks(omega, dt, n_samples, np.ascontiguousarray(lam_c),
-                                      np.ascontiguousarray(res_c)) / sigma[:, None]
+        snr_c = (
+            k._contribution_peaks(
+                omega, dt, n_samples, np.ascontiguousarray(lam_c), np.ascontiguousarray(res_c)
+            )
+            / sigma[:, None]
+        )
         label = match_modes(lam_c, snr_c, match_tol)
         n0 = int(label.max()) + 1 if np.any(label >= 0) else 0
         start = _gather(lam_c, label, n0)
-        w0 = np.where(np.isfinite(start), np.nan_to_num(_gather(snr_c + 0j, label, n0).real) ** 2,
-                      0.0)
+        w0 = np.where(
+            np.isfinite(start), np.nan_to_num(_gather(snr_c + 0j, label, n0).real) ** 2, 0.0
+        )
         lam0, _ = _average(start, w0)
         lam_in = np.full(max_modes, np.nan + 0j)
         m0 = min(n0, max_modes)
         lam_in[:m0] = lam0[:m0]
         lam_s, res_s, n_modes, it, conv = k._isolate_simo(
-            g, omega, dt, n_samples, lam_in, m0, sigma, delta, tol, max_iter, pfa, min_points,
-            zeta_max, merge_tol, max_modes, snr_weighting, False,
+            g,
+            omega,
+            dt,
+            n_samples,
+            lam_in,
+            m0,
+            sigma,
+            delta,
+            tol,
+            max_iter,
+            pfa,
+            min_points,
+            zeta_max,
+            merge_tol,
+            max_modes,
+            snr_weighting,
+            False,
         )
         n_modes = int(n_modes)
         order = np.argsort(np.abs(lam_s[:n_modes]))
@@ -262,8 +329,9 @@ def isolate(
         peaks = k._contribution_peaks(omega, dt, n_samples, eig[None, :], res_m)
         point_snr = peaks / sigma[:, None]
         detected = point_snr**2 >= t1
-        est = k._point_estimates(g, omega, dt, n_samples, np.ascontiguousarray(eig), res_m, delta,
-                                 min_points, zeta_max)
+        est = k._point_estimates(
+            g, omega, dt, n_samples, np.ascontiguousarray(eig), res_m, delta, min_points, zeta_max
+        )
         point_lam = np.where(detected, est, np.nan + 0j)
         _, spread = _average(point_lam, np.ones(point_lam.shape))
         iterations = np.full(n_p, int(it), dtype=np.int64)
@@ -273,32 +341,58 @@ def isolate(
     mode = np.arange(1, n_modes + 1)
     wn = np.abs(eig)
     out = out.assign_coords({names.MODE: mode})
-    out = out.assign({
-        names.EIGENVALUE: ((names.MODE,), np.asarray(eig, np.complex128), {"units": "rad/s"}),
-        names.NATURAL_FREQUENCY: ((names.MODE,), wn / (2 * np.pi),
-                                  {"units": names.FREQUENCY_UNITS}),
-        names.DAMPING_RATIO: ((names.MODE,), -np.real(eig) / wn if n_modes else wn, {"units": "1"}),
-        names.EIGENVALUE_SPREAD: ((names.MODE,), np.asarray(spread, np.complex128),
-                                  {"units": "rad/s",
-                                   "long_name": "std(Re) + i std(Im) of the per-FRF estimates"}),
-        names.DETECTED: ((names.POINT, names.MODE), np.asarray(detected, bool)),
-        names.POINT_EIGENVALUE: ((names.POINT, names.MODE), np.asarray(point_lam, np.complex128),
-                                 {"units": "rad/s"}),
-        names.POINT_SNR: ((names.POINT, names.MODE), np.asarray(point_snr, float),
-                          {"long_name": "peak |contribution| / noise floor"}),
-        names.ISO_ITERATIONS: ((names.POINT,), iterations),
-        names.ISO_CONVERGED: ((names.POINT,), converged),
-    })
+    out = out.assign(
+        {
+            names.EIGENVALUE: ((names.MODE,), np.asarray(eig, np.complex128), {"units": "rad/s"}),
+            names.NATURAL_FREQUENCY: (
+                (names.MODE,),
+                wn / (2 * np.pi),
+                {"units": names.FREQUENCY_UNITS},
+            ),
+            names.DAMPING_RATIO: (
+                (names.MODE,),
+                -np.real(eig) / wn if n_modes else wn,
+                {"units": "1"},
+            ),
+            names.EIGENVALUE_SPREAD: (
+                (names.MODE,),
+                np.asarray(spread, np.complex128),
+                {"units": "rad/s", "long_name": "std(Re) + i std(Im) of the per-FRF estimates"},
+            ),
+            names.DETECTED: ((names.POINT, names.MODE), np.asarray(detected, bool)),
+            names.POINT_EIGENVALUE: (
+                (names.POINT, names.MODE),
+                np.asarray(point_lam, np.complex128),
+                {"units": "rad/s"},
+            ),
+            names.POINT_SNR: (
+                (names.POINT, names.MODE),
+                np.asarray(point_snr, float),
+                {"long_name": "peak |contribution| / noise floor"},
+            ),
+            names.ISO_ITERATIONS: ((names.POINT,), iterations),
+            names.ISO_CONVERGED: ((names.POINT,), converged),
+        }
+    )
     out.attrs[names.ATTR_AMI_METHOD] = method
     out.attrs["ami_weighting"] = weighting
     out.attrs["ami_tol"] = tol
     if not np.all(converged):
         bad = points[~converged].tolist()
-        warnings.warn(f"isolate: not converged within max_iter={max_iter} sweeps at point(s) "
-                      f"{bad} (tol={tol}); see isolation_converged", ConvergenceWarning,
-                      stacklevel=2)
+        warnings.warn(
+            f"isolate: not converged within max_iter={max_iter} sweeps at point(s) "
+            f"{bad} (tol={tol}); see isolation_converged",
+            ConvergenceWarning,
+            stacklevel=2,
+        )
     if n_modes == 0:
         warnings.warn("isolate: no mode identified", NoModesWarning, stacklevel=2)
-    params = dict(tol=tol, max_iter=max_iter, method=method, weighting=weighting,
-                  match_tol=match_tol, snr_weighting=snr_weighting)
+    params = dict(
+        tol=tol,
+        max_iter=max_iter,
+        method=method,
+        weighting=weighting,
+        match_tol=match_tol,
+        snr_weighting=snr_weighting,
+    )
     return c.finish(out, "ami_xr.isolate", "isolate", params, path)

@@ -14,8 +14,9 @@ from ami_xr.errors import NoModesWarning
 from ami_xr.kernels import ami as k
 
 
-def _subtract_block(g, omega, dt, n_samples, delta, max_modes, pfa, min_points, zeta_max,
-                    merge_tol):
+def _subtract_block(
+    g, omega, dt, n_samples, delta, max_modes, pfa, min_points, zeta_max, merge_tol
+):
     shape = g.shape[:-1]
     g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
     lam, res, blo, bhi, sigma, stat, reason, n = k._subtract_batch(
@@ -118,13 +119,30 @@ def subtract(
     res = xr.apply_ufunc(
         _subtract_block,
         frf,
-        kwargs=dict(omega=omega, dt=dt, n_samples=n_samples, delta=delta, max_modes=max_modes,
-                    pfa=pfa, min_points=min_points, zeta_max=zeta_max, merge_tol=merge_tol),
+        kwargs=dict(
+            omega=omega,
+            dt=dt,
+            n_samples=n_samples,
+            delta=delta,
+            max_modes=max_modes,
+            pfa=pfa,
+            min_points=min_points,
+            zeta_max=zeta_max,
+            merge_tol=merge_tol,
+        ),
         input_core_dims=[[names.FREQUENCY]],
         output_core_dims=out_core,
         dask="parallelized",
-        output_dtypes=[np.complex128, np.complex128, np.float64, np.float64, np.float64,
-                       np.float64, np.int64, np.int64],
+        output_dtypes=[
+            np.complex128,
+            np.complex128,
+            np.float64,
+            np.float64,
+            np.float64,
+            np.float64,
+            np.int64,
+            np.int64,
+        ],
         dask_gufunc_kwargs={"output_sizes": {names.CANDIDATE: max_modes}},
         keep_attrs=False,
     )
@@ -133,25 +151,32 @@ def subtract(
     sl = {names.CANDIDATE: slice(0, n_keep)}
     reason_str = xr.DataArray(
         np.array([k.STOP_REASONS[int(r)] for r in np.ravel(reason.values)], dtype=object)
-        .reshape(reason.shape).astype(str),
-        dims=reason.dims, coords=reason.coords,
+        .reshape(reason.shape)
+        .astype(str),
+        dims=reason.dims,
+        coords=reason.coords,
     )
     out = c.drop_results(ds, (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS))
-    out = out.assign({
-        names.SUB_EIGENVALUE: lam.isel(sl).assign_attrs(units="rad/s"),
-        names.SUB_RESIDUE: resid.isel(sl).assign_attrs(
-            units=ds[names.FRF].attrs.get(names.ATTR_UNITS, "") + " rad/s"),
-        names.SUB_BAND_LOW: blo.isel(sl).assign_attrs(units=names.FREQUENCY_UNITS),
-        names.SUB_BAND_HIGH: bhi.isel(sl).assign_attrs(units=names.FREQUENCY_UNITS),
-        names.SUB_NOISE_FLOOR: sigma.assign_attrs(
-            units=ds[names.FRF].attrs.get(names.ATTR_UNITS, ""),
-            long_name="noise standard deviation per line (median of adjacent differences)"),
-        names.SUB_STOP_STATISTIC: stat.assign_attrs(
-            long_name="|Y|^2/sigma^2 of the last examined peak",
-            threshold=float(k.peak_threshold(omega.size, pfa))),
-        names.SUB_STOP_REASON: reason_str,
-        names.SUB_N_MODES: n,
-    })
+    out = out.assign(
+        {
+            names.SUB_EIGENVALUE: lam.isel(sl).assign_attrs(units="rad/s"),
+            names.SUB_RESIDUE: resid.isel(sl).assign_attrs(
+                units=ds[names.FRF].attrs.get(names.ATTR_UNITS, "") + " rad/s"
+            ),
+            names.SUB_BAND_LOW: blo.isel(sl).assign_attrs(units=names.FREQUENCY_UNITS),
+            names.SUB_BAND_HIGH: bhi.isel(sl).assign_attrs(units=names.FREQUENCY_UNITS),
+            names.SUB_NOISE_FLOOR: sigma.assign_attrs(
+                units=ds[names.FRF].attrs.get(names.ATTR_UNITS, ""),
+                long_name="noise standard deviation per line (median of adjacent differences)",
+            ),
+            names.SUB_STOP_STATISTIC: stat.assign_attrs(
+                long_name="|Y|^2/sigma^2 of the last examined peak",
+                threshold=float(k.peak_threshold(omega.size, pfa)),
+            ),
+            names.SUB_STOP_REASON: reason_str,
+            names.SUB_N_MODES: n,
+        }
+    )
     out = out.assign_coords({names.CANDIDATE: np.arange(n_keep)})
     out.attrs[names.ATTR_AMI_MODEL] = model
     out.attrs[names.ATTR_AMI_DELTA] = delta
@@ -161,8 +186,19 @@ def subtract(
     out.attrs["ami_zeta_max"] = zeta_max
     out.attrs["ami_merge_tol"] = merge_tol
     if int(n.sum()) == 0:
-        warnings.warn("subtract: no FRF has a peak significantly above its noise floor "
-                      f"(pfa={pfa}); zero modes found", NoModesWarning, stacklevel=2)
-    params = dict(delta=delta, max_modes=max_modes, pfa=pfa, min_points=min_points,
-                  zeta_max=zeta_max, merge_tol=merge_tol, model=model)
+        warnings.warn(
+            "subtract: no FRF has a peak significantly above its noise floor "
+            f"(pfa={pfa}); zero modes found",
+            NoModesWarning,
+            stacklevel=2,
+        )
+    params = dict(
+        delta=delta,
+        max_modes=max_modes,
+        pfa=pfa,
+        min_points=min_points,
+        zeta_max=zeta_max,
+        merge_tol=merge_tol,
+        model=model,
+    )
     return c.finish(out, "ami_xr.subtract", "subtract", params, path)

@@ -331,6 +331,19 @@ def _residue_from(e0, e1, v1, v2, lam, ws, dt, n_samples, gscale):
 
 
 @jit
+def _band_energy_drop(y, x, lam, res, dt, n_samples, power, lo, hi, n_f):
+    """Band energy ``sum power[lo:hi]`` minus that of ``y`` with the mode (lam, res) removed."""
+    trial = y.copy()
+    _add_mode(trial, x, lam, res, dt, n_samples, -1.0, 0, n_f)
+    e0 = 0.0
+    e1 = 0.0
+    for i in range(lo, hi):
+        e0 += power[i]
+        e1 += abs(trial[i]) ** 2
+    return e0 - e1
+
+
+@jit
 def _fit_single(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, prev):
     """Single-mode fit of one FRF on lines lo..hi-1: ``(lam, residue, code)``."""
     nss = np.zeros((2, 2))
@@ -368,8 +381,7 @@ def _fit_single(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, prev):
 
 
 @jit
-def _fit_single_simo(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, prev, wts,
-                     res_out):
+def _fit_single_simo(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, prev, wts, res_out):
     """Global SIMO single-mode fit: one eigenvalue from all FRFs (rows of ``data``, already
     divided by each FRF's noise floor), one residue per FRF written to ``res_out``.
 
@@ -398,8 +410,7 @@ def _fit_single_simo(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, p
         rs[:] = 0.0
         rl[:] = 0.0
         # FRF weight wts[j]: rows scaled by it (1 / wts[j] as the data scale)
-        _single_mode_blocks(data[j], x, lo, hi, ws, dt, 1.0 / wts[j], prev, nss, nsl, nll, rs,
-                            rl)
+        _single_mode_blocks(data[j], x, lo, hi, ws, dt, 1.0 / wts[j], prev, nss, nsl, nll, rs, rl)
         det = nll[0, 0] * nll[1, 1] - nll[0, 1] * nll[1, 0]
         if det == 0.0:
             return nanc, FIT_SINGULAR
@@ -441,8 +452,7 @@ def _fit_single_simo(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, p
 
 
 @jit
-def _fit_two_modes(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, wts, lam_out,
-                   res_out):
+def _fit_two_modes(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, wts, lam_out, res_out):
     """Two-mode linear least squares (order-4 analogue of (*)), SIMO over the rows of ``data``:
     ``G (v^4 + c3 v^3 + c2 v^2 + c1 v + c0) = e3 v^3 + e2 v^2 + e1 v + e0`` with shared ``c`` and
     per-FRF ``e`` (eliminated by Schur complements). Used by the model-order check to split a
@@ -550,7 +560,7 @@ def _fit_two_modes(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, wts
             den = 1.0 + 0j
             for r in range(m):
                 if roots[r] != vr:
-                    den *= (vr - roots[r])
+                    den *= vr - roots[r]
             rr = num / den / wts[j]
             if dt > 0.0:
                 p, sc = _pole_factor(lam_out[kk], dt, n_samples)
@@ -762,8 +772,23 @@ def _normalized_distance(a, b):
 # Subtraction Phase (eq. 6), one FRF
 # ----------------------------------------------------------------------------------------------
 @jit
-def _subtract_one(data, omega, x, dt, n_samples, delta, max_modes, pfa, min_points, zeta_max,
-                  merge_tol, lam_out, res_out, lo_out, hi_out):
+def _subtract_one(
+    data,
+    omega,
+    x,
+    dt,
+    n_samples,
+    delta,
+    max_modes,
+    pfa,
+    min_points,
+    zeta_max,
+    merge_tol,
+    lam_out,
+    res_out,
+    lo_out,
+    hi_out,
+):
     """Subtraction Phase on one FRF; returns ``(n_modes, sigma, statistic, reason)``."""
     n_f = data.shape[0]
     sigma = _noise_floor(data)
@@ -805,22 +830,17 @@ def _subtract_one(data, omega, x, dt, n_samples, delta, max_modes, pfa, min_poin
                 masked[i] = True
             continue
         ws = omega[peak] if omega[peak] > 0.0 else dw
-        lam, res, code = _fit_single(y, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi,
-                                     complex(np.nan, np.nan))
+        lam, res, code = _fit_single(
+            y, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, complex(np.nan, np.nan)
+        )
         if code == FIT_OK:
             # natural frequency must lie near the band; the band energy must drop significantly
             bw = abs(lam.real)
             if lam.imag < omega[lo] - 2.0 * bw - dw or lam.imag > omega[hi - 1] + 2.0 * bw + dw:
                 code = FIT_OUT_OF_RANGE
             else:
-                trial = y.copy()
-                _add_mode(trial, x, lam, res, dt, n_samples, -1.0, 0, n_f)
-                e0 = 0.0
-                e1 = 0.0
-                for i in range(lo, hi):
-                    e0 += power[i]
-                    e1 += abs(trial[i]) ** 2
-                if (e0 - e1) / sigma**2 < t:
+                drop = _band_energy_drop(y, x, lam, res, dt, n_samples, power, lo, hi, n_f)
+                if drop / sigma**2 < t:
                     code = FIT_NO_DROP
         if code != FIT_OK:
             for i in range(lo, hi):
@@ -849,8 +869,9 @@ def _subtract_one(data, omega, x, dt, n_samples, delta, max_modes, pfa, min_poin
 
 
 @jit
-def _subtract_batch(data, omega, dt, n_samples, delta, max_modes, pfa, min_points, zeta_max,
-                    merge_tol):
+def _subtract_batch(
+    data, omega, dt, n_samples, delta, max_modes, pfa, min_points, zeta_max, merge_tol
+):
     n_p = data.shape[0]
     x = _line_variable(omega, dt)
     lam = np.full((n_p, max_modes), complex(np.nan, np.nan))
@@ -862,8 +883,23 @@ def _subtract_batch(data, omega, dt, n_samples, delta, max_modes, pfa, min_point
     stat = np.zeros(n_p)
     reason = np.zeros(n_p, dtype=np.int64)
     for j in range(n_p):
-        n, s, st, r = _subtract_one(data[j], omega, x, dt, n_samples, delta, max_modes, pfa,
-                                    min_points, zeta_max, merge_tol, lam[j], res[j], blo[j], bhi[j])
+        n, s, st, r = _subtract_one(
+            data[j],
+            omega,
+            x,
+            dt,
+            n_samples,
+            delta,
+            max_modes,
+            pfa,
+            min_points,
+            zeta_max,
+            merge_tol,
+            lam[j],
+            res[j],
+            blo[j],
+            bhi[j],
+        )
         n_modes[j] = n
         sigma[j] = s
         stat[j] = st
@@ -883,8 +919,25 @@ def _order_by_contribution(omega, x, lam, res, n, dt, n_samples):
 
 
 @jit
-def _isolate_sweeps(data, omega, x, dt, n_samples, lam, res, n, delta, tol, max_iter,
-                    min_points, zeta_max, reweight, model_band, model, fails):
+def _isolate_sweeps(
+    data,
+    omega,
+    x,
+    dt,
+    n_samples,
+    lam,
+    res,
+    n,
+    delta,
+    tol,
+    max_iter,
+    min_points,
+    zeta_max,
+    reweight,
+    model_band,
+    model,
+    fails,
+):
     """Isolation sweeps until every eigenvalue's Re and Im change less than ``tol`` (relative).
 
     ``model`` (F) holds the current sum of all modes and is kept up to date.
@@ -910,8 +963,11 @@ def _isolate_sweeps(data, omega, x, dt, n_samples, lam, res, n, delta, tol, max_
             _add_mode(xn, x, lam[k], res[k], dt, n_samples, 1.0, 0, n_f)
             for i in range(n_f):
                 power[i] = abs(xn[i]) ** 2
-            if (frozen[k] and omega[band_lo[k]] <= lam[k].imag
-                    and lam[k].imag <= omega[band_hi[k] - 1]):
+            if (
+                frozen[k]
+                and omega[band_lo[k]] <= lam[k].imag
+                and lam[k].imag <= omega[band_hi[k] - 1]
+            ):
                 # a settled mode keeps its band (while it stays inside): lines entering and
                 # leaving a data-defined band make the iteration map discontinuous and can cause
                 # limit cycles
@@ -931,13 +987,14 @@ def _isolate_sweeps(data, omega, x, dt, n_samples, lam, res, n, delta, tol, max_
                 continue
             ws = omega[peak] if omega[peak] > 0.0 else dw
             prev = complex(np.nan, np.nan)
-            new, r, code = _fit_single(xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi,
-                                       prev)
+            new, r, code = _fit_single(xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, prev)
             if code != FIT_OK:
                 fails[k] += 1
                 continue
-            ch = max(abs(new.real - lam[k].real) / abs(new.real),
-                     abs(new.imag - lam[k].imag) / abs(new.imag))
+            ch = max(
+                abs(new.real - lam[k].real) / abs(new.real),
+                abs(new.imag - lam[k].imag) / abs(new.imag),
+            )
             change = max(change, ch)
             frozen[k] = ch < FREEZE_CHANGE
             _add_mode(model, x, lam[k], res[k], dt, n_samples, -1.0, 0, n_f)
@@ -962,8 +1019,27 @@ def _remove_mode(lam, res, fails, n, k):
 
 
 @jit
-def _isolate_one(data, omega, x, dt, n_samples, lam, res, n, sigma, delta, tol, max_iter,
-                 pfa, min_points, zeta_max, merge_tol, max_modes, reweight, model_band):
+def _isolate_one(
+    data,
+    omega,
+    x,
+    dt,
+    n_samples,
+    lam,
+    res,
+    n,
+    sigma,
+    delta,
+    tol,
+    max_iter,
+    pfa,
+    min_points,
+    zeta_max,
+    merge_tol,
+    max_modes,
+    reweight,
+    model_band,
+):
     """Isolation Phase with the model-order check on one FRF (``lam``/``res`` updated in place,
     length ``max_modes``). Returns ``(n_modes, iterations, converged)``."""
     n_f = data.shape[0]
@@ -982,9 +1058,25 @@ def _isolate_one(data, omega, x, dt, n_samples, lam, res, n, sigma, delta, tol, 
             model[i] = 0.0
         for k in range(n):
             _add_mode(model, x, lam[k], res[k], dt, n_samples, 1.0, 0, n_f)
-        it, converged = _isolate_sweeps(data, omega, x, dt, n_samples, lam, res, n, delta, tol,
-                                        max_iter, min_points, zeta_max, reweight, model_band, model,
-                                        fails)
+        it, converged = _isolate_sweeps(
+            data,
+            omega,
+            x,
+            dt,
+            n_samples,
+            lam,
+            res,
+            n,
+            delta,
+            tol,
+            max_iter,
+            min_points,
+            zeta_max,
+            reweight,
+            model_band,
+            model,
+            fails,
+        )
         total_it += it
         changed = False
         # duplicates merge: keep the stronger of two modes closer than merge_tol bandwidths
@@ -1048,8 +1140,21 @@ def _isolate_one(data, omega, x, dt, n_samples, lam, res, n, sigma, delta, tol, 
                 _add_mode(iso[0], x, lam[ks], res[ks], dt, n_samples, 1.0, 0, n_f)
                 l2 = np.empty(2, dtype=np.complex128)
                 r2 = np.empty((1, 2), dtype=np.complex128)
-                code = _fit_two_modes(iso, x, wl, wh, omega[(wl + wh) // 2], dt, n_samples,
-                                      zeta_max, w_lo, w_hi, np.ones(1), l2, r2)
+                code = _fit_two_modes(
+                    iso,
+                    x,
+                    wl,
+                    wh,
+                    omega[(wl + wh) // 2],
+                    dt,
+                    n_samples,
+                    zeta_max,
+                    w_lo,
+                    w_hi,
+                    np.ones(1),
+                    l2,
+                    r2,
+                )
                 if code == FIT_OK:
                     lam[ks] = l2[0]
                     res[ks] = r2[0, 0]
@@ -1067,19 +1172,14 @@ def _isolate_one(data, omega, x, dt, n_samples, lam, res, n, sigma, delta, tol, 
                 continue
             y = data - model
             ws = omega[peak] if omega[peak] > 0.0 else dw
-            new, r, code = _fit_single(y, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi,
-                                       complex(np.nan, np.nan))
+            new, r, code = _fit_single(
+                y, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, complex(np.nan, np.nan)
+            )
             # no duplicate test here: a coherent residual next to a mode (two close modes fitted
             # as one) must be able to split it; true duplicates merge after the restart
             if code == FIT_OK:
-                trial = y.copy()
-                _add_mode(trial, x, new, r, dt, n_samples, -1.0, 0, n_f)
-                e0 = 0.0
-                e1 = 0.0
-                for i in range(lo, hi):
-                    e0 += power[i]
-                    e1 += abs(trial[i]) ** 2
-                if (e0 - e1) / sigma**2 < t:
+                drop = _band_energy_drop(y, x, new, r, dt, n_samples, power, lo, hi, n_f)
+                if drop / sigma**2 < t:
                     code = FIT_NO_DROP
             if code != FIT_OK:
                 for i in range(lo, hi):
@@ -1097,8 +1197,26 @@ def _isolate_one(data, omega, x, dt, n_samples, lam, res, n, sigma, delta, tol, 
 
 
 @jit
-def _isolate_batch(data, omega, dt, n_samples, lam0, res0, n0, sigma, delta, tol, max_iter, pfa,
-                   min_points, zeta_max, merge_tol, max_modes, reweight, model_band):
+def _isolate_batch(
+    data,
+    omega,
+    dt,
+    n_samples,
+    lam0,
+    res0,
+    n0,
+    sigma,
+    delta,
+    tol,
+    max_iter,
+    pfa,
+    min_points,
+    zeta_max,
+    merge_tol,
+    max_modes,
+    reweight,
+    model_band,
+):
     n_p = data.shape[0]
     x = _line_variable(omega, dt)
     lam = np.full((n_p, max_modes), complex(np.nan, np.nan))
@@ -1114,9 +1232,27 @@ def _isolate_batch(data, omega, dt, n_samples, lam0, res0, n0, sigma, delta, tol
         if n == 0:
             conv[j] = True
             continue
-        nn, it, c = _isolate_one(data[j], omega, x, dt, n_samples, lam[j], res[j], n, sigma[j],
-                                 delta, tol, max_iter, pfa, min_points, zeta_max, merge_tol,
-                                 max_modes, reweight, model_band)
+        nn, it, c = _isolate_one(
+            data[j],
+            omega,
+            x,
+            dt,
+            n_samples,
+            lam[j],
+            res[j],
+            n,
+            sigma[j],
+            delta,
+            tol,
+            max_iter,
+            pfa,
+            min_points,
+            zeta_max,
+            merge_tol,
+            max_modes,
+            reweight,
+            model_band,
+        )
         n_modes[j] = nn
         iters[j] = it
         conv[j] = c
@@ -1200,8 +1336,9 @@ def _isolated_lines(dw_data, res, br, bi, bcr, bci, n, k, a, b, xn, power, tr, t
 
 
 @jit
-def _simo_band_lazy(dw_data, res, br, bi, bcr, bci, n, k, xn, power, tr, ti, omega, lam, dw,
-                    delta, wlo, whi):
+def _simo_band_lazy(
+    dw_data, res, br, bi, bcr, bci, n, k, xn, power, tr, ti, omega, lam, dw, delta, wlo, whi
+):
     """:func:`_simo_band` computing the isolated data only on the lines it looks at (the peak
     search range and the band grown from the peak) instead of the whole window; same result."""
     half = max(2.0 * abs(lam.real), 2.0 * dw)
@@ -1255,8 +1392,25 @@ def _simo_band_lazy(dw_data, res, br, bi, bcr, bci, n, k, xn, power, tr, ti, ome
 
 
 @jit
-def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_iter, pfa,
-                  min_points, zeta_max, merge_tol, max_modes, reweight, model_band):
+def _isolate_simo(
+    data,
+    omega,
+    dt,
+    n_samples,
+    lam0,
+    n0,
+    sigma,
+    delta,
+    tol,
+    max_iter,
+    pfa,
+    min_points,
+    zeta_max,
+    merge_tol,
+    max_modes,
+    reweight,
+    model_band,
+):
     """Global SIMO isolation with the model-order check.
 
     ``data`` (P, F); ``lam0`` (max_modes,) starting eigenvalues (first ``n0`` used); ``sigma`` (P)
@@ -1334,19 +1488,44 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                 # eq. 7 (the other modes synthesised from their cached bases) only on the lines
                 # the band choice and the fit look at: the cost grows with neither the number
                 # of lines nor the window width
-                if (frozen[k] and omega[band_lo[k]] <= lam[k].imag
-                        and lam[k].imag <= omega[band_hi[k] - 1]):
+                if (
+                    frozen[k]
+                    and omega[band_lo[k]] <= lam[k].imag
+                    and lam[k].imag <= omega[band_hi[k] - 1]
+                ):
                     lo = band_lo[k]
                     hi = band_hi[k]
                     peak = (lo + hi) // 2
-                    _isolated_lines(dw_data, res, br, bi, bcr, bci, n, k, lo, hi, xn, power_w, tr, ti)
+                    _isolated_lines(
+                        dw_data, res, br, bi, bcr, bci, n, k, lo, hi, xn, power_w, tr, ti
+                    )
                 elif model_band:
                     lo, hi = _model_band(omega, lam[k], delta, min_points)
                     peak = _nearest_line(omega, lam[k].imag)
-                    _isolated_lines(dw_data, res, br, bi, bcr, bci, n, k, lo, hi, xn, power_w, tr, ti)
+                    _isolated_lines(
+                        dw_data, res, br, bi, bcr, bci, n, k, lo, hi, xn, power_w, tr, ti
+                    )
                 else:
-                    peak, lo, hi = _simo_band_lazy(dw_data, res, br, bi, bcr, bci, n, k, xn, power_w,
-                                                   tr, ti, omega, lam[k], dw, delta, wlo, whi)
+                    peak, lo, hi = _simo_band_lazy(
+                        dw_data,
+                        res,
+                        br,
+                        bi,
+                        bcr,
+                        bci,
+                        n,
+                        k,
+                        xn,
+                        power_w,
+                        tr,
+                        ti,
+                        omega,
+                        lam[k],
+                        dw,
+                        delta,
+                        wlo,
+                        whi,
+                    )
                 band_lo[k] = lo
                 band_hi[k] = hi
                 if hi - lo < min_points:
@@ -1359,17 +1538,21 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                     # iteration has a fixed point), so FRFs where the mode is buried in noise
                     # do not bias the shared eigenvalue
                     for j in range(n_p):
-                        wts_all[k, j] = max(_contribution_peak(omega, x, lam[k], res[j, k], dt,
-                                                               n_samples), 1.0)
+                        wts_all[k, j] = max(
+                            _contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples), 1.0
+                        )
                 for j in range(n_p):
                     wts[j] = wts_all[k, j] if reweight else 1.0
-                new, code = _fit_single_simo(xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo,
-                                             w_hi, prev, wts, rtmp)
+                new, code = _fit_single_simo(
+                    xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, prev, wts, rtmp
+                )
                 if code != FIT_OK:
                     fails[k] += 1
                     continue
-                ch = max(abs(new.real - lam[k].real) / abs(new.real),
-                         abs(new.imag - lam[k].imag) / abs(new.imag))
+                ch = max(
+                    abs(new.real - lam[k].real) / abs(new.real),
+                    abs(new.imag - lam[k].imag) / abs(new.imag),
+                )
                 change = max(change, ch)
                 frozen[k] = ch < FREEZE_CHANGE
                 for j in range(n_p):
@@ -1387,8 +1570,9 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                 for k in range(n):
                     best = 0.0
                     for j in range(n_p):
-                        best = max(best, _contribution_peak(omega, x, lam[k], res[j, k], dt,
-                                                            n_samples))
+                        best = max(
+                            best, _contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples)
+                        )
                     if best * best < t1:
                         prune = True
                 if prune:
@@ -1487,8 +1671,21 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                     wts[j] = wts_all[ks, j] if reweight else 1.0
                 l2 = np.empty(2, dtype=np.complex128)
                 r2 = np.empty((n_p, 2), dtype=np.complex128)
-                code = _fit_two_modes(iso, x, wl, wh, omega[(wl + wh) // 2], dt, n_samples,
-                                      zeta_max, w_lo, w_hi, wts, l2, r2)
+                code = _fit_two_modes(
+                    iso,
+                    x,
+                    wl,
+                    wh,
+                    omega[(wl + wh) // 2],
+                    dt,
+                    n_samples,
+                    zeta_max,
+                    w_lo,
+                    w_hi,
+                    wts,
+                    l2,
+                    r2,
+                )
                 if code == FIT_OK:
                     lam[ks] = l2[0]
                     lam[n] = l2[1]
@@ -1506,8 +1703,21 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, delta, tol, max_i
                     masked[i] = True
                 continue
             ws = omega[peak] if omega[peak] > 0.0 else dw
-            new, code = _fit_single_simo(xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi,
-                                         complex(np.nan, np.nan), ones, rtmp)
+            new, code = _fit_single_simo(
+                xn,
+                x,
+                lo,
+                hi,
+                ws,
+                dt,
+                n_samples,
+                zeta_max,
+                w_lo,
+                w_hi,
+                complex(np.nan, np.nan),
+                ones,
+                rtmp,
+            )
             # no duplicate test here: a coherent residual next to a mode (two close modes fitted
             # as one) must be able to split it; true duplicates merge after the restart
             if code == FIT_OK:
@@ -1662,8 +1872,9 @@ def _synthesize_residual_terms(omega, coef, residual_kind):
         for i in range(n_f):
             if omega[i] == 0.0 and residual_kind == 0:
                 continue
-            out[j, i] = (coef[j, 0] * _residual_basis(omega[i], residual_kind, 0)
-                         + coef[j, 1] * _residual_basis(omega[i], residual_kind, 1))
+            out[j, i] = coef[j, 0] * _residual_basis(omega[i], residual_kind, 0) + coef[
+                j, 1
+            ] * _residual_basis(omega[i], residual_kind, 1)
     return out
 
 
@@ -1702,8 +1913,19 @@ def fit_single_mode(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, prev=
         raise ValueError(f"data: expected shape {omega.shape}, got {data.shape}")
     x = _line_variable(omega, _dt(dt))
     ws = float(np.mean(omega)) or 1.0
-    return _fit_single(data, x, 0, omega.size, ws, _dt(dt), int(n_samples or 0), float(zeta_max),
-                       0.0, np.inf, complex(np.nan, np.nan) if prev is None else complex(prev))
+    return _fit_single(
+        data,
+        x,
+        0,
+        omega.size,
+        ws,
+        _dt(dt),
+        int(n_samples or 0),
+        float(zeta_max),
+        0.0,
+        np.inf,
+        complex(np.nan, np.nan) if prev is None else complex(prev),
+    )
 
 
 def fit_single_mode_simo(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, prev=None):
@@ -1715,10 +1937,21 @@ def fit_single_mode_simo(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, 
     x = _line_variable(omega, _dt(dt))
     res = np.full(data.shape[0], complex(np.nan, np.nan))
     ws = float(np.mean(omega)) or 1.0
-    lam, code = _fit_single_simo(data, x, 0, omega.size, ws, _dt(dt), int(n_samples or 0),
-                                 float(zeta_max), 0.0, np.inf,
-                                 complex(np.nan, np.nan) if prev is None else complex(prev),
-                                 np.ones(data.shape[0]), res)
+    lam, code = _fit_single_simo(
+        data,
+        x,
+        0,
+        omega.size,
+        ws,
+        _dt(dt),
+        int(n_samples or 0),
+        float(zeta_max),
+        0.0,
+        np.inf,
+        complex(np.nan, np.nan) if prev is None else complex(prev),
+        np.ones(data.shape[0]),
+        res,
+    )
     return lam, res, code
 
 
@@ -1735,8 +1968,7 @@ def synthesize(omega, lam, residue, dt=None, n_samples=None):
     return _synthesize(omega, lam, residue, _dt(dt), int(n_samples or 0))
 
 
-def residue_normal_equations(data, omega, lam, use=None, dt=None, n_samples=None,
-                             residual_kind=-1):
+def residue_normal_equations(data, omega, lam, use=None, dt=None, n_samples=None, residual_kind=-1):
     """Normal matrix (n_u, n_u) and right sides (n_u, P) of eq. 9 (unknowns A1, A2 per mode)."""
     omega = _as_omega(omega)
     data = np.ascontiguousarray(np.atleast_2d(data), dtype=np.complex128)
@@ -1754,8 +1986,7 @@ def residues_fixed(data, omega, lam, use=None, dt=None, n_samples=None, residual
     use = np.ones(omega.size, np.bool_) if use is None else np.ascontiguousarray(use, np.bool_)
     if 2 * int(use.sum()) < 2 * lam.size + (4 if residual_kind >= 0 else 0):
         raise ValueError("use: fewer lines than the residue fit needs")
-    return _residues_fixed(data, omega, lam, _dt(dt), int(n_samples or 0), use,
-                           int(residual_kind))
+    return _residues_fixed(data, omega, lam, _dt(dt), int(n_samples or 0), use, int(residual_kind))
 
 
 def noise_floor(data):
@@ -1818,8 +2049,9 @@ def _point_estimates(data, omega, dt, n_samples, lam, res, delta, min_points, ze
             if hi - lo < min_points:
                 continue
             ws = omega[peak] if omega[peak] > 0.0 else dw
-            new, r, code = _fit_single(xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi,
-                                       complex(np.nan, np.nan))
+            new, r, code = _fit_single(
+                xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, complex(np.nan, np.nan)
+            )
             if code == FIT_OK:
                 out[j, kk] = new
     return out
