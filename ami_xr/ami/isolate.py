@@ -7,7 +7,6 @@ import warnings
 
 import numpy as np
 import xarray as xr
-from scipy.optimize import linear_sum_assignment
 
 from ami_xr import names
 from ami_xr.ami import _common as c
@@ -92,6 +91,8 @@ def match_modes(lam: np.ndarray, snr: np.ndarray, match_tol: float) -> np.ndarra
     sum_w: list[float] = []
     sum_wv: list[complex] = []
     counts = np.sum(np.isfinite(lam), axis=1)
+    from scipy.optimize import linear_sum_assignment  # keeps scipy.optimize out of import
+
     for j in np.argsort(-counts, kind="stable"):
         slots = np.flatnonzero(np.isfinite(lam[j]))
         if slots.size == 0:
