@@ -25,9 +25,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
-import time
-import uuid
 from numbers import Integral
 from pathlib import Path
 from typing import Any
@@ -39,6 +36,7 @@ from ami_xr import names
 from ami_xr._coords import uniform_coords
 from ami_xr._provenance import add_history
 from ami_xr.errors import AmiXrValueError, DataFileError
+from ami_xr.io.atomic import atomic_path
 
 __all__ = [
     "open_dataset",
@@ -462,24 +460,6 @@ def open_dataset(
     return ds
 
 
-def _remove_tree(folder: Path) -> None:
-    """Remove the temporary folder, retrying while a straggling writer re-creates its file."""
-    for _ in range(50):
-        try:
-            shutil.rmtree(folder)
-        except FileNotFoundError:
-            return
-        except OSError:
-            time.sleep(0.01)
-        if not folder.exists():
-            return
-
-
-def _fsync(path: Path) -> None:
-    with open(path, "rb+") as f:
-        os.fsync(f.fileno())
-
-
 def to_netcdf(
     ds: xr.Dataset,
     path: str | os.PathLike,
@@ -492,9 +472,9 @@ def to_netcdf(
     The Dataset is encoded (see the module docstring: complex as real/imag pairs, special
     attributes tagged), a provenance record is appended to ``ami_xr_history`` (the writing
     ``function`` and its ``parameters``, UTC time, ami_xr version and the Dataset's
-    ``source_file`` if it has one), and the file is written to a temporary file in the target
-    folder (inside a private hidden folder ``.<name>.<random>.tmp``) that then replaces ``path``
-    with ``os.replace``.
+    ``source_file`` if it has one), and the file is written with
+    :func:`ami_xr.io.atomic.atomic_path`: to a temporary file in a private hidden folder
+    ``.<name>.<random>.tmp`` next to ``path``, which it then replaces with ``os.replace``.
 
     Guarantees: on any error the temporary folder and file are removed and an existing ``path``
     is left untouched; ``path`` may be the file ``ds`` was lazily opened from (the old file stays
@@ -527,10 +507,6 @@ def to_netcdf(
     if not isinstance(ds, xr.Dataset):
         raise AmiXrValueError(f"ds: expected an xarray.Dataset, got {type(ds).__name__}")
     path = Path(path).absolute()
-    if not path.parent.is_dir():
-        raise DataFileError(f"{path}: folder {path.parent} does not exist")
-    if path.is_dir():
-        raise DataFileError(f"{path}: is a folder, expected a file path")
     recorded = add_history(
         ds,
         function or "ami_xr.to_netcdf",
@@ -538,21 +514,6 @@ def to_netcdf(
         source_file=ds.attrs.get(names.ATTR_SOURCE_FILE),
     )
     encoded = encode(recorded)  # raises on unstorable content before any file exists
-    # The temporary file lives in a private temporary folder next to the target: after a failed
-    # dask-backed write, a straggling worker thread may reopen the file by name (xarray reopens
-    # in append mode, which creates it); once the folder is gone such a reopen fails instead.
-    tmp_dir = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
-    tmp = tmp_dir / path.name
-    try:
-        tmp_dir.mkdir()
+    with atomic_path(path) as tmp:
         encoded.to_netcdf(tmp, mode="w", format=FORMAT, engine=ENGINE)
-        _fsync(tmp)
-        os.replace(tmp, path)
-        tmp_dir.rmdir()
-    except OSError as err:
-        _remove_tree(tmp_dir)
-        raise DataFileError(f"{path}: cannot write: {type(err).__name__}: {err}") from err
-    except BaseException:
-        _remove_tree(tmp_dir)
-        raise
     return path
