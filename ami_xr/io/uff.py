@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import os
 import re
-import tempfile
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -57,6 +56,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, DataFileError
+from ami_xr.io.atomic import atomic_path
 
 __all__ = ["read_uff", "write_uff", "point_label", "parse_point_label"]
 
@@ -732,7 +732,7 @@ def write_uff(
     binary: bool = False,
     include: Sequence[str] = ("frf", "time", "modes"),
 ) -> Path:
-    """Write a Dataset as UFF, atomically (temporary file in the target folder, then rename).
+    """Write a Dataset as UFF, atomically (see :func:`ami_xr.io.atomic.atomic_path`).
 
     FRFs (``frf``, and ``coherence`` if present) go to dataset 58 with function type 4 (response =
     each point, reference = the drive point); time Datasets to dataset 58 function type 1 (one
@@ -776,20 +776,9 @@ def write_uff(
             f"(needs '{names.FRF}', '{names.RESPONSE}' or "
             f"'{names.MODE_VECTOR}'+'{names.EIGENVALUE}')"
         )
-    if not path.parent.exists():
-        raise DataFileError(
-            f"cannot write {str(path)!r}: folder {str(path.parent)!r} does not exist"
-        )
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    os.remove(tmp)  # pyuff refuses to "overwrite" a file it did not write; start from nothing
-    try:
-        with warnings.catch_warnings():
-            # pyuff warns about optional fields we leave at their defaults.
-            warnings.simplefilter("ignore")
-            pyuff.UFF(tmp).write_sets(records, mode="add")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with atomic_path(path) as tmp, warnings.catch_warnings():
+        # pyuff warns about optional fields we leave at their defaults.
+        warnings.simplefilter("ignore")
+        # tmp does not exist yet: pyuff refuses to "overwrite" a file it did not write.
+        pyuff.UFF(str(tmp)).write_sets(records, mode="add")
     return path
