@@ -41,8 +41,8 @@ from ami_xr.plot import (  # noqa: E402
     plot_subtraction,
 )
 from ami_xr.report import format_modal_table, modal_table, report  # noqa: E402
-from ami_xr.signal import apply_window, impulse_to_frf  # noqa: E402
-from ami_xr.signal.frf import convert_quantity, frf  # noqa: E402
+from ami_xr.dsp import apply_window, impulse_to_frf  # noqa: E402
+from ami_xr.dsp.frf import convert_quantity, frf  # noqa: E402
 
 __all__ = [
     "subtract",

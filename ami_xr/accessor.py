@@ -38,7 +38,7 @@ from ami_xr.io import to_netcdf, validate  # noqa: E402
 AmiAccessor.validate = _method(validate)
 AmiAccessor.to_netcdf = _method(to_netcdf)
 
-from ami_xr.signal import apply_window, impulse_to_frf  # noqa: E402
+from ami_xr.dsp import apply_window, impulse_to_frf  # noqa: E402
 
 AmiAccessor.apply_window = _method(apply_window)
 AmiAccessor.impulse_to_frf = _method(impulse_to_frf)
@@ -68,7 +68,7 @@ AmiAccessor.plot_modal_table = _method(plot_modal_table)
 AmiAccessor.report = _method(report)
 AmiAccessor.modal_table = _method(modal_table)
 
-from ami_xr.signal.frf import convert_quantity, frf  # noqa: E402
+from ami_xr.dsp.frf import convert_quantity, frf  # noqa: E402
 
 AmiAccessor.frf = _method(frf)
 AmiAccessor.convert_quantity = _method(convert_quantity)

@@ -20,7 +20,7 @@ from xarray.indexes.range_index import RangeCoordinateTransform
 import ami_xr
 from ami_xr import names
 from ami_xr.errors import SchemaError
-from ami_xr.signal.windows import sample_interval
+from ami_xr.dsp.windows import sample_interval
 
 dask = pytest.importorskip("dask")
 

@@ -196,7 +196,7 @@ def frf_from_impulse(ts: xr.Dataset) -> xr.Dataset:
     ``frf_source="impulse_response"``, ``sample_interval`` and ``record_samples``, and keeps the
     time Dataset's attributes (noise level, seed, ...).
     """
-    from ami_xr.signal.impulse import impulse_to_frf  # the signal layer imports io; keep lazy
+    from ami_xr.dsp.impulse import impulse_to_frf  # the signal layer imports io; keep lazy
 
     return impulse_to_frf(ts)
 

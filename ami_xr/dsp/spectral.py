@@ -7,7 +7,7 @@ Samples can arrive in blocks of any length: the samples of a segment that stradd
 border are carried over to the next block, so feeding a record in blocks gives the same sums as
 feeding it at once. :func:`csd`, :func:`welch` and :func:`coherence` are built on the engine the
 way ``scipy.signal`` builds ``welch`` on ``csd``, with the same parameters and (to rounding) the
-same results; the labeled :func:`ami_xr.signal.frf.frf` uses the same engine.
+same results; the labeled :func:`ami_xr.dsp.frf.frf` uses the same engine.
 
 Spectra are one-sided power spectral densities (``scaling="density"``): ``2 conj(X) Y /
 (fs sum(w^2))`` averaged over segments, with DC and (even ``nfft``) Nyquist not doubled.

@@ -11,7 +11,7 @@ from ami_xr.errors import AmiXrValueError
 from ami_xr.io.schema import validate
 from ami_xr.kernels import fft as _kfft
 from ami_xr.kernels import windows as _kw
-from ami_xr.signal.windows import (
+from ami_xr.dsp.windows import (
     ATTR_AMPLITUDE_CORRECTION,
     ATTR_ENERGY_CORRECTION,
     ATTR_WINDOW,

@@ -42,7 +42,7 @@ from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels import impact as _ki
 from ami_xr.kernels import spectral as _ks
 from ami_xr.kernels import windows as _kw
-from ami_xr.signal.spectral import WelchAccumulator, check_segments, resolve_window
+from ami_xr.dsp.spectral import WelchAccumulator, check_segments, resolve_window
 
 EXCITATIONS = ("random", "impact")
 QUANTITIES = tuple(names.QUANTITY_TO_FRF_TYPE)
