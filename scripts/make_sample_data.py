@@ -9,15 +9,24 @@ unit impulse at the tip, 60 s record, 2^12 samples, 15 % uniform noise (eq. 15, 
     benchmark_frf_clean.nc      the same without noise
     benchmark_truth.nc          exact eigenvalues, mode vectors and residues at the points
 
-Every run writes the same arrays (only the provenance timestamps differ). Usage::
+Every run writes the same arrays up to floating-point rounding, which depends on the CPU
+(numpy, BLAS and LAPACK pick their SIMD kernels at run time), and the same provenance apart from
+timestamps. ``--check`` regenerates the files in a temporary folder and compares them with the
+ones in ``--output-dir`` to the tolerance ``RTOL`` (see ``compare``), writing nothing; it exits 0
+when they agree and 1 otherwise. Usage::
 
     python scripts/make_sample_data.py [--output-dir sample_data] [--seed 0] [--noise 0.15]
+    python scripts/make_sample_data.py --check [--output-dir sample_data]
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
+import tempfile
 from pathlib import Path
+
+import numpy as np
 
 import ami_xr
 
@@ -26,6 +35,21 @@ NOISE = 0.15
 SEED = 0
 DURATION = 60.0
 N_SAMPLES = 2**12
+FILES = (
+    "benchmark_impulse.nc",
+    "benchmark_frf.nc",
+    "benchmark_impulse_clean.nc",
+    "benchmark_frf_clean.nc",
+    "benchmark_truth.nc",
+)
+# Norm-wise relative tolerance of a regenerated array against the committed one. Every array is
+# synthesised from an eigen-decomposition of the beam's state-space model (LAPACK, backward
+# stable: eigenvalues and mode vectors relative to ~1e-15 times their condition, ~1e2 for the
+# close pair at 65.0 / 65.9 rad/s), then exp(lambda t) over 2^12 samples and an FFT (relative
+# ~eps log2 n); the noise of eq. 15 scales with the signal's peak. Rounding on another CPU stays
+# below ~1e-13 of each array's largest magnitude (measured: 1.2e-15 absolute, ~1e-14 norm-wise);
+# 1e-10 leaves a wide margin and still catches any change to the simulation.
+RTOL = 1e-10
 
 
 def write_sample_data(folder: Path, noise: float = NOISE, seed: int = SEED) -> list[Path]:
@@ -35,12 +59,17 @@ def write_sample_data(folder: Path, noise: float = NOISE, seed: int = SEED) -> l
     ts, g, truth = ami_xr.simulate.benchmark(**params)
     ts0, g0, _ = ami_xr.simulate.benchmark(**{**params, "noise": 0.0})
     out = []
-    for name, ds, p in (
-        ("benchmark_impulse.nc", ts, params),
-        ("benchmark_frf.nc", g, params),
-        ("benchmark_impulse_clean.nc", ts0, {**params, "noise": 0.0}),
-        ("benchmark_frf_clean.nc", g0, {**params, "noise": 0.0}),
-        ("benchmark_truth.nc", truth, {"J": ami_xr.simulate.beam.DEFAULT_J}),
+    for name, ds, p in zip(
+        FILES,
+        (ts, g, ts0, g0, truth),
+        (
+            params,
+            params,
+            {**params, "noise": 0.0},
+            {**params, "noise": 0.0},
+            {"J": ami_xr.simulate.beam.DEFAULT_J},
+        ),
+        strict=True,
     ):
         out.append(
             ami_xr.to_netcdf(
@@ -50,12 +79,71 @@ def write_sample_data(folder: Path, noise: float = NOISE, seed: int = SEED) -> l
     return out
 
 
+def compare(new_folder: Path, old_folder: Path, rtol: float = RTOL) -> list[str]:
+    """Problems found comparing the sample files in two folders (empty list: they agree).
+
+    Float and complex arrays (data variables and coordinates) agree when
+    ``max|new - old| <= rtol * max|old|``; every other array (labels, strings, ints) must be
+    equal. A missing file, variable or a changed shape or dims is a problem.
+    """
+    problems = []
+    for name in FILES:
+        if not (old_folder / name).exists():
+            problems.append(f"{old_folder / name}: missing")
+            continue
+        new = ami_xr.open_dataset(new_folder / name)
+        old = ami_xr.open_dataset(old_folder / name)
+        for kind, a_names, b_names in (
+            ("variable", set(new.data_vars), set(old.data_vars)),
+            ("coordinate", set(new.coords), set(old.coords)),
+        ):
+            if a_names != b_names:
+                problems.append(f"{name}: {kind}s differ: {sorted(map(str, a_names ^ b_names))}")
+        for var in sorted(set(new.variables) & set(old.variables), key=str):
+            a, b = new[var], old[var]
+            if a.dims != b.dims or a.shape != b.shape:
+                problems.append(f"{name}: {var!s}: dims {a.dims}{a.shape} != {b.dims}{b.shape}")
+                continue
+            av, bv = np.asarray(a.values), np.asarray(b.values)
+            if av.dtype.kind in "fc" and bv.dtype.kind in "fc":
+                scale = float(np.max(np.abs(bv), initial=0.0))
+                err = float(np.max(np.abs(av - bv), initial=0.0))
+                if not err <= rtol * scale:
+                    problems.append(
+                        f"{name}: {var!s}: max |new - old| = {err:.3g} > {rtol:g} * {scale:.3g}"
+                    )
+            elif not np.array_equal(av, bv):
+                problems.append(f"{name}: {var!s}: values differ")
+    return problems
+
+
+def check(folder: Path) -> int:
+    """Regenerate in a temporary folder, compare with ``folder``, print the verdict."""
+    with tempfile.TemporaryDirectory() as tmp:
+        write_sample_data(Path(tmp))
+        problems = compare(Path(tmp), folder)
+    for problem in problems:
+        print(problem, file=sys.stderr)
+    if problems:
+        print(f"{folder}: the sample data do NOT agree with this code ({len(problems)} problems)")
+        return 1
+    print(f"{folder}: all {len(FILES)} sample files agree with this code (tolerance {RTOL:g})")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output-dir", type=Path, default=DEFAULT_DIR)
     parser.add_argument("--seed", type=int, default=SEED)
     parser.add_argument("--noise", type=float, default=NOISE)
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="compare --output-dir with a regeneration; write nothing",
+    )
     args = parser.parse_args(argv)
+    if args.check:
+        return check(args.output_dir)
     for path in write_sample_data(args.output_dir, args.noise, args.seed):
         print(f"{path}  {path.stat().st_size / 1024:.0f} KiB")
     return 0
