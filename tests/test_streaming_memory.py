@@ -33,7 +33,7 @@ def _record(n: int, *, t0: float = 0.0, seed: int = 0) -> xr.Dataset:
         rng.standard_normal((2, n)), fs=FS, force=rng.standard_normal(n), drive_point=0
     )
     if t0:
-        # keep the attrs explicitly: arithmetic drops them on xarray < 2025.7 (keep_attrs default)
+        # keep the attrs explicitly: arithmetic drops them on older xarray (2025.4: keep_attrs default)
         ds = ds.assign_coords(
             {names.TIME: (ds[names.TIME] + t0).assign_attrs(ds[names.TIME].attrs)}
         )
