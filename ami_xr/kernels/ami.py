@@ -39,6 +39,7 @@ import math
 import numpy as np
 
 from ami_xr.kernels._numba import jit
+from ami_xr.kernels.linalg import gauss_solve, solve_normal
 
 # Stop / rejection codes of the Subtraction Phase (mapped to strings in the labeled layer).
 STOP_BELOW_FLOOR = 0
@@ -61,93 +62,6 @@ FIT_NO_DROP = 7
 # ----------------------------------------------------------------------------------------------
 # small dense solver
 # ----------------------------------------------------------------------------------------------
-@jit
-def _gauss_solve(a, b):
-    """Solve ``a x = b`` (n x n, n x m) by Gaussian elimination with partial pivoting.
-
-    Returns ``(x, ok)``; ``ok`` is False when a pivot is zero. ``a`` and ``b`` are not modified.
-    """
-    n = a.shape[0]
-    m = b.shape[1]
-    a = a.copy()
-    x = b.copy()
-    for col in range(n):
-        piv = col
-        big = abs(a[col, col])
-        for r in range(col + 1, n):
-            if abs(a[r, col]) > big:
-                big = abs(a[r, col])
-                piv = r
-        if big == 0.0 or not np.isfinite(big):
-            return x, False
-        if piv != col:
-            for c in range(n):
-                tmp = a[col, c]
-                a[col, c] = a[piv, c]
-                a[piv, c] = tmp
-            for c in range(m):
-                tmp = x[col, c]
-                x[col, c] = x[piv, c]
-                x[piv, c] = tmp
-        for r in range(col + 1, n):
-            f = a[r, col] / a[col, col]
-            if f != 0.0:
-                for c in range(col, n):
-                    a[r, c] -= f * a[col, c]
-                for c in range(m):
-                    x[r, c] -= f * x[col, c]
-    for col in range(n - 1, -1, -1):
-        for c in range(m):
-            s = x[col, c]
-            for k in range(col + 1, n):
-                s -= a[col, k] * x[k, c]
-            x[col, c] = s / a[col, col]
-    return x, True
-
-
-@jit
-def _solve_normal(nmat, rhs):
-    """Solve symmetric normal equations ``nmat x = rhs`` (rhs n x m) with Jacobi scaling and one
-    step of iterative refinement. Returns ``(x, ok)``."""
-    n = nmat.shape[0]
-    m = rhs.shape[1]
-    d = np.empty(n)
-    for i in range(n):
-        d[i] = 1.0 / math.sqrt(nmat[i, i]) if nmat[i, i] > 0.0 else 1.0
-    s = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            s[i, j] = nmat[i, j] * d[i] * d[j]
-    sr = np.empty((n, m))
-    for i in range(n):
-        for c in range(m):
-            sr[i, c] = rhs[i, c] * d[i]
-    y, ok = _gauss_solve(s, sr)
-    if not ok:
-        return y, False
-    # one refinement step on the scaled system
-    res = sr.copy()
-    for i in range(n):
-        for c in range(m):
-            acc = 0.0
-            for j in range(n):
-                acc += s[i, j] * y[j, c]
-            res[i, c] -= acc
-    dy, ok2 = _gauss_solve(s, res)
-    if ok2:
-        for i in range(n):
-            for c in range(m):
-                y[i, c] += dy[i, c]
-    x = np.empty((n, m))
-    for i in range(n):
-        for c in range(m):
-            x[i, c] = y[i, c] * d[i]
-        for c in range(m):
-            if not np.isfinite(x[i, c]):
-                return x, False
-    return x, True
-
-
 # ----------------------------------------------------------------------------------------------
 # modal basis and synthesis (eqs. 4, 6, 7)
 # ----------------------------------------------------------------------------------------------
@@ -368,7 +282,7 @@ def _fit_single(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, prev):
             nmat[2 + a, 2 + b] = nll[a, b]
         rhs[a, 0] = rs[a]
         rhs[2 + a, 0] = rl[a]
-    sol, ok = _solve_normal(nmat, rhs)
+    sol, ok = solve_normal(nmat, rhs)
     if not ok:
         return nanc, nanc, FIT_SINGULAR
     lam, v1, v2, code = _poles_from_coefficients(
@@ -431,7 +345,7 @@ def _fit_single_simo(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, p
         nsl_all[j] = nsl
         rl_all[j, 0] = rl[0]
         rl_all[j, 1] = rl[1]
-    sol, ok = _solve_normal(red, redr)
+    sol, ok = solve_normal(red, redr)
     if not ok:
         return nanc, FIT_SINGULAR
     c0 = sol[0, 0]
@@ -474,7 +388,7 @@ def _fit_two_modes(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, wts
         for a in range(m):
             for b in range(m):
                 nll[a, b] += (np.conj(vp[a]) * vp[b]).real
-    nll_inv, ok = _gauss_solve(nll, np.eye(m))
+    nll_inv, ok = gauss_solve(nll, np.eye(m))
     if not ok:
         return FIT_SINGULAR
     for j in range(n_p):
@@ -507,7 +421,7 @@ def _fit_two_modes(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, wts
             redr[a, 0] += rs[a] - acc
         nsl_all[j] = nsl
         rl_all[j] = rl
-    sol, ok = _solve_normal(red, redr)
+    sol, ok = solve_normal(red, redr)
     if not ok:
         return FIT_SINGULAR
     coef = np.empty(m + 1, dtype=np.complex128)
@@ -1851,7 +1765,7 @@ def _residues_fixed(data, omega, lam, dt, n_samples, use, residual_kind):
     n_k = lam.shape[0]
     cols = _residue_columns(omega, lam, dt, n_samples, use, residual_kind)
     nmat, rhs = _residue_normal_equations(data, cols, use)
-    sol, ok = _solve_normal(nmat, rhs)
+    sol, ok = solve_normal(nmat, rhs)
     n_p = data.shape[0]
     n_r = 2 if residual_kind >= 0 else 0
     out = np.full((n_p, n_k + n_r), complex(np.nan, np.nan))
