@@ -12,13 +12,15 @@ from __future__ import annotations
 import numpy as np
 
 import ami_xr
-from ami_xr.simulate.beam import PAPER_EIGENVALUES, PAPER_MODE_VECTORS
+from ami_xr.simulate.paper import ANALYTICAL_EIGENVALUES, ANALYTICAL_MODE_VECTORS
 
 
 def main() -> int:
     sim = ami_xr.simulate
     print("Eigenvalues (rad/s): paper Tables 1-2 'Analytical' vs exact state-space solution")
-    print("  paper   " + "  ".join(f"{z.real:9.5f}{z.imag:+10.3f}i" for z in PAPER_EIGENVALUES))
+    print(
+        "  paper   " + "  ".join(f"{z.real:9.5f}{z.imag:+10.3f}i" for z in ANALYTICAL_EIGENVALUES)
+    )
     for J in range(1, 6):
         lam = sim.state_space_modes(*sim.beam_absorbers(J)[:3])[0][:4]
         print(f"  J = {J}   " + "  ".join(f"{z.real:9.5f}{z.imag:+10.3f}i" for z in lam))
@@ -30,10 +32,10 @@ def main() -> int:
     print("\nMode vectors x 1e6 (J = 1): paper Tables 3-6 vs ours (sign of each mode aligned)")
     rows = ["q1", "m1", "m2", "m3"]
     for k in range(4):
-        s = np.sign(np.real(np.vdot(phi[:, k], PAPER_MODE_VECTORS[:, k])))
+        s = np.sign(np.real(np.vdot(phi[:, k], ANALYTICAL_MODE_VECTORS[:, k])))
         print(f"  mode {k + 1}")
         for j, row in enumerate(rows):
-            p, o = PAPER_MODE_VECTORS[j, k], s * phi[j, k]
+            p, o = ANALYTICAL_MODE_VECTORS[j, k], s * phi[j, k]
             print(
                 f"    {row:3s} paper {1e6 * p:>26.5g}   ours {1e6 * o:>26.5g}   "
                 f"rel.err {abs(o - p) / abs(p):.1e}"

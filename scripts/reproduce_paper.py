@@ -37,32 +37,8 @@ from scipy.optimize import linear_sum_assignment
 
 import ami_xr
 import ami_xr.ami as ami_xr_ami
+from ami_xr.simulate import paper as published
 
-PAPER = {
-    # Tables 1-2 (rad/s); "x" = not detected in that FRF
-    "per_frf": [
-        [None, None, -0.3513 + 65.046j, -0.46740 + 65.803j],
-        [-0.46025 + 30.555j, None, -0.48261 + 65.190j, None],
-        [None, -0.71644 + 48.041j, -0.34713 + 64.983j, -0.57261 + 65.789j],
-        [None, None, -0.39469 + 65.010j, -0.59237 + 65.915j],
-    ],
-    "average": [-0.46025 + 30.555j, -0.71644 + 48.041j, -0.39394 + 65.057j, -0.54413 + 65.836j],
-    "analytical": [-0.45827 + 30.551j, -0.71973 + 48.025j, -0.39311 + 65.0j, -0.59137 + 65.896j],
-    "error": ["0.43+0.0125i", "-0.46+0.0338i", "0.21+0.0880i", "-7.99-0.0906i"],
-    "fn_avg": 0.056,  # % natural frequency, averaged over the 4 modes (one seed)
-    "zeta_avg": 2.2,  # % damping ratio
-    "mv34": (5.0, 8.4),  # % mode-vector error, modes 3 and 4
-    # Tables 3-6, x 1e-6, AMI column (rows q1, m1, m2, m3)
-    "mv_ami": 1e-6
-    * np.array(
-        [
-            [394.68 + 365.5j, 211.81 + 375.55j, 919.46 - 4051.3j, 1246.7 + 2858.9j],
-            [-12153 + 10827j, -13.136 + 56.514j, -113.66 + 388.41j, -100.92 - 273.44j],
-            [521.37 + 392.8j, -33957 + 55618j, -983.9 + 3138.5j, -803.4 - 2149j],
-            [3700.6 - 17657j, 12513 - 10253j, -86751 - 146340j, 47647 - 194670j],
-        ]
-    ),
-}
 # The Cramér-Rao bound stated in issue 3 (%, expected absolute error) -- recomputed below.
 ISSUE_CRB = {
     "fn": [0.045, 0.067, 0.012, 0.024],
@@ -155,20 +131,20 @@ def tables(seed: int) -> None:
                     f"  G_{p:<8s}"
                     + "".join(fmt_c(z) for z in row)
                     + "   |       "
-                    + "".join(fmt_c(z) for z in PAPER["per_frf"][j])
+                    + "".join(fmt_c(z) for z in published.AMI_PER_FRF_EIGENVALUES[j])
                 )
         ours = [lam[pairs[k]] if k in pairs else None for k in range(4)]
         print(
             "  result    "
             + "".join(fmt_c(z) for z in ours)
             + "   |       "
-            + "".join(fmt_c(z) for z in PAPER["average"])
+            + "".join(fmt_c(z) for z in published.AMI_EIGENVALUES)
         )
         print(
             "  analytic  "
             + "".join(fmt_c(z) for z in lam_t)
             + "   |       "
-            + "".join(fmt_c(z) for z in PAPER["analytical"])
+            + "".join(fmt_c(z) for z in published.ANALYTICAL_EIGENVALUES)
         )
         err = [
             "x"
@@ -180,7 +156,7 @@ def tables(seed: int) -> None:
             "  error (%) "
             + "".join(f"{e:>20s}" for e in err)
             + "   |       "
-            + "".join(f"{e:>20s}" for e in PAPER["error"])
+            + "".join(f"{e:>20s}" for e in published.AMI_EIGENVALUE_ERRORS)
         )
         if "eigenvalue_std" in res:
             std = res["eigenvalue_std"].values
@@ -204,7 +180,7 @@ def tables(seed: int) -> None:
         phi_t = truth["mode_vector"].transpose("point", "mode").values
         phi = res["mode_vector"].transpose("point", "mode").values
         # The paper's row q1 is the first Ritz coordinate; the tip displacement is output[0, 0] q1.
-        paper_ami = PAPER["mv_ami"].copy()
+        paper_ami = published.AMI_MODE_VECTORS.copy()
         paper_ami[0] *= ami_xr.simulate.beam_absorbers(1, basis="mass")[3][0, 0]
         for k in range(4):
             if k not in pairs:
@@ -216,7 +192,7 @@ def tables(seed: int) -> None:
             e = mode_vector_error(ph, phi_t[:, k])
             print(
                 f"  mode {k + 1}: error {100 * e:.1f} %   (paper: "
-                + ("5.0 %" if k == 2 else "8.4 %" if k == 3 else "> 1000 %")
+                + (f"{published.AMI_MODE_VECTOR_ERRORS[k - 2]} %" if k >= 2 else "> 1000 %")
                 + ")"
             )
             for j, p in enumerate(points):
@@ -366,9 +342,10 @@ def report(noise, n_seeds, stats, crb):
             )
     if noise == 0.15:
         print(
-            f"  paper (one seed): f_n average {PAPER['fn_avg']} %, damping average "
-            f"{PAPER['zeta_avg']} %, mode vectors 3, 4: {PAPER['mv34'][0]} %, "
-            f"{PAPER['mv34'][1]} %; modes 1, 2 off by more than an order of magnitude"
+            f"  paper (one seed): f_n average {published.AMI_MEAN_FREQUENCY_ERROR} %, damping "
+            f"average {published.AMI_MEAN_DAMPING_ERROR} %, mode vectors 3, 4: "
+            f"{published.AMI_MODE_VECTOR_ERRORS[0]} %, {published.AMI_MODE_VECTOR_ERRORS[1]} %; "
+            "modes 1, 2 off by more than an order of magnitude"
         )
     print()
 

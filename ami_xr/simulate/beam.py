@@ -44,6 +44,7 @@ from ami_xr.simulate.modal import (
     modal_model,
     time_axis,
 )
+from ami_xr.simulate.paper import ANALYTICAL_EIGENVALUES, ANALYTICAL_MODE_VECTORS
 
 # Paper parameters (SI units).
 E = 207e9
@@ -63,18 +64,9 @@ DEFAULT_J = 1
 BASES = ("paper", "mass")
 
 # Tables 1-6 of the paper ("Analytical" columns), for tests and documentation.
-PAPER_EIGENVALUES = np.array(
-    [-0.45827 + 30.551j, -0.71973 + 48.025j, -0.39311 + 65.0j, -0.59137 + 65.896j]
-)
+PAPER_EIGENVALUES = ANALYTICAL_EIGENVALUES
 #: Rows q1..q4, columns modes 1..4, already multiplied by 1e-6.
-PAPER_MODE_VECTORS = 1e-6 * np.array(
-    [
-        [-2.9046 + 93.979j, -17.818 + 308.69j, 3087.1 - 9547.9j, 4087.6 + 7212.4j],
-        [1677.5 + 223660j, 2.5513 - 29.414j, -148.09 + 371.8j, -140.6 - 286.58j],
-        [-1.6448 + 42.909j, 1682.2 + 223650j, -1204.8 + 3056.2j, -1149.5 - 2284.9j],
-        [-1.7555 + 49.645j, -18.479 + 275.7j, -84362 - 152480j, 64054 - 194960j],
-    ]
-)
+PAPER_MODE_VECTORS = ANALYTICAL_MODE_VECTORS
 
 
 def clamped_free_roots(J: int) -> np.ndarray:
