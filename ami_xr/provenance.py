@@ -1,4 +1,13 @@
-"""Provenance attributes: which function made a Dataset, with which parameters, when."""
+"""Provenance: which function made a Dataset, with which parameters, from which file, when.
+
+The one writer of provenance attributes. Every public function that makes or writes a Dataset
+appends one record with :func:`add_history`; :func:`history` reads them back. The records are a
+JSON list in the Dataset attribute ``ami_xr_history`` (:data:`ami_xr.names.ATTR_HISTORY`), oldest
+first, each ``{"function", "parameters", "time_utc", "ami_xr_version"[, "source_file"]}``; the
+latest function, the ami_xr version and the source file are also plain attributes
+(:data:`ATTR_FUNCTION`, :data:`ami_xr.names.ATTR_VERSION`, :data:`ami_xr.names.ATTR_SOURCE_FILE`)
+so ``ncdump -h`` shows them.
+"""
 
 from __future__ import annotations
 
@@ -11,8 +20,13 @@ import xarray as xr
 
 from ami_xr import names
 
+__all__ = ["add_history", "history", "ATTR_FUNCTION"]
+
+ATTR_FUNCTION = "ami_xr_function"  # the function of the latest provenance record
+
 
 def _jsonable(value: Any) -> Any:
+    """``value`` as JSON-serialisable data (complex as [real, imag], unknown types as repr)."""
     if isinstance(value, (str, int, float, bool)) or value is None:
         return value
     if isinstance(value, np.generic):
@@ -27,7 +41,10 @@ def _jsonable(value: Any) -> Any:
 
 
 def history(ds: xr.Dataset) -> list[dict]:
-    """The provenance records of ``ds``, oldest first (empty when it has none)."""
+    """The provenance records of ``ds``, oldest first.
+
+    Empty when ``ds`` has none or its ``ami_xr_history`` attribute is not a JSON list.
+    """
     raw = ds.attrs.get(names.ATTR_HISTORY)
     if not raw:
         return []
@@ -46,9 +63,23 @@ def add_history(
 ) -> xr.Dataset:
     """Return a shallow copy of ``ds`` with one provenance record appended.
 
-    The record holds the ami_xr version, the function name, its parameters (JSON), a UTC
-    timestamp and, where there is one, the source file. The most recent function and source file
-    are also stored as plain attributes so ``ncdump -h`` shows them.
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Not modified.
+    function : str
+        Public name of the function that made the Dataset (``"ami_xr.identify"``).
+    parameters : dict, optional
+        Its parameters; stored as JSON (arrays as lists, complex numbers as ``[real, imag]``,
+        anything else as its ``repr``).
+    source_file : str, optional
+        File the data came from.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``ds`` with the record appended to ``ami_xr_history``, and the plain attributes
+        :data:`ATTR_FUNCTION`, ``ami_xr_version`` and (when given) ``source_file`` set.
     """
     from ami_xr import __version__
 
@@ -64,7 +95,7 @@ def add_history(
     out.attrs = dict(ds.attrs)
     out.attrs[names.ATTR_HISTORY] = json.dumps(history(ds) + [record])
     out.attrs[names.ATTR_VERSION] = __version__
-    out.attrs["ami_xr_function"] = function
+    out.attrs[ATTR_FUNCTION] = function
     if source_file is not None:
         out.attrs[names.ATTR_SOURCE_FILE] = str(source_file)
     return out
