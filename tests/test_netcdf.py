@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 import ami_xr
-from ami_xr import names
+from ami_xr import names, provenance
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io import netcdf
 from ami_xr.io.netcdf import open_dataset, to_netcdf
@@ -28,7 +28,7 @@ dask = pytest.importorskip("dask")
 PROVENANCE_ATTRS = (
     names.ATTR_HISTORY,
     names.ATTR_VERSION,
-    "ami_xr_function",
+    provenance.ATTR_FUNCTION,
     names.ATTR_SOURCE_FILE,
 )
 
@@ -283,6 +283,19 @@ def test_provenance_is_recorded(tmp_path, frf_dataset):
     assert second["function"] == "ami_xr.to_netcdf"
     assert second["source_file"] == str(path)
     assert again.attrs[names.ATTR_SOURCE_FILE] == str(path2)
+
+
+def test_add_history_values_and_unreadable_history():
+    ds = xr.Dataset(attrs={names.ATTR_HISTORY: "not json"})
+    assert provenance.history(ds) == []
+    out = provenance.add_history(
+        ds, "f", {"z": 1 + 2j, "a": np.arange(2), "n": np.float32(0.5), "o": object}
+    )
+    assert ds.attrs == {names.ATTR_HISTORY: "not json"}  # input untouched
+    (record,) = provenance.history(out)
+    assert record["parameters"] == {"z": [1.0, 2.0], "a": [0, 1], "n": 0.5, "o": repr(object)}
+    assert out.attrs[provenance.ATTR_FUNCTION] == "f"
+    assert names.ATTR_SOURCE_FILE not in out.attrs
 
 
 def test_to_netcdf_does_not_mutate_input(tmp_path, frf_dataset):

@@ -196,6 +196,24 @@ def test_errors_name_the_file(tmp_path):
         read_uff(write_uff(_frf([1, 2], 1), tmp_path / "f.uff"), kind="modes")
 
 
+def test_failed_write_leaves_old_file_and_no_temporary(tmp_path, monkeypatch):
+    path = write_uff(_frf([1, 2], 1), tmp_path / "f.uff")
+    old = path.read_bytes()
+    real_write_sets = pyuff.UFF.write_sets
+
+    def half_write_then_fail(self, *args, **kwargs):
+        real_write_sets(self, *args, **kwargs)
+        with open(self._filename, "r+b") as f:  # damaged, as by a crash mid-write
+            f.truncate(100)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pyuff.UFF, "write_sets", half_write_then_fail)
+    with pytest.raises(KeyboardInterrupt):
+        write_uff(_frf([1, 2], 1, seed=1), path)
+    assert path.read_bytes() == old
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f.uff"]
+
+
 # --- the real measurement ---------------------------------------------------------------------
 needs_data = pytest.mark.skipif(not MEASUREMENT.is_file(), reason="shared/data folder absent")
 

@@ -23,7 +23,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr._provenance import add_history
+from ami_xr.provenance import add_history
 from ami_xr.errors import AmiXrValueError, DataFileError
 
 _END = "***End_of_Header***"
