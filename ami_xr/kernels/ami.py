@@ -40,6 +40,20 @@ import numpy as np
 
 from ami_xr.kernels._numba import jit
 from ami_xr.kernels.linalg import gauss_solve, solve_normal
+from ami_xr.kernels.noise import (
+    band_around,
+    band_energy_peak,
+    local_peak,
+    nearest_line,
+    noise_floor,
+    noise_floor_kernel,
+    normalized_distance,
+    peak_threshold,
+    peak_threshold_kernel,
+    pole_band,
+    split_target,
+    sum_threshold_kernel,
+)
 
 # Stop / rejection codes of the Subtraction Phase (mapped to strings in the labeled layer).
 STOP_BELOW_FLOOR = 0
@@ -488,126 +502,9 @@ def _fit_two_modes(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, wts
 # noise floor, thresholds, bands
 # ----------------------------------------------------------------------------------------------
 @jit
-def _noise_floor(data):
-    """Robust noise standard deviation of one FRF from first differences of adjacent lines.
-
-    For noise that is complex Gaussian, white and independent from line to line (E|n|^2 =
-    sigma^2), ``|n_{k+1} - n_k|^2`` is exponential with mean ``2 sigma^2`` and median
-    ``2 ln(2) sigma^2``. Differencing cancels the smooth modal part, and the median ignores the
-    few lines at resonances: ``sigma^2 = median |dY|^2 / (2 ln 2)``.
-    """
-    n = data.shape[0]
-    d = np.empty(n - 1)
-    for i in range(n - 1):
-        d[i] = abs(data[i + 1] - data[i]) ** 2
-    return math.sqrt(np.median(d) / (2.0 * math.log(2.0)))
-
-
-@jit
-def _peak_threshold(n_lines, pfa):
-    """Threshold ``t`` on ``|Y|^2 / sigma^2`` so that the largest of ``n_lines`` independent
-    Exp(1) variables exceeds it with probability ``pfa``: ``t = -ln(1 - (1 - pfa)^(1/n))``."""
-    return -math.log(-math.expm1(math.log1p(-pfa) / n_lines))
-
-
-@jit
-def _gamma_tail(k, t):
-    """P(Gamma(k, 1) > t) for integer k: ``exp(-t) sum_{m<k} t^m / m!``."""
-    term = 1.0
-    acc = 1.0
-    for m in range(1, k):
-        term *= t / m
-        acc += term
-    return math.exp(-t) * acc
-
-
-@jit
-def _sum_threshold(k, n_lines, pfa):
-    """Threshold on the sum of ``k`` Exp(1) variables (the SNR-weighted power of ``k`` FRFs),
-    for false-alarm probability ``pfa`` over ``n_lines`` lines (bisection)."""
-    target = -math.expm1(math.log1p(-pfa) / n_lines)
-    lo = 0.0
-    hi = 10.0 * k + 100.0
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if _gamma_tail(k, mid) > target:
-            lo = mid
-        else:
-            hi = mid
-    return hi
-
-
-@jit
-def _band_around(power, peak, level):
-    """Contiguous lines around ``peak`` with ``power >= level``: ``(lo, hi)`` half-open."""
-    n = power.shape[0]
-    lo = peak
-    while lo > 0 and power[lo - 1] >= level:
-        lo -= 1
-    hi = peak + 1
-    while hi < n and power[hi] >= level:
-        hi += 1
-    return lo, hi
-
-
-@jit
-def _nearest_line(omega, w):
-    n = omega.shape[0]
-    lo = 0
-    hi = n - 1
-    if w <= omega[0]:
-        return 0
-    if w >= omega[n - 1]:
-        return n - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if omega[mid] <= w:
-            lo = mid
-        else:
-            hi = mid
-    return lo if (w - omega[lo]) <= (omega[hi] - w) else hi
-
-
-@jit
-def _local_peak(power, omega, lam, dw):
-    """Index of the largest ``power`` within ``Im(lam) +- max(2 |Re lam|, 2 dw)``."""
-    half = max(2.0 * abs(lam.real), 2.0 * dw)
-    c = _nearest_line(omega, lam.imag)
-    lo = _nearest_line(omega, lam.imag - half)
-    hi = _nearest_line(omega, lam.imag + half)
-    best = c
-    for i in range(lo, hi + 1):
-        if power[i] > power[best]:
-            best = i
-    return best
-
-
-@jit
-def _model_band(omega, lam, delta, min_points):
-    """Lines where a single mode with pole ``lam`` is at least ``delta`` times its peak:
-    ``|w - Im lam| <= sqrt(1/delta^2 - 1) |Re lam|`` (the delta rule applied to the model, so the
-    band does not depend on the noise of the data), widened to ``min_points`` lines."""
-    half = math.sqrt(1.0 / (delta * delta) - 1.0) * abs(lam.real)
-    n = omega.shape[0]
-    c = _nearest_line(omega, lam.imag)
-    lo = c
-    hi = c + 1
-    while lo > 0 and omega[lo - 1] >= lam.imag - half:
-        lo -= 1
-    while hi < n and omega[hi] <= lam.imag + half:
-        hi += 1
-    while hi - lo < min_points and (lo > 0 or hi < n):
-        if lo > 0 and (hi >= n or lam.imag - omega[lo - 1] <= omega[hi] - lam.imag):
-            lo -= 1
-        else:
-            hi += 1
-    return lo, hi
-
-
-@jit
 def _contribution_peak(omega, x, lam, res, dt, n_samples):
     """Largest |contribution| of one mode over the three lines nearest its damped frequency."""
-    c = _nearest_line(omega, lam.imag)
+    c = nearest_line(omega, lam.imag)
     lo = max(c - 1, 0)
     hi = min(c + 2, omega.shape[0])
     p, sc = _pole_factor(lam, dt, n_samples)
@@ -637,51 +534,6 @@ def _tolerance_envelope(omega, lam, res, n, tol):
     return env
 
 
-@jit
-def _band_energy_peak(stat, omega, lam, n, n_frf, pfa, min_points, masked):
-    """Model-order check near the existing modes: the sum of ``stat`` (|residual|^2 over the
-    noise variance, summed over ``n_frf`` FRFs) over the lines within ``+- 3 |Re lam_k|`` of each
-    mode is Gamma(n_lines n_frf)-distributed under noise alone. Returns the largest-``stat`` line
-    of the most significant window whose sum exceeds the threshold at ``pfa / n``, or -1.
-    This catches a coherent residual spread over a bandwidth (e.g. two close modes fitted as
-    one) that no single line shows."""
-    best_p = 1.0
-    best_line = -1
-    for k in range(n):
-        lo, hi = _model_band(omega, lam[k], 0.31622776601683794, min_points)  # +-3 |Re lam|
-        tot = 0.0
-        peak = -1
-        for i in range(lo, hi):
-            tot += stat[i]
-            if not masked[i] and (peak < 0 or stat[i] > stat[peak]):
-                peak = i
-        if peak < 0:
-            continue
-        dof = (hi - lo) * n_frf
-        pval = _gamma_tail(dof, tot)
-        if pval < pfa / n and pval < best_p:
-            best_p = pval
-            best_line = peak
-    return best_line
-
-
-@jit
-def _split_target(omega, lam, n, peak, masked):
-    """Index of the mode whose +-3 |Re lam| window holds line ``peak`` (not yet tried), or -1."""
-    best = -1
-    for k in range(n):
-        if abs(omega[peak] - lam[k].imag) <= 3.0 * abs(lam[k].real):
-            if best < 0 or abs(omega[peak] - lam[k].imag) < abs(omega[peak] - lam[best].imag):
-                best = k
-    return best
-
-
-@jit
-def _normalized_distance(a, b):
-    """|a - b| / (|Re a| + |Re b|): eigenvalue distance in units of half-power bandwidths."""
-    return abs(a - b) / (abs(a.real) + abs(b.real))
-
-
 # ----------------------------------------------------------------------------------------------
 # Subtraction Phase (eq. 6), one FRF
 # ----------------------------------------------------------------------------------------------
@@ -705,10 +557,10 @@ def _subtract_one(
 ):
     """Subtraction Phase on one FRF; returns ``(n_modes, sigma, statistic, reason)``."""
     n_f = data.shape[0]
-    sigma = _noise_floor(data)
+    sigma = noise_floor_kernel(data)
     scale_floor = 1e-14 * np.max(np.abs(data))
     sigma = max(sigma, scale_floor)
-    t = _peak_threshold(n_f, pfa)
+    t = peak_threshold_kernel(n_f, pfa)
     dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
     w_lo = max(omega[0], dw)
     w_hi = omega[n_f - 1]
@@ -738,7 +590,7 @@ def _subtract_one(
         if stat < t:
             reason = STOP_BELOW_FLOOR
             break
-        lo, hi = _band_around(power, peak, delta * delta * best)
+        lo, hi = band_around(power, peak, delta * delta * best)
         if hi - lo < min_points:
             for i in range(lo, hi):
                 masked[i] = True
@@ -762,7 +614,7 @@ def _subtract_one(
             continue
         merged = False
         for k in range(n_modes):
-            if _normalized_distance(lam, lam_out[k]) < merge_tol:
+            if normalized_distance(lam, lam_out[k]) < merge_tol:
                 # a duplicate of an earlier candidate: the residual left near that pole; fold the
                 # residue into the earlier candidate (poles this close add their residues)
                 res_out[k] = res_out[k] + res
@@ -889,11 +741,11 @@ def _isolate_sweeps(
                 hi = band_hi[k]
                 peak = (lo + hi) // 2
             elif model_band:
-                lo, hi = _model_band(omega, lam[k], delta, min_points)
-                peak = _nearest_line(omega, lam[k].imag)
+                lo, hi = pole_band(omega, lam[k], delta, min_points)
+                peak = nearest_line(omega, lam[k].imag)
             else:
-                peak = _local_peak(power, omega, lam[k], dw)
-                lo, hi = _band_around(power, peak, delta * delta * power[peak])
+                peak = local_peak(power, omega, lam[k], dw)
+                lo, hi = band_around(power, peak, delta * delta * power[peak])
             band_lo[k] = lo
             band_hi[k] = hi
             if hi - lo < min_points:
@@ -957,7 +809,7 @@ def _isolate_one(
     """Isolation Phase with the model-order check on one FRF (``lam``/``res`` updated in place,
     length ``max_modes``). Returns ``(n_modes, iterations, converged)``."""
     n_f = data.shape[0]
-    t = _peak_threshold(n_f, pfa)
+    t = peak_threshold_kernel(n_f, pfa)
     dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
     w_lo = max(omega[0], dw)
     w_hi = omega[n_f - 1]
@@ -998,7 +850,7 @@ def _isolate_one(
         while k < n:
             dup = -1
             for m in range(n):
-                if m != k and _normalized_distance(lam[k], lam[m]) < merge_tol:
+                if m != k and normalized_distance(lam[k], lam[m]) < merge_tol:
                     dup = m
                     break
             if dup >= 0:
@@ -1036,16 +888,16 @@ def _isolate_one(
                     best = stat[i]
                     peak = i
             if peak < 0 or best < t:
-                peak = _band_energy_peak(stat, omega, lam, n, 1, pfa, min_points, masked)
+                peak = band_energy_peak(stat, omega, lam, n, 1, pfa, min_points, masked)
                 if peak < 0:
                     break
             best = power[peak]
-            ks = _split_target(omega, lam, n, peak, masked)
+            ks = split_target(omega, lam, n, peak, masked)
             if ks >= 0:
                 # a coherent residual inside a mode's band: two close modes were probably fitted
                 # as one. Fit two modes to that mode's isolated data over +-3 |Re lam|; if both
                 # are physical they replace it. Each window is tried once.
-                wl, wh = _model_band(omega, lam[ks], 0.31622776601683794, max(min_points, 6))
+                wl, wh = pole_band(omega, lam[ks], 0.31622776601683794, max(min_points, 6))
                 for i in range(wl, wh):
                     masked[i] = True
                 iso = np.empty((1, n_f), dtype=np.complex128)
@@ -1079,7 +931,7 @@ def _isolate_one(
                     added = True
                     break
                 continue
-            lo, hi = _band_around(power, peak, delta * delta * best)
+            lo, hi = band_around(power, peak, delta * delta * best)
             if hi - lo < min_points:
                 for i in range(lo, hi):
                     masked[i] = True
@@ -1201,8 +1053,8 @@ def _simo_band(xw, omega, lam, dw, delta, wlo, whi):
     for j in range(n_p):
         for i in range(wlo, whi):
             power[i] += abs(xw[j, i]) ** 2
-    peak = _local_peak(power, omega, lam, dw)
-    lo, hi = _band_around(power, peak, delta * delta * power[peak])
+    peak = local_peak(power, omega, lam, dw)
+    lo, hi = band_around(power, peak, delta * delta * power[peak])
     return peak, max(lo, wlo), min(hi, whi)
 
 
@@ -1256,9 +1108,9 @@ def _simo_band_lazy(
     """:func:`_simo_band` computing the isolated data only on the lines it looks at (the peak
     search range and the band grown from the peak) instead of the whole window; same result."""
     half = max(2.0 * abs(lam.real), 2.0 * dw)
-    c = _nearest_line(omega, lam.imag)
-    plo = _nearest_line(omega, lam.imag - half)
-    phi = _nearest_line(omega, lam.imag + half)
+    c = nearest_line(omega, lam.imag)
+    plo = nearest_line(omega, lam.imag - half)
+    phi = nearest_line(omega, lam.imag + half)
     clo = max(min(plo, c), wlo)
     chi = min(max(phi, c) + 1, whi)
     if chi < clo:
@@ -1336,8 +1188,8 @@ def _isolate_simo(
     dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
     w_lo = max(omega[0], dw)
     w_hi = omega[n_f - 1]
-    t1 = _peak_threshold(n_f, pfa)
-    tsum = _sum_threshold(n_p, n_f, pfa)
+    t1 = peak_threshold_kernel(n_f, pfa)
+    tsum = sum_threshold_kernel(n_p, n_f, pfa)
     # work in units of each FRF's noise floor (SNR weighting of the FRFs)
     dw_data = np.empty((n_p, n_f), dtype=np.complex128)
     for j in range(n_p):
@@ -1394,8 +1246,8 @@ def _isolate_simo(
                 k = order[kk]
                 # isolated data only where the fit can look: +- max(20 |Re lam|, 40 lines)
                 wide = max(20.0 * abs(lam[k].real), 40.0 * dw)
-                wlo = _nearest_line(omega, lam[k].imag - wide)
-                whi = _nearest_line(omega, lam[k].imag + wide) + 1
+                wlo = nearest_line(omega, lam[k].imag - wide)
+                whi = nearest_line(omega, lam[k].imag + wide) + 1
                 if band_hi[k] > 0:
                     wlo = min(wlo, band_lo[k])
                     whi = max(whi, band_hi[k])
@@ -1414,8 +1266,8 @@ def _isolate_simo(
                         dw_data, res, br, bi, bcr, bci, n, k, lo, hi, xn, power_w, tr, ti
                     )
                 elif model_band:
-                    lo, hi = _model_band(omega, lam[k], delta, min_points)
-                    peak = _nearest_line(omega, lam[k].imag)
+                    lo, hi = pole_band(omega, lam[k], delta, min_points)
+                    peak = nearest_line(omega, lam[k].imag)
                     _isolated_lines(
                         dw_data, res, br, bi, bcr, bci, n, k, lo, hi, xn, power_w, tr, ti
                     )
@@ -1497,7 +1349,7 @@ def _isolate_simo(
         while k < n:
             dup = -1
             for m in range(n):
-                if m != k and _normalized_distance(lam[k], lam[m]) < merge_tol:
+                if m != k and normalized_distance(lam[k], lam[m]) < merge_tol:
                     dup = m
                     break
             if dup >= 0:
@@ -1569,14 +1421,14 @@ def _isolate_simo(
                     best = stat[i]
                     peak = i
             if peak < 0 or best < tsum:
-                peak = _band_energy_peak(stat, omega, lam, n, n_p, pfa, min_points, masked)
+                peak = band_energy_peak(stat, omega, lam, n, n_p, pfa, min_points, masked)
                 if peak < 0:
                     break
             best = power[peak]
-            ks = _split_target(omega, lam, n, peak, masked)
+            ks = split_target(omega, lam, n, peak, masked)
             if ks >= 0:
                 # split a mode with a coherent residual in its band (see _isolate_one)
-                wl, wh = _model_band(omega, lam[ks], 0.31622776601683794, max(min_points, 6))
+                wl, wh = pole_band(omega, lam[ks], 0.31622776601683794, max(min_points, 6))
                 for i in range(wl, wh):
                     masked[i] = True
                 iso = xn.copy()
@@ -1611,7 +1463,7 @@ def _isolate_simo(
                     added = True
                     break
                 continue
-            lo, hi = _band_around(power, peak, delta * delta * best)
+            lo, hi = band_around(power, peak, delta * delta * best)
             if hi - lo < min_points:
                 for i in range(lo, hi):
                     masked[i] = True
@@ -1903,18 +1755,6 @@ def residues_fixed(data, omega, lam, use=None, dt=None, n_samples=None, residual
     return _residues_fixed(data, omega, lam, _dt(dt), int(n_samples or 0), use, int(residual_kind))
 
 
-def noise_floor(data):
-    """Robust noise standard deviation per FRF (..., F) from adjacent-line differences."""
-    data = np.ascontiguousarray(data, dtype=np.complex128)
-    flat = data.reshape(-1, data.shape[-1])
-    return np.array([_noise_floor(row) for row in flat]).reshape(data.shape[:-1])
-
-
-def peak_threshold(n_lines, pfa):
-    """Single-line detection threshold on ``|Y|^2 / sigma^2`` (see :func:`_peak_threshold`)."""
-    return _peak_threshold(int(n_lines), float(pfa))
-
-
 # ----------------------------------------------------------------------------------------------
 # per-point diagnostics
 # ----------------------------------------------------------------------------------------------
@@ -1958,8 +1798,8 @@ def _point_estimates(data, omega, dt, n_samples, lam, res, delta, min_points, ze
             _add_mode(xn, x, lam[kk], res[j, kk], dt, n_samples, 1.0, 0, n_f)
             for i in range(n_f):
                 power[i] = abs(xn[i]) ** 2
-            peak = _local_peak(power, omega, lam[kk], dw)
-            lo, hi = _band_around(power, peak, delta * delta * power[peak])
+            peak = local_peak(power, omega, lam[kk], dw)
+            lo, hi = band_around(power, peak, delta * delta * power[peak])
             if hi - lo < min_points:
                 continue
             ws = omega[peak] if omega[peak] > 0.0 else dw
