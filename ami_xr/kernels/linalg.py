@@ -16,6 +16,7 @@ import numpy as np
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
 
+
 @jit
 def gauss_solve(a, b):
     """Solve ``a x = b`` (n x n, n x m) by Gaussian elimination with partial pivoting.
