@@ -1,11 +1,11 @@
 """Figures engineers judge a curve-fit by (matplotlib, an optional extra).
 
 Every function takes an identification result (or an FRF Dataset, for what it needs) and returns
-a :class:`matplotlib.figure.Figure`; with ``path=`` it also saves it (PNG, or any format matplotlib
-knows by the suffix). Figures are built on matplotlib's object API with an Agg canvas attached
-inside each function: importing this module imports no matplotlib, selects no backend and changes
-no global state, so it is safe in scripts, servers, tests and notebooks alike (a notebook shows a
-returned Figure as usual).
+a :class:`matplotlib.figure.Figure`; with ``path=`` it also saves it (PNG, or any format
+matplotlib knows by the suffix), atomically through :mod:`ami_xr.io.atomic`. Figures are built
+on matplotlib's object API with an Agg canvas attached inside each function: importing this
+module imports no matplotlib, selects no backend and changes no global state, so it is safe in
+scripts, servers, tests and notebooks alike (a notebook shows a returned Figure as usual).
 
 A figure whose inputs are missing raises :class:`ami_xr.errors.AmiXrValueError` naming the missing
 variable; :func:`ami_xr.report.report` turns that into a "not produced" note.
@@ -22,6 +22,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError
+from ami_xr.io.atomic import atomic_open
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -56,7 +57,10 @@ def _new_figure(width: float, height: float) -> Figure:
 
 def _finish(fig: Figure, path: str | os.PathLike | None) -> Figure:
     if path is not None:
-        fig.savefig(os.fspath(path), dpi=110)
+        # Saved atomically; matplotlib cannot see the suffix of a file object, so pass it on.
+        suffix = os.path.splitext(os.fspath(path))[1][1:].lower()
+        with atomic_open(path, "wb") as fh:
+            fig.savefig(fh, format=suffix or None, dpi=110)
     return fig
 
 

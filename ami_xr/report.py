@@ -10,8 +10,6 @@ import csv
 import html
 import io
 import os
-import tempfile
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +18,8 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, DataFileError
+from ami_xr.io.atomic import atomic_open
+from ami_xr.provenance import ATTR_FUNCTION
 
 __all__ = ["modal_table", "format_modal_table", "report", "FIGURES"]
 
@@ -179,19 +179,6 @@ def format_modal_table(
     return "\n".join(lines)
 
 
-def _atomic_write_bytes(path: Path, write: Callable[[Any], None], mode: str = "wb") -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(
-            fd, mode, **({} if "b" in mode else {"encoding": "utf-8", "newline": ""})
-        ) as fh:
-            write(fh)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-
-
 def _attrs_summary(ds: xr.Dataset) -> list[tuple[str, str]]:
     keys = (
         names.ATTR_SOURCE_FILE,
@@ -200,7 +187,7 @@ def _attrs_summary(ds: xr.Dataset) -> list[tuple[str, str]]:
         names.ATTR_FRF_TYPE,
         names.ATTR_SOURCE,
         names.ATTR_VERSION,
-        "ami_xr_function",
+        ATTR_FUNCTION,
     )
     out = [(k, str(ds.attrs[k])) for k in keys if k in ds.attrs]
     if names.POINT in ds.sizes:
@@ -260,8 +247,8 @@ def report(
         except AmiXrValueError as err:
             skipped.append((stem, str(err)))
             continue
-        target = outdir / f"{stem}.png"
-        _atomic_write_bytes(target, lambda fh, fig=fig: fig.savefig(fh, format="png", dpi=110))
+        with atomic_open(outdir / f"{stem}.png", "wb") as fh:
+            fig.savefig(fh, format="png", dpi=110)
         made.append((stem, caption))
     try:
         rows = modal_table(ds)
@@ -269,13 +256,10 @@ def report(
         rows = []
         skipped.append(("modal table", str(err)))
     if rows:
-
-        def write_csv(fh):
+        with atomic_open(outdir / "modal_table.csv", "w") as fh:
             writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
             writer.writeheader()
             writer.writerows(rows)
-
-        _atomic_write_bytes(outdir / "modal_table.csv", write_csv, mode="w")
     page = _html(
         ds,
         rows,
@@ -284,7 +268,8 @@ def report(
         title or f"ami_xr report: {ds.attrs.get(names.ATTR_SOURCE_FILE, 'dataset')}",
     )
     index = outdir / "index.html"
-    _atomic_write_bytes(index, lambda fh: fh.write(page.encode("utf-8")))
+    with atomic_open(index, "wb") as fh:
+        fh.write(page.encode("utf-8"))
     return index
 
 

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import stat
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -135,3 +138,43 @@ def test_modal_table_rows_and_text(benchmark_result):
     assert "f [Hz]" in text and "w [rad/s]" in text and "zeta [%]" in text
     assert "detected in" in text and "flags" in text
     assert len(text.splitlines()) == lam.size + 2
+
+
+# --- atomic, normal-mode files ------------------------------------------------------------------
+def _normal_mode() -> int:
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+def test_report_files_get_the_normal_file_mode(tmp_path, benchmark_result):
+    index = report(benchmark_result, tmp_path / "rep", figures=("mac",))
+    files = sorted(index.parent.iterdir())
+    assert [p.name for p in files] == ["index.html", "mac.png", "modal_table.csv"]
+    for p in files:
+        assert stat.S_IMODE(p.stat().st_mode) == _normal_mode(), p.name
+    saved = ami_xr.plot_mac(benchmark_result, path=tmp_path / "mac.svg")
+    assert saved.axes and (tmp_path / "mac.svg").read_text().lstrip().startswith("<?xml")
+    assert stat.S_IMODE((tmp_path / "mac.svg").stat().st_mode) == _normal_mode()
+
+
+def test_failure_mid_report_leaves_files_intact_and_no_temporary(
+    tmp_path, benchmark_result, monkeypatch
+):
+    from matplotlib.figure import Figure
+
+    index = report(benchmark_result, tmp_path / "rep", figures=("mac",))
+    before = {p.name: p.read_bytes() for p in index.parent.iterdir()}
+    real_savefig = Figure.savefig
+
+    def half_write_then_fail(self, fh, *args, **kwargs):
+        real_savefig(self, fh, *args, **kwargs)
+        fh.truncate(10)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(Figure, "savefig", half_write_then_fail)
+    with pytest.raises(KeyboardInterrupt):
+        report(benchmark_result, tmp_path / "rep", figures=("mac",))
+    with pytest.raises(KeyboardInterrupt):
+        ami_xr.plot_mac(benchmark_result, path=index.parent / "mac.png")
+    assert {p.name: p.read_bytes() for p in index.parent.iterdir()} == before
