@@ -11,7 +11,8 @@ import xarray as xr
 import ami_xr
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, SchemaError
-from ami_xr.io.schema import make_frf_dataset, make_time_dataset, validate
+from ami_xr.io.datasets import make_frf_dataset, make_time_dataset
+from ami_xr.io.schema import validate
 
 # --- helpers ----------------------------------------------------------------------------------
 

@@ -1,9 +1,9 @@
-"""Schema validation of ami_xr Datasets, and constructors that build conforming ones.
+"""Schema validation of ami_xr Datasets.
 
 :func:`validate` checks a Dataset against the data model (see ``ami_xr.names`` and the README's
 "Data model" section) and reports every problem at once in one :class:`~ami_xr.errors.SchemaError`.
-:func:`make_frf_dataset` and :func:`make_time_dataset` build a valid Dataset from plain arrays in
-one call; their errors name the argument instead of the variable.
+:func:`find_problems` returns the same list without raising, phrased in the caller's argument names
+if asked (the constructors of :mod:`ami_xr.io.datasets` use it).
 """
 
 from __future__ import annotations
@@ -19,7 +19,14 @@ from ami_xr import names
 from ami_xr._coords import RangeAxis, range_axis
 from ami_xr.errors import AmiXrValueError, SchemaError
 
-__all__ = ["validate", "make_frf_dataset", "make_time_dataset", "KINDS", "UNIFORM_RTOL"]
+__all__ = [
+    "validate",
+    "find_problems",
+    "is_positive_number",
+    "python_scalar",
+    "KINDS",
+    "UNIFORM_RTOL",
+]
 
 KINDS = ("frf", "time")
 
@@ -36,11 +43,11 @@ _MULTI_REFERENCE = (
 
 def _shorten(values: Any, limit: int = 8) -> str:
     values = list(values)
-    text = ", ".join(repr(_plain(v)) for v in values[:limit])
+    text = ", ".join(repr(python_scalar(v)) for v in values[:limit])
     return f"[{text}{', ...' if len(values) > limit else ''}]"
 
 
-def _plain(value: Any) -> Any:
+def python_scalar(value: Any) -> Any:
     """numpy scalars -> Python scalars so messages read ``3`` rather than ``np.int64(3)``."""
     return value.item() if isinstance(value, np.generic) else value
 
@@ -235,12 +242,12 @@ def _check_drive_point(
         kind = "str"
     if not ok_type:
         problems.append(
-            f"{subject}: expected a point label of type {kind}, got {_plain(dp)!r} "
+            f"{subject}: expected a point label of type {kind}, got {python_scalar(dp)!r} "
             f"({type(dp).__name__})"
         )
     elif not np.any(labels == dp):
         problems.append(
-            f"{subject}: {_plain(dp)!r} is not among the point labels {_shorten(labels)}"
+            f"{subject}: {python_scalar(dp)!r} is not among the point labels {_shorten(labels)}"
         )
 
 
@@ -285,7 +292,8 @@ def _check_quantity_units(
     return resp_units, force_units
 
 
-def _is_positive_number(value: Any) -> bool:
+def is_positive_number(value: Any) -> bool:
+    """True for a finite real number above 0 (not a bool)."""
     return (
         isinstance(value, Real)
         and not isinstance(value, (bool, np.bool_))
@@ -349,25 +357,25 @@ def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool,
         problems.append(f"{namer.attr(names.ATTR_SOURCE)}: expected one of {names.SOURCES}, {got}")
     if source == names.SOURCE_IMPULSE:
         dt = ds.attrs.get(names.ATTR_DT)
-        if not _is_positive_number(dt):
-            got = "missing" if dt is None else f"got {_plain(dt)!r}"
+        if not is_positive_number(dt):
+            got = "missing" if dt is None else f"got {python_scalar(dt)!r}"
             problems.append(
                 f"{namer.attr(names.ATTR_DT)}: expected a positive sample interval in s "
                 f"because frf_source is {source!r}, {got}"
             )
         n = ds.attrs.get(names.ATTR_NSAMPLES)
-        if not (_is_positive_number(n) and isinstance(n, Integral)):
-            got = "missing" if n is None else f"got {_plain(n)!r}"
+        if not (is_positive_number(n) and isinstance(n, Integral)):
+            got = "missing" if n is None else f"got {python_scalar(n)!r}"
             problems.append(
                 f"{namer.attr(names.ATTR_NSAMPLES)}: expected a positive integer record length "
                 f"because frf_source is {source!r}, {got}"
             )
     if names.ATTR_EXP_DECAY in ds.attrs:
         decay = ds.attrs[names.ATTR_EXP_DECAY]
-        if not (_is_positive_number(decay) or (isinstance(decay, Real) and decay == 0)):
+        if not (is_positive_number(decay) or (isinstance(decay, Real) and decay == 0)):
             problems.append(
                 f"{namer.attr(names.ATTR_EXP_DECAY)}: expected a finite decay rate >= 0 in 1/s, "
-                f"got {_plain(decay)!r}"
+                f"got {python_scalar(decay)!r}"
             )
     return problems
 
@@ -428,9 +436,39 @@ def _time_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool
     return problems
 
 
-def _problems(
-    ds: Any, kind: str | None, require_drive_point: bool, check_values: bool, namer: _Namer
+def find_problems(
+    ds: Any,
+    kind: str | None = None,
+    *,
+    require_drive_point: bool = True,
+    check_values: bool = True,
+    arguments: Mapping[str, str] | None = None,
 ) -> tuple[str, list[str]]:
+    """What :func:`validate` checks, without raising: a description of ``ds`` and its problems.
+
+    Parameters
+    ----------
+    ds, kind, require_drive_point, check_values
+        As for :func:`validate`.
+    arguments : mapping of str to str, optional
+        Dataset names (variables, coordinates, attributes, or ``"var.attr"``) to the argument
+        names a constructor took them from; messages then say "argument 'points'" rather than
+        "coordinate 'point'".
+
+    Returns
+    -------
+    what : str
+        ``"FRF Dataset"``, ``"Time Dataset"`` or ``"Dataset"`` (kind not recognised).
+    problems : list of str
+        Every problem found, each naming the part and what was expected; empty when ``ds``
+        conforms.
+
+    Raises
+    ------
+    AmiXrValueError
+        If ``ds`` is not a Dataset or ``kind`` is unknown.
+    """
+    namer = _Namer(arguments)
     if not isinstance(ds, xr.Dataset):
         hint = " (e.g. da.to_dataset(name='frf'))" if isinstance(ds, xr.DataArray) else ""
         raise AmiXrValueError(f"ds: expected an xarray.Dataset{hint}, got {type(ds).__name__}")
@@ -501,249 +539,9 @@ def validate(
     >>> ami_xr.validate(ds) is ds
     True
     """
-    what, problems = _problems(ds, kind, require_drive_point, check_values, _Namer())
-    if problems:
-        raise SchemaError(problems, what=what)
-    return ds
-
-
-# --- constructors ------------------------------------------------------------------------------
-
-
-def _as_array(value: Any, argument: str) -> Any:
-    """ndarray (or dask array, kept lazy) from array-like ``value``."""
-    if isinstance(value, xr.DataArray):
-        value = value.data
-    if type(value).__module__.startswith("dask"):
-        return value
-    try:
-        return np.asarray(value)
-    except (TypeError, ValueError) as err:
-        raise AmiXrValueError(f"{argument}: expected an array, got {type(value).__name__}") from err
-
-
-def _labels(points: Any, n: int, argument: str = "points") -> np.ndarray:
-    if points is None:
-        return np.arange(n)
-    labels = np.asarray(points)
-    if labels.ndim != 1 or labels.shape[0] != n:
-        raise AmiXrValueError(
-            f"{argument}: expected {n} labels (one per point), got shape {labels.shape}"
-        )
-    return labels
-
-
-def _raise_problems(problems: list[str], function: str) -> None:
-    if problems:
-        raise SchemaError(problems, what=f"{function} arguments")
-
-
-def _std_attrs(
-    drive_point: Any, response_quantity: str, response_units: str, force_units: str
-) -> dict[str, Any]:
-    attrs: dict[str, Any] = {}
-    if drive_point is not None:
-        attrs[names.ATTR_DRIVE_POINT] = _plain(drive_point)
-    attrs[names.ATTR_QUANTITY] = response_quantity
-    attrs[names.ATTR_RESPONSE_UNITS] = response_units
-    attrs[names.ATTR_FORCE_UNITS] = force_units
-    return attrs
-
-
-_ARGUMENTS = {
-    names.FRF: "frf",
-    names.RESPONSE: "response",
-    names.FORCE: "force",
-    names.FREQUENCY: "frequency",
-    names.TIME: "time",
-    names.POINT: "points",
-    names.ATTR_DRIVE_POINT: "drive_point",
-    names.ATTR_QUANTITY: "response_quantity",
-    names.ATTR_RESPONSE_UNITS: "response_units",
-    names.ATTR_FORCE_UNITS: "force_units",
-    names.ATTR_SOURCE: "frf_source",
-}
-
-
-def make_frf_dataset(
-    frf: Any,
-    frequency: Any,
-    points: Any = None,
-    drive_point: Any = None,
-    response_quantity: str = "displacement",
-    response_units: str = "m",
-    force_units: str = "N",
-    frf_source: str = names.SOURCE_MEASURED,
-    **attrs: Any,
-) -> xr.Dataset:
-    """Build a valid FRF Dataset from plain arrays (validated; errors name the argument).
-
-    Parameters
-    ----------
-    frf : array_like of complex, shape (n_point, n_frequency) or (n_frequency,)
-        FRF values; a 1-D array is one point. Real input is rejected (not cast). A dask array
-        stays lazy.
-    frequency : array_like of float, shape (n_frequency,)
-        Frequencies in Hz, non-negative and strictly increasing.
-    points : array_like of int or str, optional
-        Unique point labels; default ``0 .. n_point - 1``.
-    drive_point : int or str, optional
-        Label of the point where the force acts. ``None`` leaves the ``drive_point`` attribute
-        out (AMI then leaves mode vectors unscaled).
-    response_quantity : {"displacement", "velocity", "acceleration"}
-        Sets ``frf_type`` to receptance, mobility or accelerance.
-    response_units, force_units : str
-        One of ``names.RESPONSE_UNITS[response_quantity]`` and of ``names.FORCE_UNITS``;
-        ``frf.attrs["units"]`` becomes ``"<response_units>/<force_units>"``.
-    frf_source : str
-        One of ``names.SOURCES``. For ``"impulse_response"`` pass ``sample_interval=dt`` and
-        ``record_samples=N`` as keyword attributes.
-    **attrs
-        Further Dataset attributes (e.g. ``sample_interval``, ``record_samples``,
-        ``exponential_window_decay``, ``title``).
-
-    Returns
-    -------
-    xarray.Dataset
-
-    Raises
-    ------
-    AmiXrValueError
-        Shapes that do not fit together.
-    SchemaError
-        Every other problem, each naming the argument.
-    """
-    values = _as_array(frf, "frf")
-    if values.ndim == 1:
-        values = values[None, :]
-    if values.ndim != 2:
-        raise AmiXrValueError(
-            f"frf: expected shape (n_point, n_frequency) or (n_frequency,), got {values.shape}"
-            + (" (multi-reference not supported yet)" if values.ndim == 3 else "")
-        )
-    freq = _as_array(frequency, "frequency")
-    if freq.ndim != 1 or freq.shape[0] != values.shape[1]:
-        raise AmiXrValueError(
-            f"frequency: expected {values.shape[1]} values (frf.shape[-1]), got shape {freq.shape}"
-        )
-    labels = _labels(points, values.shape[0])
-    ds_attrs = _std_attrs(drive_point, response_quantity, response_units, force_units)
-    frf_type = names.QUANTITY_TO_FRF_TYPE.get(response_quantity)
-    if frf_type is not None:
-        ds_attrs[names.ATTR_FRF_TYPE] = frf_type
-    ds_attrs[names.ATTR_SOURCE] = frf_source
-    ds_attrs.update(attrs)
-    ds = xr.Dataset(
-        {
-            names.FRF: (
-                (names.POINT, names.FREQUENCY),
-                values,
-                {names.ATTR_UNITS: names.frf_units(str(response_units), str(force_units))},
-            )
-        },
-        coords={
-            names.POINT: labels,
-            names.FREQUENCY: (names.FREQUENCY, freq, {names.ATTR_UNITS: names.FREQUENCY_UNITS}),
-        },
-        attrs=ds_attrs,
+    what, found = find_problems(
+        ds, kind, require_drive_point=require_drive_point, check_values=check_values
     )
-    namer = _Namer(_ARGUMENTS)
-    _, problems = _problems(ds, "frf", drive_point is not None, True, namer)
-    _raise_problems(problems, "make_frf_dataset")
-    return ds
-
-
-def make_time_dataset(
-    response: Any,
-    time: Any = None,
-    *,
-    fs: float | None = None,
-    force: Any = None,
-    points: Any = None,
-    drive_point: Any = None,
-    response_quantity: str = "displacement",
-    response_units: str = "m",
-    force_units: str = "N",
-    **attrs: Any,
-) -> xr.Dataset:
-    """Build a valid time Dataset from plain arrays (validated; errors name the argument).
-
-    Parameters
-    ----------
-    response : array_like of float, shape (n_point, n_time), (n_record, n_point, n_time), (n_time,)
-        Response histories; a 1-D array is one point. A dask array stays lazy.
-    time : array_like of float, shape (n_time,), optional
-        Sample times in s, uniformly spaced. Give exactly one of ``time`` and ``fs``.
-    fs : float, optional
-        Sampling rate in Hz; the time axis is then ``arange(n_time) / fs``.
-    force : array_like of float, shape (n_time,) or (n_record, n_time), optional
-        Force history. ``None`` means the responses are impulse responses to a unit impulse:
-        the attribute ``excitation = "unit_impulse"`` is set.
-    points, drive_point, response_quantity, response_units, force_units
-        As for :func:`make_frf_dataset`.
-    **attrs
-        Further Dataset attributes.
-
-    Returns
-    -------
-    xarray.Dataset
-        ``response`` dims ``([record,] point, time)``, ``force`` dims ``([record,] time)``,
-        ``time`` coordinate with units ``"s"``.
-    """
-    values = _as_array(response, "response")
-    if values.ndim == 1:
-        values = values[None, :]
-    if values.ndim not in (2, 3):
-        raise AmiXrValueError(
-            f"response: expected shape (n_point, n_time), (n_record, n_point, n_time) or "
-            f"(n_time,), got {values.shape}"
-        )
-    n_time = values.shape[-1]
-    if (time is None) == (fs is None):
-        raise AmiXrValueError(
-            "time, fs: give exactly one of the time axis (s) or the sampling rate"
-        )
-    if fs is not None:
-        if not _is_positive_number(fs):
-            raise AmiXrValueError(f"fs: expected a positive sampling rate in Hz, got {fs!r}")
-        t = np.arange(n_time) / float(fs)
-    else:
-        t = _as_array(time, "time")
-        if t.ndim != 1 or t.shape[0] != n_time:
-            raise AmiXrValueError(
-                f"time: expected {n_time} values (response.shape[-1]), got shape {t.shape}"
-            )
-    dims = (
-        (names.POINT, names.TIME) if values.ndim == 2 else (names.RECORD, names.POINT, names.TIME)
-    )
-    labels = _labels(points, values.shape[-2])
-    data_vars: dict[str, Any] = {names.RESPONSE: (dims, values, {names.ATTR_UNITS: response_units})}
-    coords: dict[str, Any] = {
-        names.POINT: labels,
-        names.TIME: (names.TIME, t, {names.ATTR_UNITS: names.TIME_UNITS}),
-    }
-    if values.ndim == 3:
-        coords[names.RECORD] = np.arange(values.shape[0])
-    ds_attrs = _std_attrs(drive_point, response_quantity, response_units, force_units)
-    if force is None:
-        ds_attrs[names.ATTR_EXCITATION] = names.EXCITATION_UNIT_IMPULSE
-    else:
-        f = _as_array(force, "force")
-        want = values.shape[:1] + (n_time,) if values.ndim == 3 else (n_time,)
-        if f.shape == (n_time,):
-            fdims: tuple[str, ...] = (names.TIME,)
-        elif values.ndim == 3 and f.shape == want:
-            fdims = (names.RECORD, names.TIME)
-        else:
-            raise AmiXrValueError(
-                f"force: expected shape {(n_time,)}"
-                + (f" or {want}" if values.ndim == 3 else "")
-                + f", got {f.shape}"
-            )
-        data_vars[names.FORCE] = (fdims, f, {names.ATTR_UNITS: force_units})
-    ds_attrs.update(attrs)
-    ds = xr.Dataset(data_vars, coords=coords, attrs=ds_attrs)
-    namer = _Namer(_ARGUMENTS)
-    _, problems = _problems(ds, "time", drive_point is not None, True, namer)
-    _raise_problems(problems, "make_time_dataset")
+    if found:
+        raise SchemaError(found, what=what)
     return ds

@@ -1,0 +1,260 @@
+"""Constructors: build a valid FRF or time Dataset from plain arrays in one call.
+
+:func:`make_frf_dataset` and :func:`make_time_dataset` assemble the Dataset, then check it with
+:func:`ami_xr.io.schema.find_problems`; their errors name the argument (``points``) instead of
+the Dataset part (coordinate ``point``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.errors import AmiXrValueError, SchemaError
+from ami_xr.io.schema import find_problems, is_positive_number, python_scalar
+
+__all__ = ["make_frf_dataset", "make_time_dataset"]
+
+
+def _as_array(value: Any, argument: str) -> Any:
+    """ndarray (or dask array, kept lazy) from array-like ``value``."""
+    if isinstance(value, xr.DataArray):
+        value = value.data
+    if type(value).__module__.startswith("dask"):
+        return value
+    try:
+        return np.asarray(value)
+    except (TypeError, ValueError) as err:
+        raise AmiXrValueError(f"{argument}: expected an array, got {type(value).__name__}") from err
+
+
+def _labels(points: Any, n: int, argument: str = "points") -> np.ndarray:
+    if points is None:
+        return np.arange(n)
+    labels = np.asarray(points)
+    if labels.ndim != 1 or labels.shape[0] != n:
+        raise AmiXrValueError(
+            f"{argument}: expected {n} labels (one per point), got shape {labels.shape}"
+        )
+    return labels
+
+
+def _std_attrs(
+    drive_point: Any, response_quantity: str, response_units: str, force_units: str
+) -> dict[str, Any]:
+    attrs: dict[str, Any] = {}
+    if drive_point is not None:
+        attrs[names.ATTR_DRIVE_POINT] = python_scalar(drive_point)
+    attrs[names.ATTR_QUANTITY] = response_quantity
+    attrs[names.ATTR_RESPONSE_UNITS] = response_units
+    attrs[names.ATTR_FORCE_UNITS] = force_units
+    return attrs
+
+
+_ARGUMENTS = {
+    names.FRF: "frf",
+    names.RESPONSE: "response",
+    names.FORCE: "force",
+    names.FREQUENCY: "frequency",
+    names.TIME: "time",
+    names.POINT: "points",
+    names.ATTR_DRIVE_POINT: "drive_point",
+    names.ATTR_QUANTITY: "response_quantity",
+    names.ATTR_RESPONSE_UNITS: "response_units",
+    names.ATTR_FORCE_UNITS: "force_units",
+    names.ATTR_SOURCE: "frf_source",
+}
+
+
+def _raise_problems(
+    ds: xr.Dataset, kind: str, require_drive_point: bool, function: str
+) -> None:
+    """Validate what a constructor built; messages name its arguments (:data:`_ARGUMENTS`)."""
+    _, problems = find_problems(
+        ds, kind, require_drive_point=require_drive_point, arguments=_ARGUMENTS
+    )
+    if problems:
+        raise SchemaError(problems, what=f"{function} arguments")
+
+
+def make_frf_dataset(
+    frf: Any,
+    frequency: Any,
+    points: Any = None,
+    drive_point: Any = None,
+    response_quantity: str = "displacement",
+    response_units: str = "m",
+    force_units: str = "N",
+    frf_source: str = names.SOURCE_MEASURED,
+    **attrs: Any,
+) -> xr.Dataset:
+    """Build a valid FRF Dataset from plain arrays (validated; errors name the argument).
+
+    Parameters
+    ----------
+    frf : array_like of complex, shape (n_point, n_frequency) or (n_frequency,)
+        FRF values; a 1-D array is one point. Real input is rejected (not cast). A dask array
+        stays lazy.
+    frequency : array_like of float, shape (n_frequency,)
+        Frequencies in Hz, non-negative and strictly increasing.
+    points : array_like of int or str, optional
+        Unique point labels; default ``0 .. n_point - 1``.
+    drive_point : int or str, optional
+        Label of the point where the force acts. ``None`` leaves the ``drive_point`` attribute
+        out (AMI then leaves mode vectors unscaled).
+    response_quantity : {"displacement", "velocity", "acceleration"}
+        Sets ``frf_type`` to receptance, mobility or accelerance.
+    response_units, force_units : str
+        One of ``names.RESPONSE_UNITS[response_quantity]`` and of ``names.FORCE_UNITS``;
+        ``frf.attrs["units"]`` becomes ``"<response_units>/<force_units>"``.
+    frf_source : str
+        One of ``names.SOURCES``. For ``"impulse_response"`` pass ``sample_interval=dt`` and
+        ``record_samples=N`` as keyword attributes.
+    **attrs
+        Further Dataset attributes (e.g. ``sample_interval``, ``record_samples``,
+        ``exponential_window_decay``, ``title``).
+
+    Returns
+    -------
+    xarray.Dataset
+
+    Raises
+    ------
+    AmiXrValueError
+        Shapes that do not fit together.
+    SchemaError
+        Every other problem, each naming the argument.
+    """
+    values = _as_array(frf, "frf")
+    if values.ndim == 1:
+        values = values[None, :]
+    if values.ndim != 2:
+        raise AmiXrValueError(
+            f"frf: expected shape (n_point, n_frequency) or (n_frequency,), got {values.shape}"
+            + (" (multi-reference not supported yet)" if values.ndim == 3 else "")
+        )
+    freq = _as_array(frequency, "frequency")
+    if freq.ndim != 1 or freq.shape[0] != values.shape[1]:
+        raise AmiXrValueError(
+            f"frequency: expected {values.shape[1]} values (frf.shape[-1]), got shape {freq.shape}"
+        )
+    labels = _labels(points, values.shape[0])
+    ds_attrs = _std_attrs(drive_point, response_quantity, response_units, force_units)
+    frf_type = names.QUANTITY_TO_FRF_TYPE.get(response_quantity)
+    if frf_type is not None:
+        ds_attrs[names.ATTR_FRF_TYPE] = frf_type
+    ds_attrs[names.ATTR_SOURCE] = frf_source
+    ds_attrs.update(attrs)
+    ds = xr.Dataset(
+        {
+            names.FRF: (
+                (names.POINT, names.FREQUENCY),
+                values,
+                {names.ATTR_UNITS: names.frf_units(str(response_units), str(force_units))},
+            )
+        },
+        coords={
+            names.POINT: labels,
+            names.FREQUENCY: (names.FREQUENCY, freq, {names.ATTR_UNITS: names.FREQUENCY_UNITS}),
+        },
+        attrs=ds_attrs,
+    )
+    _raise_problems(ds, "frf", drive_point is not None, "make_frf_dataset")
+    return ds
+
+
+def make_time_dataset(
+    response: Any,
+    time: Any = None,
+    *,
+    fs: float | None = None,
+    force: Any = None,
+    points: Any = None,
+    drive_point: Any = None,
+    response_quantity: str = "displacement",
+    response_units: str = "m",
+    force_units: str = "N",
+    **attrs: Any,
+) -> xr.Dataset:
+    """Build a valid time Dataset from plain arrays (validated; errors name the argument).
+
+    Parameters
+    ----------
+    response : array_like of float, shape (n_point, n_time), (n_record, n_point, n_time), (n_time,)
+        Response histories; a 1-D array is one point. A dask array stays lazy.
+    time : array_like of float, shape (n_time,), optional
+        Sample times in s, uniformly spaced. Give exactly one of ``time`` and ``fs``.
+    fs : float, optional
+        Sampling rate in Hz; the time axis is then ``arange(n_time) / fs``.
+    force : array_like of float, shape (n_time,) or (n_record, n_time), optional
+        Force history. ``None`` means the responses are impulse responses to a unit impulse:
+        the attribute ``excitation = "unit_impulse"`` is set.
+    points, drive_point, response_quantity, response_units, force_units
+        As for :func:`make_frf_dataset`.
+    **attrs
+        Further Dataset attributes.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``response`` dims ``([record,] point, time)``, ``force`` dims ``([record,] time)``,
+        ``time`` coordinate with units ``"s"``.
+    """
+    values = _as_array(response, "response")
+    if values.ndim == 1:
+        values = values[None, :]
+    if values.ndim not in (2, 3):
+        raise AmiXrValueError(
+            f"response: expected shape (n_point, n_time), (n_record, n_point, n_time) or "
+            f"(n_time,), got {values.shape}"
+        )
+    n_time = values.shape[-1]
+    if (time is None) == (fs is None):
+        raise AmiXrValueError(
+            "time, fs: give exactly one of the time axis (s) or the sampling rate"
+        )
+    if fs is not None:
+        if not is_positive_number(fs):
+            raise AmiXrValueError(f"fs: expected a positive sampling rate in Hz, got {fs!r}")
+        t = np.arange(n_time) / float(fs)
+    else:
+        t = _as_array(time, "time")
+        if t.ndim != 1 or t.shape[0] != n_time:
+            raise AmiXrValueError(
+                f"time: expected {n_time} values (response.shape[-1]), got shape {t.shape}"
+            )
+    dims = (
+        (names.POINT, names.TIME) if values.ndim == 2 else (names.RECORD, names.POINT, names.TIME)
+    )
+    labels = _labels(points, values.shape[-2])
+    data_vars: dict[str, Any] = {names.RESPONSE: (dims, values, {names.ATTR_UNITS: response_units})}
+    coords: dict[str, Any] = {
+        names.POINT: labels,
+        names.TIME: (names.TIME, t, {names.ATTR_UNITS: names.TIME_UNITS}),
+    }
+    if values.ndim == 3:
+        coords[names.RECORD] = np.arange(values.shape[0])
+    ds_attrs = _std_attrs(drive_point, response_quantity, response_units, force_units)
+    if force is None:
+        ds_attrs[names.ATTR_EXCITATION] = names.EXCITATION_UNIT_IMPULSE
+    else:
+        f = _as_array(force, "force")
+        want = values.shape[:1] + (n_time,) if values.ndim == 3 else (n_time,)
+        if f.shape == (n_time,):
+            fdims: tuple[str, ...] = (names.TIME,)
+        elif values.ndim == 3 and f.shape == want:
+            fdims = (names.RECORD, names.TIME)
+        else:
+            raise AmiXrValueError(
+                f"force: expected shape {(n_time,)}"
+                + (f" or {want}" if values.ndim == 3 else "")
+                + f", got {f.shape}"
+            )
+        data_vars[names.FORCE] = (fdims, f, {names.ATTR_UNITS: force_units})
+    ds_attrs.update(attrs)
+    ds = xr.Dataset(data_vars, coords=coords, attrs=ds_attrs)
+    _raise_problems(ds, "time", drive_point is not None, "make_time_dataset")
+    return ds
