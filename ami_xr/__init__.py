@@ -42,7 +42,7 @@ from ami_xr.plot import (  # noqa: E402
 )
 from ami_xr.report import format_modal_table, modal_table, report  # noqa: E402
 from ami_xr.dsp import apply_window, impulse_to_frf  # noqa: E402
-from ami_xr.dsp.frf import convert_quantity, frf  # noqa: E402
+from ami_xr.dsp import convert_quantity, frf, impact_frf  # noqa: E402
 
 __all__ = [
     "subtract",
@@ -67,6 +67,7 @@ __all__ = [
     "apply_window",
     "impulse_to_frf",
     "frf",
+    "impact_frf",
     "convert_quantity",
     "read_lvm",
     "refine",

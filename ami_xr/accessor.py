@@ -68,7 +68,7 @@ AmiAccessor.plot_modal_table = _method(plot_modal_table)
 AmiAccessor.report = _method(report)
 AmiAccessor.modal_table = _method(modal_table)
 
-from ami_xr.dsp.frf import convert_quantity, frf  # noqa: E402
+from ami_xr.dsp import convert_quantity, frf  # noqa: E402
 
 AmiAccessor.frf = _method(frf)
 AmiAccessor.convert_quantity = _method(convert_quantity)

@@ -236,12 +236,12 @@ def read_input(path: str | os.PathLike):
 def estimate_frf(ts, frf_options: dict[str, Any] | None = None):
     """:func:`ami_xr.frf` on a time Dataset; without an ``excitation`` option, data with a
     ``record`` dim (repeated hammer hits) are treated as an impact test, others as random."""
-    import ami_xr
+    from ami_xr.dsp.frf import frf_from_options
 
     options = dict(frf_options or {})
     if "excitation" not in options:
         options["excitation"] = "impact" if names.RECORD in ts.dims else "random"
-    return ami_xr.frf(ts, **options)
+    return frf_from_options(ts, options)
 
 
 def _modal_summary(ds) -> tuple[int, str]:

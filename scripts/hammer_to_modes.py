@@ -5,7 +5,7 @@
         --modes modes.nc --report report/
 
 1. :func:`ami_xr.read_lvm` reads every segment of the file as one hit (``record``).
-2. :func:`ami_xr.frf` (``excitation="impact"``) checks every hit (overload, double impact, weak
+2. :func:`ami_xr.impact_frf` checks every hit (overload, double impact, weak
    force), prints why a hit is left out, and averages the good ones (H1 by default) with a force
    window on the force and an exponential window on both channels; the window's decay rate is
    kept as ``exponential_window_decay``.
@@ -49,10 +49,9 @@ def main(argv=None) -> int:
             f"{args.path}: {n_hits} hit(s) of {ts.sizes[names.TIME]} samples at {fs:g} Hz, "
             f"points {ts[names.POINT].values.tolist()}"
         )
-        est = ami_xr.frf(
+        est = ami_xr.impact_frf(
             ts,
             args.estimator,
-            excitation="impact",
             exponential_end_value=args.end_value,
             path=args.out,
         )

@@ -12,6 +12,7 @@ import xarray as xr
 
 import ami_xr
 from ami_xr import names
+from ami_xr.dsp.frf import frf_from_options
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels.basis import mode_contribution
 
@@ -293,7 +294,7 @@ def test_impact_exponential_window_damping_corrected():
     n = 512  # 2 s at 256 Hz
     fv, yv = _hits(lam, res, n, [1.0])
     ds = _time_ds(fv, yv)
-    est = ami_xr.frf(ds, excitation="impact", exponential_end_value=1e-6)
+    est = ami_xr.impact_frf(ds, exponential_end_value=1e-6)
     beta = est.attrs[names.ATTR_EXP_DECAY]
     assert beta == pytest.approx(-np.log(1e-6) * FS / (n - 1))
     # windowed impulse response from the FRF (noise-free): poles by ESPRIT
@@ -321,7 +322,7 @@ def test_impact_hit_checks_reject_bad_hits(tmp_path):
     fv[2, 300:307] += 0.7 * np.sin(np.pi * (np.arange(7) + 1) / 8)  # hammer bounce
     yv[2] = _respond(fv[2], lam, res, 1 / FS)
     ds = _time_ds(fv, yv)
-    est = ami_xr.frf(ds, excitation="impact", exponential_end_value=0.01, path=tmp_path / "hits.nc")
+    est = ami_xr.impact_frf(ds, exponential_end_value=0.01, path=tmp_path / "hits.nc")
     back = ami_xr.open_dataset(tmp_path / "hits.nc")
     np.testing.assert_array_equal(back[names.FRF].values, est[names.FRF].values)
     np.testing.assert_array_equal(
@@ -333,9 +334,8 @@ def test_impact_hit_checks_reject_bad_hits(tmp_path):
     assert reasons[1].startswith("overload") and "double impact" in reasons[2]
     assert "too weak" in reasons[4] and reasons[0] == "" and reasons[3] == ""
     assert est.attrs[names.ATTR_N_AVERAGES] == 2
-    good = ami_xr.frf(
+    good = ami_xr.impact_frf(
         ds.isel(record=[0, 3]),
-        excitation="impact",
         exponential_end_value=0.01,
         hit_checks=False,
         force_window=est.attrs[names.ATTR_FORCE_WINDOW_WIDTH],
@@ -344,13 +344,13 @@ def test_impact_hit_checks_reject_bad_hits(tmp_path):
     ami_xr.validate(est)
     # every hit bad -> a clear error listing the reasons
     with pytest.raises(AmiXrValueError, match="every impact hit was rejected.*hit 0: overload"):
-        ami_xr.frf(ds.isel(record=[1, 2]), excitation="impact")
+        ami_xr.impact_frf(ds.isel(record=[1, 2]))
 
 
 def test_impact_frf_matches_truth_without_noise():
     model, lam, res = _modes(20.0, 1e-4)  # decays fully within the record: no window needed
     fv, yv = _hits(lam, res, 2048, [1.0, 2.0], width=3)  # pulse spectrum: first null at 96 Hz
-    est = ami_xr.frf(_time_ds(fv, yv), excitation="impact")
+    est = ami_xr.impact_frf(_time_ds(fv, yv))
     assert names.ATTR_EXP_DECAY not in est.attrs
     err = _rel_error(est, lam, res, band=(1.0, 80.0))
     assert err.max() < 1e-6
@@ -440,17 +440,51 @@ def test_nan_samples(small):
         (dict(estimator="H3"), "estimator"),
         (dict(detrend="cubic"), "detrend"),
         (dict(average="median"), "average"),
-        (dict(excitation="sweep"), "excitation"),
         (dict(average="exponential", n_average=0), "n_average"),
-        (dict(exponential_decay=3.0), "exponential_decay: only used with excitation='impact'"),
-        (dict(excitation="impact", window="hann"), "window: not used"),
-        (dict(excitation="impact", exponential_end_value=2.0), "end_value"),
         (dict(chunk_samples=0), "chunk_samples"),
     ],
 )
 def test_bad_arguments_name_the_argument(small, kwargs, match):
     with pytest.raises(AmiXrValueError, match=match):
         ami_xr.frf(small, **kwargs)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(nperseg=1001), "nperseg: the segment of 1001 samples is longer than the record"),
+        (dict(estimator="H3"), "estimator"),
+        (dict(exponential_end_value=2.0), "end_value"),
+        (dict(force_window=-1.0), "force_window"),
+        (dict(average="median"), "average"),
+    ],
+)
+def test_bad_impact_arguments_name_the_argument(small, kwargs, match):
+    with pytest.raises(AmiXrValueError, match=match):
+        ami_xr.impact_frf(small, **kwargs)
+
+
+@pytest.mark.parametrize(
+    "options, match",
+    [
+        (dict(excitation="sweep"), "excitation: expected one of"),
+        (dict(exponential_decay=3.0), "exponential_decay: not used with excitation='random'"),
+        (dict(excitation="impact", window="hann"), "window: not used with excitation='impact'"),
+        (dict(excitation="impact", segment=3), "segment: not an option of ami_xr.impact_frf"),
+        (dict(ds=None), "ds: not an option of ami_xr.frf"),
+    ],
+)
+def test_frf_from_options_names_misplaced_options(small, options, match):
+    with pytest.raises(AmiXrValueError, match=match):
+        frf_from_options(small, options)
+
+
+def test_frf_from_options_dispatches_by_excitation(small):
+    """The options dictionary of batch runs and the CLI: same result as the direct call."""
+    got = frf_from_options(small, {"nperseg": 200, "excitation": "random"})
+    xr.testing.assert_equal(got, ami_xr.frf(small, nperseg=200))
+    got = frf_from_options(small, {"excitation": "impact", "hit_checks": False})
+    xr.testing.assert_equal(got, ami_xr.impact_frf(small, hit_checks=False))
 
 
 def test_not_a_dataset():

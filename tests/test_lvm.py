@@ -141,7 +141,7 @@ def test_hammer_file_reads(hammer):
 
 
 def test_hammer_bad_hits_found_and_frf_from_good_ones(hammer):
-    est = ami_xr.frf(hammer, excitation="impact", exponential_end_value=0.01)
+    est = ami_xr.impact_frf(hammer, exponential_end_value=0.01)
     rejected = est[names.HIT_REJECTED].values
     reasons = est[names.HIT_REJECT_REASON].values
     np.testing.assert_array_equal(rejected, [True, False, True, False, False])
@@ -155,9 +155,8 @@ def test_hammer_bad_hits_found_and_frf_from_good_ones(hammer):
     band = est.sel({names.FREQUENCY: slice(50.0, 3000.0)})
     assert float(band[names.COHERENCE].median()) > 0.95
     # the same FRF as averaging hits 1, 3, 4 by hand (no checks)
-    good = ami_xr.frf(
+    good = ami_xr.impact_frf(
         hammer.isel(record=[1, 3, 4]),
-        excitation="impact",
         hit_checks=False,
         exponential_end_value=0.01,
         force_window=est.attrs[names.ATTR_FORCE_WINDOW_WIDTH],

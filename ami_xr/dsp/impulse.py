@@ -6,11 +6,6 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr._provenance import add_history
-from ami_xr.errors import AmiXrValueError
-from ami_xr.io.schema import validate
-from ami_xr.kernels import fft as _kfft
-from ami_xr.kernels import windows as _kw
 from ami_xr.dsp.windows import (
     ATTR_AMPLITUDE_CORRECTION,
     ATTR_ENERGY_CORRECTION,
@@ -20,6 +15,11 @@ from ami_xr.dsp.windows import (
     sample_interval,
     window_attrs,
 )
+from ami_xr.errors import AmiXrValueError
+from ami_xr.io.schema import validate
+from ami_xr.kernels import fft as _kfft
+from ami_xr.kernels import windows as _kw
+from ami_xr.provenance import add_history
 
 _WINDOW_ATTRS = (
     ATTR_WINDOW,

@@ -28,6 +28,13 @@ AVERAGES = ("linear", "exponential")
 _BATCH_BYTES = 16 * 2**20  # segment buffer per batch (the FFT output is about as large again)
 
 
+def check_choice(value, allowed: tuple[str, ...], argument: str) -> str:
+    """``value`` if it is one of the strings ``allowed``, else an error naming ``argument``."""
+    if not isinstance(value, str) or value not in allowed:
+        raise AmiXrValueError(f"{argument}: expected one of {allowed}, got {value!r}")
+    return value
+
+
 def check_segments(n_samples: int, nperseg, noverlap, nfft) -> tuple[int, int, int]:
     """Validate ``nperseg``, ``noverlap`` and ``nfft`` against a record of ``n_samples``.
 
@@ -64,7 +71,7 @@ def resolve_window(window, nperseg: int, argument: str = "window") -> np.ndarray
         if _w.window_name(window) in ("exponential", "force"):
             raise AmiXrValueError(
                 f"{argument}: {window!r} needs parameters; pass the array from "
-                "ami_xr.kernels.windows.get_window (or use excitation='impact')"
+                "ami_xr.kernels.windows.get_window (or use ami_xr.impact_frf)"
             )
         return _w.get_window(window, nperseg)
     w = np.asarray(window)

@@ -24,9 +24,9 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr._coords import range_axis
-from ami_xr._provenance import add_history
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels import windows as _kw
+from ami_xr.provenance import add_history
 
 # Variable attributes written by the windowing functions.
 ATTR_WINDOW = "window"
