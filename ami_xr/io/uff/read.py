@@ -1,52 +1,11 @@
-"""Universal File Format (UFF) import and export through the ``pyuff`` package.
+"""Read UFF files: dataset 58 FRFs and time histories, 55 mode shapes, 15/2411 node coordinates.
 
-What is read
-------------
-* Dataset 58 (ASCII or binary) with function type 4 (FRF) becomes an FRF Dataset, function type 1
-  (time response) a time Dataset; coherence records (function type 6) of an FRF file become the
-  ``coherence`` variable.
-* Dataset 55 (complex mode shapes, analysis type 3) becomes a modal Dataset with ``eigenvalue``,
-  ``natural_frequency``, ``damping_ratio`` and ``mode_vector``.
-* Datasets 15 and 2411 (node coordinates), when present, give the ``point_x``, ``point_y`` and
-  ``point_z`` coordinates of every point on a known node.
-
-Point labels
-------------
-A UFF degree of freedom is a node number and a direction code (1, 2, 3 = +X, +Y, +Z; 4, 5, 6 =
-rotations RX, RY, RZ; negative codes point the other way; 0 = scalar). It becomes the label
-``f"{node}{sign}{axis}"``, e.g. ``"1+Z"`` or ``"12-X"``; a scalar DOF (direction 0) becomes the
-integer node number. Labels that are neither (``"tip"``) are written with node numbers 1, 2, ...
-and the label in ID line 2 (``"ami_xr point=tip"``), which the reader restores.
-
-Single-reference grouping and the drive point
----------------------------------------------
-ami_xr's FRF Dataset holds one column of the FRF matrix: responses at many points to a force at one
-drive point. A UFF file with one reference DOF and several response DOFs maps directly (points =
-response DOFs, ``drive_point`` = the reference DOF). A roving-hammer file has the transpose: one
-response DOF, several reference DOFs. By Maxwell-Betti reciprocity (H_rj = H_jr for a linear
-system) its FRFs are the same column, so points = reference DOFs and ``drive_point`` = the fixed
-response DOF; the Dataset attribute ``uff_layout`` says which case applied. Files where both
-vary (multiple references) are refused with a clear error until multi-reference data is supported.
-
-Abscissae
----------
-Evenly spaced records store their increment with about 6 significant digits. When ``1 / inc``
-is that close to an integer (a sampling rate in Hz or a record length in s), the exact reciprocal
-is used, so ``dt = 1/1024 s`` or ``df = 1/60 Hz`` survive a round trip.
-
-Units
------
-The response quantity comes from the ordinate's specific data type (8 displacement, 11 velocity,
-12 acceleration) and the force from the denominator (13 excitation force, 9 reaction force). Unit
-labels in the file (``"m/s^2"``, ``"g"``, ``"N"``, ...) are used when they are ones ami_xr knows;
-otherwise SI units are assumed (m, m/s, m/s^2, N) and the attribute ``uff_units_assumed`` says so.
+See :mod:`ami_xr.io.uff` for the mapping to ami_xr Datasets.
 """
 
 from __future__ import annotations
 
 import os
-import re
-import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -56,108 +15,32 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, DataFileError
-from ami_xr.io.atomic import atomic_path
+from ami_xr.io.uff.codes import (
+    FUNC_COHERENCE,
+    FUNC_FRF,
+    FUNC_TIME,
+    ID_TAG,
+    KNOWN_UNIT_ALIASES,
+    SI_UNITS,
+    SPEC_FORCE,
+    SPEC_TO_QUANTITY,
+    parse_point_label,
+    point_label,
+    require_pyuff,
+)
 
-__all__ = ["read_uff", "write_uff", "point_label", "parse_point_label"]
-
-# --- UFF code tables (from the UFF dataset 58 specification) ---------------------------------
-_FUNC_TIME = 1
-_FUNC_FRF = 4
-_FUNC_COHERENCE = 6
-_SPEC_TO_QUANTITY = {8: "displacement", 11: "velocity", 12: "acceleration"}
-_QUANTITY_TO_SPEC = {v: k for k, v in _SPEC_TO_QUANTITY.items()}
-_SPEC_FORCE = (13, 9)  # excitation force, reaction force
-_SPEC_TIME = 17
-_SPEC_FREQUENCY = 18
-_SI_UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s^2"}
-_AXES = {1: "X", 2: "Y", 3: "Z", 4: "RX", 5: "RY", 6: "RZ"}
-_AXIS_CODES = {v: k for k, v in _AXES.items()}
-_LABEL_RE = re.compile(r"^\s*(\d+)\s*([+-])\s*(X|Y|Z|RX|RY|RZ)\s*$", re.IGNORECASE)
-_ID_TAG = "ami_xr point="
-_KNOWN_UNIT_ALIASES = {
-    "m/s2": "m/s^2",
-    "m/s**2": "m/s^2",
-    "mm/s2": "mm/s^2",
-    "in/s2": "in/s^2",
-    "µm": "um",
-    "lbf": "lbf",
-    "n": "N",
-    "kn": "kN",
-}
-
-
-def _require_pyuff():
-    try:
-        import pyuff
-    except ImportError as err:  # pragma: no cover - depends on the environment
-        raise ImportError(
-            "reading or writing UFF files needs the optional package pyuff: "
-            "pip install 'ami_xr[uff]'"
-        ) from err
-    return pyuff
-
-
-# --- point labels ----------------------------------------------------------------------------
-def point_label(node: int, direction: int) -> str | int:
-    """Label of a UFF degree of freedom: ``(1, 3) -> "1+Z"``, ``(7, -1) -> "7-X"``, ``(4, 0) -> 4``.
-
-    Parameters
-    ----------
-    node : int
-        UFF node number.
-    direction : int
-        UFF direction code: 0 scalar, +-1..3 translations X, Y, Z, +-4..6 rotations RX, RY, RZ.
-    """
-    node = int(node)
-    direction = int(direction)
-    if direction == 0:
-        return node
-    if abs(direction) not in _AXES:
-        raise DataFileError(
-            f"UFF direction code {direction} of node {node} is not one of 0, +-1..6"
-        )
-    return f"{node}{'+' if direction > 0 else '-'}{_AXES[abs(direction)]}"
-
-
-def parse_point_label(label: Any) -> tuple[int, int] | None:
-    """Inverse of :func:`point_label`: ``"1+Z" -> (1, 3)``, ``4 -> (4, 0)``; None if not a DOF."""
-    if isinstance(label, (int, np.integer)) and not isinstance(label, bool):
-        return int(label), 0
-    match = _LABEL_RE.match(str(label))
-    if match is None:
-        return None
-    node, sign, axis = match.groups()
-    code = _AXIS_CODES[axis.upper()]
-    return int(node), code if sign == "+" else -code
-
-
-def _dof_map(labels: Sequence[Any]) -> dict[Any, tuple[int, int, str]]:
-    """Node number, direction code and ID-line tag used to write each point label."""
-    parsed = {lab: parse_point_label(lab) for lab in labels}
-    used_nodes = {p[0] for p in parsed.values() if p is not None}
-    next_node = 1
-    out = {}
-    for lab in labels:
-        p = parsed[lab]
-        if p is not None:
-            out[lab] = (p[0], p[1], "NONE")
-            continue
-        while next_node in used_nodes:
-            next_node += 1
-        used_nodes.add(next_node)
-        out[lab] = (next_node, 0, f"{_ID_TAG}{lab}")
-    return out
+__all__ = ["read_uff"]
 
 
 def _label_of(record: dict, which: str) -> Any:
     """Point label of the response (``which="rsp"``) or reference DOF of a dataset-58 record."""
     tag = str(record.get("id2", ""))
-    if which == "rsp" and tag.startswith(_ID_TAG):
-        return tag[len(_ID_TAG) :]
+    if which == "rsp" and tag.startswith(ID_TAG):
+        return tag[len(ID_TAG) :]
     if which == "ref":
         tag3 = str(record.get("id3", ""))
-        if tag3.startswith(_ID_TAG):
-            return tag3[len(_ID_TAG) :]
+        if tag3.startswith(ID_TAG):
+            return tag3[len(ID_TAG) :]
     return point_label(record[f"{which}_node"], record[f"{which}_dir"])
 
 
@@ -166,23 +49,23 @@ def _unit_label(raw: Any, allowed: Sequence[str]) -> str | None:
     text = str(raw or "").strip()
     if not text or text.upper() == "NONE":
         return None
-    text = _KNOWN_UNIT_ALIASES.get(text.lower(), text)
+    text = KNOWN_UNIT_ALIASES.get(text.lower(), text)
     return text if text in allowed else None
 
 
 def _quantity_and_units(record: dict, path: Path) -> tuple[str, str, str, bool]:
     spec = int(record.get("ordinate_spec_data_type", 0))
-    if spec not in _SPEC_TO_QUANTITY:
+    if spec not in SPEC_TO_QUANTITY:
         raise DataFileError(
             f"{path}: UFF record for DOF {record.get('rsp_node')}/{record.get('rsp_dir')} has "
             f"ordinate specific data type {spec}; expected 8 (displacement), 11 (velocity) or "
             "12 (acceleration)"
         )
-    quantity = _SPEC_TO_QUANTITY[spec]
+    quantity = SPEC_TO_QUANTITY[spec]
     resp = _unit_label(record.get("ordinate_axis_units_lab"), names.RESPONSE_UNITS[quantity])
     force = _unit_label(record.get("orddenom_axis_units_lab"), names.FORCE_UNITS)
     assumed = resp is None or force is None
-    return quantity, resp or _SI_UNITS[quantity], force or "N", assumed
+    return quantity, resp or SI_UNITS[quantity], force or "N", assumed
 
 
 def _abscissa(record: dict) -> np.ndarray:
@@ -203,7 +86,7 @@ def _abscissa(record: dict) -> np.ndarray:
 
 # --- reading ---------------------------------------------------------------------------------
 def _read_sets(path: Path) -> list[dict]:
-    pyuff = _require_pyuff()
+    pyuff = require_pyuff()
     if not path.is_file():
         raise DataFileError(f"UFF file {str(path)!r} does not exist")
     try:
@@ -352,7 +235,7 @@ def _read_frf(frfs: list[dict], coh: list[dict], coords: dict, path: Path) -> xr
 
 
 def _read_time(records: list[dict], coords: dict, path: Path) -> xr.Dataset:
-    force_recs = [r for r in records if int(r.get("ordinate_spec_data_type", 0)) in _SPEC_FORCE]
+    force_recs = [r for r in records if int(r.get("ordinate_spec_data_type", 0)) in SPEC_FORCE]
     resp_recs = [r for r in records if r not in force_recs]
     if not resp_recs:
         raise DataFileError(f"{path}: the time records hold no response channel (only force)")
@@ -497,9 +380,9 @@ def read_uff(path: str | os.PathLike, *, kind: str | None = None) -> xr.Dataset:
     sets = _read_sets(path)
     coords = _node_coordinates(sets)
     s58 = [s for s in sets if s.get("type") == 58]
-    frfs = [s for s in s58 if int(s.get("func_type", 0)) == _FUNC_FRF]
-    times = [s for s in s58 if int(s.get("func_type", 0)) == _FUNC_TIME]
-    cohs = [s for s in s58 if int(s.get("func_type", 0)) == _FUNC_COHERENCE]
+    frfs = [s for s in s58 if int(s.get("func_type", 0)) == FUNC_FRF]
+    times = [s for s in s58 if int(s.get("func_type", 0)) == FUNC_TIME]
+    cohs = [s for s in s58 if int(s.get("func_type", 0)) == FUNC_COHERENCE]
     modes = [s for s in sets if s.get("type") == 55 and int(s.get("analysis_type", 0)) in (2, 3)]
     found = {"frf": frfs, "time": times, "modes": modes}
     if kind is None:
@@ -531,254 +414,3 @@ def _validated(ds: xr.Dataset) -> xr.Dataset:
     drive = ds.attrs.get(names.ATTR_DRIVE_POINT)
     measured = drive is not None and drive in ds[names.POINT].values.tolist()
     return validate(ds, require_drive_point=measured)
-
-
-# --- writing ---------------------------------------------------------------------------------
-def _units_lab(text: str) -> str:
-    return text if text else "NONE"
-
-
-def _frf_records(ds: xr.Dataset, binary: bool) -> list[dict]:
-    pyuff = _require_pyuff()
-    labels = list(ds[names.POINT].values.tolist())
-    drive = ds.attrs.get(names.ATTR_DRIVE_POINT)
-    dof = _dof_map(labels + ([drive] if drive is not None and drive not in labels else []))
-    quantity = ds.attrs.get(names.ATTR_QUANTITY, "displacement")
-    freq = np.asarray(ds[names.FREQUENCY].values, dtype=np.float64)
-    step = np.diff(freq)
-    uniform = freq.size > 1 and np.allclose(step, step[0], rtol=1e-9)
-    ref_node, ref_dir, ref_tag = dof[drive] if drive is not None else (0, 0, "NONE")
-    records = []
-    variables = [(names.FRF, _FUNC_FRF)]
-    if names.COHERENCE in ds:
-        variables.append((names.COHERENCE, _FUNC_COHERENCE))
-    for var, func in variables:
-        values = ds[var].transpose(names.POINT, names.FREQUENCY).values
-        for i, lab in enumerate(labels):
-            node, direction, tag = dof[lab]
-            data = np.asarray(values[i], dtype=np.complex128 if func == _FUNC_FRF else np.float64)
-            records.append(
-                pyuff.prepare_58(
-                    binary=int(binary),
-                    id1=str(ds.attrs.get("title", "ami_xr"))[:80] or "NONE",
-                    id2=tag,
-                    id3=ref_tag,
-                    id4="NONE",
-                    id5="NONE",
-                    func_type=func,
-                    ver_num=0,
-                    load_case_id=0,
-                    rsp_ent_name="ami_xr",
-                    rsp_node=node,
-                    rsp_dir=direction,
-                    ref_ent_name="ami_xr",
-                    ref_node=ref_node,
-                    ref_dir=ref_dir,
-                    ord_data_type=6 if func == _FUNC_FRF else 4,
-                    num_pts=freq.size,
-                    abscissa_spacing=int(uniform),
-                    abscissa_min=float(freq[0]),
-                    abscissa_inc=float(step[0]) if uniform else 0.0,
-                    z_axis_value=0.0,
-                    abscissa_spec_data_type=_SPEC_FREQUENCY,
-                    abscissa_axis_units_lab="Hz",
-                    ordinate_spec_data_type=_QUANTITY_TO_SPEC[quantity] if func == _FUNC_FRF else 0,
-                    ordinate_axis_units_lab=_units_lab(ds.attrs.get(names.ATTR_RESPONSE_UNITS, "")),
-                    orddenom_spec_data_type=13 if func == _FUNC_FRF else 0,
-                    orddenom_axis_units_lab=_units_lab(ds.attrs.get(names.ATTR_FORCE_UNITS, "")),
-                    data=data,
-                    x=freq,
-                )
-            )
-    return records
-
-
-def _time_records(ds: xr.Dataset, binary: bool) -> list[dict]:
-    pyuff = _require_pyuff()
-    labels = list(ds[names.POINT].values.tolist())
-    drive = ds.attrs.get(names.ATTR_DRIVE_POINT)
-    dof = _dof_map(labels + ([drive] if drive is not None and drive not in labels else []))
-    quantity = ds.attrs.get(names.ATTR_QUANTITY, "displacement")
-    time = np.asarray(ds[names.TIME].values, dtype=np.float64)
-    dt = float(time[1] - time[0]) if time.size > 1 else 1.0
-    resp = ds[names.RESPONSE]
-    if names.RECORD not in resp.dims:
-        resp = resp.expand_dims(names.RECORD)
-    resp = resp.transpose(names.RECORD, names.POINT, names.TIME).values
-    force = None
-    if names.FORCE in ds:
-        f = ds[names.FORCE]
-        if names.REFERENCE in f.dims:
-            raise AmiXrValueError("write_uff: force with a 'reference' dim is not supported yet")
-        if names.RECORD not in f.dims:
-            f = f.expand_dims(names.RECORD)
-        force = f.transpose(names.RECORD, names.TIME).values
-    ref_node, ref_dir, ref_tag = dof[drive] if drive is not None else (0, 0, "NONE")
-
-    def record(data, node, direction, tag, case, spec, units):
-        return pyuff.prepare_58(
-            binary=int(binary),
-            id1="ami_xr",
-            id2=tag,
-            id3=ref_tag,
-            id4="NONE",
-            id5="NONE",
-            func_type=_FUNC_TIME,
-            ver_num=0,
-            load_case_id=case,
-            rsp_ent_name="ami_xr",
-            rsp_node=node,
-            rsp_dir=direction,
-            ref_ent_name="ami_xr",
-            ref_node=ref_node,
-            ref_dir=ref_dir,
-            ord_data_type=4,
-            num_pts=time.size,
-            abscissa_spacing=1,
-            abscissa_min=float(time[0]),
-            abscissa_inc=dt,
-            z_axis_value=0.0,
-            abscissa_spec_data_type=_SPEC_TIME,
-            abscissa_axis_units_lab="s",
-            ordinate_spec_data_type=spec,
-            ordinate_axis_units_lab=_units_lab(units),
-            orddenom_spec_data_type=0,
-            data=np.asarray(data, dtype=np.float64),
-            x=time,
-        )
-
-    records = []
-    for r in range(resp.shape[0]):
-        case = r + 1 if resp.shape[0] > 1 else 0
-        for i, lab in enumerate(labels):
-            node, direction, tag = dof[lab]
-            records.append(
-                record(
-                    resp[r, i],
-                    node,
-                    direction,
-                    tag,
-                    case,
-                    _QUANTITY_TO_SPEC[quantity],
-                    ds.attrs.get(names.ATTR_RESPONSE_UNITS, ""),
-                )
-            )
-        if force is not None:
-            records.append(
-                record(
-                    force[r],
-                    ref_node,
-                    ref_dir,
-                    ref_tag,
-                    case,
-                    13,
-                    ds.attrs.get(names.ATTR_FORCE_UNITS, ""),
-                )
-            )
-    return records
-
-
-def _mode_records(ds: xr.Dataset) -> list[dict]:
-    """One dataset 55 (complex eigenvalue, first order, displacement) per mode."""
-    pyuff = _require_pyuff()
-    labels = list(ds[names.POINT].values.tolist())
-    dof = _dof_map(labels)
-    nodes = sorted({dof[lab][0] for lab in labels})
-    vectors = ds[names.MODE_VECTOR].transpose(names.POINT, names.MODE).values
-    eig = np.asarray(ds[names.EIGENVALUE].values)
-    modes = ds[names.MODE].values
-    records = []
-    rotational = any(abs(dof[lab][1]) > 3 for lab in labels)
-    ncomp = 6 if rotational else 3
-    for k in range(eig.size):
-        comps = np.zeros((ncomp, len(nodes)), dtype=np.complex128)
-        for i, lab in enumerate(labels):
-            node, direction, _ = dof[lab]
-            # A scalar DOF (direction 0) is written as the Z component.
-            axis = abs(direction) if direction != 0 else 3
-            sign = -1.0 if direction < 0 else 1.0
-            comps[axis - 1, nodes.index(node)] = sign * vectors[i, k]
-        mode_n = int(modes[k]) if np.issubdtype(np.asarray(modes).dtype, np.integer) else k + 1
-        kwargs = {f"r{c + 1}": comps[c] for c in range(ncomp)}
-        records.append(
-            pyuff.prepare_55(
-                id1="ami_xr mode shapes",
-                id2="NONE",
-                id3="NONE",
-                id4="NONE",
-                id5="NONE",
-                model_type=1,
-                analysis_type=3,
-                data_ch=3 if rotational else 2,
-                spec_data_type=8,
-                data_type=5,
-                n_data_per_node=ncomp,
-                load_case=1,
-                mode_n=mode_n,
-                eig=complex(eig[k]),
-                modal_a=0j,
-                modal_b=0j,
-                node_nums=np.asarray(nodes),
-                **kwargs,
-            )
-        )
-    return records
-
-
-def write_uff(
-    ds: xr.Dataset,
-    path: str | os.PathLike,
-    *,
-    binary: bool = False,
-    include: Sequence[str] = ("frf", "time", "modes"),
-) -> Path:
-    """Write a Dataset as UFF, atomically (see :func:`ami_xr.io.atomic.atomic_path`).
-
-    FRFs (``frf``, and ``coherence`` if present) go to dataset 58 with function type 4 (response =
-    each point, reference = the drive point); time Datasets to dataset 58 function type 1 (one
-    record per point and per ``record``, load case = record number, plus the force at the drive
-    point); identified modes (``eigenvalue`` and ``mode_vector``) to one dataset 55 per mode
-    (complex eigenvalue, displacement). Reading the file back with :func:`read_uff` gives the same
-    FRFs and mode vectors.
-
-    Parameters
-    ----------
-    ds : xarray.Dataset
-        FRF, time or modal Dataset (an identification result holds FRFs and modes; both are
-        written unless ``include`` says otherwise).
-    path : str or path-like
-        Output file; overwritten atomically.
-    binary : bool
-        Write dataset 58 in binary (exact float64) rather than ASCII (about 12 significant digits).
-    include : sequence of {"frf", "time", "modes"}
-        Which parts to write when present.
-
-    Returns
-    -------
-    pathlib.Path
-        The written file.
-    """
-    pyuff = _require_pyuff()
-    path = Path(path)
-    bad = set(include) - {"frf", "time", "modes"}
-    if bad:
-        raise AmiXrValueError(f"include must hold 'frf', 'time' or 'modes'; got {sorted(bad)}")
-    records: list[dict] = []
-    if "frf" in include and names.FRF in ds:
-        records += _frf_records(ds, binary)
-    if "time" in include and names.RESPONSE in ds:
-        records += _time_records(ds, binary)
-    if "modes" in include and names.MODE_VECTOR in ds and names.EIGENVALUE in ds:
-        records += _mode_records(ds)
-    if not records:
-        raise AmiXrValueError(
-            f"write_uff: the Dataset has nothing to write for include={list(include)} "
-            f"(needs '{names.FRF}', '{names.RESPONSE}' or "
-            f"'{names.MODE_VECTOR}'+'{names.EIGENVALUE}')"
-        )
-    with atomic_path(path) as tmp, warnings.catch_warnings():
-        # pyuff warns about optional fields we leave at their defaults.
-        warnings.simplefilter("ignore")
-        # tmp does not exist yet: pyuff refuses to "overwrite" a file it did not write.
-        pyuff.UFF(str(tmp)).write_sets(records, mode="add")
-    return path

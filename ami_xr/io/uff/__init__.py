@@ -1,0 +1,52 @@
+"""Universal File Format (UFF) import and export through the ``pyuff`` package.
+
+Modules: :mod:`.codes` (UFF code tables, point labels), :mod:`.read` (:func:`read_uff`),
+:mod:`.write` (:func:`write_uff`). ``pyuff`` is imported only when a file is read or written.
+
+What is read
+------------
+* Dataset 58 (ASCII or binary) with function type 4 (FRF) becomes an FRF Dataset, function type 1
+  (time response) a time Dataset; coherence records (function type 6) of an FRF file become the
+  ``coherence`` variable.
+* Dataset 55 (complex mode shapes, analysis type 3) becomes a modal Dataset with ``eigenvalue``,
+  ``natural_frequency``, ``damping_ratio`` and ``mode_vector``.
+* Datasets 15 and 2411 (node coordinates), when present, give the ``point_x``, ``point_y`` and
+  ``point_z`` coordinates of every point on a known node.
+
+Point labels
+------------
+A UFF degree of freedom is a node number and a direction code (1, 2, 3 = +X, +Y, +Z; 4, 5, 6 =
+rotations RX, RY, RZ; negative codes point the other way; 0 = scalar). It becomes the label
+``f"{node}{sign}{axis}"``, e.g. ``"1+Z"`` or ``"12-X"``; a scalar DOF (direction 0) becomes the
+integer node number. Labels that are neither (``"tip"``) are written with node numbers 1, 2, ...
+and the label in ID line 2 (``"ami_xr point=tip"``), which the reader restores.
+
+Single-reference grouping and the drive point
+---------------------------------------------
+ami_xr's FRF Dataset holds one column of the FRF matrix: responses at many points to a force at one
+drive point. A UFF file with one reference DOF and several response DOFs maps directly (points =
+response DOFs, ``drive_point`` = the reference DOF). A roving-hammer file has the transpose: one
+response DOF, several reference DOFs. By Maxwell-Betti reciprocity (H_rj = H_jr for a linear
+system) its FRFs are the same column, so points = reference DOFs and ``drive_point`` = the fixed
+response DOF; the Dataset attribute ``uff_layout`` says which case applied. Files where both
+vary (multiple references) are refused with a clear error until multi-reference data is supported.
+
+Abscissae
+---------
+Evenly spaced records store their increment with about 6 significant digits. When ``1 / inc``
+is that close to an integer (a sampling rate in Hz or a record length in s), the exact reciprocal
+is used, so ``dt = 1/1024 s`` or ``df = 1/60 Hz`` survive a round trip.
+
+Units
+-----
+The response quantity comes from the ordinate's specific data type (8 displacement, 11 velocity,
+12 acceleration) and the force from the denominator (13 excitation force, 9 reaction force). Unit
+labels in the file (``"m/s^2"``, ``"g"``, ``"N"``, ...) are used when they are ones ami_xr knows;
+otherwise SI units are assumed (m, m/s, m/s^2, N) and the attribute ``uff_units_assumed`` says so.
+"""
+
+from ami_xr.io.uff.codes import parse_point_label, point_label
+from ami_xr.io.uff.read import read_uff
+from ami_xr.io.uff.write import write_uff
+
+__all__ = ["read_uff", "write_uff", "point_label", "parse_point_label"]
