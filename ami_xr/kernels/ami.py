@@ -40,15 +40,25 @@ import numpy as np
 
 from ami_xr.kernels._numba import jit
 from ami_xr.kernels.linalg import gauss_solve, solve_normal
+from ami_xr.kernels.modal_basis import (
+    add_mode,
+    as_dt,
+    basis_at,
+    checked_omega,
+    contribution_peak,
+    line_variable,
+    mode_basis,
+    pole_factor,
+    residual_basis,
+    tolerance_envelope,
+)
 from ami_xr.kernels.noise import (
     band_around,
     band_energy_peak,
     local_peak,
     nearest_line,
-    noise_floor,
     noise_floor_kernel,
     normalized_distance,
-    peak_threshold,
     peak_threshold_kernel,
     pole_band,
     split_target,
@@ -79,69 +89,6 @@ FIT_NO_DROP = 7
 # ----------------------------------------------------------------------------------------------
 # modal basis and synthesis (eqs. 4, 6, 7)
 # ----------------------------------------------------------------------------------------------
-@jit
-def _line_variable(omega, dt):
-    """``q = exp(-i w dt)`` for the discrete model, ``i w`` for the continuous one (dt <= 0)."""
-    out = np.empty(omega.shape[0], dtype=np.complex128)
-    for i in range(omega.shape[0]):
-        if dt > 0.0:
-            out[i] = np.exp(-1j * omega[i] * dt)
-        else:
-            out[i] = 1j * omega[i]
-    return out
-
-
-@jit
-def _pole_factor(lam, dt, n_samples):
-    """``(p, scale)``: discrete ``p = exp(lam dt)``, ``scale = dt (1 - exp(lam N dt))``."""
-    if dt > 0.0:
-        scale = dt + 0j
-        if n_samples > 0:
-            scale = dt * (1.0 - np.exp(lam * (n_samples * dt)))
-        return np.exp(lam * dt), scale
-    return lam, 1.0 + 0j
-
-
-@jit
-def _basis_at(x, p, scale, dt):
-    """Unit-residue basis at one line: ``scale / (1 - p q)`` or ``1 / (i w - lam)``."""
-    if dt > 0.0:
-        return scale / (1.0 - p * x)
-    return 1.0 / (x - p)
-
-
-@jit
-def _add_mode(out, x, lam, res, dt, n_samples, sign, lo, hi):
-    """``out[lo:hi] += sign * (A b(lam) + conj(A) b(conj(lam)))`` on lines ``lo..hi-1``."""
-    p, sc = _pole_factor(lam, dt, n_samples)
-    pc = np.conj(p)
-    scc = np.conj(sc)
-    rc = np.conj(res)
-    for i in range(lo, hi):
-        out[i] += sign * (res * _basis_at(x[i], p, sc, dt) + rc * _basis_at(x[i], pc, scc, dt))
-
-
-@jit
-def _synthesize(omega, lam, res, dt, n_samples):
-    """Sum of modal contributions: ``lam`` (P, K) or broadcast, ``res`` (P, K) -> (P, F).
-
-    NaN eigenvalues (padding) are skipped.
-    """
-    n_p = res.shape[0]
-    n_k = res.shape[1]
-    n_f = omega.shape[0]
-    x = _line_variable(omega, dt)
-    out = np.zeros((n_p, n_f), dtype=np.complex128)
-    for j in range(n_p):
-        jl = j if lam.shape[0] == n_p else 0
-        for k in range(n_k):
-            lk = lam[jl, k]
-            if np.isnan(lk.real) or np.isnan(res[j, k].real):
-                continue
-            _add_mode(out[j], x, lk, res[j, k], dt, n_samples, 1.0, 0, n_f)
-    return out
-
-
 # ----------------------------------------------------------------------------------------------
 # single-mode linear least squares (eqs. 10-12 and the discrete analogue)
 # ----------------------------------------------------------------------------------------------
@@ -202,7 +149,7 @@ def _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, nss, nsl, nll, rs
 def _single_mode_rows(data, omega, ws, dt):
     """Real rows and right side of (*) for every line: (2F, 4), (2F,) (for tests/references)."""
     n = data.shape[0]
-    x = _line_variable(omega, dt)
+    x = line_variable(omega, dt)
     rows = np.empty((2 * n, 4))
     rhs = np.empty(2 * n)
     for i in range(n):
@@ -253,7 +200,7 @@ def _poles_from_coefficients(c0, c1, ws, dt, n_samples, zeta_max, w_lo, w_hi):
 def _residue_from(e0, e1, v1, v2, lam, ws, dt, n_samples, gscale):
     r = (e1 * v1 + e0) / (v1 - v2) * gscale
     if dt > 0.0:
-        p, sc = _pole_factor(lam, dt, n_samples)
+        p, sc = pole_factor(lam, dt, n_samples)
         return p * dt * ws * r / sc
     return ws * r
 
@@ -262,7 +209,7 @@ def _residue_from(e0, e1, v1, v2, lam, ws, dt, n_samples, gscale):
 def _band_energy_drop(y, x, lam, res, dt, n_samples, power, lo, hi, n_f):
     """Band energy ``sum power[lo:hi]`` minus that of ``y`` with the mode (lam, res) removed."""
     trial = y.copy()
-    _add_mode(trial, x, lam, res, dt, n_samples, -1.0, 0, n_f)
+    add_mode(trial, x, lam, res, dt, n_samples, -1.0, 0, n_f)
     e0 = 0.0
     e1 = 0.0
     for i in range(lo, hi):
@@ -491,7 +438,7 @@ def _fit_two_modes(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, wts
                     den *= vr - roots[r]
             rr = num / den / wts[j]
             if dt > 0.0:
-                p, sc = _pole_factor(lam_out[kk], dt, n_samples)
+                p, sc = pole_factor(lam_out[kk], dt, n_samples)
                 res_out[j, kk] = p * dt * ws * rr / sc
             else:
                 res_out[j, kk] = ws * rr
@@ -501,39 +448,6 @@ def _fit_two_modes(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, wts
 # ----------------------------------------------------------------------------------------------
 # noise floor, thresholds, bands
 # ----------------------------------------------------------------------------------------------
-@jit
-def _contribution_peak(omega, x, lam, res, dt, n_samples):
-    """Largest |contribution| of one mode over the three lines nearest its damped frequency."""
-    c = nearest_line(omega, lam.imag)
-    lo = max(c - 1, 0)
-    hi = min(c + 2, omega.shape[0])
-    p, sc = _pole_factor(lam, dt, n_samples)
-    pc = np.conj(p)
-    scc = np.conj(sc)
-    rc = np.conj(res)
-    best = 0.0
-    for i in range(lo, hi):
-        v = res * _basis_at(x[i], p, sc, dt) + rc * _basis_at(x[i], pc, scc, dt)
-        best = max(best, abs(v))
-    return best
-
-
-@jit
-def _tolerance_envelope(omega, lam, res, n, tol):
-    """Envelope of the residual that eigenvalue errors of relative size ``tol`` leave behind:
-    ``tol |lam_k| |A_k| / |i w - lam_k|^2`` summed over modes (continuous-time approximation of
-    ``|d contribution / d lam| tol |lam|``). A peak inside it is not evidence of a missing mode."""
-    n_f = omega.shape[0]
-    env = np.zeros(n_f)
-    for k in range(n):
-        lk = lam[k]
-        a = tol * abs(lk) * abs(res[k])
-        for i in range(n_f):
-            d = 1j * omega[i] - lk
-            env[i] += a / (d.real * d.real + d.imag * d.imag)
-    return env
-
-
 # ----------------------------------------------------------------------------------------------
 # Subtraction Phase (eq. 6), one FRF
 # ----------------------------------------------------------------------------------------------
@@ -630,7 +544,7 @@ def _subtract_one(
         for i in range(n_f):
             y[i] = data[i]
         for k in range(n_modes):
-            _add_mode(y, x, lam_out[k], res_out[k], dt, n_samples, -1.0, 0, n_f)
+            add_mode(y, x, lam_out[k], res_out[k], dt, n_samples, -1.0, 0, n_f)
     return n_modes, sigma, stat, reason
 
 
@@ -639,7 +553,7 @@ def _subtract_batch(
     data, omega, dt, n_samples, delta, max_modes, pfa, min_points, zeta_max, merge_tol
 ):
     n_p = data.shape[0]
-    x = _line_variable(omega, dt)
+    x = line_variable(omega, dt)
     lam = np.full((n_p, max_modes), complex(np.nan, np.nan))
     res = np.full((n_p, max_modes), complex(np.nan, np.nan))
     blo = np.full((n_p, max_modes), np.nan)
@@ -680,7 +594,7 @@ def _subtract_batch(
 def _order_by_contribution(omega, x, lam, res, n, dt, n_samples):
     peaks = np.empty(n)
     for k in range(n):
-        peaks[k] = _contribution_peak(omega, x, lam[k], res[k], dt, n_samples)
+        peaks[k] = contribution_peak(omega, x, lam[k], res[k], dt, n_samples)
     return np.argsort(-peaks)
 
 
@@ -726,7 +640,7 @@ def _isolate_sweeps(
             k = order[kk]
             for i in range(n_f):
                 xn[i] = data[i] - model[i]
-            _add_mode(xn, x, lam[k], res[k], dt, n_samples, 1.0, 0, n_f)
+            add_mode(xn, x, lam[k], res[k], dt, n_samples, 1.0, 0, n_f)
             for i in range(n_f):
                 power[i] = abs(xn[i]) ** 2
             if (
@@ -763,10 +677,10 @@ def _isolate_sweeps(
             )
             change = max(change, ch)
             frozen[k] = ch < FREEZE_CHANGE
-            _add_mode(model, x, lam[k], res[k], dt, n_samples, -1.0, 0, n_f)
+            add_mode(model, x, lam[k], res[k], dt, n_samples, -1.0, 0, n_f)
             lam[k] = new
             res[k] = r
-            _add_mode(model, x, new, r, dt, n_samples, 1.0, 0, n_f)
+            add_mode(model, x, new, r, dt, n_samples, 1.0, 0, n_f)
         if change < tol:
             return it, True
     return it, False
@@ -823,7 +737,7 @@ def _isolate_one(
         for i in range(n_f):
             model[i] = 0.0
         for k in range(n):
-            _add_mode(model, x, lam[k], res[k], dt, n_samples, 1.0, 0, n_f)
+            add_mode(model, x, lam[k], res[k], dt, n_samples, 1.0, 0, n_f)
         it, converged = _isolate_sweeps(
             data,
             omega,
@@ -854,8 +768,8 @@ def _isolate_one(
                     dup = m
                     break
             if dup >= 0:
-                pk = _contribution_peak(omega, x, lam[k], res[k], dt, n_samples)
-                pm = _contribution_peak(omega, x, lam[dup], res[dup], dt, n_samples)
+                pk = contribution_peak(omega, x, lam[k], res[k], dt, n_samples)
+                pm = contribution_peak(omega, x, lam[dup], res[dup], dt, n_samples)
                 drop = dup if pm <= pk else k
                 n = _remove_mode(lam, res, fails, n, drop)
                 changed = True
@@ -864,7 +778,7 @@ def _isolate_one(
         # insignificant modes (contribution not above the noise floor, or never fitted) removed
         k = 0
         while k < n:
-            pk = _contribution_peak(omega, x, lam[k], res[k], dt, n_samples)
+            pk = contribution_peak(omega, x, lam[k], res[k], dt, n_samples)
             if pk * pk / sigma**2 < t or fails[k] > max_iter // 2:
                 n = _remove_mode(lam, res, fails, n, k)
                 changed = True
@@ -876,7 +790,7 @@ def _isolate_one(
         if n >= max_modes:
             break
         added = False
-        env = _tolerance_envelope(omega, lam, res, n, tol)
+        env = tolerance_envelope(omega, lam, res, n, tol)
         stat = np.empty(n_f)
         for _try in range(8):
             best = -1.0
@@ -903,7 +817,7 @@ def _isolate_one(
                 iso = np.empty((1, n_f), dtype=np.complex128)
                 for i in range(n_f):
                     iso[0, i] = data[i] - model[i]
-                _add_mode(iso[0], x, lam[ks], res[ks], dt, n_samples, 1.0, 0, n_f)
+                add_mode(iso[0], x, lam[ks], res[ks], dt, n_samples, 1.0, 0, n_f)
                 l2 = np.empty(2, dtype=np.complex128)
                 r2 = np.empty((1, 2), dtype=np.complex128)
                 code = _fit_two_modes(
@@ -984,7 +898,7 @@ def _isolate_batch(
     model_band,
 ):
     n_p = data.shape[0]
-    x = _line_variable(omega, dt)
+    x = line_variable(omega, dt)
     lam = np.full((n_p, max_modes), complex(np.nan, np.nan))
     res = np.full((n_p, max_modes), complex(np.nan, np.nan))
     n_modes = np.zeros(n_p, dtype=np.int64)
@@ -1059,27 +973,10 @@ def _simo_band(xw, omega, lam, dw, delta, wlo, whi):
 
 
 @jit
-def _mode_basis(x, lam, dt, n_samples, br, bi, bcr, bci):
-    """Unit-residue bases ``b(lam)``, ``b(conj lam)`` on every line (as in :func:`_add_mode`),
-    real and imaginary parts apart, so the SIMO sweeps synthesise modes with (vectorisable)
-    real multiplications only and identical values."""
-    p, sc = _pole_factor(lam, dt, n_samples)
-    pc = np.conj(p)
-    scc = np.conj(sc)
-    for i in range(x.shape[0]):
-        v = _basis_at(x[i], p, sc, dt)
-        br[i] = v.real
-        bi[i] = v.imag
-        v = _basis_at(x[i], pc, scc, dt)
-        bcr[i] = v.real
-        bci[i] = v.imag
-
-
-@jit
 def _isolated_lines(dw_data, res, br, bi, bcr, bci, n, k, a, b, xn, power, tr, ti):
     """eq. 7 on lines ``a..b-1`` of every FRF: ``xn = data - sum_{m != k}`` contributions and
     ``power[i] = sum_j |xn[j, i]|^2``. The products are numba's complex product written out
-    (``(ac - bd) + i (ad + bc)``) in the order of :func:`_add_mode`, so the values are the same;
+    (``(ac - bd) + i (ad + bc)``) in the order of :func:`add_mode`, so the values are the same;
     ``tr``, ``ti`` are scratch lines."""
     n_p = dw_data.shape[0]
     for i in range(a, b):
@@ -1184,7 +1081,7 @@ def _isolate_simo(
     """
     n_p = data.shape[0]
     n_f = data.shape[1]
-    x = _line_variable(omega, dt)
+    x = line_variable(omega, dt)
     dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
     w_lo = max(omega[0], dw)
     w_hi = omega[n_f - 1]
@@ -1231,7 +1128,7 @@ def _isolate_simo(
         frozen = np.zeros(max_modes, dtype=np.bool_)
         # bases of the current modes (kept up to date after every fit in the sweeps)
         for k in range(n):
-            _mode_basis(x, lam[k], dt, n_samples, br[k], bi[k], bcr[k], bci[k])
+            mode_basis(x, lam[k], dt, n_samples, br[k], bi[k], bcr[k], bci[k])
         for it in range(1, max_iter + 1):
             if n == 0:
                 break
@@ -1239,7 +1136,7 @@ def _isolate_simo(
             tot = np.zeros(n)
             for k in range(n):
                 for j in range(n_p):
-                    tot[k] += _contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples) ** 2
+                    tot[k] += contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples) ** 2
             order = np.argsort(-tot)
             change = 0.0
             for kk in range(n):
@@ -1305,7 +1202,7 @@ def _isolate_simo(
                     # do not bias the shared eigenvalue
                     for j in range(n_p):
                         wts_all[k, j] = max(
-                            _contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples), 1.0
+                            contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples), 1.0
                         )
                 for j in range(n_p):
                     wts[j] = wts_all[k, j] if reweight else 1.0
@@ -1324,7 +1221,7 @@ def _isolate_simo(
                 for j in range(n_p):
                     res[j, k] = rtmp[j]
                 lam[k] = new
-                _mode_basis(x, new, dt, n_samples, br[k], bi[k], bcr[k], bci[k])
+                mode_basis(x, new, dt, n_samples, br[k], bi[k], bcr[k], bci[k])
             if change < tol:
                 converged = True
                 break
@@ -1337,7 +1234,7 @@ def _isolate_simo(
                     best = 0.0
                     for j in range(n_p):
                         best = max(
-                            best, _contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples)
+                            best, contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples)
                         )
                     if best * best < t1:
                         prune = True
@@ -1356,8 +1253,8 @@ def _isolate_simo(
                 pk = 0.0
                 pm = 0.0
                 for j in range(n_p):
-                    pk += _contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples) ** 2
-                    pm += _contribution_peak(omega, x, lam[dup], res[j, dup], dt, n_samples) ** 2
+                    pk += contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples) ** 2
+                    pm += contribution_peak(omega, x, lam[dup], res[j, dup], dt, n_samples) ** 2
                 drop = dup if pm <= pk else k
                 n = _remove_simo(lam, res, fails, n, drop)
                 changed = True
@@ -1367,7 +1264,7 @@ def _isolate_simo(
         while k < n:
             best = 0.0
             for j in range(n_p):
-                best = max(best, _contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples))
+                best = max(best, contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples))
             if best * best < t1 or fails[k] > max_iter // 2:
                 n = _remove_simo(lam, res, fails, n, k)
                 changed = True
@@ -1378,10 +1275,10 @@ def _isolate_simo(
         if n >= max_modes:
             break
         # the model of all modes (only needed here, after the model-order check left the modes
-        # unchanged), synthesised from the cached bases in the order of _add_mode
+        # unchanged), synthesised from the cached bases in the order of add_mode
         den = np.empty((n, n_f))
         for k in range(n):
-            _mode_basis(x, lam[k], dt, n_samples, br[k], bi[k], bcr[k], bci[k])
+            mode_basis(x, lam[k], dt, n_samples, br[k], bi[k], bcr[k], bci[k])
             for i in range(n_f):
                 d = 1j * omega[i] - lam[k]
                 den[k, i] = d.real * d.real + d.imag * d.imag
@@ -1402,7 +1299,7 @@ def _isolate_simo(
         stat = np.zeros(n_f)
         env = np.empty(n_f)
         for j in range(n_p):
-            # _tolerance_envelope with the denominators computed once for all FRFs
+            # tolerance_envelope with the denominators computed once for all FRFs
             for i in range(n_f):
                 env[i] = 0.0
             for k in range(n):
@@ -1433,7 +1330,7 @@ def _isolate_simo(
                     masked[i] = True
                 iso = xn.copy()
                 for j in range(n_p):
-                    _add_mode(iso[j], x, lam[ks], res[j, ks], dt, n_samples, 1.0, 0, n_f)
+                    add_mode(iso[j], x, lam[ks], res[j, ks], dt, n_samples, 1.0, 0, n_f)
                     wts[j] = wts_all[ks, j] if reweight else 1.0
                 l2 = np.empty(2, dtype=np.complex128)
                 r2 = np.empty((n_p, 2), dtype=np.complex128)
@@ -1493,7 +1390,7 @@ def _isolate_simo(
                 for j in range(n_p):
                     for i in range(lo, hi):
                         trial[i] = xn[j, i]
-                    _add_mode(trial, x, new, rtmp[j], dt, n_samples, -1.0, lo, hi)
+                    add_mode(trial, x, new, rtmp[j], dt, n_samples, -1.0, lo, hi)
                     for i in range(lo, hi):
                         e0 += abs(xn[j, i]) ** 2
                         e1 += abs(trial[i]) ** 2
@@ -1523,23 +1420,6 @@ def _isolate_simo(
 # residue least squares with fixed eigenvalues (eq. 9)
 # ----------------------------------------------------------------------------------------------
 @jit
-def _residual_basis(w, kind, which):
-    """Residual-term basis at angular frequency ``w``: lower (which=0) / upper (which=1).
-
-    ``kind``: 0 receptance (``1/(i w)^2``, ``1``), 1 mobility (``1/(i w)``, ``i w``),
-    2 accelerance (``1``, ``(i w)^2``).
-    """
-    s = 1j * w
-    if w == 0.0 and ((kind == 0 and which == 0) or (kind == 1 and which == 0)):
-        return 0.0 + 0j  # singular at DC: the term is left out there
-    if kind == 0:
-        return 1.0 / (s * s) if which == 0 else 1.0 + 0j
-    if kind == 1:
-        return 1.0 / s if which == 0 else s
-    return 1.0 + 0j if which == 0 else s * s
-
-
-@jit
 def _residue_columns(omega, lam, dt, n_samples, use, residual_kind):
     """Complex columns of eq. 9 on the used lines: (n_unknown, n_used).
 
@@ -1554,16 +1434,16 @@ def _residue_columns(omega, lam, dt, n_samples, use, residual_kind):
             n_used += 1
     n_u = 2 * n_k + (4 if residual_kind >= 0 else 0)
     cols = np.empty((n_u, n_used), dtype=np.complex128)
-    x = _line_variable(omega, dt)
+    x = line_variable(omega, dt)
     for k in range(n_k):
-        p, sc = _pole_factor(lam[k], dt, n_samples)
+        p, sc = pole_factor(lam[k], dt, n_samples)
         pc = np.conj(p)
         scc = np.conj(sc)
         m = 0
         for i in range(n_f):
             if use[i]:
-                b = _basis_at(x[i], p, sc, dt)
-                bc = _basis_at(x[i], pc, scc, dt)
+                b = basis_at(x[i], p, sc, dt)
+                bc = basis_at(x[i], pc, scc, dt)
                 cols[2 * k, m] = b + bc
                 cols[2 * k + 1, m] = 1j * (b - bc)
                 m += 1
@@ -1571,8 +1451,8 @@ def _residue_columns(omega, lam, dt, n_samples, use, residual_kind):
         m = 0
         for i in range(n_f):
             if use[i]:
-                lo = _residual_basis(omega[i], residual_kind, 0)
-                up = _residual_basis(omega[i], residual_kind, 1)
+                lo = residual_basis(omega[i], residual_kind, 0)
+                up = residual_basis(omega[i], residual_kind, 1)
                 cols[2 * n_k, m] = lo
                 cols[2 * n_k + 1, m] = 1j * lo
                 cols[2 * n_k + 2, m] = up
@@ -1629,43 +1509,17 @@ def _residues_fixed(data, omega, lam, dt, n_samples, use, residual_kind):
     return out
 
 
-@jit
-def _synthesize_residual_terms(omega, coef, residual_kind):
-    n_p = coef.shape[0]
-    n_f = omega.shape[0]
-    out = np.zeros((n_p, n_f), dtype=np.complex128)
-    for j in range(n_p):
-        for i in range(n_f):
-            if omega[i] == 0.0 and residual_kind == 0:
-                continue
-            out[j, i] = coef[j, 0] * _residual_basis(omega[i], residual_kind, 0) + coef[
-                j, 1
-            ] * _residual_basis(omega[i], residual_kind, 1)
-    return out
-
-
 # ----------------------------------------------------------------------------------------------
 # public wrappers (validate, then call the jitted kernels)
 # ----------------------------------------------------------------------------------------------
-def _as_omega(omega):
-    omega = np.ascontiguousarray(omega, dtype=np.float64)
-    if omega.ndim != 1 or omega.size < 2 or not np.all(np.diff(omega) > 0):
-        raise ValueError("omega: expected a 1-D, strictly increasing array of angular frequencies")
-    return omega
-
-
-def _dt(dt):
-    return float(dt) if dt else 0.0
-
-
 def single_mode_rows(data, omega, scale, dt=None):
     """Real least-squares rows ``(2F, 4)`` and right side ``(2F,)`` of the single-mode equation
     (*) (eqs. 11-12 when ``dt`` is None) for one FRF ``data`` (F,) at ``omega`` (rad/s)."""
-    omega = _as_omega(omega)
+    omega = checked_omega(omega)
     data = np.ascontiguousarray(data, dtype=np.complex128)
     if data.shape != omega.shape:
         raise ValueError(f"data: expected shape {omega.shape}, got {data.shape}")
-    return _single_mode_rows(data, omega, float(scale), _dt(dt))
+    return _single_mode_rows(data, omega, float(scale), as_dt(dt))
 
 
 def fit_single_mode(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, prev=None):
@@ -1673,11 +1527,11 @@ def fit_single_mode(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, prev=
 
     ``code`` is 0 for a physical fit (see the ``FIT_*`` constants otherwise).
     """
-    omega = _as_omega(omega)
+    omega = checked_omega(omega)
     data = np.ascontiguousarray(data, dtype=np.complex128)
     if data.shape != omega.shape:
         raise ValueError(f"data: expected shape {omega.shape}, got {data.shape}")
-    x = _line_variable(omega, _dt(dt))
+    x = line_variable(omega, as_dt(dt))
     ws = float(np.mean(omega)) or 1.0
     return _fit_single(
         data,
@@ -1685,7 +1539,7 @@ def fit_single_mode(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, prev=
         0,
         omega.size,
         ws,
-        _dt(dt),
+        as_dt(dt),
         int(n_samples or 0),
         float(zeta_max),
         0.0,
@@ -1696,11 +1550,11 @@ def fit_single_mode(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, prev=
 
 def fit_single_mode_simo(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, prev=None):
     """Global SIMO single-mode fit of all rows of ``data`` (P, F): ``(lam, residues, code)``."""
-    omega = _as_omega(omega)
+    omega = checked_omega(omega)
     data = np.ascontiguousarray(np.atleast_2d(data), dtype=np.complex128)
     if data.shape[-1] != omega.size:
         raise ValueError(f"data: expected last dim {omega.size}, got {data.shape}")
-    x = _line_variable(omega, _dt(dt))
+    x = line_variable(omega, as_dt(dt))
     res = np.full(data.shape[0], complex(np.nan, np.nan))
     ws = float(np.mean(omega)) or 1.0
     lam, code = _fit_single_simo(
@@ -1709,7 +1563,7 @@ def fit_single_mode_simo(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, 
         0,
         omega.size,
         ws,
-        _dt(dt),
+        as_dt(dt),
         int(n_samples or 0),
         float(zeta_max),
         0.0,
@@ -1721,59 +1575,32 @@ def fit_single_mode_simo(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, 
     return lam, res, code
 
 
-def synthesize(omega, lam, residue, dt=None, n_samples=None):
-    """Sum of modal contributions (eq. 4 or its exact discrete form).
-
-    ``lam`` (K,) or (P, K); ``residue`` (P, K); returns (P, F). NaN modes are skipped.
-    """
-    omega = _as_omega(omega)
-    residue = np.ascontiguousarray(np.atleast_2d(residue), dtype=np.complex128)
-    lam = np.ascontiguousarray(np.atleast_2d(lam), dtype=np.complex128)
-    if lam.shape[-1] != residue.shape[-1] or lam.shape[0] not in (1, residue.shape[0]):
-        raise ValueError(f"lam: shape {lam.shape} does not match residue shape {residue.shape}")
-    return _synthesize(omega, lam, residue, _dt(dt), int(n_samples or 0))
-
-
 def residue_normal_equations(data, omega, lam, use=None, dt=None, n_samples=None, residual_kind=-1):
     """Normal matrix (n_u, n_u) and right sides (n_u, P) of eq. 9 (unknowns A1, A2 per mode)."""
-    omega = _as_omega(omega)
+    omega = checked_omega(omega)
     data = np.ascontiguousarray(np.atleast_2d(data), dtype=np.complex128)
     lam = np.ascontiguousarray(np.atleast_1d(lam), dtype=np.complex128)
     use = np.ones(omega.size, np.bool_) if use is None else np.ascontiguousarray(use, np.bool_)
-    cols = _residue_columns(omega, lam, _dt(dt), int(n_samples or 0), use, int(residual_kind))
+    cols = _residue_columns(omega, lam, as_dt(dt), int(n_samples or 0), use, int(residual_kind))
     return _residue_normal_equations(data, cols, use)
 
 
 def residues_fixed(data, omega, lam, use=None, dt=None, n_samples=None, residual_kind=-1):
     """Residues (P, K) [+ (P, 2) residual coefficients] by linear least squares, eq. 9."""
-    omega = _as_omega(omega)
+    omega = checked_omega(omega)
     data = np.ascontiguousarray(np.atleast_2d(data), dtype=np.complex128)
     lam = np.ascontiguousarray(np.atleast_1d(lam), dtype=np.complex128)
     use = np.ones(omega.size, np.bool_) if use is None else np.ascontiguousarray(use, np.bool_)
     if 2 * int(use.sum()) < 2 * lam.size + (4 if residual_kind >= 0 else 0):
         raise ValueError("use: fewer lines than the residue fit needs")
-    return _residues_fixed(data, omega, lam, _dt(dt), int(n_samples or 0), use, int(residual_kind))
+    return _residues_fixed(
+        data, omega, lam, as_dt(dt), int(n_samples or 0), use, int(residual_kind)
+    )
 
 
 # ----------------------------------------------------------------------------------------------
 # per-point diagnostics
 # ----------------------------------------------------------------------------------------------
-@jit
-def _contribution_peaks(omega, dt, n_samples, lam, res):
-    """Peak |contribution| of every (point, mode): ``lam`` (P or 1, K), ``res`` (P, K)."""
-    n_p = res.shape[0]
-    n_k = res.shape[1]
-    x = _line_variable(omega, dt)
-    out = np.full((n_p, n_k), np.nan)
-    for j in range(n_p):
-        jl = j if lam.shape[0] == n_p else 0
-        for kk in range(n_k):
-            if np.isnan(lam[jl, kk].real) or np.isnan(res[j, kk].real):
-                continue
-            out[j, kk] = _contribution_peak(omega, x, lam[jl, kk], res[j, kk], dt, n_samples)
-    return out
-
-
 @jit
 def _point_estimates(data, omega, dt, n_samples, lam, res, delta, min_points, zeta_max):
     """Per-FRF single-mode estimates of each system mode on its isolated data (eq. 7 with the
@@ -1781,7 +1608,7 @@ def _point_estimates(data, omega, dt, n_samples, lam, res, delta, min_points, ze
     n_p = data.shape[0]
     n_f = data.shape[1]
     n_k = lam.shape[0]
-    x = _line_variable(omega, dt)
+    x = line_variable(omega, dt)
     dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
     w_lo = max(omega[0], dw)
     w_hi = omega[n_f - 1]
@@ -1791,11 +1618,11 @@ def _point_estimates(data, omega, dt, n_samples, lam, res, delta, min_points, ze
     for j in range(n_p):
         model = np.zeros(n_f, dtype=np.complex128)
         for kk in range(n_k):
-            _add_mode(model, x, lam[kk], res[j, kk], dt, n_samples, 1.0, 0, n_f)
+            add_mode(model, x, lam[kk], res[j, kk], dt, n_samples, 1.0, 0, n_f)
         for kk in range(n_k):
             for i in range(n_f):
                 xn[i] = data[j, i] - model[i]
-            _add_mode(xn, x, lam[kk], res[j, kk], dt, n_samples, 1.0, 0, n_f)
+            add_mode(xn, x, lam[kk], res[j, kk], dt, n_samples, 1.0, 0, n_f)
             for i in range(n_f):
                 power[i] = abs(xn[i]) ** 2
             peak = local_peak(power, omega, lam[kk], dw)

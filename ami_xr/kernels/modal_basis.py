@@ -1,4 +1,5 @@
-"""Modal basis functions: the contribution of one mode with unit residue to an FRF.
+"""The modal model, written once: the basis b(lam, w) of one mode with unit residue, its
+derivative, the residual terms, synthesis and per-mode contribution peaks.
 
 Two models of the data:
 
@@ -9,16 +10,121 @@ Two models of the data:
   plus all aliases), and likewise for the conjugate term. With the record length ``n`` known and
   ``w`` on the DFT grid, the truncation of the record multiplies it by ``1 - exp(lam n dt)``.
 
-A mode with residue ``A = A1 + i A2`` contributes ``A * b(lam) + conj(A) * b(conj(lam))``.
+``dt <= 0`` (``dt=None`` in the wrappers) selects the continuous model everywhere. A mode with
+residue ``A = A1 + i A2`` contributes ``A * b(lam) + conj(A) * b(conj(lam))``.
+
+Bit-identity note: the AMI kernels (``line_variable``/``pole_factor``/``basis_at``), the
+reference :func:`pole_basis` and the refinement's :func:`basis_and_derivative` evaluate the same
+b(lam, w) with three different (documented) orders of floating-point operations; each caller's
+results were fixed by its order, so the three evaluations are kept side by side here rather than
+merged into one expression.
+
+Jitted, unchecked helpers for the other kernel modules: ``line_variable``, ``pole_factor``,
+``basis_at``, ``add_mode``, ``mode_basis``, ``contribution_peak``, ``tolerance_envelope``,
+``residual_basis``. Checked wrappers: :func:`pole_basis`, :func:`mode_contribution`,
+:func:`basis_and_derivative`, :func:`model_columns`, :func:`synthesize`,
+:func:`synthesize_residual_terms`, :func:`contribution_peaks`; :func:`checked_omega` and
+:func:`as_dt` are the argument checks the other wrappers share.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
+from ami_xr.kernels.noise import nearest_line
+
+RESIDUAL_TERMS = ("lower", "upper")
+"""Names of the residual terms: ``lower`` (below the band) and ``upper`` (above it)."""
 
 
+# ----------------------------------------------------------------------------------------------
+# one mode on a grid of lines: the AMI kernels' evaluation (eqs. 4, 6, 7)
+# ----------------------------------------------------------------------------------------------
+@jit
+def line_variable(omega, dt):
+    """``q = exp(-i w dt)`` for the discrete model, ``i w`` for the continuous one (dt <= 0)."""
+    out = np.empty(omega.shape[0], dtype=np.complex128)
+    for i in range(omega.shape[0]):
+        if dt > 0.0:
+            out[i] = np.exp(-1j * omega[i] * dt)
+        else:
+            out[i] = 1j * omega[i]
+    return out
+
+
+@jit
+def pole_factor(lam, dt, n_samples):
+    """``(p, scale)``: discrete ``p = exp(lam dt)``, ``scale = dt (1 - exp(lam N dt))``."""
+    if dt > 0.0:
+        scale = dt + 0j
+        if n_samples > 0:
+            scale = dt * (1.0 - np.exp(lam * (n_samples * dt)))
+        return np.exp(lam * dt), scale
+    return lam, 1.0 + 0j
+
+
+@jit
+def basis_at(x, p, scale, dt):
+    """Unit-residue basis at one line: ``scale / (1 - p q)`` or ``1 / (i w - lam)``."""
+    if dt > 0.0:
+        return scale / (1.0 - p * x)
+    return 1.0 / (x - p)
+
+
+@jit
+def add_mode(out, x, lam, res, dt, n_samples, sign, lo, hi):
+    """``out[lo:hi] += sign * (A b(lam) + conj(A) b(conj(lam)))`` on lines ``lo..hi-1``."""
+    p, sc = pole_factor(lam, dt, n_samples)
+    pc = np.conj(p)
+    scc = np.conj(sc)
+    rc = np.conj(res)
+    for i in range(lo, hi):
+        out[i] += sign * (res * basis_at(x[i], p, sc, dt) + rc * basis_at(x[i], pc, scc, dt))
+
+
+@jit
+def mode_basis(x, lam, dt, n_samples, br, bi, bcr, bci):
+    """Unit-residue bases ``b(lam)``, ``b(conj lam)`` on every line (as in :func:`add_mode`),
+    real and imaginary parts apart, so the SIMO sweeps synthesise modes with (vectorisable)
+    real multiplications only and identical values."""
+    p, sc = pole_factor(lam, dt, n_samples)
+    pc = np.conj(p)
+    scc = np.conj(sc)
+    for i in range(x.shape[0]):
+        v = basis_at(x[i], p, sc, dt)
+        br[i] = v.real
+        bi[i] = v.imag
+        v = basis_at(x[i], pc, scc, dt)
+        bcr[i] = v.real
+        bci[i] = v.imag
+
+
+@jit
+def _synthesize(omega, lam, res, dt, n_samples):
+    """Sum of modal contributions: ``lam`` (P, K) or broadcast, ``res`` (P, K) -> (P, F).
+
+    NaN eigenvalues (padding) are skipped.
+    """
+    n_p = res.shape[0]
+    n_k = res.shape[1]
+    n_f = omega.shape[0]
+    x = line_variable(omega, dt)
+    out = np.zeros((n_p, n_f), dtype=np.complex128)
+    for j in range(n_p):
+        jl = j if lam.shape[0] == n_p else 0
+        for k in range(n_k):
+            lk = lam[jl, k]
+            if np.isnan(lk.real) or np.isnan(res[j, k].real):
+                continue
+            add_mode(out[j], x, lk, res[j, k], dt, n_samples, 1.0, 0, n_f)
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# the reference evaluation and the refinement's basis with its derivative
+# ----------------------------------------------------------------------------------------------
 @jit
 def _pole_basis(omega, lam, dt, n_samples):
     """``b(lam)`` on the angular-frequency grid ``omega`` (rad/s); ``dt <= 0`` means continuous."""
@@ -33,6 +139,163 @@ def _pole_basis(omega, lam, dt, n_samples):
         for i in range(omega.shape[0]):
             out[i] = 1.0 / (1j * omega[i] - lam)
     return out
+
+
+@jit
+def _basis_and_derivative(omega, lam, dt, n_samples):
+    """``b(lam_k, w)`` and ``d b / d lam`` for every pole ``lam_k``: two arrays (K, L) complex.
+
+    ``dt <= 0`` selects the continuous basis ``1/(i w - lam)``; otherwise the exact discrete
+    basis ``dt s / (1 - exp((lam - i w) dt))`` with ``s = 1 - exp(lam n dt)`` (``s = 1`` when
+    ``n_samples <= 0``).
+    """
+    n_mode = lam.shape[0]
+    n_line = omega.shape[0]
+    b = np.empty((n_mode, n_line), dtype=np.complex128)
+    db = np.empty((n_mode, n_line), dtype=np.complex128)
+    # exp((lam - i w) dt) = exp(lam dt) exp(-i w dt): one exp per line, shared by the poles
+    turn = np.empty(n_line, dtype=np.complex128)
+    if dt > 0.0:
+        for i in range(n_line):
+            turn[i] = np.exp(-1j * omega[i] * dt)
+    for k in range(n_mode):
+        lk = lam[k]
+        if dt > 0.0:
+            s = 1.0 + 0j
+            ds = 0.0 + 0j
+            if n_samples > 0:
+                e_n = np.exp(lk * (n_samples * dt))
+                s = 1.0 - e_n
+                ds = -(n_samples * dt) * e_n
+            p = np.exp(lk * dt)
+            for i in range(n_line):
+                e = p * turn[i]
+                den = 1.0 - e
+                b[k, i] = dt * s / den
+                # d/dlam [dt s / (1 - e)] = dt (ds (1 - e) + s dt e) / (1 - e)^2
+                db[k, i] = dt * (ds * den + s * dt * e) / (den * den)
+        else:
+            for i in range(n_line):
+                den = 1j * omega[i] - lk
+                b[k, i] = 1.0 / den
+                db[k, i] = 1.0 / (den * den)
+    return b, db
+
+
+# ----------------------------------------------------------------------------------------------
+# residual terms (lower / upper) and contribution peaks
+# ----------------------------------------------------------------------------------------------
+@jit
+def residual_basis(w, kind, which):
+    """Residual-term basis at angular frequency ``w``: lower (which=0) / upper (which=1).
+
+    ``kind``: 0 receptance (``1/(i w)^2``, ``1``), 1 mobility (``1/(i w)``, ``i w``),
+    2 accelerance (``1``, ``(i w)^2``).
+    """
+    s = 1j * w
+    if w == 0.0 and ((kind == 0 and which == 0) or (kind == 1 and which == 0)):
+        return 0.0 + 0j  # singular at DC: the term is left out there
+    if kind == 0:
+        return 1.0 / (s * s) if which == 0 else 1.0 + 0j
+    if kind == 1:
+        return 1.0 / s if which == 0 else s
+    return 1.0 + 0j if which == 0 else s * s
+
+
+@jit
+def _synthesize_residual_terms(omega, coef, residual_kind):
+    n_p = coef.shape[0]
+    n_f = omega.shape[0]
+    out = np.zeros((n_p, n_f), dtype=np.complex128)
+    for j in range(n_p):
+        for i in range(n_f):
+            if omega[i] == 0.0 and residual_kind == 0:
+                continue
+            out[j, i] = coef[j, 0] * residual_basis(omega[i], residual_kind, 0) + coef[
+                j, 1
+            ] * residual_basis(omega[i], residual_kind, 1)
+    return out
+
+
+@jit
+def contribution_peak(omega, x, lam, res, dt, n_samples):
+    """Largest |contribution| of one mode over the three lines nearest its damped frequency."""
+    c = nearest_line(omega, lam.imag)
+    lo = max(c - 1, 0)
+    hi = min(c + 2, omega.shape[0])
+    p, sc = pole_factor(lam, dt, n_samples)
+    pc = np.conj(p)
+    scc = np.conj(sc)
+    rc = np.conj(res)
+    best = 0.0
+    for i in range(lo, hi):
+        v = res * basis_at(x[i], p, sc, dt) + rc * basis_at(x[i], pc, scc, dt)
+        best = max(best, abs(v))
+    return best
+
+
+@jit
+def _contribution_peaks(omega, dt, n_samples, lam, res):
+    """Peak |contribution| of every (point, mode): ``lam`` (P or 1, K), ``res`` (P, K)."""
+    n_p = res.shape[0]
+    n_k = res.shape[1]
+    x = line_variable(omega, dt)
+    out = np.full((n_p, n_k), np.nan)
+    for j in range(n_p):
+        jl = j if lam.shape[0] == n_p else 0
+        for kk in range(n_k):
+            if np.isnan(lam[jl, kk].real) or np.isnan(res[j, kk].real):
+                continue
+            out[j, kk] = contribution_peak(omega, x, lam[jl, kk], res[j, kk], dt, n_samples)
+    return out
+
+
+@jit
+def tolerance_envelope(omega, lam, res, n, tol):
+    """Envelope of the residual that eigenvalue errors of relative size ``tol`` leave behind:
+    ``tol |lam_k| |A_k| / |i w - lam_k|^2`` summed over modes (continuous-time approximation of
+    ``|d contribution / d lam| tol |lam|``). A peak inside it is not evidence of a missing mode."""
+    n_f = omega.shape[0]
+    env = np.zeros(n_f)
+    for k in range(n):
+        lk = lam[k]
+        a = tol * abs(lk) * abs(res[k])
+        for i in range(n_f):
+            d = 1j * omega[i] - lk
+            env[i] += a / (d.real * d.real + d.imag * d.imag)
+    return env
+
+
+# ----------------------------------------------------------------------------------------------
+# checked wrappers
+# ----------------------------------------------------------------------------------------------
+def checked_omega(omega: np.ndarray) -> np.ndarray:
+    """``omega`` as a contiguous float64 array, checked 1-D and strictly increasing (>= 2 lines).
+
+    Raises :class:`~ami_xr.errors.AmiXrValueError` naming ``omega`` otherwise.
+    """
+    omega = np.ascontiguousarray(omega, dtype=np.float64)
+    if omega.ndim != 1 or omega.size < 2 or not np.all(np.diff(omega) > 0):
+        raise AmiXrValueError(
+            "omega: expected a 1-D, strictly increasing array of angular frequencies"
+        )
+    return omega
+
+
+def as_dt(dt: float | None) -> float:
+    """The kernels' ``dt``: the sample interval, or 0.0 (continuous model) for None or 0."""
+    return float(dt) if dt else 0.0
+
+
+def _check_model(dt: float, n_samples: int | None) -> int:
+    if dt < 0.0 or not np.isfinite(dt):
+        raise AmiXrValueError(f"dt: expected a positive sample interval or None, got {dt!r}")
+    n = int(n_samples or 0)
+    if n < 0:
+        raise AmiXrValueError(
+            f"n_samples: expected a non-negative count or None, got {n_samples!r}"
+        )
+    return n
 
 
 def pole_basis(
@@ -55,7 +318,7 @@ def pole_basis(
     """
     omega = np.ascontiguousarray(omega, dtype=np.float64)
     if omega.ndim != 1:
-        raise ValueError(
+        raise AmiXrValueError(
             f"omega: expected a 1-D array of angular frequencies, got shape {omega.shape}"
         )
     return _pole_basis(omega, complex(lam), float(dt) if dt else 0.0, int(n_samples or 0))
@@ -72,3 +335,188 @@ def mode_contribution(
     return residue * pole_basis(omega, lam, dt, n_samples) + np.conj(residue) * pole_basis(
         omega, np.conj(lam), dt, n_samples
     )
+
+
+def basis_and_derivative(
+    omega: np.ndarray, lam: np.ndarray, dt: float | None = None, n_samples: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Modal basis ``b(lam_k, w)`` and its derivative with respect to ``lam_k``.
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (L,)
+        Angular frequencies in rad/s.
+    lam : ndarray of complex, shape (K,)
+        Poles in rad/s.
+    dt, n_samples : optional
+        Sample interval and record length of the impulse response when the FRF is
+        ``dt * DFT`` of it (exact discrete basis); ``None`` for the continuous basis.
+
+    Returns
+    -------
+    b, db : ndarray of complex, shape (K, L)
+    """
+    omega = np.ascontiguousarray(omega, dtype=np.float64)
+    lam = np.ascontiguousarray(np.atleast_1d(lam), dtype=np.complex128)
+    if omega.ndim != 1:
+        raise AmiXrValueError(f"omega: expected a 1-D array, got shape {omega.shape}")
+    if lam.ndim != 1:
+        raise AmiXrValueError(f"lam: expected a 1-D array of poles, got shape {lam.shape}")
+    return _basis_and_derivative(omega, lam, float(dt) if dt else 0.0, int(n_samples or 0))
+
+
+def model_columns(
+    omega: np.ndarray,
+    lam: np.ndarray,
+    dt: float | None,
+    n_samples: int | None,
+    residual_terms: tuple[str, ...] = (),
+    residual_kind: int = 0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Complex columns of the real-linear model and of its derivative.
+
+    Returns ``phi`` (L, 2K + 2R) -- columns multiplying ``A1_k``, ``A2_k`` for each mode and the
+    real and imaginary coefficient of each residual term (``residual_kind`` 0 receptance:
+    lower ``1/(i w)^2``, upper ``1``; 1 mobility: ``1/(i w)``, ``i w``; 2 accelerance: ``1``,
+    ``(i w)^2``; a term singular at 0 Hz is 0 there) -- and ``dphi`` (L, 2K) -- the vectors
+    ``u_k = b'(lam) + b'(conj lam)`` and ``v_k = i (b'(lam) - b'(conj lam))``, so that the
+    derivative of the model of a point with residue ``A1 + i A2`` is
+    ``A1 u + A2 v`` with respect to ``Re lam`` and ``A1 v - A2 u`` with respect to ``Im lam``.
+    """
+    for term in residual_terms:
+        if term not in RESIDUAL_TERMS:
+            raise AmiXrValueError(
+                f"residual_terms: expected entries in {RESIDUAL_TERMS}, got {term!r}"
+            )
+    lam = np.ascontiguousarray(np.atleast_1d(lam), dtype=np.complex128)
+    omega = np.ascontiguousarray(omega, dtype=np.float64)
+    n_mode = lam.shape[0]
+    both = np.concatenate([lam, np.conj(lam)])
+    b, db = basis_and_derivative(omega, both, dt, n_samples)
+    b_l, b_c = b[:n_mode], b[n_mode:]
+    d_l, d_c = db[:n_mode], db[n_mode:]
+    n_res = len(residual_terms)
+    phi = np.empty((omega.shape[0], 2 * n_mode + 2 * n_res), dtype=np.complex128)
+    phi[:, 0 : 2 * n_mode : 2] = (b_l + b_c).T
+    phi[:, 1 : 2 * n_mode : 2] = (1j * (b_l - b_c)).T
+    s = 1j * omega
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lower = (1.0 / s**2, 1.0 / s, np.ones_like(s))[residual_kind]
+    lower = np.where(omega == 0.0, 0.0, lower)
+    upper = (np.ones_like(s), s, s**2)[residual_kind]
+    for r, term in enumerate(residual_terms):
+        col = lower if term == "lower" else upper
+        phi[:, 2 * n_mode + 2 * r] = col
+        phi[:, 2 * n_mode + 2 * r + 1] = 1j * col
+    dphi = np.empty((omega.shape[0], 2 * n_mode), dtype=np.complex128)
+    dphi[:, 0::2] = (d_l + d_c).T
+    dphi[:, 1::2] = (1j * (d_l - d_c)).T
+    return phi, dphi
+
+
+def synthesize(
+    omega: np.ndarray,
+    lam: np.ndarray,
+    residue: np.ndarray,
+    dt: float | None = None,
+    n_samples: int | None = None,
+) -> np.ndarray:
+    """Sum of modal contributions (eq. 4 or its exact discrete form).
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (F,)
+        Angular frequencies in rad/s, strictly increasing.
+    lam : ndarray of complex, shape (K,), (1, K) or (P, K)
+        Eigenvalues (one row shared by all FRFs, or one row per FRF).
+    residue : ndarray of complex, shape (P, K)
+        Residues. Modes whose eigenvalue or residue is NaN (padding) are skipped.
+    dt, n_samples : optional
+        Discrete model (see the module docstring); None for the continuous one.
+
+    Returns
+    -------
+    ndarray of complex, shape (P, F)
+    """
+    omega = checked_omega(omega)
+    dt = as_dt(dt)
+    n_samples = _check_model(dt, n_samples)
+    residue = np.ascontiguousarray(np.atleast_2d(residue), dtype=np.complex128)
+    lam = np.ascontiguousarray(np.atleast_2d(lam), dtype=np.complex128)
+    if residue.ndim != 2:
+        raise AmiXrValueError(f"residue: expected shape (P, K), got {residue.shape}")
+    if (
+        lam.ndim != 2
+        or lam.shape[-1] != residue.shape[-1]
+        or lam.shape[0] not in (1, residue.shape[0])
+    ):
+        raise AmiXrValueError(
+            f"lam: shape {lam.shape} does not match residue shape {residue.shape}"
+        )
+    return _synthesize(omega, lam, residue, dt, n_samples)
+
+
+def synthesize_residual_terms(
+    omega: np.ndarray, coef: np.ndarray, residual_kind: int
+) -> np.ndarray:
+    """Sum of the lower and upper residual terms of each FRF.
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (F,)
+        Angular frequencies in rad/s, strictly increasing.
+    coef : ndarray of complex, shape (P, 2)
+        Coefficients of the lower and upper term per FRF.
+    residual_kind : {0, 1, 2}
+        0 receptance (``1/(i w)^2``, ``1``), 1 mobility (``1/(i w)``, ``i w``), 2 accelerance
+        (``1``, ``(i w)^2``); a term singular at 0 rad/s is 0 there.
+
+    Returns
+    -------
+    ndarray of complex, shape (P, F)
+    """
+    omega = checked_omega(omega)
+    coef = np.ascontiguousarray(np.atleast_2d(coef), dtype=np.complex128)
+    if coef.ndim != 2 or coef.shape[1] != 2:
+        raise AmiXrValueError(f"coef: expected shape (P, 2), got {coef.shape}")
+    if residual_kind not in (0, 1, 2):
+        raise AmiXrValueError(f"residual_kind: expected 0, 1 or 2, got {residual_kind!r}")
+    return _synthesize_residual_terms(omega, coef, int(residual_kind))
+
+
+def contribution_peaks(
+    omega: np.ndarray,
+    dt: float | None,
+    n_samples: int | None,
+    lam: np.ndarray,
+    res: np.ndarray,
+) -> np.ndarray:
+    """Peak ``|contribution|`` of every (FRF, mode) over the three lines nearest its damped
+    natural frequency.
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (F,)
+        Angular frequencies in rad/s, strictly increasing.
+    dt, n_samples : float or None, int or None
+        Discrete model (see the module docstring); None for the continuous one.
+    lam : ndarray of complex, shape (1, K) or (P, K)
+        Eigenvalues, shared by all FRFs or one row per FRF.
+    res : ndarray of complex, shape (P, K)
+        Residues.
+
+    Returns
+    -------
+    ndarray of float, shape (P, K)
+        NaN where the eigenvalue or the residue is NaN.
+    """
+    omega = checked_omega(omega)
+    dt = as_dt(dt)
+    n_samples = _check_model(dt, n_samples)
+    res = np.ascontiguousarray(res, dtype=np.complex128)
+    lam = np.ascontiguousarray(lam, dtype=np.complex128)
+    if res.ndim != 2:
+        raise AmiXrValueError(f"res: expected shape (P, K), got {res.shape}")
+    if lam.ndim != 2 or lam.shape[1] != res.shape[1] or lam.shape[0] not in (1, res.shape[0]):
+        raise AmiXrValueError(f"lam: shape {lam.shape} does not match res shape {res.shape}")
+    return _contribution_peaks(omega, dt, n_samples, lam, res)

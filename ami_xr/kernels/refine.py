@@ -21,123 +21,12 @@ import numpy as np
 
 from ami_xr.kernels._numba import jit, prange
 
-RESIDUAL_TERMS = ("lower", "upper")
-
-
-@jit
-def _basis_and_derivative(omega, lam, dt, n_samples):
-    """``b(lam_k, w)`` and ``d b / d lam`` for every pole ``lam_k``: two arrays (K, L) complex.
-
-    ``dt <= 0`` selects the continuous basis ``1/(i w - lam)``; otherwise the exact discrete
-    basis ``dt s / (1 - exp((lam - i w) dt))`` with ``s = 1 - exp(lam n dt)`` (``s = 1`` when
-    ``n_samples <= 0``).
-    """
-    n_mode = lam.shape[0]
-    n_line = omega.shape[0]
-    b = np.empty((n_mode, n_line), dtype=np.complex128)
-    db = np.empty((n_mode, n_line), dtype=np.complex128)
-    # exp((lam - i w) dt) = exp(lam dt) exp(-i w dt): one exp per line, shared by the poles
-    turn = np.empty(n_line, dtype=np.complex128)
-    if dt > 0.0:
-        for i in range(n_line):
-            turn[i] = np.exp(-1j * omega[i] * dt)
-    for k in range(n_mode):
-        lk = lam[k]
-        if dt > 0.0:
-            s = 1.0 + 0j
-            ds = 0.0 + 0j
-            if n_samples > 0:
-                e_n = np.exp(lk * (n_samples * dt))
-                s = 1.0 - e_n
-                ds = -(n_samples * dt) * e_n
-            p = np.exp(lk * dt)
-            for i in range(n_line):
-                e = p * turn[i]
-                den = 1.0 - e
-                b[k, i] = dt * s / den
-                # d/dlam [dt s / (1 - e)] = dt (ds (1 - e) + s dt e) / (1 - e)^2
-                db[k, i] = dt * (ds * den + s * dt * e) / (den * den)
-        else:
-            for i in range(n_line):
-                den = 1j * omega[i] - lk
-                b[k, i] = 1.0 / den
-                db[k, i] = 1.0 / (den * den)
-    return b, db
-
-
-def basis_and_derivative(
-    omega: np.ndarray, lam: np.ndarray, dt: float | None = None, n_samples: int | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Modal basis ``b(lam_k, w)`` and its derivative with respect to ``lam_k``.
-
-    Parameters
-    ----------
-    omega : ndarray of float, shape (L,)
-        Angular frequencies in rad/s.
-    lam : ndarray of complex, shape (K,)
-        Poles in rad/s.
-    dt, n_samples : optional
-        Sample interval and record length of the impulse response when the FRF is
-        ``dt * DFT`` of it (exact discrete basis); ``None`` for the continuous basis.
-
-    Returns
-    -------
-    b, db : ndarray of complex, shape (K, L)
-    """
-    omega = np.ascontiguousarray(omega, dtype=np.float64)
-    lam = np.ascontiguousarray(np.atleast_1d(lam), dtype=np.complex128)
-    if omega.ndim != 1:
-        raise ValueError(f"omega: expected a 1-D array, got shape {omega.shape}")
-    if lam.ndim != 1:
-        raise ValueError(f"lam: expected a 1-D array of poles, got shape {lam.shape}")
-    return _basis_and_derivative(omega, lam, float(dt) if dt else 0.0, int(n_samples or 0))
-
-
-def model_columns(
-    omega: np.ndarray,
-    lam: np.ndarray,
-    dt: float | None,
-    n_samples: int | None,
-    residual_terms: tuple[str, ...] = (),
-    residual_kind: int = 0,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Complex columns of the real-linear model and of its derivative.
-
-    Returns ``phi`` (L, 2K + 2R) -- columns multiplying ``A1_k``, ``A2_k`` for each mode and the
-    real and imaginary coefficient of each residual term (``residual_kind`` 0 receptance:
-    lower ``1/(i w)^2``, upper ``1``; 1 mobility: ``1/(i w)``, ``i w``; 2 accelerance: ``1``,
-    ``(i w)^2``; a term singular at 0 Hz is 0 there) -- and ``dphi`` (L, 2K) -- the vectors
-    ``u_k = b'(lam) + b'(conj lam)`` and ``v_k = i (b'(lam) - b'(conj lam))``, so that the
-    derivative of the model of a point with residue ``A1 + i A2`` is
-    ``A1 u + A2 v`` with respect to ``Re lam`` and ``A1 v - A2 u`` with respect to ``Im lam``.
-    """
-    for term in residual_terms:
-        if term not in RESIDUAL_TERMS:
-            raise ValueError(f"residual_terms: expected entries in {RESIDUAL_TERMS}, got {term!r}")
-    lam = np.ascontiguousarray(np.atleast_1d(lam), dtype=np.complex128)
-    omega = np.ascontiguousarray(omega, dtype=np.float64)
-    n_mode = lam.shape[0]
-    both = np.concatenate([lam, np.conj(lam)])
-    b, db = basis_and_derivative(omega, both, dt, n_samples)
-    b_l, b_c = b[:n_mode], b[n_mode:]
-    d_l, d_c = db[:n_mode], db[n_mode:]
-    n_res = len(residual_terms)
-    phi = np.empty((omega.shape[0], 2 * n_mode + 2 * n_res), dtype=np.complex128)
-    phi[:, 0 : 2 * n_mode : 2] = (b_l + b_c).T
-    phi[:, 1 : 2 * n_mode : 2] = (1j * (b_l - b_c)).T
-    s = 1j * omega
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lower = (1.0 / s**2, 1.0 / s, np.ones_like(s))[residual_kind]
-    lower = np.where(omega == 0.0, 0.0, lower)
-    upper = (np.ones_like(s), s, s**2)[residual_kind]
-    for r, term in enumerate(residual_terms):
-        col = lower if term == "lower" else upper
-        phi[:, 2 * n_mode + 2 * r] = col
-        phi[:, 2 * n_mode + 2 * r + 1] = 1j * col
-    dphi = np.empty((omega.shape[0], 2 * n_mode), dtype=np.complex128)
-    dphi[:, 0::2] = (d_l + d_c).T
-    dphi[:, 1::2] = (1j * (d_l - d_c)).T
-    return phi, dphi
+# re-exported: the refinement imports its model columns from here (projection.py takes over)
+from ami_xr.kernels.modal_basis import (  # noqa: F401
+    RESIDUAL_TERMS,
+    basis_and_derivative,
+    model_columns,
+)
 
 
 @jit
