@@ -1,90 +1,99 @@
 """ami_xr: experimental modal analysis with the Algorithm of Mode Isolation on xarray data.
 
-Importing ami_xr registers the ``ds.ami`` accessor. Nothing is compiled on import: numba kernels
-compile on first call and are cached on disk.
+Importing ami_xr registers the ``ds.ami`` accessor and nothing else: each public name below is
+imported from its module on first use (PEP 562 module ``__getattr__``), so ``import ami_xr``
+loads neither the numerics nor plotting, file formats or dask. Nothing is compiled on import
+either: numba kernels compile on first call and are cached on disk.
 """
 
 from __future__ import annotations
 
+import importlib
+import sys
+import types
+
 __version__ = "0.1.0"
 
-# Public functions: one import line per module, kept sorted (ruff's isort rules).
-from ami_xr import names, simulate  # noqa: E402
-from ami_xr.ami import global_fit, identify, isolate, subtract  # noqa: E402
-from ami_xr.ami.crb import cramer_rao_bound  # noqa: E402
-from ami_xr.ami.refine import refine  # noqa: E402
-from ami_xr.batch import batch  # noqa: E402
-from ami_xr.errors import (  # noqa: E402
-    AmiXrError,
-    AmiXrValueError,
-    ConvergenceWarning,
-    DataFileError,
-    IdentificationError,
-    NoModesWarning,
-    SchemaError,
-)
-from ami_xr.io import (  # noqa: E402
-    make_frf_dataset,
-    make_time_dataset,
-    open_dataset,
-    to_netcdf,
-    validate,
-)
-from ami_xr.io.lvm import read_lvm  # noqa: E402
-from ami_xr.io.uff import read_uff, write_uff  # noqa: E402
-from ami_xr.plot import (  # noqa: E402
-    plot_bode,
-    plot_mac,
-    plot_modal_table,
-    plot_mode_vectors,
-    plot_nyquist,
-    plot_subtraction,
-)
-from ami_xr.report import format_modal_table, modal_table, report  # noqa: E402
-from ami_xr.dsp import apply_window, impulse_to_frf  # noqa: E402
-from ami_xr.dsp import convert_quantity, frf, impact_frf  # noqa: E402
+# Public functions, classes and constants: name -> the module that defines it.
+_PUBLIC: dict[str, str] = {
+    # identification (the AMI phases) and its uncertainty
+    "subtract": "ami_xr.ami",
+    "isolate": "ami_xr.ami",
+    "global_fit": "ami_xr.ami",
+    "identify": "ami_xr.ami",
+    "refine": "ami_xr.ami.refine",
+    "cramer_rao_bound": "ami_xr.ami.crb",
+    # errors and warnings
+    "AmiXrError": "ami_xr.errors",
+    "AmiXrValueError": "ami_xr.errors",
+    "ConvergenceWarning": "ami_xr.errors",
+    "DataFileError": "ami_xr.errors",
+    "IdentificationError": "ami_xr.errors",
+    "NoModesWarning": "ami_xr.errors",
+    "SchemaError": "ami_xr.errors",
+    # data model and files
+    "validate": "ami_xr.io",
+    "open_dataset": "ami_xr.io",
+    "to_netcdf": "ami_xr.io",
+    "make_frf_dataset": "ami_xr.io",
+    "make_time_dataset": "ami_xr.io",
+    "read_lvm": "ami_xr.io.lvm",
+    "read_uff": "ami_xr.io.uff",
+    "write_uff": "ami_xr.io.uff",
+    # signal processing: time histories to FRFs
+    "apply_window": "ami_xr.dsp",
+    "impulse_to_frf": "ami_xr.dsp",
+    "frf": "ami_xr.dsp",
+    "impact_frf": "ami_xr.dsp",
+    "convert_quantity": "ami_xr.dsp",
+    # campaigns, figures and reports
+    "batch": "ami_xr.batch",
+    "plot_bode": "ami_xr.plot",
+    "plot_nyquist": "ami_xr.plot",
+    "plot_subtraction": "ami_xr.plot",
+    "plot_mode_vectors": "ami_xr.plot",
+    "plot_mac": "ami_xr.plot",
+    "plot_modal_table": "ami_xr.plot",
+    "report": "ami_xr.report",
+    "modal_table": "ami_xr.report",
+    "format_modal_table": "ami_xr.report",
+}
+# Public submodules, also imported on first use.
+_SUBMODULES = ("names", "simulate")
 
-__all__ = [
-    "subtract",
-    "isolate",
-    "global_fit",
-    "identify",
-    "__version__",
-    "names",
-    "simulate",
-    "AmiXrError",
-    "AmiXrValueError",
-    "ConvergenceWarning",
-    "DataFileError",
-    "IdentificationError",
-    "NoModesWarning",
-    "SchemaError",
-    "validate",
-    "open_dataset",
-    "to_netcdf",
-    "make_frf_dataset",
-    "make_time_dataset",
-    "apply_window",
-    "impulse_to_frf",
-    "frf",
-    "impact_frf",
-    "convert_quantity",
-    "read_lvm",
-    "refine",
-    "cramer_rao_bound",
-    "batch",
-    "read_uff",
-    "write_uff",
-    "plot_bode",
-    "plot_nyquist",
-    "plot_subtraction",
-    "plot_mode_vectors",
-    "plot_mac",
-    "plot_modal_table",
-    "report",
-    "modal_table",
-    "format_modal_table",
-]
+__all__ = ["__version__", *_SUBMODULES, *_PUBLIC]
 
-# Last: the accessor module imports the public functions it wraps.
-from ami_xr import accessor as _accessor  # noqa: E402,F401  (registers ds.ami)
+
+def __getattr__(name: str):
+    """Import a public name from its module on first use (PEP 562)."""
+    if name in _SUBMODULES:
+        return importlib.import_module(f"{__name__}.{name}")
+    if name not in _PUBLIC:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_PUBLIC[name]), name)
+    globals()[name] = value  # later look-ups find it without calling __getattr__
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+# ``ami_xr.batch`` and ``ami_xr.report`` are functions that share their module's name. The import
+# system binds a submodule to its package's attribute when it first loads it (``from
+# ami_xr.report import modal_table`` anywhere would make ``ami_xr.report`` the module); the
+# function keeps the name, as it did when this file imported everything eagerly.
+_FUNCTION_OVER_MODULE = frozenset(n for n, m in _PUBLIC.items() if m == f"{__name__}.{n}")
+
+
+class _Package(types.ModuleType):
+    def __setattr__(self, name: str, value) -> None:
+        if name in _FUNCTION_OVER_MODULE and isinstance(value, types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+# Registers ds.ami; the accessor imports the functions it wraps when a method is first called.
+from ami_xr import accessor as _accessor  # noqa: E402,F401
