@@ -11,8 +11,8 @@ from ami_xr.dsp.windows import (
     ATTR_ENERGY_CORRECTION,
     ATTR_WINDOW,
     ATTR_WINDOW_PARAMETERS,
-    _make_window,
     sample_interval,
+    window_and_record,
     window_attrs,
 )
 from ami_xr.errors import AmiXrValueError
@@ -122,7 +122,7 @@ def impulse_to_frf(
                 "window: the force window belongs on the force record only; use "
                 "apply_window(ds, 'force', width=..., variables=['force']) before impulse_to_frf"
             )
-        w, record = _make_window(
+        w, record = window_and_record(
             window,
             n,
             fs=1.0 / dt,

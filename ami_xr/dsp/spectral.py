@@ -134,7 +134,8 @@ class WelchAccumulator:
         self.fs = float(fs)
         self.nperseg, self.noverlap, self.nfft = nperseg, noverlap, nfft
         self.step = nperseg - noverlap
-        self.detrend = _k.detrend_code(detrend)
+        _k.detrend_code(detrend)  # checks the name before any data arrive
+        self.detrend = detrend
         self.average = average
         self.n_average = int(n_average)
         self.workers = int(workers)
@@ -179,26 +180,20 @@ class WelchAccumulator:
         self._tail_y = y[:, nseg * self.step :].copy()
 
     def _add(self, f: np.ndarray, y: np.ndarray, starts: np.ndarray) -> None:
-        m = self.nperseg
-        sf = _k._prepare_segments(
-            f, starts, self._wf, self.detrend, np.empty((self.n_force, starts.size, m))
-        )
-        sy = _k._prepare_segments(
-            y, starts, self._wy, self.detrend, np.empty((self.n_response, starts.size, m))
-        )
+        sf = _k.prepare_segments(f, starts, self._wf, self.detrend)
+        sy = _k.prepare_segments(y, starts, self._wy, self.detrend)
         F = scipy.fft.rfft(sf, n=self.nfft, axis=-1, overwrite_x=True, workers=self.workers)
         del sf
         Y = scipy.fft.rfft(sy, n=self.nfft, axis=-1, overwrite_x=True, workers=self.workers)
         del sy
-        if self.average == "linear":
-            _k._accumulate_linear(F, Y, self.Gff, self.Gfy, self.Gyy)
-            self.count += starts.size
-        else:
-            self.count = int(
-                _k._accumulate_exponential(
-                    F, Y, self.Gff, self.Gfy, self.Gyy, self.count, self.n_average
-                )
-            )
+        *_, self.count = _k.accumulate_spectra(
+            F,
+            Y,
+            (self.Gff, self.Gfy, self.Gyy),
+            average=self.average,
+            count=self.count,
+            n_average=self.n_average,
+        )
 
     def spectra(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Averaged one-sided densities ``Gff`` (ref, ref, f), ``Gfy`` (ref, point, f), ``Gyy``."""

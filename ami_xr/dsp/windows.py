@@ -106,7 +106,7 @@ def _check_real(ds: xr.Dataset, variables: Sequence[Hashable]) -> None:
             raise AmiXrValueError(f"{v}: expected real samples to window, got dtype {dtype}")
 
 
-def _make_window(
+def window_and_record(
     window: str,
     n: int,
     *,
@@ -229,7 +229,7 @@ def apply_window(
     fs = None
     if _kw.window_name(window) == "exponential":
         fs = 1.0 / sample_interval(ds, dim)
-    w, record = _make_window(
+    w, record = window_and_record(
         window, n, fs=fs, decay=decay, end_value=end_value, width=width, taper=taper, sym=sym
     )
     new_attrs = {v: window_attrs(ds[v].attrs, v, w, record) for v in chosen}

@@ -30,8 +30,8 @@ import scipy.linalg
 import xarray as xr
 
 from ami_xr import names
-from ami_xr._provenance import add_history
 from ami_xr.errors import AmiXrValueError
+from ami_xr.provenance import add_history
 
 # Attributes this module adds beyond ami_xr.names (simulator-specific).
 ATTR_NOISE_LEVEL = "noise_level"  # alpha of eq. 15

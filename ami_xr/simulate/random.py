@@ -28,8 +28,8 @@ import scipy.linalg
 import xarray as xr
 
 from ami_xr import names
-from ami_xr._provenance import add_history
 from ami_xr.errors import AmiXrValueError
+from ami_xr.provenance import add_history
 from ami_xr.simulate.beam import frf_from_impulse
 from ami_xr.simulate.modal import (
     ATTR_NOISE_KIND,
