@@ -34,12 +34,10 @@ refinement, by Gaussian elimination with partial pivoting (small systems, no LAP
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ami_xr.kernels._numba import jit
-from ami_xr.kernels.linalg import gauss_solve, solve_normal
+from ami_xr.kernels.linalg import solve_normal
 from ami_xr.kernels.modal_basis import (
     add_mode,
     as_dt,
@@ -64,6 +62,16 @@ from ami_xr.kernels.noise import (
     split_target,
     sum_threshold_kernel,
 )
+from ami_xr.kernels.single_mode import (
+    FIT_NO_DROP,
+    FIT_OK,
+    FIT_OUT_OF_RANGE,
+    FitLimits,
+    band_energy_drop,
+    fit_single,
+    fit_single_simo,
+    fit_two,
+)
 
 # Stop / rejection codes of the Subtraction Phase (mapped to strings in the labeled layer).
 STOP_BELOW_FLOOR = 0
@@ -72,15 +80,6 @@ STOP_MAX_ATTEMPTS = 2
 STOP_REASONS = ("below_noise_floor", "max_modes", "max_rejected_peaks")
 
 FREEZE_CHANGE = 1e-3  # a mode's fit band is kept fixed once its eigenvalue changes less than this
-
-FIT_OK = 0
-FIT_SINGULAR = 1
-FIT_NOT_OSCILLATORY = 2
-FIT_UNSTABLE = 3
-FIT_DAMPING = 4
-FIT_OUT_OF_RANGE = 5
-FIT_TOO_FEW_POINTS = 6
-FIT_NO_DROP = 7
 
 
 # ----------------------------------------------------------------------------------------------
@@ -92,359 +91,6 @@ FIT_NO_DROP = 7
 # ----------------------------------------------------------------------------------------------
 # single-mode linear least squares (eqs. 10-12 and the discrete analogue)
 # ----------------------------------------------------------------------------------------------
-@jit
-def _v_at(xi, ws, dt):
-    if dt > 0.0:
-        return (1.0 - xi) / (dt * ws)
-    return xi / ws
-
-
-@jit
-def _v_of_pole(lam, ws, dt):
-    """The root ``v1`` of (*) that belongs to pole ``lam``."""
-    if dt > 0.0:
-        return (1.0 - np.exp(-lam * dt)) / (dt * ws)
-    return lam / ws
-
-
-@jit
-def _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, nss, nsl, nll, rs, rl):
-    """Accumulate the normal equations of (*) on lines lo..hi-1 of one FRF.
-
-    Unknowns: shared ``s = (c0, c1)``, local ``l = (e0, e1)``. Columns of (*) written as
-    ``G v^2 = -c0 G - c1 G v + e0 + e1 v``; the data is divided by ``gscale``.
-    Blocks: ``nss`` (2x2), ``nsl`` (2x2), ``nll`` (2x2), right sides ``rs``, ``rl`` (2).
-    When ``prev`` (a previous pole estimate) is not NaN every line is divided by
-    ``|D_prev(v)| = |(v - v1)(v - conj(v1))|`` (Sanathanan-Koerner / Steiglitz-McBride): at a
-    fixed point the equation error becomes the output error ``G - N/D``, which removes the
-    damping bias that noise in the regressor columns gives the plain eqs. 11-12.
-    """
-    cols = np.empty(4, dtype=np.complex128)
-    use_w = not np.isnan(prev.real)
-    pv = _v_of_pole(prev, ws, dt) if use_w else 0j
-    for i in range(lo, hi):
-        g = data[i] / gscale
-        v = _v_at(x[i], ws, dt)
-        wgt = 1.0
-        if use_w:
-            wgt = 1.0 / abs((v - pv) * (v - np.conj(pv)))
-        cols[0] = -g * wgt
-        cols[1] = -g * v * wgt
-        cols[2] = wgt
-        cols[3] = v * wgt
-        rhs = g * v * v * wgt
-        for a in range(2):
-            ca = np.conj(cols[a])
-            for b in range(2):
-                nss[a, b] += (ca * cols[b]).real
-                nsl[a, b] += (ca * cols[2 + b]).real
-            rs[a] += (ca * rhs).real
-            cla = np.conj(cols[2 + a])
-            for b in range(2):
-                nll[a, b] += (cla * cols[2 + b]).real
-            rl[a] += (cla * rhs).real
-
-
-@jit
-def _single_mode_rows(data, omega, ws, dt):
-    """Real rows and right side of (*) for every line: (2F, 4), (2F,) (for tests/references)."""
-    n = data.shape[0]
-    x = line_variable(omega, dt)
-    rows = np.empty((2 * n, 4))
-    rhs = np.empty(2 * n)
-    for i in range(n):
-        g = data[i]
-        v = _v_at(x[i], ws, dt)
-        c = (-g, -g * v, 1.0 + 0j, v)
-        r = g * v * v
-        for a in range(4):
-            rows[2 * i, a] = c[a].real
-            rows[2 * i + 1, a] = c[a].imag
-        rhs[2 * i] = r.real
-        rhs[2 * i + 1] = r.imag
-    return rows, rhs
-
-
-@jit
-def _poles_from_coefficients(c0, c1, ws, dt, n_samples, zeta_max, w_lo, w_hi):
-    """Pole and partial-fraction helpers from ``v^2 + c1 v + c0``.
-
-    Returns ``(lam, v1, v2, code)``; ``code`` is FIT_OK or a rejection code.
-    """
-    disc = 4.0 * c0 - c1 * c1
-    nanc = complex(np.nan, np.nan)
-    if not (disc > 0.0) or not np.isfinite(disc):
-        return nanc, nanc, nanc, FIT_NOT_OSCILLATORY
-    sq = math.sqrt(disc)
-    v1 = complex(-0.5 * c1, 0.5 * sq)
-    v2 = complex(-0.5 * c1, -0.5 * sq)
-    if dt > 0.0:
-        q1 = 1.0 - dt * ws * v1
-        if abs(q1) == 0.0:
-            return nanc, v1, v2, FIT_UNSTABLE
-        p = 1.0 / q1
-        lam = np.log(p) / dt
-    else:
-        lam = ws * v1
-    if not (lam.real < 0.0):
-        return lam, v1, v2, FIT_UNSTABLE
-    wn = abs(lam)
-    if -lam.real / wn > zeta_max or lam.imag <= 0.0:
-        return lam, v1, v2, FIT_DAMPING
-    if wn < w_lo or wn > w_hi:
-        return lam, v1, v2, FIT_OUT_OF_RANGE
-    return lam, v1, v2, FIT_OK
-
-
-@jit
-def _residue_from(e0, e1, v1, v2, lam, ws, dt, n_samples, gscale):
-    r = (e1 * v1 + e0) / (v1 - v2) * gscale
-    if dt > 0.0:
-        p, sc = pole_factor(lam, dt, n_samples)
-        return p * dt * ws * r / sc
-    return ws * r
-
-
-@jit
-def _band_energy_drop(y, x, lam, res, dt, n_samples, power, lo, hi, n_f):
-    """Band energy ``sum power[lo:hi]`` minus that of ``y`` with the mode (lam, res) removed."""
-    trial = y.copy()
-    add_mode(trial, x, lam, res, dt, n_samples, -1.0, 0, n_f)
-    e0 = 0.0
-    e1 = 0.0
-    for i in range(lo, hi):
-        e0 += power[i]
-        e1 += abs(trial[i]) ** 2
-    return e0 - e1
-
-
-@jit
-def _fit_single(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, prev):
-    """Single-mode fit of one FRF on lines lo..hi-1: ``(lam, residue, code)``."""
-    nss = np.zeros((2, 2))
-    nsl = np.zeros((2, 2))
-    nll = np.zeros((2, 2))
-    rs = np.zeros(2)
-    rl = np.zeros(2)
-    gscale = 0.0
-    for i in range(lo, hi):
-        gscale = max(gscale, abs(data[i]))
-    nanc = complex(np.nan, np.nan)
-    if gscale == 0.0 or hi - lo < 2:
-        return nanc, nanc, FIT_SINGULAR
-    _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, nss, nsl, nll, rs, rl)
-    nmat = np.empty((4, 4))
-    rhs = np.empty((4, 1))
-    for a in range(2):
-        for b in range(2):
-            nmat[a, b] = nss[a, b]
-            nmat[a, 2 + b] = nsl[a, b]
-            nmat[2 + b, a] = nsl[a, b]
-            nmat[2 + a, 2 + b] = nll[a, b]
-        rhs[a, 0] = rs[a]
-        rhs[2 + a, 0] = rl[a]
-    sol, ok = solve_normal(nmat, rhs)
-    if not ok:
-        return nanc, nanc, FIT_SINGULAR
-    lam, v1, v2, code = _poles_from_coefficients(
-        sol[0, 0], sol[1, 0], ws, dt, n_samples, zeta_max, w_lo, w_hi
-    )
-    if code != FIT_OK:
-        return lam, nanc, code
-    res = _residue_from(sol[2, 0], sol[3, 0], v1, v2, lam, ws, dt, n_samples, gscale)
-    return lam, res, FIT_OK
-
-
-@jit
-def _fit_single_simo(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, prev, wts, res_out):
-    """Global SIMO single-mode fit: one eigenvalue from all FRFs (rows of ``data``, already
-    divided by each FRF's noise floor), one residue per FRF written to ``res_out``.
-
-    The per-FRF unknowns ``(e0, e1)`` are eliminated by their 2x2 Schur complements, so the cost
-    is linear in the number of FRFs. Returns ``(lam, code)``.
-    """
-    n_p = data.shape[0]
-    red = np.zeros((2, 2))
-    redr = np.zeros((2, 1))
-    nll_all = np.zeros((n_p, 2, 2))
-    nsl_all = np.zeros((n_p, 2, 2))
-    rl_all = np.zeros((n_p, 2))
-    nanc = complex(np.nan, np.nan)
-    # scratch blocks reused for every FRF (no allocation per FRF)
-    nss = np.empty((2, 2))
-    nsl = np.empty((2, 2))
-    nll = np.empty((2, 2))
-    rs = np.empty(2)
-    rl = np.empty(2)
-    inv = np.empty((2, 2))
-    t = np.empty((2, 2))
-    for j in range(n_p):
-        nss[:] = 0.0
-        nsl[:] = 0.0
-        nll[:] = 0.0
-        rs[:] = 0.0
-        rl[:] = 0.0
-        # FRF weight wts[j]: rows scaled by it (1 / wts[j] as the data scale)
-        _single_mode_blocks(data[j], x, lo, hi, ws, dt, 1.0 / wts[j], prev, nss, nsl, nll, rs, rl)
-        det = nll[0, 0] * nll[1, 1] - nll[0, 1] * nll[1, 0]
-        if det == 0.0:
-            return nanc, FIT_SINGULAR
-        inv[0, 0] = nll[1, 1] / det
-        inv[1, 1] = nll[0, 0] / det
-        inv[0, 1] = -nll[0, 1] / det
-        inv[1, 0] = -nll[1, 0] / det
-        # red += nss - nsl inv nls ; redr += rs - nsl inv rl  (2x2 product by hand: a BLAS
-        # call per FRF cost more than the fit)
-        for a in range(2):
-            for b in range(2):
-                t[a, b] = nsl[a, 0] * inv[0, b] + nsl[a, 1] * inv[1, b]
-        for a in range(2):
-            for b in range(2):
-                red[a, b] += nss[a, b] - (t[a, 0] * nsl[b, 0] + t[a, 1] * nsl[b, 1])
-            redr[a, 0] += rs[a] - (t[a, 0] * rl[0] + t[a, 1] * rl[1])
-        nll_all[j] = nll
-        nsl_all[j] = nsl
-        rl_all[j, 0] = rl[0]
-        rl_all[j, 1] = rl[1]
-    sol, ok = solve_normal(red, redr)
-    if not ok:
-        return nanc, FIT_SINGULAR
-    c0 = sol[0, 0]
-    c1 = sol[1, 0]
-    lam, v1, v2, code = _poles_from_coefficients(c0, c1, ws, dt, n_samples, zeta_max, w_lo, w_hi)
-    if code != FIT_OK:
-        return lam, code
-    for j in range(n_p):
-        # nll e = rl - nls s
-        b0 = rl_all[j, 0] - (nsl_all[j, 0, 0] * c0 + nsl_all[j, 1, 0] * c1)
-        b1 = rl_all[j, 1] - (nsl_all[j, 0, 1] * c0 + nsl_all[j, 1, 1] * c1)
-        nll = nll_all[j]
-        det = nll[0, 0] * nll[1, 1] - nll[0, 1] * nll[1, 0]
-        e0 = (nll[1, 1] * b0 - nll[0, 1] * b1) / det
-        e1 = (-nll[1, 0] * b0 + nll[0, 0] * b1) / det
-        res_out[j] = _residue_from(e0, e1, v1, v2, lam, ws, dt, n_samples, 1.0 / wts[j])
-    return lam, FIT_OK
-
-
-@jit
-def _fit_two_modes(data, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, wts, lam_out, res_out):
-    """Two-mode linear least squares (order-4 analogue of (*)), SIMO over the rows of ``data``:
-    ``G (v^4 + c3 v^3 + c2 v^2 + c1 v + c0) = e3 v^3 + e2 v^2 + e1 v + e0`` with shared ``c`` and
-    per-FRF ``e`` (eliminated by Schur complements). Used by the model-order check to split a
-    band that holds two close modes fitted as one. Writes ``lam_out`` (2,), ``res_out`` (P, 2);
-    returns a FIT_* code."""
-    n_p = data.shape[0]
-    m = 4
-    nll = np.zeros((m, m))
-    red = np.zeros((m, m))
-    redr = np.zeros((m, 1))
-    nsl_all = np.zeros((n_p, m, m))
-    rl_all = np.zeros((n_p, m))
-    vp = np.empty(m + 1, dtype=np.complex128)
-    for i in range(lo, hi):
-        v = _v_at(x[i], ws, dt)
-        vp[0] = 1.0
-        for a in range(1, m + 1):
-            vp[a] = vp[a - 1] * v
-        for a in range(m):
-            for b in range(m):
-                nll[a, b] += (np.conj(vp[a]) * vp[b]).real
-    nll_inv, ok = gauss_solve(nll, np.eye(m))
-    if not ok:
-        return FIT_SINGULAR
-    for j in range(n_p):
-        nss = np.zeros((m, m))
-        nsl = np.zeros((m, m))
-        rs = np.zeros(m)
-        rl = np.zeros(m)
-        for i in range(lo, hi):
-            g = data[j, i] * wts[j]
-            v = _v_at(x[i], ws, dt)
-            vp[0] = 1.0
-            for a in range(1, m + 1):
-                vp[a] = vp[a - 1] * v
-            rhs = g * vp[m]
-            for a in range(m):
-                ca = np.conj(-g * vp[a])
-                for b in range(m):
-                    nss[a, b] += (ca * (-g * vp[b])).real
-                    nsl[a, b] += (ca * vp[b]).real
-                rs[a] += (ca * rhs).real
-                rl[a] += (np.conj(vp[a]) * rhs).real
-        t = nsl @ nll_inv
-        tn = t @ nsl.T
-        for a in range(m):
-            for b in range(m):
-                red[a, b] += nss[a, b] - tn[a, b]
-            acc = 0.0
-            for b in range(m):
-                acc += t[a, b] * rl[b]
-            redr[a, 0] += rs[a] - acc
-        nsl_all[j] = nsl
-        rl_all[j] = rl
-    sol, ok = solve_normal(red, redr)
-    if not ok:
-        return FIT_SINGULAR
-    coef = np.empty(m + 1, dtype=np.complex128)
-    coef[0] = 1.0
-    for a in range(m):
-        coef[m - a] = sol[a, 0]
-    roots = np.roots(coef)
-    # poles: roots whose eigenvalue lies in the upper half plane
-    cnt = 0
-    vsel = np.empty(2, dtype=np.complex128)
-    for r in range(m):
-        vr = roots[r]
-        if dt > 0.0:
-            q = 1.0 - dt * ws * vr
-            if abs(q) == 0.0:
-                return FIT_UNSTABLE
-            lam = np.log(1.0 / q) / dt
-        else:
-            lam = ws * vr
-        if lam.imag > 0.0:
-            if cnt >= 2:
-                return FIT_NOT_OSCILLATORY
-            if not (lam.real < 0.0):
-                return FIT_UNSTABLE
-            wn = abs(lam)
-            if -lam.real / wn > zeta_max:
-                return FIT_DAMPING
-            if wn < w_lo or wn > w_hi:
-                return FIT_OUT_OF_RANGE
-            lam_out[cnt] = lam
-            vsel[cnt] = vr
-            cnt += 1
-    if cnt != 2:
-        return FIT_NOT_OSCILLATORY
-    for j in range(n_p):
-        b = np.empty((m, 1))
-        for a in range(m):
-            acc = rl_all[j, a]
-            for c in range(m):
-                acc -= nsl_all[j, c, a] * sol[c, 0]
-            b[a, 0] = acc
-        e = nll_inv @ b
-        for kk in range(2):
-            vr = vsel[kk]
-            num = 0j
-            vpow = 1.0 + 0j
-            for a in range(m):
-                num += e[a, 0] * vpow
-                vpow *= vr
-            den = 1.0 + 0j
-            for r in range(m):
-                if roots[r] != vr:
-                    den *= vr - roots[r]
-            rr = num / den / wts[j]
-            if dt > 0.0:
-                p, sc = pole_factor(lam_out[kk], dt, n_samples)
-                res_out[j, kk] = p * dt * ws * rr / sc
-            else:
-                res_out[j, kk] = ws * rr
-    return FIT_OK
-
-
 # ----------------------------------------------------------------------------------------------
 # noise floor, thresholds, bands
 # ----------------------------------------------------------------------------------------------
@@ -478,6 +124,7 @@ def _subtract_one(
     dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
     w_lo = max(omega[0], dw)
     w_hi = omega[n_f - 1]
+    limits = FitLimits(zeta_max, w_lo, w_hi)
     y = data.copy()
     power = np.empty(n_f)
     masked = np.zeros(n_f, dtype=np.bool_)
@@ -510,8 +157,8 @@ def _subtract_one(
                 masked[i] = True
             continue
         ws = omega[peak] if omega[peak] > 0.0 else dw
-        lam, res, code = _fit_single(
-            y, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, complex(np.nan, np.nan)
+        lam, res, code = fit_single(
+            y, x, lo, hi, ws, dt, n_samples, limits, complex(np.nan, np.nan)
         )
         if code == FIT_OK:
             # natural frequency must lie near the band; the band energy must drop significantly
@@ -519,7 +166,7 @@ def _subtract_one(
             if lam.imag < omega[lo] - 2.0 * bw - dw or lam.imag > omega[hi - 1] + 2.0 * bw + dw:
                 code = FIT_OUT_OF_RANGE
             else:
-                drop = _band_energy_drop(y, x, lam, res, dt, n_samples, power, lo, hi, n_f)
+                drop = band_energy_drop(y, x, lam, res, dt, n_samples, power, lo, hi, n_f)
                 if drop / sigma**2 < t:
                     code = FIT_NO_DROP
         if code != FIT_OK:
@@ -627,6 +274,7 @@ def _isolate_sweeps(
     dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
     w_lo = max(omega[0], dw)
     w_hi = omega[n_f - 1]
+    limits = FitLimits(zeta_max, w_lo, w_hi)
     xn = np.empty(n_f, dtype=np.complex128)
     power = np.empty(n_f)
     band_lo = np.zeros(n, dtype=np.int64)
@@ -667,7 +315,7 @@ def _isolate_sweeps(
                 continue
             ws = omega[peak] if omega[peak] > 0.0 else dw
             prev = complex(np.nan, np.nan)
-            new, r, code = _fit_single(xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, prev)
+            new, r, code = fit_single(xn, x, lo, hi, ws, dt, n_samples, limits, prev)
             if code != FIT_OK:
                 fails[k] += 1
                 continue
@@ -727,6 +375,7 @@ def _isolate_one(
     dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
     w_lo = max(omega[0], dw)
     w_hi = omega[n_f - 1]
+    limits = FitLimits(zeta_max, w_lo, w_hi)
     fails = np.zeros(max_modes, dtype=np.int64)
     total_it = 0
     converged = False
@@ -820,7 +469,7 @@ def _isolate_one(
                 add_mode(iso[0], x, lam[ks], res[ks], dt, n_samples, 1.0, 0, n_f)
                 l2 = np.empty(2, dtype=np.complex128)
                 r2 = np.empty((1, 2), dtype=np.complex128)
-                code = _fit_two_modes(
+                code = fit_two(
                     iso,
                     x,
                     wl,
@@ -828,9 +477,7 @@ def _isolate_one(
                     omega[(wl + wh) // 2],
                     dt,
                     n_samples,
-                    zeta_max,
-                    w_lo,
-                    w_hi,
+                    limits,
                     np.ones(1),
                     l2,
                     r2,
@@ -852,13 +499,13 @@ def _isolate_one(
                 continue
             y = data - model
             ws = omega[peak] if omega[peak] > 0.0 else dw
-            new, r, code = _fit_single(
-                y, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, complex(np.nan, np.nan)
+            new, r, code = fit_single(
+                y, x, lo, hi, ws, dt, n_samples, limits, complex(np.nan, np.nan)
             )
             # no duplicate test here: a coherent residual next to a mode (two close modes fitted
             # as one) must be able to split it; true duplicates merge after the restart
             if code == FIT_OK:
-                drop = _band_energy_drop(y, x, new, r, dt, n_samples, power, lo, hi, n_f)
+                drop = band_energy_drop(y, x, new, r, dt, n_samples, power, lo, hi, n_f)
                 if drop / sigma**2 < t:
                     code = FIT_NO_DROP
             if code != FIT_OK:
@@ -1085,6 +732,7 @@ def _isolate_simo(
     dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
     w_lo = max(omega[0], dw)
     w_hi = omega[n_f - 1]
+    limits = FitLimits(zeta_max, w_lo, w_hi)
     t1 = peak_threshold_kernel(n_f, pfa)
     tsum = sum_threshold_kernel(n_p, n_f, pfa)
     # work in units of each FRF's noise floor (SNR weighting of the FRFs)
@@ -1206,8 +854,8 @@ def _isolate_simo(
                         )
                 for j in range(n_p):
                     wts[j] = wts_all[k, j] if reweight else 1.0
-                new, code = _fit_single_simo(
-                    xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, prev, wts, rtmp
+                new, code = fit_single_simo(
+                    xn, x, lo, hi, ws, dt, n_samples, limits, prev, wts, rtmp
                 )
                 if code != FIT_OK:
                     fails[k] += 1
@@ -1334,7 +982,7 @@ def _isolate_simo(
                     wts[j] = wts_all[ks, j] if reweight else 1.0
                 l2 = np.empty(2, dtype=np.complex128)
                 r2 = np.empty((n_p, 2), dtype=np.complex128)
-                code = _fit_two_modes(
+                code = fit_two(
                     iso,
                     x,
                     wl,
@@ -1342,9 +990,7 @@ def _isolate_simo(
                     omega[(wl + wh) // 2],
                     dt,
                     n_samples,
-                    zeta_max,
-                    w_lo,
-                    w_hi,
+                    limits,
                     wts,
                     l2,
                     r2,
@@ -1366,7 +1012,7 @@ def _isolate_simo(
                     masked[i] = True
                 continue
             ws = omega[peak] if omega[peak] > 0.0 else dw
-            new, code = _fit_single_simo(
+            new, code = fit_single_simo(
                 xn,
                 x,
                 lo,
@@ -1374,9 +1020,7 @@ def _isolate_simo(
                 ws,
                 dt,
                 n_samples,
-                zeta_max,
-                w_lo,
-                w_hi,
+                limits,
                 complex(np.nan, np.nan),
                 ones,
                 rtmp,
@@ -1512,69 +1156,6 @@ def _residues_fixed(data, omega, lam, dt, n_samples, use, residual_kind):
 # ----------------------------------------------------------------------------------------------
 # public wrappers (validate, then call the jitted kernels)
 # ----------------------------------------------------------------------------------------------
-def single_mode_rows(data, omega, scale, dt=None):
-    """Real least-squares rows ``(2F, 4)`` and right side ``(2F,)`` of the single-mode equation
-    (*) (eqs. 11-12 when ``dt`` is None) for one FRF ``data`` (F,) at ``omega`` (rad/s)."""
-    omega = checked_omega(omega)
-    data = np.ascontiguousarray(data, dtype=np.complex128)
-    if data.shape != omega.shape:
-        raise ValueError(f"data: expected shape {omega.shape}, got {data.shape}")
-    return _single_mode_rows(data, omega, float(scale), as_dt(dt))
-
-
-def fit_single_mode(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, prev=None):
-    """Linear least-squares single-mode fit over all given lines: ``(lam, residue, code)``.
-
-    ``code`` is 0 for a physical fit (see the ``FIT_*`` constants otherwise).
-    """
-    omega = checked_omega(omega)
-    data = np.ascontiguousarray(data, dtype=np.complex128)
-    if data.shape != omega.shape:
-        raise ValueError(f"data: expected shape {omega.shape}, got {data.shape}")
-    x = line_variable(omega, as_dt(dt))
-    ws = float(np.mean(omega)) or 1.0
-    return _fit_single(
-        data,
-        x,
-        0,
-        omega.size,
-        ws,
-        as_dt(dt),
-        int(n_samples or 0),
-        float(zeta_max),
-        0.0,
-        np.inf,
-        complex(np.nan, np.nan) if prev is None else complex(prev),
-    )
-
-
-def fit_single_mode_simo(data, omega, dt=None, n_samples=None, *, zeta_max=1.0, prev=None):
-    """Global SIMO single-mode fit of all rows of ``data`` (P, F): ``(lam, residues, code)``."""
-    omega = checked_omega(omega)
-    data = np.ascontiguousarray(np.atleast_2d(data), dtype=np.complex128)
-    if data.shape[-1] != omega.size:
-        raise ValueError(f"data: expected last dim {omega.size}, got {data.shape}")
-    x = line_variable(omega, as_dt(dt))
-    res = np.full(data.shape[0], complex(np.nan, np.nan))
-    ws = float(np.mean(omega)) or 1.0
-    lam, code = _fit_single_simo(
-        data,
-        x,
-        0,
-        omega.size,
-        ws,
-        as_dt(dt),
-        int(n_samples or 0),
-        float(zeta_max),
-        0.0,
-        np.inf,
-        complex(np.nan, np.nan) if prev is None else complex(prev),
-        np.ones(data.shape[0]),
-        res,
-    )
-    return lam, res, code
-
-
 def residue_normal_equations(data, omega, lam, use=None, dt=None, n_samples=None, residual_kind=-1):
     """Normal matrix (n_u, n_u) and right sides (n_u, P) of eq. 9 (unknowns A1, A2 per mode)."""
     omega = checked_omega(omega)
@@ -1612,6 +1193,7 @@ def _point_estimates(data, omega, dt, n_samples, lam, res, delta, min_points, ze
     dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
     w_lo = max(omega[0], dw)
     w_hi = omega[n_f - 1]
+    limits = FitLimits(zeta_max, w_lo, w_hi)
     out = np.full((n_p, n_k), complex(np.nan, np.nan))
     xn = np.empty(n_f, dtype=np.complex128)
     power = np.empty(n_f)
@@ -1630,8 +1212,8 @@ def _point_estimates(data, omega, dt, n_samples, lam, res, delta, min_points, ze
             if hi - lo < min_points:
                 continue
             ws = omega[peak] if omega[peak] > 0.0 else dw
-            new, r, code = _fit_single(
-                xn, x, lo, hi, ws, dt, n_samples, zeta_max, w_lo, w_hi, complex(np.nan, np.nan)
+            new, r, code = fit_single(
+                xn, x, lo, hi, ws, dt, n_samples, limits, complex(np.nan, np.nan)
             )
             if code == FIT_OK:
                 out[j, kk] = new
