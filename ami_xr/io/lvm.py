@@ -194,6 +194,32 @@ def _float_list(seg: dict, key: str, path: Path) -> list[float]:
     return out
 
 
+def _force_channel(
+    force_channel: int | str | None, channels: int, units: list[str], titles: list[str], path: Path
+) -> int:
+    """Index of the force channel: as given (index or title), else the one force unit or title."""
+    if force_channel is None:
+        cands = [c for c in range(channels) if units[c] in names.FORCE_UNITS]
+        if len(cands) != 1:
+            cands = [c for c in range(channels) if "force" in titles[c].lower()]
+        if len(cands) != 1:
+            raise AmiXrValueError(
+                f"force_channel: cannot tell the force channel of {path} from units {units} and "
+                f"titles {titles}; give force_channel (index or title)"
+            )
+        return cands[0]
+    if isinstance(force_channel, str):
+        if force_channel not in titles:
+            raise AmiXrValueError(f"force_channel: {force_channel!r} is not one of {titles}")
+        return titles.index(force_channel)
+    if isinstance(force_channel, (int, np.integer)) and 0 <= force_channel < channels:
+        return int(force_channel)
+    raise AmiXrValueError(
+        f"force_channel: expected a channel index 0..{channels - 1} or a title, "
+        f"got {force_channel!r}"
+    )
+
+
 def read_lvm(
     path: str | os.PathLike,
     *,
@@ -261,27 +287,7 @@ def read_lvm(
         raise DataFileError(
             f"{path}: needs a force and at least one response channel, has {channels}"
         )
-    if force_channel is None:
-        cands = [c for c in range(channels) if units[c] in names.FORCE_UNITS]
-        if len(cands) != 1:
-            cands = [c for c in range(channels) if "force" in titles[c].lower()]
-        if len(cands) != 1:
-            raise AmiXrValueError(
-                f"force_channel: cannot tell the force channel of {path} from units {units} and "
-                f"titles {titles}; give force_channel (index or title)"
-            )
-        fc = cands[0]
-    elif isinstance(force_channel, str):
-        if force_channel not in titles:
-            raise AmiXrValueError(f"force_channel: {force_channel!r} is not one of {titles}")
-        fc = titles.index(force_channel)
-    elif isinstance(force_channel, (int, np.integer)) and 0 <= force_channel < channels:
-        fc = int(force_channel)
-    else:
-        raise AmiXrValueError(
-            f"force_channel: expected a channel index 0..{channels - 1} or a title, "
-            f"got {force_channel!r}"
-        )
+    fc = _force_channel(force_channel, channels, units, titles, path)
     resp = [c for c in range(channels) if c != fc]
     ru = response_units or units[resp[0]]
     if len({units[c] for c in resp}) != 1 and response_units is None:
