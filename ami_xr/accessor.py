@@ -1,25 +1,71 @@
 """The ``ds.ami`` accessor: a thin, stateless shell over the public functions.
 
-Each method calls the public function of the same name with the Dataset as first argument and
-returns what it returns (a new Dataset; the caller's Dataset is never mutated). ``__init__`` only
-stores the Dataset: validation happens inside the functions.
+``ds.ami.<name>(...)`` is ``ami_xr.<name>(ds, ...)``: it returns what the function returns (a new
+Dataset or a figure; the caller's Dataset is never mutated). The AMI phases (``subtract``,
+``isolate``, ``global_fit``, ``identify``, ``refine``) also take ``path=``: the result is then
+written there with :func:`ami_xr.to_netcdf` as well as returned (the design card's "accessors that
+write netCDF"; the functions themselves never write). ``__init__`` only stores the Dataset:
+validation happens inside the functions.
+
+The functions are looked up in :mod:`ami_xr` when a method is first used, so registering the
+accessor imports none of them (plotting, reports and file formats load only when called).
 """
 
 from __future__ import annotations
 
 import functools
+import importlib
+import inspect
+import os
+from typing import Any
 
 import xarray as xr
 
 
-def _method(func):
-    """Make ``func(ds, ...)`` into an accessor method with the same signature and docstring."""
+def _public(name: str) -> Any:
+    return getattr(importlib.import_module("ami_xr"), name)
 
-    @functools.wraps(func)
-    def method(self, *args, **kwargs):
-        return func(self._ds, *args, **kwargs)
 
-    return method
+class _Method:
+    """Accessor method ``name``: ``ami_xr.<name>(ds, ...)``, plus ``path=`` when ``writes``."""
+
+    def __init__(self, writes: bool = False):
+        self.writes = writes
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, accessor: Any, owner: type | None = None) -> Any:
+        func = _public(self.name)
+        if accessor is None:  # class attribute: the function itself, for help() and docs
+            return func
+        ds = accessor._ds
+        if not self.writes:
+
+            @functools.wraps(func)
+            def method(*args: Any, **kwargs: Any) -> Any:
+                return func(ds, *args, **kwargs)
+
+            return method
+
+        @functools.wraps(func)
+        def method_writing(
+            *args: Any, path: str | os.PathLike | None = None, **kwargs: Any
+        ) -> xr.Dataset:
+            out = func(ds, *args, **kwargs)
+            if path is not None:
+                _public("to_netcdf")(out, path)
+            return out
+
+        sig = inspect.signature(func)
+        params = list(sig.parameters.values())[1:]  # without ds
+        params.append(inspect.Parameter("path", inspect.Parameter.KEYWORD_ONLY, default=None))
+        method_writing.__signature__ = sig.replace(parameters=params)
+        method_writing.__doc__ = (func.__doc__ or "") + (
+            "\n    Accessor only: ``path=`` (str or path-like, optional) also writes the result "
+            "there\n    (atomic netCDF, :func:`ami_xr.to_netcdf`).\n"
+        )
+        return method_writing
 
 
 @xr.register_dataset_accessor("ami")
@@ -29,53 +75,27 @@ class AmiAccessor:
     def __init__(self, ds: xr.Dataset):
         self._ds = ds
 
-    # Methods are added as ``name = _method(public_function)``, one line each, imported lazily
-    # at the bottom of this module to avoid import cycles.
-
-
-from ami_xr.io import to_netcdf, validate  # noqa: E402
-
-AmiAccessor.validate = _method(validate)
-AmiAccessor.to_netcdf = _method(to_netcdf)
-
-from ami_xr.dsp import apply_window, impulse_to_frf  # noqa: E402
-
-AmiAccessor.apply_window = _method(apply_window)
-AmiAccessor.impulse_to_frf = _method(impulse_to_frf)
-
-from ami_xr.ami.refine import refine  # noqa: E402
-
-AmiAccessor.refine = _method(refine)
-
-from ami_xr.io.uff import write_uff  # noqa: E402
-from ami_xr.plot import (  # noqa: E402
-    plot_bode,
-    plot_mac,
-    plot_modal_table,
-    plot_mode_vectors,
-    plot_nyquist,
-    plot_subtraction,
-)
-from ami_xr.report import modal_table, report  # noqa: E402
-
-AmiAccessor.write_uff = _method(write_uff)
-AmiAccessor.plot_bode = _method(plot_bode)
-AmiAccessor.plot_nyquist = _method(plot_nyquist)
-AmiAccessor.plot_subtraction = _method(plot_subtraction)
-AmiAccessor.plot_mode_vectors = _method(plot_mode_vectors)
-AmiAccessor.plot_mac = _method(plot_mac)
-AmiAccessor.plot_modal_table = _method(plot_modal_table)
-AmiAccessor.report = _method(report)
-AmiAccessor.modal_table = _method(modal_table)
-
-from ami_xr.dsp import convert_quantity, frf  # noqa: E402
-
-AmiAccessor.frf = _method(frf)
-AmiAccessor.convert_quantity = _method(convert_quantity)
-
-from ami_xr.ami import global_fit, identify, isolate, subtract  # noqa: E402
-
-AmiAccessor.subtract = _method(subtract)
-AmiAccessor.isolate = _method(isolate)
-AmiAccessor.global_fit = _method(global_fit)
-AmiAccessor.identify = _method(identify)
+    # data model and files
+    validate = _Method()
+    to_netcdf = _Method()
+    write_uff = _Method()
+    # signal processing
+    frf = _Method()
+    convert_quantity = _Method()
+    apply_window = _Method()
+    impulse_to_frf = _Method()
+    # the AMI phases (these take ``path=`` to write their result)
+    subtract = _Method(writes=True)
+    isolate = _Method(writes=True)
+    global_fit = _Method(writes=True)
+    identify = _Method(writes=True)
+    refine = _Method(writes=True)
+    # plots and reports
+    plot_bode = _Method()
+    plot_nyquist = _Method()
+    plot_subtraction = _Method()
+    plot_mode_vectors = _Method()
+    plot_mac = _Method()
+    plot_modal_table = _Method()
+    report = _Method()
+    modal_table = _Method()

@@ -104,7 +104,8 @@ ATTR_FORCE_WINDOW_WIDTH = "force_window_width"  # s, width of the force (transie
 # --- AMI phases (ami_xr.ami: subtract, isolate, global_fit, identify) -------------------------
 CANDIDATE = "candidate"  # dim: candidate modes of one FRF found by the Subtraction Phase
 MODE_2 = "mode_2"  # second mode dim of the MAC matrix
-RESIDUAL_TERM = "residual_term"  # dim: ("lower", "upper") residual terms of the global fit
+RESIDUAL_TERM = "residual_term"  # dim: RESIDUAL_TERM_LABELS, residual terms of the global fit
+RESIDUAL_TERM_LABELS = ("lower", "upper")  # coordinate of RESIDUAL_TERM (and its order)
 SUB_EIGENVALUE = "subtraction_eigenvalue"  # (point, candidate) complex rad/s
 SUB_RESIDUE = "subtraction_residue"  # (point, candidate) complex
 SUB_BAND_LOW = "subtraction_band_low"  # (point, candidate) Hz, first line of the fit band
@@ -127,7 +128,32 @@ DRIVE_POINT_SNR = "drive_point_snr"  # (mode) drive-point peak contribution / no
 QUALITY_FLAGS = "quality_flags"  # (mode) str, comma-separated flags ("" when none)
 ATTR_AMI_MODEL = "ami_model"  # "discrete" | "continuous": basis used by the phases
 ATTR_AMI_PHASE = "ami_phase"  # last AMI phase run: subtract | isolate | global_fit | identify
-ATTR_AMI_DELTA = "ami_delta"
-ATTR_AMI_PFA = "ami_false_alarm_probability"
-ATTR_AMI_METHOD = "ami_method"
+# Settings of the phases, one attribute per setting (ami_xr.ami.settings writes and reads them)
+ATTR_AMI_DELTA = "ami_delta"  # subtract: fit-band level as a fraction of the peak
+ATTR_AMI_PFA = "ami_false_alarm_probability"  # subtract: false-alarm probability of the stop
+ATTR_AMI_MAX_MODES = "ami_max_modes"  # subtract: most candidates per FRF
+ATTR_AMI_MIN_POINTS = "ami_min_points"  # subtract: fewest lines of a fit band
+ATTR_AMI_ZETA_MAX = "ami_zeta_max"  # subtract: largest physical damping ratio
+ATTR_AMI_MERGE_TOL = "ami_merge_tol"  # subtract: duplicate distance, half-power bandwidths
+ATTR_AMI_METHOD = "ami_method"  # isolate: "simo" | "per_frf"
+ATTR_AMI_WEIGHTING = "ami_weighting"  # isolate: "snr" | "mean"
+ATTR_AMI_TOL = "ami_tol"  # isolate: relative convergence tolerance
+ATTR_AMI_BAND = "ami_band"  # global_fit: band half-width in half-power bandwidths, or "all"
+ATTR_AMI_RESIDUAL_TERMS = "ami_residual_terms"  # global_fit: 1 with residual terms, else 0
+ATTR_AMI_DRIVE_SNR_MIN = "ami_drive_snr_min"  # global_fit: threshold of low_drive_point_snr
+# Results of ami_xr.refine, as attributes
+ATTR_REFINE_MODEL = "refine_model"  # "discrete" | "continuous"
+ATTR_REFINE_RESIDUAL_TERMS = "refine_residual_terms"  # "", "lower", "upper" or "lower,upper"
+ATTR_REFINE_ITERATIONS = "refine_iterations"
+ATTR_REFINE_CONVERGED = "refine_converged"  # 1 | 0
+ATTR_REFINE_COST_START = "refine_cost_start"  # objective sum_j (n/2) log |r_j|^2 at the start
+ATTR_REFINE_COST = "refine_cost"  # ... and at the optimum
+ATTR_REFINE_REMOVED_MODES = "refine_removed_modes"  # comma-separated labels of dropped modes
+FLAG_ADDED_BY_REFINE = "added_by_refine"  # quality flag of a mode refine added
+# Core dims of intermediate results (never in a returned Dataset)
+SLOT = "slot"  # per-FRF mode slots of the per_frf isolation
+FREQUENCY_OUT = "frequency_out"  # frequency as an output core dim (apply_ufunc needs a new name)
+MODEL_DISCRETE = "discrete"  # exact basis of dt * DFT of a sampled impulse response
+MODEL_CONTINUOUS = "continuous"  # eq. 4
+AMI_MODELS = (MODEL_DISCRETE, MODEL_CONTINUOUS)  # values of ATTR_AMI_MODEL and refine_model
 ATTR_EXP_CORRECTED = "exponential_window_corrected"  # 1/s added to Re(lambda), when done

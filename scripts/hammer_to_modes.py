@@ -78,7 +78,9 @@ def main(argv=None) -> int:
     if args.out:
         print(f"wrote {args.out}")
     try:
-        modes = ami_xr.identify(band, path=args.modes)
+        modes = ami_xr.identify(band)
+        if args.modes:
+            ami_xr.to_netcdf(modes, args.modes)
     except ami_xr.AmiXrError as err:
         print(f"error: {err}", file=sys.stderr)
         return 1

@@ -199,7 +199,7 @@ def test_outputs_and_attrs():
         f[names.FRF_RESIDUAL].values, g[names.FRF].values - f[names.FRF_SYNTHESIZED].values
     )
     assert f[names.RESIDUAL_COEFFICIENT].dims == (names.POINT, names.RESIDUAL_TERM)
-    hist = ami_xr._provenance.history(f)
+    hist = ami_xr.provenance.history(f)
     assert [h["function"] for h in hist][-3:] == [
         "ami_xr.subtract",
         "ami_xr.isolate",
@@ -278,3 +278,93 @@ def test_paper_method_uses_continuous_basis():
     assert out.attrs[names.ATTR_AMI_MODEL] == "continuous"
     assert out.attrs[names.ATTR_AMI_METHOD] == "per_frf"
     assert "ami_eigenvalue" not in out  # no refinement
+
+
+def test_settings_round_trip_through_attrs():
+    from ami_xr.ami.settings import (
+        GlobalFitSettings,
+        IsolateSettings,
+        RefineSettings,
+        SubtractSettings,
+        from_attrs,
+        to_attrs,
+    )
+
+    for settings in (
+        SubtractSettings(0.4, 7, 1e-2, 4, 0.1, 0.3, names.MODEL_DISCRETE),
+        IsolateSettings(tol=1e-6, method="per_frf", weighting="mean"),
+        GlobalFitSettings("all", True, 5.0),
+        GlobalFitSettings(2.0, False, 3.0),
+        RefineSettings(residual_terms=("lower", "upper")),
+    ):
+        attrs = {}
+        to_attrs(settings, attrs)
+        back = from_attrs(type(settings), attrs)
+        for name, value in attrs.items():  # what netCDF can store
+            assert isinstance(value, (str, int, float)), name
+        assert {a: getattr(back, a) for a in _stored(settings)} == {
+            a: getattr(settings, a) for a in _stored(settings)
+        }
+    assert from_attrs(SubtractSettings, {}) == SubtractSettings()
+
+
+def _stored(settings):
+    import dataclasses
+
+    return [f.name for f in dataclasses.fields(settings) if "attr" in f.metadata]
+
+
+def test_isolate_reads_subtract_settings_and_signature_defaults():
+    import inspect
+
+    from ami_xr.ami.settings import GlobalFitSettings, IsolateSettings, SubtractSettings
+
+    lam = np.array([-0.4 + 40j, -0.5 + 60j])
+    res = np.array([[1e-3 + 1e-3j, 2e-3j], [-1e-3 + 0j, 1e-3 + 1e-3j]])
+    s = ami_xr.subtract(_dataset(lam, res), 0.6, max_modes=5, zeta_max=0.2)
+    assert s.attrs[names.ATTR_AMI_DELTA] == 0.6
+    assert s.attrs[names.ATTR_AMI_MAX_MODES] == 5
+    assert s.attrs[names.ATTR_AMI_ZETA_MAX] == 0.2
+    g = ami_xr.global_fit(ami_xr.isolate(s), drive_snr_min=4.0)
+    assert g.attrs[names.ATTR_AMI_DRIVE_SNR_MIN] == 4.0
+    for func, cls in (
+        (ami_xr.subtract, SubtractSettings),
+        (ami_xr.isolate, IsolateSettings),
+        (ami_xr.global_fit, GlobalFitSettings),
+    ):
+        params = inspect.signature(func).parameters
+        assert "path" not in params
+        for name, p in params.items():
+            if hasattr(cls, name) and p.default is not None:
+                assert p.default == getattr(cls, name), (func.__name__, name)
+
+
+def test_history_records_each_call_once(tmp_path):
+    from ami_xr.provenance import history
+
+    lam = np.array([-0.4 + 40j, -0.5 + 60j])
+    res = np.array([[1e-3 + 1e-3j, 2e-3j], [-1e-3 + 0j, 1e-3 + 1e-3j]])
+    ds = _dataset(lam, res)
+    ds.ami.subtract(path=tmp_path / "s.nc")
+    functions = [r["function"] for r in history(ami_xr.open_dataset(tmp_path / "s.nc"))]
+    assert functions.count("ami_xr.subtract") == 1
+    assert functions[-1] == "ami_xr.to_netcdf"
+
+
+def test_resolve_model_choices():
+    from ami_xr.core.model import resolve_model
+
+    impulse = {names.ATTR_SOURCE: names.SOURCE_IMPULSE, names.ATTR_DT: 0.01}
+    assert resolve_model(impulse).name == names.MODEL_DISCRETE
+    assert resolve_model(impulse).n_samples == 0
+    assert resolve_model(impulse, "exact").name == names.MODEL_CONTINUOUS  # no record length
+    full = {**impulse, names.ATTR_NSAMPLES: 256}
+    assert resolve_model(full, "exact") == resolve_model(full)
+    stored = {**full, names.ATTR_AMI_MODEL: names.MODEL_CONTINUOUS}
+    assert resolve_model(stored).name == names.MODEL_CONTINUOUS
+    assert resolve_model(stored, "exact").name == names.MODEL_DISCRETE
+    assert resolve_model({}).dt == 0.0
+    with pytest.raises(IdentificationError, match="sample_interval"):
+        resolve_model({}, names.MODEL_DISCRETE)
+    with pytest.raises(IdentificationError, match="model"):
+        resolve_model({}, "bogus")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import inspect
 import warnings
 
 import numpy as np
@@ -14,6 +15,7 @@ from ami_xr import names
 from ami_xr.ami.crb import cramer_rao_bound, expected_norm
 from ami_xr.ami.refine import refine
 from ami_xr.errors import IdentificationError
+from ami_xr.provenance import history
 from ami_xr.simulate import benchmark, frf
 
 PERTURB = np.array([1.0, -1.0, 1.0, -1.0])
@@ -91,12 +93,12 @@ def test_never_worse_than_start(seed):
     assert out.attrs["refine_cost"] <= out.attrs["refine_cost_start"]
     # and with the AMI residues instead of projected ones the start is worse still: the
     # refined residuals are at least as small for every FRF weighting
-    from ami_xr.ami import _varpro
+    from ami_xr.core import varpro
 
     dt, n = g.attrs[names.ATTR_DT], g.attrs[names.ATTR_NSAMPLES]
     omega = 2 * np.pi * g[names.FREQUENCY].values
-    prob = _varpro.make_problem(g.frf.values, omega, dt, n, nyquist=np.pi / dt)
-    start_cost = _varpro.objective(prob, _varpro.project(prob, out["ami_eigenvalue"].values))
+    prob = varpro.make_problem(g.frf.values, omega, dt, n, nyquist=np.pi / dt)
+    start_cost = varpro.objective(prob, varpro.project(prob, out["ami_eigenvalue"].values))
     assert out.attrs["refine_cost"] <= start_cost + 1e-9
 
 
@@ -154,13 +156,17 @@ def test_band_and_dask_match(clean):
     )
 
 
-def test_path_writes_netcdf(clean, tmp_path):
+def test_accessor_path_writes_netcdf(clean, tmp_path):
     netcdf = pytest.importorskip("ami_xr.io")
     g, truth = clean
     path = tmp_path / "refined.nc"
-    out = refine(_start(g, truth, 0.002), path=path)
+    out = _start(g, truth, 0.002).ami.refine(path=path)
     back = netcdf.open_dataset(path)
     np.testing.assert_allclose(back[names.EIGENVALUE].values, out[names.EIGENVALUE].values)
+    # the call is recorded once, then the write
+    functions = [r["function"] for r in history(back)][-2:]
+    assert functions == ["ami_xr.refine", "ami_xr.to_netcdf"]
+    assert "path" not in inspect.signature(refine).parameters
 
 
 @pytest.mark.parametrize(
@@ -442,3 +448,4 @@ def test_crb_bad_arguments():
     np.testing.assert_allclose(
         n[names.NATURAL_FREQUENCY_STD] / u[names.NATURAL_FREQUENCY_STD], np.sqrt(3.0), rtol=1e-9
     )
+

@@ -1,18 +1,17 @@
-"""Shared helpers of the AMI phases: input checks, the data model (basis), attrs, writing."""
+"""Shared helpers of the AMI phases: input checks, the variables each phase makes, provenance."""
 
 from __future__ import annotations
 
-import os
 from typing import Any
 
 import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr._provenance import add_history
+from ami_xr.provenance import add_history
 from ami_xr.errors import IdentificationError
 
-MODELS = ("auto", "discrete", "continuous")
+MODELS = ("auto", *names.AMI_MODELS)  # the ``model`` argument of subtract
 MIN_LINES = 8
 
 # Variables each phase adds; a phase run again on its own output (or on a later phase's output)
@@ -130,33 +129,6 @@ def check_choice(value: Any, argument: str, choices) -> str:
     return value
 
 
-def resolve_model(ds: xr.Dataset, model: str) -> tuple[str, float, int]:
-    """``(model, dt, n_samples)``: the exact discrete basis when the FRF is dt * DFT of a sampled
-    impulse response (``frf_source == "impulse_response"`` with ``sample_interval``), else eq. 4.
-    """
-    check_choice(model, "model", MODELS)
-    if model == "auto":
-        stored = ds.attrs.get(names.ATTR_AMI_MODEL)
-        if stored in ("discrete", "continuous"):
-            model = stored
-        else:
-            model = (
-                "discrete"
-                if ds.attrs.get(names.ATTR_SOURCE) == names.SOURCE_IMPULSE
-                and ds.attrs.get(names.ATTR_DT)
-                else "continuous"
-            )
-    if model == "discrete":
-        dt = ds.attrs.get(names.ATTR_DT)
-        if not dt or not float(dt) > 0:
-            raise IdentificationError(
-                f"model: 'discrete' needs the attribute {names.ATTR_DT!r} (sample interval in s)"
-            )
-        n = int(ds.attrs.get(names.ATTR_NSAMPLES, 0) or 0)
-        return model, float(dt), n
-    return model, 0.0, 0
-
-
 def omega_of(ds: xr.Dataset) -> np.ndarray:
     return 2.0 * np.pi * np.asarray(ds[names.FREQUENCY].values, dtype=np.float64)
 
@@ -170,17 +142,19 @@ def drop_results(ds: xr.Dataset, groups) -> xr.Dataset:
     return out
 
 
-def finish(
-    out: xr.Dataset, function: str, phase: str, parameters: dict, path: str | os.PathLike | None
-) -> xr.Dataset:
-    """Record provenance and the phase, and write atomically when ``path`` is given."""
+def finish(out: xr.Dataset, function: str, phase: str, parameters: dict) -> xr.Dataset:
+    """Record the phase and its provenance (once: writing is the caller's ``to_netcdf``)."""
     out.attrs[names.ATTR_AMI_PHASE] = phase
-    out = add_history(out, function, parameters)
-    if path is not None:
-        from ami_xr.io import to_netcdf
+    return add_history(out, function, parameters)
 
-        to_netcdf(out, path, function=function, parameters=parameters)
-    return out
+
+def drive_index(ds: xr.Dataset) -> int | None:
+    """Position of the ``drive_point`` attribute among the points, None when it is not one."""
+    drive = ds.attrs.get(names.ATTR_DRIVE_POINT)
+    if drive is None:
+        return None
+    idx = np.flatnonzero(np.asarray(ds[names.POINT].values).astype(str) == str(drive))
+    return int(idx[0]) if idx.size else None
 
 
 def frf_values(ds: xr.Dataset) -> np.ndarray:

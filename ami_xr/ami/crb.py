@@ -21,9 +21,10 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr._provenance import add_history
-from ami_xr.ami import _varpro
-from ami_xr.ami.refine import _model_choice, modal_std
+from ami_xr.provenance import add_history
+from ami_xr.core import varpro
+from ami_xr.core.modal import modal_std
+from ami_xr.core.model import resolve_model, resolve_residual_terms
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels.refine import model_columns
 
@@ -115,7 +116,9 @@ def cramer_rao_bound(
             raise AmiXrValueError(f"truth: expected variable {var!r} with dims {dims}")
     if names.FREQUENCY not in frf.coords:
         raise AmiXrValueError("frf: expected a Dataset with a 'frequency' coordinate (Hz)")
-    dt, n_samples, terms = _model_choice(frf, residual_terms)
+    data_model = resolve_model(frf.attrs, "exact")
+    dt, n_samples = data_model.dt, data_model.n_samples
+    terms = resolve_residual_terms(residual_terms, frf.attrs, names.RESIDUAL_COEFFICIENT in frf)
     freq = frf[names.FREQUENCY]
     if band != "all":
         freq = freq.sel({names.FREQUENCY: slice(float(band[0]), float(band[1]))})
@@ -169,19 +172,19 @@ def cramer_rao_bound(
     coef[:, 0 : 2 * n_mode : 2] = residue.real
     coef[:, 1 : 2 * n_mode : 2] = residue.imag
     model = coef @ phi.T
-    prob = _varpro.make_problem(
+    prob = varpro.make_problem(
         model, omega, dt, n_samples, terms, nyquist=(np.pi / dt if dt else None)
     )
-    proj = _varpro.project(prob, mu)
+    proj = varpro.project(prob, mu)
     if not proj.ok:
         raise AmiXrValueError("truth: eigenvalues coincide; the Fisher information is singular")
     noise_var = 0.5 * line_std**2  # per real component
     drive = frf.attrs.get(names.ATTR_DRIVE_POINT, truth.attrs.get(names.ATTR_DRIVE_POINT))
     drive_index = points.index(drive) if drive in points else None
-    cov = _varpro.covariance(
+    cov = varpro.covariance(
         prob, proj, noise_var, drive_index, quantity_power=power, lam_shift=decay
     )
-    c_t = cov["cov_theta"]
+    c_t = cov.cov_theta
     wn = np.abs(lam)
     zeta = -lam.real / wn
     eig_std, fn_std, z_std = modal_std(lam, c_t)
@@ -198,7 +201,7 @@ def cramer_rao_bound(
             names.DAMPING_RATIO_STD: ((M,), z_std, {names.ATTR_UNITS: "1"}),
             names.NATURAL_FREQUENCY_ERROR: ((M,), k_abs * fn_std * 2 * np.pi / wn),
             names.DAMPING_RATIO_ERROR: ((M,), k_abs * z_std / zeta),
-            names.RESIDUE_STD: ((P, M), np.sqrt(cov["residue_var"])),
+            names.RESIDUE_STD: ((P, M), np.sqrt(cov.residue_var)),
             names.FRF_NOISE_STD: ((P,), line_std),
         },
         coords={M: mode, P: points},
@@ -210,10 +213,10 @@ def cramer_rao_bound(
                 for k in range(n_mode)
             ]
         )
-        out[names.MODE_VECTOR] = ((P, M), cov["mode_vector"])
-        out[names.MODE_VECTOR_STD] = ((P, M), np.sqrt(cov["mode_vector_var"]))
+        out[names.MODE_VECTOR] = ((P, M), cov.mode_vector)
+        out[names.MODE_VECTOR_STD] = ((P, M), np.sqrt(cov.mode_vector_var))
         out[names.MODE_VECTOR_ERROR] = ((M,), mv_err)
-    out.attrs = {names.ATTR_DRIVE_POINT: drive, "crb_model": "discrete" if dt else "continuous"}
+    out.attrs = {names.ATTR_DRIVE_POINT: drive, "crb_model": data_model.name}
     return add_history(
         out,
         "ami_xr.cramer_rao_bound",
@@ -228,11 +231,11 @@ def cramer_rao_bound(
 
 def _mode_vector_error(cov, k, drive, noise_var, power, lam_k):
     """``E |dPhi_k| / |Phi_k|`` from the joint covariance of (lam_k, A_1k .. A_Pk)."""
-    hj = cov["dc_dtheta"]  # (P, p, 2K)
-    c_t = cov["cov_theta"]
-    cov_lin = cov["cov_lin"]
-    residue = cov["residue"][:, k]
-    phi = cov["mode_vector"][:, k]
+    hj = cov.dc_dtheta  # (P, p, 2K)
+    c_t = cov.cov_theta
+    cov_lin = cov.cov_lin
+    residue = cov.residue[:, k]
+    phi = cov.mode_vector[:, k]
     n_point = residue.shape[0]
     sl = slice(2 * k, 2 * k + 2)
     # Variables z = [theta_k (2), c_1k (2), ..., c_Pk (2)]: their joint covariance.

@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import _common as c
+from ami_xr.ami.settings import GlobalFitSettings, parameters, to_attrs
+from ami_xr.core.modal import mac_matrix, mode_vectors
+from ami_xr.core.model import resolve_model
 from ami_xr.errors import IdentificationError
 from ami_xr.kernels import ami as k
+from ami_xr.kernels import modal_basis as kb
+from ami_xr.kernels import noise as kn
 
 RESIDUAL_KIND = {"receptance": 0, "mobility": 1, "accelerance": 2}
 FLAG_LOW_DRIVE_SNR = "low_drive_point_snr"
@@ -37,10 +40,10 @@ def _fit_block(g, use, omega, lam, dt, n_samples, residual_kind):
     coef = k._residues_fixed(g2, omega, lam, dt, n_samples, use, residual_kind)
     n_k = lam.size
     res = np.ascontiguousarray(coef[:, :n_k])
-    synth = k._synthesize(omega, lam[None, :], res, dt, n_samples)
+    synth = kb.synthesize(omega, lam[None, :], res, dt, n_samples)
     if residual_kind >= 0:
         rc = np.ascontiguousarray(coef[:, n_k:])
-        synth = synth + k._synthesize_residual_terms(omega, rc, residual_kind)
+        synth = synth + kb.synthesize_residual_terms(omega, rc, residual_kind)
     else:
         rc = np.zeros((g2.shape[0], 2), np.complex128)
     return (
@@ -50,31 +53,12 @@ def _fit_block(g, use, omega, lam, dt, n_samples, residual_kind):
     )
 
 
-def mode_vectors(residue: np.ndarray, lam: np.ndarray, drive_index: int | None) -> np.ndarray:
-    """Eq. 8: ``Phi_P = sqrt(A_P / lam)``, ``Phi_j = A_j / (lam Phi_P)``; without a drive point
-    each column is ``A_j / A_jmax`` (unit largest entry, unscaled)."""
-    if drive_index is None:
-        jmax = np.argmax(np.abs(residue), axis=0)
-        return residue / residue[jmax, np.arange(residue.shape[1])][None, :]
-    phi_p = np.sqrt(residue[drive_index] / lam)
-    return residue / (lam * phi_p)[None, :]
-
-
-def mac_matrix(phi: np.ndarray) -> np.ndarray:
-    """Modal assurance criterion ``|phi_a^H phi_b|^2 / (|phi_a|^2 |phi_b|^2)``."""
-    num = np.abs(phi.conj().T @ phi) ** 2
-    nrm = np.sum(np.abs(phi) ** 2, axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return num / np.outer(nrm, nrm)
-
-
 def global_fit(
     ds: xr.Dataset,
     *,
-    band: float | str = 1.0,
-    residual_terms: bool = False,
-    drive_snr_min: float = 3.0,
-    path: str | os.PathLike | None = None,
+    band: float | str = GlobalFitSettings.band,
+    residual_terms: bool = GlobalFitSettings.residual_terms,
+    drive_snr_min: float = GlobalFitSettings.drive_snr_min,
 ) -> xr.Dataset:
     """Global Mode Vector Phase: fixed eigenvalues, residues of every FRF by linear LS (eq. 9).
 
@@ -107,9 +91,8 @@ def global_fit(
         receptance ``R_L / (i w)^2 + R_U``, mobility ``R_L / (i w) + R_U i w``, accelerance
         ``R_L + R_U (i w)^2``, complex coefficients.
     drive_snr_min : float
-        Threshold of the ``low_drive_point_snr`` flag.
-    path : str or path-like, optional
-        Write the result there (atomic netCDF).
+        Threshold of the ``low_drive_point_snr`` flag (kept in the attribute
+        ``ami_drive_snr_min``, which :func:`ami_xr.refine` uses when it decides the flag again).
 
     Returns
     -------
@@ -125,7 +108,8 @@ def global_fit(
             f"ds: global_fit needs {names.EIGENVALUE!r}; run ami_xr.isolate first"
         )
     drive_snr_min = c.check_positive(drive_snr_min, "drive_snr_min")
-    model, dt, n_samples = c.resolve_model(ds, "auto")
+    data_model = resolve_model(ds.attrs, "auto")
+    dt, n_samples = data_model.dt, data_model.n_samples
     omega = c.omega_of(ds)
     lam = np.ascontiguousarray(ds[names.EIGENVALUE].values, dtype=np.complex128)
     n_k = lam.size
@@ -150,30 +134,31 @@ def global_fit(
         frf,
         kwargs=dict(use=use, omega=omega, lam=lam, dt=dt, n_samples=n_samples, residual_kind=kind),
         input_core_dims=[[names.FREQUENCY]],
-        output_core_dims=[[names.MODE], ["frequency_out"], [names.RESIDUAL_TERM]],
+        output_core_dims=[[names.MODE], [names.FREQUENCY_OUT], [names.RESIDUAL_TERM]],
         exclude_dims={names.FREQUENCY},
         dask="parallelized",
         output_dtypes=[np.complex128, np.complex128, np.complex128],
         dask_gufunc_kwargs={
-            "output_sizes": {names.MODE: n_k, "frequency_out": omega.size, names.RESIDUAL_TERM: 2}
+            "output_sizes": {
+                names.MODE: n_k,
+                names.FREQUENCY_OUT: omega.size,
+                names.RESIDUAL_TERM: 2,
+            }
         },
         keep_attrs=False,
     )
     res_da, synth_da, rc_da = (o.compute() for o in outs)
-    synth_da = synth_da.rename({"frequency_out": names.FREQUENCY})
+    synth_da = synth_da.rename({names.FREQUENCY_OUT: names.FREQUENCY})
     res = np.asarray(res_da.transpose(names.POINT, names.MODE).values)
-    points = ds[names.POINT].values
-    drive = ds.attrs.get(names.ATTR_DRIVE_POINT)
-    idx = np.flatnonzero(points.astype(str) == str(drive)) if drive is not None else []
-    drive_index = int(idx[0]) if len(idx) else None
+    drive_index = c.drive_index(ds)
     phi = mode_vectors(res, lam, drive_index)
     units = frf.attrs.get(names.ATTR_UNITS, "")
     # drive-point SNR: peak of the mode's fitted contribution over the drive point noise floor
     if names.SUB_NOISE_FLOOR in ds:
         sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, float)
     else:
-        sigma = k.noise_floor(c.frf_values(ds))
-    peaks = k._contribution_peaks(omega, dt, n_samples, lam[None, :], np.ascontiguousarray(res))
+        sigma = kn.noise_floor(c.frf_values(ds))
+    peaks = kb.contribution_peaks(omega, dt, n_samples, lam[None, :], np.ascontiguousarray(res))
     flags = [[] for _ in range(n_k)]
     if drive_index is None:
         snr_drive = np.full(n_k, np.nan)
@@ -212,13 +197,16 @@ def global_fit(
         names.QUALITY_FLAGS: ((names.MODE,), np.array([",".join(f) for f in flags], dtype=str)),
     }
     if kind >= 0:
-        out = out.assign_coords({names.RESIDUAL_TERM: ["lower", "upper"]})
+        out = out.assign_coords({names.RESIDUAL_TERM: list(names.RESIDUAL_TERM_LABELS)})
         new[names.RESIDUAL_COEFFICIENT] = rc_da.transpose(names.POINT, names.RESIDUAL_TERM)
     out = out.assign(new)
     out[names.FRF_RESIDUAL] = out[names.FRF_RESIDUAL].drop_vars(
         [v for v in out[names.FRF_RESIDUAL].coords if v not in out[names.FRF].coords]
     )
-    out.attrs["ami_band"] = band if isinstance(band, str) else float(band)
-    out.attrs["ami_residual_terms"] = int(bool(residual_terms))
-    params = dict(band=band, residual_terms=bool(residual_terms), drive_snr_min=drive_snr_min)
-    return c.finish(out, "ami_xr.global_fit", "global_fit", params, path)
+    settings = GlobalFitSettings(
+        band if isinstance(band, str) else float(band), bool(residual_terms), drive_snr_min
+    )
+    to_attrs(settings, out.attrs)
+    # the history records the band as given (an int stays an int there)
+    params = dict(parameters(settings), band=band)
+    return c.finish(out, "ami_xr.global_fit", "global_fit", params)

@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import os
-
-import numpy as np
 import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import _common as c
-from ami_xr.ami.global_fit import global_fit, mode_vectors
+from ami_xr.ami.global_fit import global_fit
 from ami_xr.ami.isolate import isolate
+from ami_xr.ami.settings import GlobalFitSettings, IsolateSettings, SubtractSettings
 from ami_xr.ami.subtract import subtract
+from ami_xr.core.modal import damping_ratio, mode_vectors, natural_frequency
 from ami_xr.errors import IdentificationError
 
 METHODS = ("simo", "per_frf", "paper")
@@ -30,14 +29,13 @@ def identify(
     *,
     method: str = "simo",
     refine: bool | None = None,
-    delta: float = 0.5,
-    tol: float = 1e-4,
-    max_iter: int = 100,
-    band: float | str = 1.0,
-    residual_terms: bool = False,
-    pfa: float = 1e-3,
-    max_modes: int = 20,
-    path: str | os.PathLike | None = None,
+    delta: float = SubtractSettings.delta,
+    tol: float = IsolateSettings.tol,
+    max_iter: int = IsolateSettings.max_iter,
+    band: float | str = GlobalFitSettings.band,
+    residual_terms: bool = GlobalFitSettings.residual_terms,
+    pfa: float = SubtractSettings.pfa,
+    max_modes: int = SubtractSettings.max_modes,
 ) -> xr.Dataset:
     """Identify modes: :func:`subtract`, :func:`isolate`, :func:`global_fit` and, by default,
     the maximum-likelihood refinement :func:`ami_xr.ami.refine.refine`.
@@ -58,8 +56,6 @@ def identify(
         See :func:`ami_xr.isolate`.
     band, residual_terms :
         See :func:`ami_xr.global_fit`.
-    path : str or path-like, optional
-        Write the result there (atomic netCDF).
 
     Returns
     -------
@@ -79,7 +75,8 @@ def identify(
         fn = _refine_function()
         if fn is None and refine:
             raise IdentificationError("refine: ami_xr.ami.refine is not available")
-    out = subtract(ds, delta, pfa=pfa, max_modes=max_modes, model="continuous" if paper else "auto")
+    model = names.MODEL_CONTINUOUS if paper else "auto"
+    out = subtract(ds, delta, pfa=pfa, max_modes=max_modes, model=model)
     out = isolate(
         out,
         tol,
@@ -98,17 +95,13 @@ def identify(
     if beta and result.sizes.get(names.MODE, 0):
         lam = result[names.EIGENVALUE].values + beta
         result[names.EIGENVALUE] = result[names.EIGENVALUE].copy(data=lam)
-        wn = np.abs(lam)
         result[names.NATURAL_FREQUENCY] = result[names.NATURAL_FREQUENCY].copy(
-            data=wn / (2 * np.pi)
+            data=natural_frequency(lam)
         )
-        result[names.DAMPING_RATIO] = result[names.DAMPING_RATIO].copy(data=-lam.real / wn)
+        result[names.DAMPING_RATIO] = result[names.DAMPING_RATIO].copy(data=damping_ratio(lam))
         if names.RESIDUE in result:
-            points = result[names.POINT].values.astype(str)
-            drive = result.attrs.get(names.ATTR_DRIVE_POINT)
-            idx = np.flatnonzero(points == str(drive))
             res = result[names.RESIDUE].transpose(names.POINT, names.MODE).values
-            phi = mode_vectors(res, lam, int(idx[0]) if idx.size else None)
+            phi = mode_vectors(res, lam, c.drive_index(result))
             result[names.MODE_VECTOR] = result[names.MODE_VECTOR].copy(
                 data=phi if result[names.MODE_VECTOR].dims[0] == names.POINT else phi.T
             )
@@ -124,4 +117,4 @@ def identify(
         pfa=pfa,
         max_modes=max_modes,
     )
-    return c.finish(result, "ami_xr.identify", "identify", params, path)
+    return c.finish(result, "ami_xr.identify", "identify", params)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import warnings
 
 import numpy as np
@@ -10,8 +9,13 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import _common as c
+from ami_xr.ami.settings import IsolateSettings, SubtractSettings, from_attrs, parameters, to_attrs
+from ami_xr.core.matching import gather, match_modes, n_labels, weighted_average
+from ami_xr.core.model import resolve_model
 from ami_xr.errors import ConvergenceWarning, IdentificationError, NoModesWarning
 from ami_xr.kernels import ami as k
+from ami_xr.kernels import modal_basis as kb
+from ami_xr.kernels import noise as kn
 
 METHODS = ("simo", "per_frf")
 WEIGHTINGS = ("snr", "mean")
@@ -72,103 +76,15 @@ def _isolate_block(
     )
 
 
-def match_modes(lam: np.ndarray, snr: np.ndarray, match_tol: float) -> np.ndarray:
-    """Assign per-FRF eigenvalues to system modes.
-
-    Points are taken in order of decreasing number of estimates; each point's estimates are
-    assigned to the current modes by the Hungarian algorithm on the normalised distance
-    ``|lam_a - lam_b| / (|Re lam_a| + |Re lam_b|)`` (half-power bandwidths), accepting a pair only
-    when it is below ``match_tol``; unassigned estimates start new modes. Two estimates of the
-    same FRF therefore never share a mode. A mode's centre is the SNR-weighted mean of its members.
-
-    Returns the mode index (P, S) of every estimate, -1 for NaN slots; modes are numbered by
-    increasing natural frequency.
-    """
-    n_p, n_s = lam.shape
-    label = np.full((n_p, n_s), -1, dtype=np.int64)
-    centres: list[complex] = []
-    members: list[list[tuple[int, int]]] = []
-    sum_w: list[float] = []
-    sum_wv: list[complex] = []
-    counts = np.sum(np.isfinite(lam), axis=1)
-    from scipy.optimize import linear_sum_assignment  # keeps scipy.optimize out of import
-
-    for j in np.argsort(-counts, kind="stable"):
-        slots = np.flatnonzero(np.isfinite(lam[j]))
-        if slots.size == 0:
-            continue
-        if centres:
-            cen = np.asarray(centres)
-            a = lam[j, slots][:, None]
-            cost = np.abs(a - cen[None, :]) / (np.abs(a.real) + np.abs(cen.real)[None, :])
-            big = 1e6
-            rows, cols = linear_sum_assignment(np.where(cost < match_tol, cost, big))
-            taken = {}
-            for r, col in zip(rows, cols, strict=True):
-                if cost[r, col] < match_tol:
-                    taken[r] = col
-        else:
-            taken = {}
-        for r, s in enumerate(slots):
-            if r in taken:
-                m = taken[r]
-                members[m].append((j, s))
-            else:
-                members.append([(j, s)])
-                centres.append(0j)
-                sum_w.append(0.0)
-                sum_wv.append(0j)
-                m = len(members) - 1
-            label[j, s] = m
-            # running weighted sums: recomputing them over all members made this O(points^2)
-            w = max(snr[j, s], 1e-12) ** 2
-            sum_w[m] += w
-            sum_wv[m] += w * lam[j, s]
-            centres[m] = complex(sum_wv[m] / sum_w[m])
-    if not centres:
-        return label
-    order = np.argsort(np.abs(np.asarray(centres)))
-    rank = np.empty_like(order)
-    rank[order] = np.arange(order.size)
-    label[label >= 0] = rank[label[label >= 0]]
-    return label
-
-
-def _gather(lam: np.ndarray, label: np.ndarray, n_modes: int):
-    """(P, K) array of per-point estimates per mode, NaN where not detected."""
-    n_p = lam.shape[0]
-    out = np.full((n_p, n_modes), np.nan + 0j)
-    for j in range(n_p):
-        for s in np.flatnonzero(label[j] >= 0):
-            out[j, label[j, s]] = lam[j, s]
-    return out
-
-
-def _average(point_lam: np.ndarray, weight: np.ndarray):
-    """Weighted mean per mode and spread ``std(Re) + i std(Im)`` (NaN below two estimates)."""
-    det = np.isfinite(point_lam)
-    w = np.where(det, weight, 0.0)
-    z = np.where(det, point_lam, 0.0)
-    cnt = det.sum(0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = (w * z).sum(0) / w.sum(0)
-        plain = z.sum(0) / cnt
-        var_re = (np.where(det, (z.real - plain.real[None, :]) ** 2, 0.0)).sum(0) / (cnt - 1)
-        var_im = (np.where(det, (z.imag - plain.imag[None, :]) ** 2, 0.0)).sum(0) / (cnt - 1)
-    spread = np.where(cnt >= 2, np.sqrt(var_re) + 1j * np.sqrt(var_im), np.nan + 0j)
-    return mean, spread
-
-
 def isolate(
     ds: xr.Dataset,
-    tol: float = 1e-4,
-    max_iter: int = 100,
+    tol: float = IsolateSettings.tol,
+    max_iter: int = IsolateSettings.max_iter,
     *,
-    method: str = "simo",
-    weighting: str = "snr",
-    match_tol: float = 0.5,
+    method: str = IsolateSettings.method,
+    weighting: str = IsolateSettings.weighting,
+    match_tol: float = IsolateSettings.match_tol,
     snr_weighting: bool | None = None,
-    path: str | os.PathLike | None = None,
 ) -> xr.Dataset:
     """Isolation Phase: refine every mode on data with the other modes subtracted (eq. 7).
 
@@ -207,8 +123,6 @@ def isolate(
         Largest normalised distance (half-power bandwidths) for two estimates to be one mode.
     snr_weighting : bool, optional
         SIMO only: weight each FRF's rows by the mode's SNR in it (default True).
-    path : str or path-like, optional
-        Write the result there (atomic netCDF).
 
     Returns
     -------
@@ -227,17 +141,15 @@ def isolate(
     c.check_choice(method, "method", METHODS)
     c.check_choice(weighting, "weighting", WEIGHTINGS)
     match_tol = c.check_positive(match_tol, "match_tol")
-    snr_weighting = True if snr_weighting is None else bool(snr_weighting)
-    a = ds.attrs
-    delta = float(a.get(names.ATTR_AMI_DELTA, 0.5))
-    pfa = float(a.get(names.ATTR_AMI_PFA, 1e-3))
-    max_modes = int(a.get("ami_max_modes", 20))
-    min_points = int(a.get("ami_min_points", 3))
-    zeta_max = float(a.get("ami_zeta_max", 0.25))
-    merge_tol = float(a.get("ami_merge_tol", 0.5))
-    model, dt, n_samples = c.resolve_model(ds, "auto")
+    snr_weighting = IsolateSettings.snr_weighting if snr_weighting is None else bool(snr_weighting)
+    settings = IsolateSettings(tol, max_iter, method, weighting, match_tol, snr_weighting)
+    sub = from_attrs(SubtractSettings, ds.attrs)
+    delta, pfa, max_modes = sub.delta, sub.pfa, sub.max_modes
+    min_points, zeta_max, merge_tol = sub.min_points, sub.zeta_max, sub.merge_tol
+    data_model = resolve_model(ds.attrs, "auto")
+    dt, n_samples = data_model.dt, data_model.n_samples
     omega = c.omega_of(ds)
-    t1 = k.peak_threshold(omega.size, pfa)
+    t1 = kn.peak_threshold(omega.size, pfa)
     points = ds[names.POINT].values
     n_p = points.size
     sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, dtype=float)
@@ -264,23 +176,20 @@ def isolate(
                 max_modes=max_modes,
             ),
             input_core_dims=[[names.FREQUENCY], [names.CANDIDATE], [names.CANDIDATE], [], []],
-            output_core_dims=[["slot"], ["slot"], [], [], []],
+            output_core_dims=[[names.SLOT], [names.SLOT], [], [], []],
             dask="parallelized",
             output_dtypes=[np.complex128, np.complex128, np.int64, np.int64, np.bool_],
-            dask_gufunc_kwargs={"output_sizes": {"slot": max_modes}},
+            dask_gufunc_kwargs={"output_sizes": {names.SLOT: max_modes}},
             keep_attrs=False,
         )
         lam_p, res_p, n_p_modes, iters, conv = (o.transpose(names.POINT, ...).values for o in outs)
-        snr_p = k._contribution_peaks(omega, dt, n_samples, lam_p, res_p) / sigma[:, None]
+        snr_p = kb.contribution_peaks(omega, dt, n_samples, lam_p, res_p) / sigma[:, None]
         label = match_modes(lam_p, snr_p, match_tol)
-        n_modes = int(label.max()) + 1 if np.any(label >= 0) else 0
-        point_lam = _gather(lam_p, label, n_modes)
-        point_snr = np.full((n_p, n_modes), np.nan)
-        for j in range(n_p):
-            for s in np.flatnonzero(label[j] >= 0):
-                point_snr[j, label[j, s]] = snr_p[j, s]
+        n_modes = n_labels(label)
+        point_lam = gather(lam_p, label, n_modes)
+        point_snr = gather(snr_p + 0j, label, n_modes).real
         weight = np.ones_like(point_snr) if weighting == "mean" else np.nan_to_num(point_snr) ** 2
-        eig, spread = _average(point_lam, weight)
+        eig, spread = weighted_average(point_lam, weight)
         detected = np.isfinite(point_lam)
         iterations = np.asarray(iters, dtype=np.int64)
         converged = np.asarray(conv, dtype=bool)
@@ -289,18 +198,18 @@ def isolate(
         lam_c = np.asarray(ds[names.SUB_EIGENVALUE].transpose(names.POINT, ...).values)
         res_c = np.asarray(ds[names.SUB_RESIDUE].transpose(names.POINT, ...).values)
         snr_c = (
-            k._contribution_peaks(
+            kb.contribution_peaks(
                 omega, dt, n_samples, np.ascontiguousarray(lam_c), np.ascontiguousarray(res_c)
             )
             / sigma[:, None]
         )
         label = match_modes(lam_c, snr_c, match_tol)
-        n0 = int(label.max()) + 1 if np.any(label >= 0) else 0
-        start = _gather(lam_c, label, n0)
+        n0 = n_labels(label)
+        start = gather(lam_c, label, n0)
         w0 = np.where(
-            np.isfinite(start), np.nan_to_num(_gather(snr_c + 0j, label, n0).real) ** 2, 0.0
+            np.isfinite(start), np.nan_to_num(gather(snr_c + 0j, label, n0).real) ** 2, 0.0
         )
-        lam0, _ = _average(start, w0)
+        lam0, _ = weighted_average(start, w0)
         lam_in = np.full(max_modes, np.nan + 0j)
         m0 = min(n0, max_modes)
         lam_in[:m0] = lam0[:m0]
@@ -327,14 +236,14 @@ def isolate(
         order = np.argsort(np.abs(lam_s[:n_modes]))
         eig = lam_s[:n_modes][order]
         res_m = np.ascontiguousarray(res_s[:, :n_modes][:, order])
-        peaks = k._contribution_peaks(omega, dt, n_samples, eig[None, :], res_m)
+        peaks = kb.contribution_peaks(omega, dt, n_samples, eig[None, :], res_m)
         point_snr = peaks / sigma[:, None]
         detected = point_snr**2 >= t1
         est = k._point_estimates(
             g, omega, dt, n_samples, np.ascontiguousarray(eig), res_m, delta, min_points, zeta_max
         )
         point_lam = np.where(detected, est, np.nan + 0j)
-        _, spread = _average(point_lam, np.ones(point_lam.shape))
+        _, spread = weighted_average(point_lam, np.ones(point_lam.shape))
         iterations = np.full(n_p, int(it), dtype=np.int64)
         converged = np.full(n_p, bool(conv))
 
@@ -375,9 +284,7 @@ def isolate(
             names.ISO_CONVERGED: ((names.POINT,), converged),
         }
     )
-    out.attrs[names.ATTR_AMI_METHOD] = method
-    out.attrs["ami_weighting"] = weighting
-    out.attrs["ami_tol"] = tol
+    to_attrs(settings, out.attrs)
     if not np.all(converged):
         bad = points[~converged].tolist()
         warnings.warn(
@@ -388,12 +295,4 @@ def isolate(
         )
     if n_modes == 0:
         warnings.warn("isolate: no mode identified", NoModesWarning, stacklevel=2)
-    params = dict(
-        tol=tol,
-        max_iter=max_iter,
-        method=method,
-        weighting=weighting,
-        match_tol=match_tol,
-        snr_weighting=snr_weighting,
-    )
-    return c.finish(out, "ami_xr.isolate", "isolate", params, path)
+    return c.finish(out, "ami_xr.isolate", "isolate", parameters(settings))

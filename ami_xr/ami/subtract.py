@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import warnings
 
 import numpy as np
@@ -10,8 +9,11 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import _common as c
+from ami_xr.ami.settings import SubtractSettings, parameters, to_attrs
+from ami_xr.core.model import resolve_model
 from ami_xr.errors import NoModesWarning
 from ami_xr.kernels import ami as k
+from ami_xr.kernels import noise as kn
 
 
 def _subtract_block(
@@ -37,15 +39,14 @@ def _subtract_block(
 
 def subtract(
     ds: xr.Dataset,
-    delta: float = 0.5,
+    delta: float = SubtractSettings.delta,
     *,
-    max_modes: int = 20,
-    pfa: float = 1e-3,
-    min_points: int = 3,
-    zeta_max: float = 0.25,
-    merge_tol: float = 0.5,
-    model: str = "auto",
-    path: str | os.PathLike | None = None,
+    max_modes: int = SubtractSettings.max_modes,
+    pfa: float = SubtractSettings.pfa,
+    min_points: int = SubtractSettings.min_points,
+    zeta_max: float = SubtractSettings.zeta_max,
+    merge_tol: float = SubtractSettings.merge_tol,
+    model: str = SubtractSettings.model,
 ) -> xr.Dataset:
     """Subtraction Phase: find candidate modes in every FRF, largest peak first (eqs. 6, 10-12).
 
@@ -87,9 +88,8 @@ def subtract(
     merge_tol : float
         Duplicate distance in half-power bandwidths.
     model : {"auto", "discrete", "continuous"}
-        Basis: "auto" uses the exact discrete basis when ``frf_source == "impulse_response"``.
-    path : str or path-like, optional
-        Write the result there (atomic netCDF).
+        Basis: "auto" uses the exact discrete basis when ``frf_source == "impulse_response"``
+        (see :func:`ami_xr.core.model.resolve_model`).
 
     Returns
     -------
@@ -111,7 +111,12 @@ def subtract(
     min_points = c.check_positive_int(min_points, "min_points", 2)
     zeta_max = c.check_positive(zeta_max, "zeta_max")
     merge_tol = c.check_positive(merge_tol, "merge_tol")
-    model, dt, n_samples = c.resolve_model(ds, model)
+    c.check_choice(model, "model", c.MODELS)
+    data_model = resolve_model(ds.attrs, model)
+    dt, n_samples = data_model.dt, data_model.n_samples
+    settings = SubtractSettings(
+        delta, max_modes, pfa, min_points, zeta_max, merge_tol, data_model.name
+    )
     frf = ds[names.FRF]
     c.check_values(ds)
     omega = c.omega_of(ds)
@@ -171,20 +176,14 @@ def subtract(
             ),
             names.SUB_STOP_STATISTIC: stat.assign_attrs(
                 long_name="|Y|^2/sigma^2 of the last examined peak",
-                threshold=float(k.peak_threshold(omega.size, pfa)),
+                threshold=float(kn.peak_threshold(omega.size, pfa)),
             ),
             names.SUB_STOP_REASON: reason_str,
             names.SUB_N_MODES: n,
         }
     )
     out = out.assign_coords({names.CANDIDATE: np.arange(n_keep)})
-    out.attrs[names.ATTR_AMI_MODEL] = model
-    out.attrs[names.ATTR_AMI_DELTA] = delta
-    out.attrs[names.ATTR_AMI_PFA] = pfa
-    out.attrs["ami_max_modes"] = max_modes
-    out.attrs["ami_min_points"] = min_points
-    out.attrs["ami_zeta_max"] = zeta_max
-    out.attrs["ami_merge_tol"] = merge_tol
+    to_attrs(settings, out.attrs)
     if int(n.sum()) == 0:
         warnings.warn(
             "subtract: no FRF has a peak significantly above its noise floor "
@@ -192,13 +191,4 @@ def subtract(
             NoModesWarning,
             stacklevel=2,
         )
-    params = dict(
-        delta=delta,
-        max_modes=max_modes,
-        pfa=pfa,
-        min_points=min_points,
-        zeta_max=zeta_max,
-        merge_tol=merge_tol,
-        model=model,
-    )
-    return c.finish(out, "ami_xr.subtract", "subtract", params, path)
+    return c.finish(out, "ami_xr.subtract", "subtract", parameters(settings))

@@ -1,4 +1,5 @@
-"""Array core of the joint refinement and of the Cramér-Rao bound (no xarray here).
+"""Variable projection and Levenberg-Marquardt: the optimiser of the joint refinement and the
+Cramér-Rao bound (plain arrays, no xarray).
 
 Variable projection: for given eigenvalues the residues of every FRF follow by linear least
 squares on a basis that all FRFs share (one QR factorisation per evaluation); the eigenvalues,
@@ -337,6 +338,21 @@ def levenberg_marquardt(
     return FitResult(lam, proj, cost, start, n_iter, converged, message, None, mode_step)
 
 
+@dataclass
+class Covariance:
+    """Gauss-Newton (Fisher) covariances at one set of eigenvalues, from :func:`covariance`."""
+
+    cov_theta: np.ndarray  # (2K, 2K) of (Re lam_1, Im lam_1, Re lam_2, ...)
+    residue: np.ndarray  # (P, K) complex residues at the projection
+    residue_var: np.ndarray  # (P, K) E|dA|^2
+    n_coef: int  # linear coefficients per point (2K + 2R)
+    dc_dtheta: np.ndarray  # (P, p, 2K) derivative of the coefficients by the eigenvalues
+    cov_c_theta: np.ndarray  # (P, p, 2K) cov(coefficients, eigenvalues)
+    cov_lin: np.ndarray  # (p, p) (R'R)^-1
+    mode_vector: np.ndarray | None = None  # (P, K) eq. 8, with a drive point only
+    mode_vector_var: np.ndarray | None = None  # (P, K) E|dPhi|^2, with a drive point only
+
+
 def covariance(
     prob: Problem,
     proj: Projection,
@@ -345,7 +361,7 @@ def covariance(
     *,
     quantity_power: int = 0,
     lam_shift: float = 0.0,
-):
+) -> Covariance:
     """Covariances of eigenvalues, residues and mode vectors at ``proj`` (Gauss-Newton / Fisher).
 
     ``noise_var`` (P,) is the noise variance of one real component of one (weighted) line. With
@@ -353,8 +369,7 @@ def covariance(
     ``proj.lam``; the physical eigenvalues used for the mode vectors are ``proj.lam + lam_shift``
     (an exponential window of decay rate ``b`` shifts every pole by ``-b``).
 
-    Returns a dict with ``cov_theta`` (2K, 2K), ``residue_var`` (P, K) = E|dA|^2,
-    ``mode_vector_var`` (P, K) = E|dPhi|^2, ``mode_vector`` (P, K) and ``cov_c_theta`` pieces.
+    Returns a :class:`Covariance`; its mode-vector fields are None without a drive point.
     """
     lam = proj.lam
     n_mode = lam.shape[0]
@@ -388,15 +403,15 @@ def covariance(
         )
         cov_cc_blocks[:, k] = blk
         res_var[:, k] = blk[:, 0, 0] + blk[:, 1, 1]
-    out = {
-        "cov_theta": cov_theta,
-        "residue": residue,
-        "residue_var": res_var,
-        "n_coef": p,
-        "dc_dtheta": hj,  # (P, p, 2K)
-        "cov_c_theta": hc,  # (P, p, 2K)
-        "cov_lin": cov_lin,  # (p, p): (R'R)^-1
-    }
+    out = Covariance(
+        cov_theta=cov_theta,
+        residue=residue,
+        residue_var=res_var,
+        n_coef=p,
+        dc_dtheta=hj,
+        cov_c_theta=hc,
+        cov_lin=cov_lin,
+    )
     if drive_index is None:
         return out
     # Mode vectors (eq. 8) from displacement residues A_disp = A / lam^q.
@@ -445,6 +460,6 @@ def covariance(
             [real_jac(d_lam[:, k]), real_jac(d_aj[:, k]), real_jac(d_ap[:, k])], 2
         )  # (P, 2, 6)
         var[:, k] = np.einsum("jab,jbc,jac->j", jac, big, jac)
-    out["mode_vector"] = phi
-    out["mode_vector_var"] = var
+    out.mode_vector = phi
+    out.mode_vector_var = var
     return out

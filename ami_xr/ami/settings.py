@@ -1,0 +1,125 @@
+"""Settings of the AMI phases: one frozen dataclass per phase, and the one helper pair that
+writes them to and reads them from a Dataset's attributes.
+
+A later phase reads what an earlier one used from the Dataset (so a reopened file continues
+exactly): :func:`ami_xr.isolate` reads :class:`SubtractSettings`, :func:`ami_xr.refine` reads the
+drive-point threshold of :class:`GlobalFitSettings`. Each field that travels this way names its
+attribute (from :mod:`ami_xr.names`) in the ``attr`` metadata; the defaults written here are the
+defaults of the public functions' signatures.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, MutableMapping
+from dataclasses import dataclass, field
+from typing import Any, TypeVar
+
+from ami_xr import names
+
+_S = TypeVar("_S")
+
+
+def _attr(default: Any, name: str) -> Any:
+    """A dataclass field stored in the attribute ``name``."""
+    return field(default=default, metadata={"attr": name})
+
+
+@dataclass(frozen=True)
+class SubtractSettings:
+    """Settings of :func:`ami_xr.subtract` (see its docstring); the isolation reuses them.
+
+    ``model`` is the basis actually used ("discrete" or "continuous") once resolved.
+    """
+
+    delta: float = _attr(0.5, names.ATTR_AMI_DELTA)
+    max_modes: int = _attr(20, names.ATTR_AMI_MAX_MODES)
+    pfa: float = _attr(1e-3, names.ATTR_AMI_PFA)
+    min_points: int = _attr(3, names.ATTR_AMI_MIN_POINTS)
+    zeta_max: float = _attr(0.25, names.ATTR_AMI_ZETA_MAX)
+    merge_tol: float = _attr(0.5, names.ATTR_AMI_MERGE_TOL)
+    model: str = _attr("auto", names.ATTR_AMI_MODEL)
+
+
+@dataclass(frozen=True)
+class IsolateSettings:
+    """Settings of :func:`ami_xr.isolate` (see its docstring)."""
+
+    tol: float = _attr(1e-4, names.ATTR_AMI_TOL)
+    max_iter: int = 100
+    method: str = _attr("simo", names.ATTR_AMI_METHOD)
+    weighting: str = _attr("snr", names.ATTR_AMI_WEIGHTING)
+    match_tol: float = 0.5
+    snr_weighting: bool = True
+
+
+@dataclass(frozen=True)
+class GlobalFitSettings:
+    """Settings of :func:`ami_xr.global_fit` (see its docstring); ``band`` may be "all"."""
+
+    band: float | str = _attr(1.0, names.ATTR_AMI_BAND)
+    residual_terms: bool = _attr(False, names.ATTR_AMI_RESIDUAL_TERMS)
+    drive_snr_min: float = _attr(3.0, names.ATTR_AMI_DRIVE_SNR_MIN)
+
+
+@dataclass(frozen=True)
+class RefineSettings:
+    """Settings of :func:`ami_xr.refine` (see its docstring).
+
+    ``residual_terms`` is "auto" or a tuple of "lower"/"upper"; once resolved the terms are
+    stored (comma-separated) in ``refine_residual_terms``.
+    """
+
+    max_iter: int = 50
+    tol: float = 1e-10
+    band: str | tuple[float, float] = "all"
+    residual_terms: str | tuple[str, ...] = _attr("auto", names.ATTR_REFINE_RESIDUAL_TERMS)
+    max_shift: float = 3.0
+    add_modes: int = 2
+    add_pfa: float = 1e-3
+    drop_modes: bool = True
+
+
+def _encode(value: Any) -> Any:
+    """netCDF attributes hold numbers and strings: bools become 0/1, tuples comma lists."""
+    if isinstance(value, bool):
+        return int(value)
+    if isinstance(value, tuple):
+        return ",".join(str(v) for v in value)
+    return value
+
+
+def _decode(value: Any, default: Any) -> Any:
+    """The inverse of :func:`_encode`, typed after the field's default."""
+    if isinstance(default, bool):
+        return bool(int(value))
+    if isinstance(default, int):
+        return int(value)
+    if isinstance(default, float):
+        return value if isinstance(value, str) else float(value)  # band may be "all"
+    if isinstance(default, str) and isinstance(value, str) and "," in value:
+        return tuple(value.split(","))
+    return value
+
+
+def to_attrs(settings: Any, attrs: MutableMapping[str, Any]) -> None:
+    """Write the fields of ``settings`` that have an attribute into ``attrs`` (in place)."""
+    for f in dataclasses.fields(settings):
+        name = f.metadata.get("attr")
+        if name is not None:
+            attrs[name] = _encode(getattr(settings, f.name))
+
+
+def from_attrs(cls: type[_S], attrs: Mapping[str, Any]) -> _S:
+    """The settings of class ``cls`` stored in ``attrs``; a missing attribute gives the default."""
+    values = {}
+    for f in dataclasses.fields(cls):
+        name = f.metadata.get("attr")
+        if name is not None and name in attrs:
+            values[f.name] = _decode(attrs[name], f.default)
+    return cls(**values)
+
+
+def parameters(settings: Any) -> dict[str, Any]:
+    """All fields of ``settings`` as a dict, for the provenance record."""
+    return dataclasses.asdict(settings)
