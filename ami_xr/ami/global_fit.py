@@ -6,7 +6,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.ami import _common as c
+from ami_xr.ami import common as c
 from ami_xr.ami.settings import GlobalFitSettings, parameters, to_attrs
 from ami_xr.core.modal import mac_matrix, mode_vectors
 from ami_xr.core.model import resolve_model

@@ -5,7 +5,7 @@ from __future__ import annotations
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.ami import _common as c
+from ami_xr.ami import common as c
 from ami_xr.ami.global_fit import global_fit
 from ami_xr.ami.isolate import isolate
 from ami_xr.ami.settings import GlobalFitSettings, IsolateSettings, SubtractSettings

@@ -8,7 +8,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.ami import _common as c
+from ami_xr.ami import common as c
 from ami_xr.ami.settings import IsolateSettings, SubtractSettings, from_attrs, parameters, to_attrs
 from ami_xr.core.matching import gather, match_modes, n_labels, weighted_average
 from ami_xr.core.model import resolve_model

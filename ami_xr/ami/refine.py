@@ -52,7 +52,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.provenance import add_history
-from ami_xr.ami import _common as c
+from ami_xr.ami import common as c
 from ami_xr.ami.global_fit import FLAG_LOW_DRIVE_SNR, RESIDUAL_KIND
 from ami_xr.ami.settings import GlobalFitSettings, RefineSettings, from_attrs, parameters, to_attrs
 from ami_xr.core.modal import damping_ratio, mac_matrix, natural_frequency
