@@ -1,8 +1,9 @@
 """Simulated test systems with exactly known modal parameters.
 
 * :mod:`~ami_xr.simulate.modal` -- any linear system ``M, C, K`` (non-proportional damping):
-  exact eigenvalues, mode vectors and residues (eqs. 2-5), analytic FRFs (eq. 4), impulse
-  responses and the paper's noise model (eq. 15).
+  exact eigenvalues, mode vectors and residues (eqs. 2-5), analytic FRFs (eq. 4) and impulse
+  responses.
+* :mod:`~ami_xr.simulate.noise` -- the paper's noise model (eq. 15).
 * :mod:`~ami_xr.simulate.beam` -- the paper's benchmark, a cantilever beam with three
   suspended spring-mass-dashpot absorbers.
 * :mod:`~ami_xr.simulate.random` -- random lumped-mass chains and grids for tests.
@@ -22,13 +23,13 @@ from ami_xr.simulate.beam import (
     paper_tables,
 )
 from ami_xr.simulate.modal import (
-    add_noise,
     frf,
     impulse_response,
     modal_model,
     residues,
     state_space_modes,
 )
+from ami_xr.simulate.noise import add_noise
 from ami_xr.simulate.random import contrast, mode_peaks, random_system
 
 __all__ = [

@@ -36,14 +36,8 @@ import numpy as np
 import xarray as xr
 
 from ami_xr.errors import AmiXrValueError
-from ami_xr.simulate.modal import (
-    ATTR_NOISE_LEVEL,
-    NOISE_KINDS,
-    add_noise,
-    impulse_response,
-    modal_model,
-    time_axis,
-)
+from ami_xr.simulate.modal import impulse_response, modal_model, time_axis
+from ami_xr.simulate.noise import ATTR_NOISE_LEVEL, NOISE_KINDS, add_noise
 from ami_xr.simulate.paper import ANALYTICAL_EIGENVALUES, ANALYTICAL_MODE_VECTORS
 
 # Paper parameters (SI units).

@@ -31,15 +31,13 @@ from ami_xr import names
 from ami_xr.errors import AmiXrValueError
 from ami_xr.provenance import add_history
 from ami_xr.simulate.beam import frf_from_impulse
-from ami_xr.simulate.modal import (
+from ami_xr.simulate.modal import frf, impulse_response, modal_model
+from ami_xr.simulate.noise import (
     ATTR_NOISE_KIND,
     ATTR_NOISE_LEVEL,
     ATTR_NOISE_SEED,
     NOISE_KINDS,
     add_noise,
-    frf,
-    impulse_response,
-    modal_model,
 )
 
 TOPOLOGIES = ("chain", "grid")
