@@ -37,17 +37,11 @@ from __future__ import annotations
 import numpy as np
 
 from ami_xr.kernels._numba import jit
-from ami_xr.kernels.linalg import solve_normal
 from ami_xr.kernels.modal_basis import (
     add_mode,
-    as_dt,
-    basis_at,
-    checked_omega,
     contribution_peak,
     line_variable,
     mode_basis,
-    pole_factor,
-    residual_basis,
     tolerance_envelope,
 )
 from ami_xr.kernels.noise import (
@@ -62,6 +56,7 @@ from ami_xr.kernels.noise import (
     split_target,
     sum_threshold_kernel,
 )
+from ami_xr.kernels.residues import residues_fixed_kernel
 from ami_xr.kernels.single_mode import (
     FIT_NO_DROP,
     FIT_OK,
@@ -764,7 +759,9 @@ def _isolate_simo(
     converged = False
     # starting residues: linear LS with the eigenvalues fixed, over all lines
     if n > 0:
-        r0 = _residues_fixed(dw_data, omega, lam[:n], dt, n_samples, np.ones(n_f, np.bool_), -1)
+        r0 = residues_fixed_kernel(
+            dw_data, omega, lam[:n], dt, n_samples, np.ones(n_f, np.bool_), -1
+        )
         for j in range(n_p):
             for k in range(n):
                 res[j, k] = r0[j, k]
@@ -1063,122 +1060,9 @@ def _isolate_simo(
 # ----------------------------------------------------------------------------------------------
 # residue least squares with fixed eigenvalues (eq. 9)
 # ----------------------------------------------------------------------------------------------
-@jit
-def _residue_columns(omega, lam, dt, n_samples, use, residual_kind):
-    """Complex columns of eq. 9 on the used lines: (n_unknown, n_used).
-
-    Unknowns per mode ``(A1, A2)``: columns ``b + conj-b`` and ``i (b - conj-b)``; with
-    ``residual_kind >= 0`` two complex residual terms (lower, upper) follow, 2 real unknowns each.
-    """
-    n_k = lam.shape[0]
-    n_f = omega.shape[0]
-    n_used = 0
-    for i in range(n_f):
-        if use[i]:
-            n_used += 1
-    n_u = 2 * n_k + (4 if residual_kind >= 0 else 0)
-    cols = np.empty((n_u, n_used), dtype=np.complex128)
-    x = line_variable(omega, dt)
-    for k in range(n_k):
-        p, sc = pole_factor(lam[k], dt, n_samples)
-        pc = np.conj(p)
-        scc = np.conj(sc)
-        m = 0
-        for i in range(n_f):
-            if use[i]:
-                b = basis_at(x[i], p, sc, dt)
-                bc = basis_at(x[i], pc, scc, dt)
-                cols[2 * k, m] = b + bc
-                cols[2 * k + 1, m] = 1j * (b - bc)
-                m += 1
-    if residual_kind >= 0:
-        m = 0
-        for i in range(n_f):
-            if use[i]:
-                lo = residual_basis(omega[i], residual_kind, 0)
-                up = residual_basis(omega[i], residual_kind, 1)
-                cols[2 * n_k, m] = lo
-                cols[2 * n_k + 1, m] = 1j * lo
-                cols[2 * n_k + 2, m] = up
-                cols[2 * n_k + 3, m] = 1j * up
-                m += 1
-    return cols
-
-
-@jit
-def _residue_normal_equations(data, cols, use):
-    """Normal matrix (n_u, n_u) shared by all FRFs, and right sides (n_u, P)."""
-    n_u = cols.shape[0]
-    n_used = cols.shape[1]
-    n_p = data.shape[0]
-    nmat = np.zeros((n_u, n_u))
-    for a in range(n_u):
-        for b in range(a, n_u):
-            acc = 0.0
-            for m in range(n_used):
-                acc += (np.conj(cols[a, m]) * cols[b, m]).real
-            nmat[a, b] = acc
-            nmat[b, a] = acc
-    rhs = np.zeros((n_u, n_p))
-    idx = np.empty(n_used, dtype=np.int64)
-    m = 0
-    for i in range(use.shape[0]):
-        if use[i]:
-            idx[m] = i
-            m += 1
-    for j in range(n_p):
-        for a in range(n_u):
-            acc = 0.0
-            for m in range(n_used):
-                acc += (np.conj(cols[a, m]) * data[j, idx[m]]).real
-            rhs[a, j] = acc
-    return nmat, rhs
-
-
-@jit
-def _residues_fixed(data, omega, lam, dt, n_samples, use, residual_kind):
-    """Residues (P, K) (and residual coefficients (P, 2) when ``residual_kind >= 0``) of eq. 9."""
-    n_k = lam.shape[0]
-    cols = _residue_columns(omega, lam, dt, n_samples, use, residual_kind)
-    nmat, rhs = _residue_normal_equations(data, cols, use)
-    sol, ok = solve_normal(nmat, rhs)
-    n_p = data.shape[0]
-    n_r = 2 if residual_kind >= 0 else 0
-    out = np.full((n_p, n_k + n_r), complex(np.nan, np.nan))
-    if not ok:
-        return out
-    for j in range(n_p):
-        for k in range(n_k + n_r):
-            out[j, k] = complex(sol[2 * k, j], sol[2 * k + 1, j])
-    return out
-
-
 # ----------------------------------------------------------------------------------------------
 # public wrappers (validate, then call the jitted kernels)
 # ----------------------------------------------------------------------------------------------
-def residue_normal_equations(data, omega, lam, use=None, dt=None, n_samples=None, residual_kind=-1):
-    """Normal matrix (n_u, n_u) and right sides (n_u, P) of eq. 9 (unknowns A1, A2 per mode)."""
-    omega = checked_omega(omega)
-    data = np.ascontiguousarray(np.atleast_2d(data), dtype=np.complex128)
-    lam = np.ascontiguousarray(np.atleast_1d(lam), dtype=np.complex128)
-    use = np.ones(omega.size, np.bool_) if use is None else np.ascontiguousarray(use, np.bool_)
-    cols = _residue_columns(omega, lam, as_dt(dt), int(n_samples or 0), use, int(residual_kind))
-    return _residue_normal_equations(data, cols, use)
-
-
-def residues_fixed(data, omega, lam, use=None, dt=None, n_samples=None, residual_kind=-1):
-    """Residues (P, K) [+ (P, 2) residual coefficients] by linear least squares, eq. 9."""
-    omega = checked_omega(omega)
-    data = np.ascontiguousarray(np.atleast_2d(data), dtype=np.complex128)
-    lam = np.ascontiguousarray(np.atleast_1d(lam), dtype=np.complex128)
-    use = np.ones(omega.size, np.bool_) if use is None else np.ascontiguousarray(use, np.bool_)
-    if 2 * int(use.sum()) < 2 * lam.size + (4 if residual_kind >= 0 else 0):
-        raise ValueError("use: fewer lines than the residue fit needs")
-    return _residues_fixed(
-        data, omega, lam, as_dt(dt), int(n_samples or 0), use, int(residual_kind)
-    )
-
-
 # ----------------------------------------------------------------------------------------------
 # per-point diagnostics
 # ----------------------------------------------------------------------------------------------
