@@ -265,19 +265,18 @@ def _subtraction_residual(ds: xr.Dataset, point: Hashable) -> np.ndarray | None:
     """FRF minus every candidate the Subtraction Phase kept, in the basis the phase used."""
     if names.SUB_EIGENVALUE not in ds or names.SUB_RESIDUE not in ds:
         return None
-    from ami_xr.kernels.basis import mode_contribution
+    from ami_xr.core.model import resolve_model
+    from ami_xr.kernels.modal_basis import mode_contribution
 
+    model = resolve_model(ds.attrs)  # the basis the phase recorded in ``ami_model``
     sel = {names.POINT: point}
     lam = np.atleast_1d(ds[names.SUB_EIGENVALUE].sel(sel).values)
     res = np.atleast_1d(ds[names.SUB_RESIDUE].sel(sel).values)
     omega = 2 * np.pi * np.asarray(ds[names.FREQUENCY].values, dtype=float)
-    discrete = ds.attrs.get(names.ATTR_AMI_MODEL) == "discrete"
-    dt = ds.attrs.get(names.ATTR_DT) if discrete else None
-    n = ds.attrs.get(names.ATTR_NSAMPLES) if discrete else None
     out = np.asarray(ds[names.FRF].sel(sel).values, dtype=np.complex128).copy()
     for lk, ak in zip(lam, res, strict=True):
         if np.isfinite(lk) and np.isfinite(ak):
-            out -= mode_contribution(omega, complex(lk), complex(ak), dt, n)
+            out -= mode_contribution(omega, complex(lk), complex(ak), model.dt, model.n_samples)
     return out
 
 
