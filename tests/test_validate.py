@@ -12,7 +12,7 @@ import ami_xr
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, SchemaError
 from ami_xr.io.datasets import make_frf_dataset, make_time_dataset
-from ami_xr.io.schema import validate
+from ami_xr.io.schema import find_problems, validate
 
 # --- helpers ----------------------------------------------------------------------------------
 
@@ -75,6 +75,17 @@ def test_valid_time_datasets():
     for ds in (_time_dataset(), _time_dataset(records=4), _time_dataset(force=False)):
         assert validate(ds) is ds
         assert validate(ds, kind="time") is ds
+
+
+def test_find_problems_lists_without_raising_in_the_callers_names(frf_dataset):
+    assert find_problems(frf_dataset) == ("FRF Dataset", [])
+    bad = frf_dataset.drop_vars(names.FREQUENCY)
+    what, problems = find_problems(bad)
+    assert what == "FRF Dataset" and any("coordinate 'frequency'" in p for p in problems)
+    _, renamed = find_problems(bad, arguments={names.FREQUENCY: "freqs"})
+    assert any("argument 'freqs'" in p for p in renamed) and len(renamed) == len(problems)
+    with pytest.raises(SchemaError):
+        validate(bad)
 
 
 def test_unit_impulse_time_dataset_needs_no_force():
