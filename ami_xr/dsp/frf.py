@@ -553,18 +553,23 @@ def frf_from_options(ds: xr.Dataset, options: Mapping[str, Any]) -> xr.Dataset:
     or ``"impact"``), with the other options as keyword arguments.
 
     For option dictionaries held as data (``ami_xr.batch``'s ``frf_options``, the CLI): an option
-    that belongs to the other function, or to neither, raises :class:`AmiXrValueError` naming it.
+    of the other function raises :class:`AmiXrValueError` naming it unless it is None (unset), and
+    so does an option of neither.
     """
     options = dict(options)
     excitation = check_choice(options.pop("excitation", "random"), EXCITATIONS, "excitation")
     function, other = (impact_frf, frf) if excitation == "impact" else (frf, impact_frf)
-    for name in options:
-        if name != "ds" and name in inspect.signature(function).parameters:
-            continue
-        if name != "ds" and name in inspect.signature(other).parameters:
+    own = set(inspect.signature(function).parameters) - {"ds"}
+    foreign = set(inspect.signature(other).parameters) - own - {"ds"}
+    kwargs = {}
+    for name, value in options.items():
+        if name in own:
+            kwargs[name] = value
+        elif name not in foreign:
+            raise AmiXrValueError(f"{name}: not an option of ami_xr.{function.__name__}")
+        elif value is not None:
             raise AmiXrValueError(
                 f"{name}: not used with excitation={excitation!r} (an option of "
                 f"ami_xr.{other.__name__})"
             )
-        raise AmiXrValueError(f"{name}: not an option of ami_xr.{function.__name__}")
-    return function(ds, **options)
+    return function(ds, **kwargs)
