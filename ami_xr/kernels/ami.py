@@ -49,7 +49,6 @@ from ami_xr.kernels.noise import (
     band_energy_peak,
     local_peak,
     nearest_line,
-    noise_floor_kernel,
     normalized_distance,
     peak_threshold_kernel,
     pole_band,
@@ -60,19 +59,12 @@ from ami_xr.kernels.residues import residues_fixed_kernel
 from ami_xr.kernels.single_mode import (
     FIT_NO_DROP,
     FIT_OK,
-    FIT_OUT_OF_RANGE,
     FitLimits,
     band_energy_drop,
     fit_single,
     fit_single_simo,
     fit_two,
 )
-
-# Stop / rejection codes of the Subtraction Phase (mapped to strings in the labeled layer).
-STOP_BELOW_FLOOR = 0
-STOP_MAX_MODES = 1
-STOP_MAX_ATTEMPTS = 2
-STOP_REASONS = ("below_noise_floor", "max_modes", "max_rejected_peaks")
 
 FREEZE_CHANGE = 1e-3  # a mode's fit band is kept fixed once its eigenvalue changes less than this
 
@@ -92,143 +84,6 @@ FREEZE_CHANGE = 1e-3  # a mode's fit band is kept fixed once its eigenvalue chan
 # ----------------------------------------------------------------------------------------------
 # Subtraction Phase (eq. 6), one FRF
 # ----------------------------------------------------------------------------------------------
-@jit
-def _subtract_one(
-    data,
-    omega,
-    x,
-    dt,
-    n_samples,
-    delta,
-    max_modes,
-    pfa,
-    min_points,
-    zeta_max,
-    merge_tol,
-    lam_out,
-    res_out,
-    lo_out,
-    hi_out,
-):
-    """Subtraction Phase on one FRF; returns ``(n_modes, sigma, statistic, reason)``."""
-    n_f = data.shape[0]
-    sigma = noise_floor_kernel(data)
-    scale_floor = 1e-14 * np.max(np.abs(data))
-    sigma = max(sigma, scale_floor)
-    t = peak_threshold_kernel(n_f, pfa)
-    dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
-    w_lo = max(omega[0], dw)
-    w_hi = omega[n_f - 1]
-    limits = FitLimits(zeta_max, w_lo, w_hi)
-    y = data.copy()
-    power = np.empty(n_f)
-    masked = np.zeros(n_f, dtype=np.bool_)
-    n_modes = 0
-    stat = 0.0
-    reason = STOP_MAX_ATTEMPTS
-    max_attempts = 3 * max_modes + 10
-    for _attempt in range(max_attempts):
-        if n_modes >= max_modes:
-            reason = STOP_MAX_MODES
-            break
-        peak = -1
-        best = -1.0
-        for i in range(n_f):
-            power[i] = abs(y[i]) ** 2
-            if not masked[i] and power[i] > best:
-                best = power[i]
-                peak = i
-        if peak < 0:
-            reason = STOP_BELOW_FLOOR
-            stat = 0.0
-            break
-        stat = best / sigma**2
-        if stat < t:
-            reason = STOP_BELOW_FLOOR
-            break
-        lo, hi = band_around(power, peak, delta * delta * best)
-        if hi - lo < min_points:
-            for i in range(lo, hi):
-                masked[i] = True
-            continue
-        ws = omega[peak] if omega[peak] > 0.0 else dw
-        lam, res, code = fit_single(
-            y, x, lo, hi, ws, dt, n_samples, limits, complex(np.nan, np.nan)
-        )
-        if code == FIT_OK:
-            # natural frequency must lie near the band; the band energy must drop significantly
-            bw = abs(lam.real)
-            if lam.imag < omega[lo] - 2.0 * bw - dw or lam.imag > omega[hi - 1] + 2.0 * bw + dw:
-                code = FIT_OUT_OF_RANGE
-            else:
-                drop = band_energy_drop(y, x, lam, res, dt, n_samples, power, lo, hi, n_f)
-                if drop / sigma**2 < t:
-                    code = FIT_NO_DROP
-        if code != FIT_OK:
-            for i in range(lo, hi):
-                masked[i] = True
-            continue
-        merged = False
-        for k in range(n_modes):
-            if normalized_distance(lam, lam_out[k]) < merge_tol:
-                # a duplicate of an earlier candidate: the residual left near that pole; fold the
-                # residue into the earlier candidate (poles this close add their residues)
-                res_out[k] = res_out[k] + res
-                merged = True
-                break
-        if not merged:
-            lam_out[n_modes] = lam
-            res_out[n_modes] = res
-            lo_out[n_modes] = omega[lo]
-            hi_out[n_modes] = omega[hi - 1]
-            n_modes += 1
-        # recompute the residual from the data (eq. 6 with the current candidates)
-        for i in range(n_f):
-            y[i] = data[i]
-        for k in range(n_modes):
-            add_mode(y, x, lam_out[k], res_out[k], dt, n_samples, -1.0, 0, n_f)
-    return n_modes, sigma, stat, reason
-
-
-@jit
-def _subtract_batch(
-    data, omega, dt, n_samples, delta, max_modes, pfa, min_points, zeta_max, merge_tol
-):
-    n_p = data.shape[0]
-    x = line_variable(omega, dt)
-    lam = np.full((n_p, max_modes), complex(np.nan, np.nan))
-    res = np.full((n_p, max_modes), complex(np.nan, np.nan))
-    blo = np.full((n_p, max_modes), np.nan)
-    bhi = np.full((n_p, max_modes), np.nan)
-    n_modes = np.zeros(n_p, dtype=np.int64)
-    sigma = np.zeros(n_p)
-    stat = np.zeros(n_p)
-    reason = np.zeros(n_p, dtype=np.int64)
-    for j in range(n_p):
-        n, s, st, r = _subtract_one(
-            data[j],
-            omega,
-            x,
-            dt,
-            n_samples,
-            delta,
-            max_modes,
-            pfa,
-            min_points,
-            zeta_max,
-            merge_tol,
-            lam[j],
-            res[j],
-            blo[j],
-            bhi[j],
-        )
-        n_modes[j] = n
-        sigma[j] = s
-        stat[j] = st
-        reason[j] = r
-    return lam, res, blo, bhi, sigma, stat, reason, n_modes
-
-
 # ----------------------------------------------------------------------------------------------
 # Isolation Phase (eq. 7), one FRF at a time
 # ----------------------------------------------------------------------------------------------

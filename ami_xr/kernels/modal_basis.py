@@ -19,7 +19,8 @@ b(lam, w) with three different (documented) orders of floating-point operations;
 results were fixed by its order, so the three evaluations are kept side by side here rather than
 merged into one expression.
 
-Jitted, unchecked helpers for the other kernel modules: ``line_variable``, ``pole_factor``,
+The :class:`Grid` record carries ``(omega, x, dt, n_samples)`` between kernels. Jitted,
+unchecked helpers for the other kernel modules: ``line_variable``, ``pole_factor``,
 ``basis_at``, ``add_mode``, ``mode_basis``, ``contribution_peak``, ``tolerance_envelope``,
 ``residual_basis``. Checked wrappers: :func:`pole_basis`, :func:`mode_contribution`,
 :func:`basis_and_derivative`, :func:`model_columns`, :func:`synthesize`,
@@ -29,6 +30,8 @@ Jitted, unchecked helpers for the other kernel modules: ``line_variable``, ``pol
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ami_xr.errors import AmiXrValueError
@@ -37,6 +40,19 @@ from ami_xr.kernels.noise import nearest_line
 
 RESIDUAL_TERMS = ("lower", "upper")
 """Names of the residual terms: ``lower`` (below the band) and ``upper`` (above it)."""
+
+
+class Grid(NamedTuple):
+    """The frequency lines of a kernel's FRFs and the data model, travelling together."""
+
+    omega: np.ndarray
+    """Angular frequencies in rad/s, (F,) strictly increasing."""
+    x: np.ndarray
+    """``line_variable(omega, dt)``, (F,) complex."""
+    dt: float
+    """Sample interval of the discrete model; 0.0 for the continuous one."""
+    n_samples: int
+    """Record length of the discrete model (0: no truncation factor)."""
 
 
 # ----------------------------------------------------------------------------------------------
