@@ -586,3 +586,28 @@ def test_random_datasets_round_trip(tmp_path, ds):
     assert_round_trip(ds, open_dataset(path))
     assert_round_trip(ds, open_dataset(path, chunks={names.FREQUENCY: 2}).compute())
     assert sorted(p.name for p in tmp_path.iterdir()) == ["random.nc"]
+
+
+def test_failing_lazy_write_never_leaves_workers_writing_to_a_closed_file(tmp_path, frf_dataset):
+    # dask's threaded scheduler re-raises the first failing chunk while other threads still write;
+    # closing the file under them broke HDF5's state (the next open failed with "Not a valid ID")
+    # or crashed the process on netCDF4 1.6.5 within ~50 tries. to_netcdf drains its pool first.
+    path, old = _write_old(tmp_path, frf_dataset)
+
+    def fail_on_block_3(block, block_info=None):
+        if block_info[0]["chunk-location"][-1] == 3:
+            raise ZeroDivisionError("block 3 cannot be computed")
+        return block
+
+    lazy = frf_dataset.chunk({names.FREQUENCY: 25})
+    lazy["frf"] = lazy.frf.copy(data=lazy.frf.data.map_blocks(fail_on_block_3, dtype=np.complex128))
+    for _ in range(100):
+        with pytest.raises(ZeroDivisionError, match="block 3"):
+            to_netcdf(lazy, path)
+    assert path.read_bytes() == old
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["data.nc"]
+    # the library is still sound: a normal write and read work
+    to_netcdf(frf_dataset, tmp_path / "after.nc")
+    xr.testing.assert_identical(
+        ami_xr.open_dataset(tmp_path / "after.nc")[names.FRF], frf_dataset[names.FRF]
+    )

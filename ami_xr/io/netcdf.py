@@ -23,8 +23,10 @@ On-disk conventions (readable without ami_xr, see the README's "netCDF files" se
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+from concurrent.futures import ThreadPoolExecutor
 from numbers import Integral
 from pathlib import Path
 from typing import Any
@@ -34,9 +36,9 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr._coords import uniform_coords
-from ami_xr.provenance import add_history
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_path
+from ami_xr.provenance import add_history
 
 __all__ = [
     "open_dataset",
@@ -514,6 +516,43 @@ def to_netcdf(
         source_file=ds.attrs.get(names.ATTR_SOURCE_FILE),
     )
     encoded = encode(recorded)  # raises on unstorable content before any file exists
-    with atomic_path(path) as tmp:
+    with atomic_path(path) as tmp, _drained_on_error(encoded):
         encoded.to_netcdf(tmp, mode="w", format=FORMAT, engine=ENGINE)
     return path
+
+
+def _draining_threaded_get(dsk, keys, **kwargs):
+    """dask's threaded scheduler on a private pool that is drained before an error propagates.
+
+    The stock scheduler re-raises the first failing task at once while other worker threads may
+    still be writing chunks; xarray then closes the netCDF file under them (and the atomic writer
+    removes it), which can crash the process inside HDF5 (a segfault, seen with netCDF4 1.6.5).
+    """
+    import dask.threaded
+
+    pool = ThreadPoolExecutor(max_workers=kwargs.pop("num_workers", None) or os.cpu_count() or 1)
+    try:
+        return dask.threaded.get(dsk, keys, pool=pool, **kwargs)
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)  # no task touches the file after this
+
+
+@contextlib.contextmanager
+def _drained_on_error(ds: xr.Dataset):
+    """Write ``ds`` with :func:`_draining_threaded_get` when dask's threaded scheduler is in effect.
+
+    A distributed client, the synchronous or the process scheduler are left alone.
+    """
+    lazy = [v.data for v in ds.variables.values() if _is_dask(v.data)]
+    if not lazy:
+        yield
+        return
+    import dask
+    import dask.base
+    import dask.threaded
+
+    if dask.base.get_scheduler(collections=lazy) is not dask.threaded.get:
+        yield
+        return
+    with dask.config.set(scheduler=_draining_threaded_get):
+        yield
