@@ -41,20 +41,19 @@ from pathlib import Path
 from typing import Any
 
 from ami_xr import names
+from ami_xr._progress import Progress
 from ami_xr.errors import AmiXrValueError, DataFileError
+from ami_xr.io.atomic import atomic_open, remove_stale
+from ami_xr.io.formats import INPUT_SUFFIXES, read_any
 
 __all__ = [
     "batch",
     "BatchSummary",
     "estimate_frf",
-    "read_input",
     "find_inputs",
     "output_path",
-    "INPUT_SUFFIXES",
 ]
 
-#: File suffixes (lower case) the batch treats as measurements.
-INPUT_SUFFIXES = (".nc", ".uff", ".unv", ".lvm")
 OUTPUT_SUFFIX = ".modes.nc"
 SUMMARY_NAME = "batch_summary.csv"
 ATTR_INPUT = "batch_input"
@@ -202,37 +201,7 @@ def _up_to_date(inp: Path, out: Path, params_sha: str) -> bool:
     return attrs.get(ATTR_INPUT_SHA) == _sha256(inp)
 
 
-def _remove_stale_temporaries(output_dir: Path) -> None:
-    # to_netcdf and the report write ".<name>.<random>.tmp" next to the target; after a hard
-    # crash (kill -9, power loss) such files can stay behind.
-    if not output_dir.is_dir():
-        return
-    for tmp in output_dir.rglob(".*.tmp"):
-        if tmp.is_file():
-            tmp.unlink(missing_ok=True)
-
-
 # --- one file ---------------------------------------------------------------------------------
-def read_input(path: str | os.PathLike):
-    """Read a measurement file by its suffix: ``.nc`` (:func:`ami_xr.open_dataset`),
-    ``.uff``/``.unv`` (:func:`ami_xr.read_uff`) or ``.lvm`` (:func:`ami_xr.read_lvm`)."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".nc":
-        from ami_xr.io.netcdf import open_dataset
-
-        return open_dataset(path)
-    if suffix in (".uff", ".unv"):
-        from ami_xr.io.uff import read_uff
-
-        return read_uff(path)
-    if suffix == ".lvm":
-        from ami_xr.io.lvm import read_lvm
-
-        return read_lvm(path)
-    raise DataFileError(f"{path}: unknown file type {suffix!r}; expected one of {INPUT_SUFFIXES}")
-
-
 def estimate_frf(ts, frf_options: dict[str, Any] | None = None):
     """:func:`ami_xr.frf` on a time Dataset; without an ``excitation`` option, data with a
     ``record`` dim (repeated hammer hits) are treated as an impact test, others as random."""
@@ -279,7 +248,7 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
             warnings.simplefilter("always")
             input_sha = _sha256(inp)
             st = inp.stat()
-            ds = read_input(inp)
+            ds = read_any(inp)
             if names.FRF not in ds:
                 if names.RESPONSE not in ds:
                     raise DataFileError(
@@ -324,52 +293,12 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
     return row
 
 
-# --- progress ---------------------------------------------------------------------------------
-class _SimpleProgress:
-    """Minimal progress line on stderr when tqdm is not installed."""
-
-    def __init__(self, total: int, desc: str):
-        self.total, self.n, self.desc = total, 0, desc
-        self._draw()
-
-    def _draw(self) -> None:
-        width = 30
-        done = int(width * self.n / self.total) if self.total else width
-        sys.stderr.write(
-            f"\r{self.desc}: [{'#' * done}{'.' * (width - done)}] {self.n}/{self.total}"
-        )
-        sys.stderr.flush()
-
-    def update(self, n: int = 1) -> None:
-        self.n += n
-        self._draw()
-
-    def close(self) -> None:
-        sys.stderr.write("\n")
-        sys.stderr.flush()
-
-
-def _progress(total: int, enabled: bool, desc: str):
-    if not enabled or total == 0:
-        return None
-    try:
-        from tqdm import tqdm
-    except ImportError:
-        return _SimpleProgress(total, desc)
-    return tqdm(total=total, desc=desc, unit="file", file=sys.stderr)
-
-
 # --- the batch ----------------------------------------------------------------------------------
 def _write_summary(rows: list[dict], path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "w", newline="", encoding="utf-8") as fh:
-            writer = csv.DictWriter(fh, fieldnames=SUMMARY_FIELDS, extrasaction="ignore")
-            writer.writeheader()
-            writer.writerows(rows)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    with atomic_open(path, "w") as fh:
+        writer = csv.DictWriter(fh, fieldnames=SUMMARY_FIELDS, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
 
 
 class _GracefulInterrupt:
@@ -505,7 +434,7 @@ def batch(
     if output_dir.exists() and not output_dir.is_dir():
         raise DataFileError(f"output_dir: {str(output_dir)!r} exists and is not a folder")
     output_dir.mkdir(parents=True, exist_ok=True)
-    _remove_stale_temporaries(output_dir)
+    remove_stale(output_dir)
     parameters = {
         "identify": identify_options or {},
         "frf": frf_options or {},
@@ -550,17 +479,14 @@ def batch(
         )
 
     summary = BatchSummary(csv_path=output_dir / SUMMARY_NAME)
-    bar = _progress(len(jobs), progress, "ami-xr batch")
     stop = _GracefulInterrupt()
     try:
-        with stop:
-            for row in _run_jobs(jobs, workers, stop):
-                rows[row["file"]] = row
-                if bar is not None:
+        with Progress("ami-xr batch", total=len(jobs), unit="file", enabled=progress) as bar:
+            with stop:
+                for row in _run_jobs(jobs, workers, stop):
+                    rows[row["file"]] = row
                     bar.update(1)
     finally:
-        if bar is not None:
-            bar.close()
         # Also on Ctrl-C: the summary lists what is done; unfinished files have empty rows.
         summary.rows = [
             rows[inp.relative_to(input_dir).as_posix()]

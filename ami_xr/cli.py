@@ -8,17 +8,21 @@ subcommand, so ``ami-xr --help`` is fast and compiles nothing), and maps errors 
 * 0 success; 1 a library error (bad input file, bad option value, failed identification): one
   line ``ami-xr <command>: error: ...`` on stderr, no traceback (``-v`` shows it); 2 a usage error
   (argparse); 3 ``batch`` finished but some files failed; 130 interrupted (Ctrl-C).
+
+Option defaults are read from the signatures of the functions they feed (:class:`_Default`),
+only when a help text shows them or a given value is compared with them; options left at their
+default are not passed on, so the library applies its own.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import re
 import sys
 import traceback
 import warnings
 from collections.abc import Sequence
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -30,15 +34,6 @@ EXIT_USAGE = 2
 EXIT_BATCH_FAILURES = 3
 EXIT_INTERRUPTED = 130
 
-#: The paper's AMI results (average eigenvalues of Tables 1-2, rad/s) for the demo comparison.
-PAPER_AMI_EIGENVALUES = (
-    -0.46025 + 30.555j,
-    -0.71644 + 48.041j,
-    -0.39394 + 65.057j,
-    -0.54413 + 65.836j,
-)
-DEFAULT_DEMO_DIR = "ami_xr_demo"
-
 
 class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
     """Show defaults (unless the help states its own) and keep the description's line breaks."""
@@ -49,7 +44,48 @@ class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescription
         return super()._get_help_string(action)
 
 
+class _Default:
+    """The default of ``parameter`` of the public function ``target`` ("module:name").
+
+    Looked up (by importing the module) only when a help text shows it or a value is compared
+    with it, so building the parser imports no library module and each number is typed only in
+    the function's signature.
+    """
+
+    def __init__(self, target: str, parameter: str):
+        self.target, self.parameter = target, parameter
+
+    @cached_property
+    def value(self) -> Any:
+        import importlib
+        import inspect
+
+        module, name = self.target.split(":")
+        function = getattr(importlib.import_module(module), name)
+        return inspect.signature(function).parameters[self.parameter].default
+
+    def __str__(self) -> str:
+        return str(self.value)
+
+    def __eq__(self, other: object) -> bool:
+        return self.value == (other.value if isinstance(other, _Default) else other)
+
+    __hash__ = None  # type: ignore[assignment]  # compared by value, never a dict key
+
+
+IDENTIFY = "ami_xr:identify"
+FRF = "ami_xr:frf"
+IMPACT = "ami_xr:impact_frf"
+BENCHMARK = "ami_xr.simulate:benchmark"
+RANDOM_SYSTEM = "ami_xr.simulate:random_system"
+
+
 # --- helpers -------------------------------------------------------------------------------------
+def _value(v: Any) -> Any:
+    """An option's value, with a lazy default looked up."""
+    return v.value if isinstance(v, _Default) else v
+
+
 def _one_line(err: BaseException) -> str:
     # SchemaError lists its problems as "  - ..." bullets: join them into one line.
     lines = [re.sub(r"^\s*-\s+", "", s).strip() for s in str(err).strip().splitlines() if s.strip()]
@@ -63,55 +99,23 @@ def _say(*parts: Any) -> None:
     print(*parts, flush=True)
 
 
-def _open_any(path: str | os.PathLike):
-    """Read a netCDF, UFF or LVM file into a Dataset (by suffix)."""
-    from ami_xr.batch import read_input
-
-    return read_input(path)
-
-
-def _write_any(
-    ds,
-    path: str | os.PathLike,
-    *,
-    binary: bool = False,
-    function: str,
-    parameters: dict | None = None,
-) -> Path:
-    path = Path(path)
-    if path.suffix.lower() in (".uff", ".unv"):
-        from ami_xr.io.uff import write_uff
-
-        return write_uff(ds, path, binary=binary)
-    if path.suffix.lower() != ".nc":
-        from ami_xr.errors import AmiXrValueError
-
-        raise AmiXrValueError(f"output {str(path)!r}: expected a .nc, .uff or .unv file name")
-    import ami_xr
-
-    return ami_xr.to_netcdf(ds, path, function=function, parameters=parameters)
-
-
-def _non_default(
-    args: argparse.Namespace, options: dict[str, Any], dests: dict[str, str]
-) -> dict[str, Any]:
+def _non_default(args: argparse.Namespace, options: dict[str, Any]) -> dict[str, Any]:
     """Only the options the user changed: the library applies its own defaults (which the help
     shows), and batch parameter hashes match a Python call with the same settings."""
     parser: argparse.ArgumentParser = args._parser
     return {
         k: v
         for k, v in options.items()
-        if v is not None and v != parser.get_default(dests.get(k, k))
+        if v is not None and not isinstance(v, _Default) and v != parser.get_default(k)
     }
 
 
 def _add_output(
-    p: argparse.ArgumentParser, what: str, required: bool = True, default: str | None = None
+    p: argparse.ArgumentParser, what: str, required: bool = True, default: Any = None
 ) -> None:
     p.add_argument("-o", "--output", required=required, default=default, metavar="PATH", help=what)
 
 
-# --- identify options (shared by identify, batch and demo) ------------------------------------
 def _band(text: str) -> float | str:
     if text == "all":
         return text
@@ -121,16 +125,150 @@ def _band(text: str) -> float | str:
         raise argparse.ArgumentTypeError(f"expected a number or 'all', got {text!r}") from None
 
 
+# --- options of ami_xr.identify and ami_xr.frf -------------------------------------------------
+# (flag, function, type or choices, help[, metavar]): the option's default is that of the
+# function's parameter of the flag's name; function None: default None (ami_xr.frf and
+# ami_xr.impact_frf differ, the excitation decides).
+IDENTIFY_OPTIONS = (
+    (
+        "--method",
+        IDENTIFY,
+        ("simo", "per_frf", "paper"),
+        "simo: one eigenvalue fit over all FRFs per mode; per_frf: the paper's per-FRF fits "
+        "averaged with SNR weights; paper: the paper's AMI exactly (plain mean, eq. 9 over "
+        "bands, continuous basis, no refinement)",
+    ),
+    ("--delta", IDENTIFY, float, "subtraction: fit the lines with |G| >= delta * peak, in (0, 1)"),
+    (
+        "--pfa",
+        IDENTIFY,
+        float,
+        "subtraction: false-alarm probability of the automatic stop (a noise peak is taken "
+        "for a mode with this probability)",
+    ),
+    ("--max-modes", IDENTIFY, int, "subtraction: most modes per FRF"),
+    (
+        "--tol",
+        IDENTIFY,
+        float,
+        "isolation: relative change of Re and Im of every eigenvalue that ends the iteration "
+        "(1e-4 = 0.01 %%)",
+    ),
+    ("--max-iter", IDENTIFY, int, "isolation: iteration cap"),
+    (
+        "--band",
+        IDENTIFY,
+        _band,
+        "global fit: half-width of the band around each mode in half-power bandwidths "
+        "2|Re lambda| [rad/s], or 'all' for every line",
+    ),
+)
+FRF_OPTIONS = (
+    (
+        "--estimator",
+        FRF,
+        ("H1", "H2", "Hv"),
+        "FRF estimator: H1 = Gfy/Gff (output noise), H2 = Gyy/Gyf (input noise), Hv (total "
+        "least squares)",
+    ),
+    (
+        "--window",
+        None,
+        str,
+        "Welch window for random excitation (hann, boxcar, flattop, ...); default hann",
+    ),
+    (
+        "--nperseg",
+        None,
+        int,
+        "segment length [samples]; default that of ami_xr.frf (random) or the whole record "
+        "(impact)",
+    ),
+    (
+        "--noverlap",
+        None,
+        int,
+        "segment overlap [samples]; default nperseg // 2 (random), 0 (impact)",
+    ),
+    ("--nfft", None, int, "FFT length [samples]; default nperseg"),
+    (
+        "--detrend",
+        None,
+        ("constant", "linear", "none"),
+        "detrend of each segment; default constant (random), none (impact)",
+    ),
+    ("--average", FRF, ("linear", "exponential"), "averaging over segments or hits"),
+    ("--n-average", FRF, int, "time constant of exponential averaging [segments]"),
+    (
+        "--force-window",
+        IMPACT,
+        float,
+        "impact: force window width [s]; default from the force pulse",
+        "SECONDS",
+    ),
+    (
+        "--exponential-decay",
+        IMPACT,
+        float,
+        "impact: exponential window decay rate [1/s] (its damping is removed again by "
+        "identification); default none",
+        "PER_SECOND",
+    ),
+    (
+        "--exponential-end-value",
+        IMPACT,
+        float,
+        "impact: exponential window by its value at the record end [0-1], instead of "
+        "--exponential-decay",
+        "FRACTION",
+    ),
+    (
+        "--double-impact-threshold",
+        IMPACT,
+        float,
+        "impact: second force pulse above this fraction of the peak = double impact",
+        "FRACTION",
+    ),
+    (
+        "--overload-samples",
+        IMPACT,
+        int,
+        "impact: this many samples at the channel's extreme = overload",
+    ),
+    (
+        "--min-force",
+        IMPACT,
+        float,
+        "impact: reject hits whose peak force is below this [force units]",
+        "NEWTON",
+    ),
+    (
+        "--weak-force-ratio",
+        IMPACT,
+        float,
+        "impact: reject hits weaker than this fraction of the median peak",
+        "FRACTION",
+    ),
+)
+
+
+def _dest(flag: str) -> str:
+    return flag.lstrip("-").replace("-", "_")
+
+
+def _add_options(group, spec: tuple) -> None:
+    """One option per entry of ``spec`` (see IDENTIFY_OPTIONS)."""
+    for flag, target, kind, help_text, *metavar in spec:
+        kind = {"choices": kind} if isinstance(kind, tuple) else {"type": kind}
+        default = None if target is None else _Default(target, _dest(flag))
+        group.add_argument(
+            flag, default=default, help=help_text, metavar=metavar[0] if metavar else None, **kind
+        )
+
+
 def _add_identify_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("identification options (ami_xr.identify)")
-    g.add_argument(
-        "--method",
-        default="simo",
-        choices=("simo", "per_frf", "paper"),
-        help="simo: one eigenvalue fit over all FRFs per mode; per_frf: the paper's "
-        "per-FRF fits averaged with SNR weights; paper: the paper's AMI exactly "
-        "(plain mean, eq. 9 over bands, continuous basis, no refinement)",
-    )
+    _add_options(g, IDENTIFY_OPTIONS[:1])
     g.add_argument(
         "--refine",
         dest="refine",
@@ -146,35 +284,7 @@ def _add_identify_options(p: argparse.ArgumentParser) -> None:
         const=False,
         help="skip the joint refinement (default: refine unless --method paper)",
     )
-    g.add_argument(
-        "--delta",
-        type=float,
-        default=0.5,
-        help="subtraction: fit the lines with |G| >= delta * peak, in (0, 1)",
-    )
-    g.add_argument(
-        "--pfa",
-        type=float,
-        default=1e-3,
-        help="subtraction: false-alarm probability of the automatic stop (a noise "
-        "peak is taken for a mode with this probability)",
-    )
-    g.add_argument("--max-modes", type=int, default=20, help="subtraction: most modes per FRF")
-    g.add_argument(
-        "--tol",
-        type=float,
-        default=1e-4,
-        help="isolation: relative change of Re and Im of every eigenvalue that "
-        "ends the iteration (1e-4 = 0.01 %%)",
-    )
-    g.add_argument("--max-iter", type=int, default=100, help="isolation: iteration cap")
-    g.add_argument(
-        "--band",
-        type=_band,
-        default=1.0,
-        help="global fit: half-width of the band around each mode in half-power "
-        "bandwidths 2|Re lambda| [rad/s], or 'all' for every line",
-    )
+    _add_options(g, IDENTIFY_OPTIONS[1:])
     g.add_argument(
         "--residual-terms",
         action="store_true",
@@ -183,24 +293,57 @@ def _add_identify_options(p: argparse.ArgumentParser) -> None:
 
 
 def _identify_options(args: argparse.Namespace) -> dict[str, Any]:
-    return _non_default(
-        args,
-        {
-            "method": args.method,
-            "refine": args.refine,
-            "delta": args.delta,
-            "pfa": args.pfa,
-            "max_modes": args.max_modes,
-            "tol": args.tol,
-            "max_iter": args.max_iter,
-            "band": args.band,
-            "residual_terms": args.residual_terms,
-        },
-        {},
+    first, *rest = (_dest(spec[0]) for spec in IDENTIFY_OPTIONS)
+    keys = (first, "refine", *rest, "residual_terms")
+    return _non_default(args, {k: getattr(args, k) for k in keys})
+
+
+def _add_frf_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("FRF estimation options (ami_xr.frf; time-history input only)")
+    _add_options(g, FRF_OPTIONS[:1])
+    g.add_argument(
+        "--excitation",
+        default="auto",
+        choices=("auto", "random", "impact"),
+        help="impact: every record is a hammer hit (checked, windowed, averaged); "
+        "random: Welch segments; auto: impact when the data have a 'record' "
+        "dim, else random",
     )
+    split = [spec[0] for spec in FRF_OPTIONS].index("--double-impact-threshold")
+    _add_options(g, FRF_OPTIONS[1:split])
+    g.add_argument(
+        "--no-hit-checks",
+        action="store_true",
+        help="impact: use every hit (no overload/double-impact/weak-force checks)",
+    )
+    _add_options(g, FRF_OPTIONS[split:])
+
+
+def _frf_options(args: argparse.Namespace) -> dict[str, Any]:
+    keys = [_dest(spec[0]) for spec in FRF_OPTIONS]
+    options = _non_default(args, {k: getattr(args, k) for k in keys})
+    if args.no_hit_checks:
+        options["hit_checks"] = False
+    if args.excitation != "auto":
+        options["excitation"] = args.excitation
+    return options
 
 
 # --- subcommands ---------------------------------------------------------------------------------
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from ami_xr.demo import demo
+
+    demo(
+        _value(args.output),
+        simulate=args.simulate,
+        noise=_value(args.noise),
+        seed=_value(args.seed),
+        report=not args.no_report,
+        identify_options=_identify_options(args),
+    )
+    return EXIT_OK
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     import ami_xr
 
@@ -208,58 +351,42 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         from ami_xr.errors import AmiXrValueError
 
         raise AmiXrValueError("--time-output: only the beam-absorbers system has impulse responses")
-    ts = None
+    common = {"noise": _value(args.noise), "seed": _value(args.seed)}
     if args.system == "beam-absorbers":
-        params = {
-            "system": args.system,
-            "noise": args.noise,
-            "seed": args.seed,
-            "duration": args.duration,
-            "n_samples": args.samples,
-        }
-        ts, g, truth = ami_xr.simulate.benchmark(
-            noise=args.noise, seed=args.seed, duration=args.duration, n_samples=args.samples
-        )
         function = "ami_xr.simulate.benchmark"
+        kwargs = {**common, "duration": _value(args.duration), "n_samples": _value(args.samples)}
+        ts, g, truth = ami_xr.simulate.benchmark(**kwargs)
     else:
-        params = {
-            "system": args.system,
-            "n_points": args.points,
-            "topology": args.topology,
-            "noise": args.noise,
-            "seed": args.seed,
+        function = "ami_xr.simulate.random_system"
+        kwargs = {
+            "n_points": _value(args.points),
+            "topology": _value(args.topology),
+            **common,
             "closely_spaced": args.closely_spaced,
             "weak_mode": args.weak_mode,
-            "max_frequency_hz": args.max_frequency,
+            "max_frequency_hz": _value(args.max_frequency),
         }
-        g, truth = ami_xr.simulate.random_system(
-            args.points,
-            args.topology,
-            noise=args.noise,
-            seed=args.seed,
-            closely_spaced=args.closely_spaced,
-            weak_mode=args.weak_mode,
-            max_frequency_hz=args.max_frequency,
-        )
-        function = "ami_xr.simulate.random_system"
+        ts, (g, truth) = None, ami_xr.simulate.random_system(**kwargs)
+    params = {"system": args.system, **kwargs}
     ami_xr.to_netcdf(g, args.output, function=function, parameters=params)
     _say(f"wrote FRFs ({g.sizes['point']} points x {g.sizes['frequency']} lines) to {args.output}")
-    if args.time_output:
-        ami_xr.to_netcdf(ts, args.time_output, function=function, parameters=params)
-        _say(f"wrote impulse responses to {args.time_output}")
-    if args.truth_output:
-        ami_xr.to_netcdf(truth, args.truth_output, function=function, parameters=params)
-        _say(f"wrote exact modal parameters to {args.truth_output}")
+    for data, path, what in (
+        (ts, args.time_output, "impulse responses"),
+        (truth, args.truth_output, "exact modal parameters"),
+    ):
+        if path:
+            ami_xr.to_netcdf(data, path, function=function, parameters=params)
+            _say(f"wrote {what} to {path}")
     return EXIT_OK
 
 
 def _cmd_frf(args: argparse.Namespace) -> int:
     import ami_xr
     from ami_xr.batch import estimate_frf
+    from ami_xr.io.formats import read_any
 
-    ts = _open_any(args.input)
     options = _frf_options(args)
-    g = estimate_frf(ts, options)
+    g = estimate_frf(read_any(args.input), options)
     if "hit_rejected" in g:  # impact test: say which hits were left out and why
         rejected = g["hit_rejected"].values.astype(bool)
         reasons = (
@@ -274,232 +401,39 @@ def _cmd_frf(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _add_frf_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("FRF estimation options (ami_xr.frf; time-history input only)")
-    g.add_argument(
-        "--estimator",
-        default="H1",
-        choices=("H1", "H2", "Hv"),
-        help="FRF estimator: H1 = Gfy/Gff (output noise), H2 = Gyy/Gyf (input "
-        "noise), Hv (total least squares)",
-    )
-    g.add_argument(
-        "--excitation",
-        default="auto",
-        choices=("auto", "random", "impact"),
-        help="impact: every record is a hammer hit (checked, windowed, averaged); "
-        "random: Welch segments; auto: impact when the data have a 'record' "
-        "dim, else random",
-    )
-    g.add_argument(
-        "--window",
-        default=None,
-        help="Welch window for random excitation (hann, boxcar, flattop, ...); default hann",
-    )
-    g.add_argument(
-        "--nperseg",
-        type=int,
-        default=None,
-        help="segment length [samples]; default 256 (random) or the whole record (impact)",
-    )
-    g.add_argument(
-        "--noverlap",
-        type=int,
-        default=None,
-        help="segment overlap [samples]; default nperseg // 2 (random), 0 (impact)",
-    )
-    g.add_argument("--nfft", type=int, default=None, help="FFT length [samples]; default nperseg")
-    g.add_argument(
-        "--detrend",
-        default=None,
-        choices=("constant", "linear", "none"),
-        help="detrend of each segment; default constant (random), none (impact)",
-    )
-    g.add_argument(
-        "--average",
-        default="linear",
-        choices=("linear", "exponential"),
-        help="averaging over segments or hits",
-    )
-    g.add_argument(
-        "--n-average", type=int, default=8, help="time constant of exponential averaging [segments]"
-    )
-    g.add_argument(
-        "--force-window",
-        type=float,
-        default=None,
-        metavar="SECONDS",
-        help="impact: force window width [s]; default from the force pulse",
-    )
-    g.add_argument(
-        "--exponential-decay",
-        type=float,
-        default=None,
-        metavar="PER_SECOND",
-        help="impact: exponential window decay rate [1/s] (its damping is removed "
-        "again by identification); default none",
-    )
-    g.add_argument(
-        "--exponential-end-value",
-        type=float,
-        default=None,
-        metavar="FRACTION",
-        help="impact: exponential window by its value at the record end [0-1], "
-        "instead of --exponential-decay",
-    )
-    g.add_argument(
-        "--no-hit-checks",
-        action="store_true",
-        help="impact: use every hit (no overload/double-impact/weak-force checks)",
-    )
-    g.add_argument(
-        "--double-impact-threshold",
-        type=float,
-        default=0.1,
-        metavar="FRACTION",
-        help="impact: second force pulse above this fraction of the peak = double impact",
-    )
-    g.add_argument(
-        "--overload-samples",
-        type=int,
-        default=3,
-        help="impact: this many samples at the channel's extreme = overload",
-    )
-    g.add_argument(
-        "--min-force",
-        type=float,
-        default=None,
-        metavar="NEWTON",
-        help="impact: reject hits whose peak force is below this [force units]",
-    )
-    g.add_argument(
-        "--weak-force-ratio",
-        type=float,
-        default=0.1,
-        metavar="FRACTION",
-        help="impact: reject hits weaker than this fraction of the median peak",
-    )
-
-
-def _frf_options(args: argparse.Namespace) -> dict[str, Any]:
-    options = {
-        "estimator": args.estimator,
-        "window": args.window,
-        "nperseg": args.nperseg,
-        "noverlap": args.noverlap,
-        "nfft": args.nfft,
-        "detrend": args.detrend,
-        "average": args.average,
-        "n_average": args.n_average,
-        "force_window": args.force_window,
-        "exponential_decay": args.exponential_decay,
-        "exponential_end_value": args.exponential_end_value,
-        "double_impact_threshold": args.double_impact_threshold,
-        "overload_samples": args.overload_samples,
-        "min_force": args.min_force,
-        "weak_force_ratio": args.weak_force_ratio,
-    }
-    options = _non_default(args, options, {})
-    if args.no_hit_checks:
-        options["hit_checks"] = False
-    if args.excitation != "auto":
-        options["excitation"] = args.excitation
-    return options
-
-
-class _Activity:
-    """Progress indicator while one long call runs (identification has no finer progress hook):
-    a tqdm bar (or a plain line) on stderr with the elapsed time, refreshed from a thread."""
-
-    def __init__(self, desc: str, enabled: bool):
-        self.desc, self.enabled = desc, enabled
-
-    def __enter__(self):
-        if not self.enabled:
-            return self
-        import threading
-        import time
-
-        self._stop = threading.Event()
-        self._start = time.perf_counter()
-        try:
-            from tqdm import tqdm
-
-            self._bar = tqdm(
-                total=None,
-                desc=self.desc,
-                file=sys.stderr,
-                bar_format="{desc}: {elapsed}",
-                leave=False,
-            )
-        except ImportError:
-            self._bar = None
-
-        def tick():
-            while not self._stop.wait(0.25):
-                if self._bar is not None:
-                    self._bar.refresh()
-                else:
-                    sys.stderr.write(f"\r{self.desc}: {time.perf_counter() - self._start:.1f} s")
-                    sys.stderr.flush()
-
-        self._thread = threading.Thread(target=tick, daemon=True)
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc):
-        if not self.enabled:
-            return False
-        self._stop.set()
-        self._thread.join()
-        if self._bar is not None:
-            self._bar.close()
-        else:
-            sys.stderr.write("\n")
-        return False
-
-
-#: Show the progress indicator from this many FRFs on (small jobs finish in a blink).
-PROGRESS_MIN_POINTS = 8
-
-
-def _identify_with_progress(ds, options: dict[str, Any], show: bool):
-    from ami_xr import names
-    from ami_xr.ami import identify
-
-    n = ds.sizes.get(names.POINT, 0)
-    # Only on a terminal: a ticking line would clutter logs and pipes.
-    tty = sys.stderr.isatty()
-    with _Activity(f"identify: {n} FRFs", show and tty and n >= PROGRESS_MIN_POINTS):
-        return identify(ds, **options)
-
-
 def _cmd_identify(args: argparse.Namespace) -> int:
+    import ami_xr
+    from ami_xr import names
+    from ami_xr._progress import elapsed
+    from ami_xr.io.formats import read_any, write_any
     from ami_xr.report import format_modal_table
 
-    ds = _open_any(args.input)
+    ds = read_any(args.input)
     options = _identify_options(args)
-    result = _identify_with_progress(ds, options, show=not args.quiet)
+    n = ds.sizes.get(names.POINT, 0)
+    with elapsed(f"identify: {n} FRFs", n, enabled=not args.quiet):
+        result = ami_xr.identify(ds, **options)
     _say(format_modal_table(result))
     if args.output:
-        _write_any(result, args.output, function="ami_xr.identify", parameters=options)
+        write_any(result, args.output, function="ami_xr.identify", parameters=options)
         _say(f"wrote modes to {args.output}")
     return EXIT_OK
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    from ami_xr.io.formats import read_any
     from ami_xr.report import report
 
-    ds = _open_any(args.input)
-    index = report(ds, args.output, title=args.title)
-    _say(f"wrote report to {index}")
+    _say(f"wrote report to {report(read_any(args.input), args.output, title=args.title)}")
     return EXIT_OK
 
 
 def _cmd_convert(args: argparse.Namespace) -> int:
+    from ami_xr.io.formats import read_any, write_any
+
     src = Path(args.input)
-    ds = _open_any(src)
-    out = _write_any(
+    ds = read_any(src)
+    out = write_any(
         ds,
         args.output,
         binary=args.binary,
@@ -516,7 +450,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     summary = batch(
         args.input,
         args.output,
-        workers=args.workers,
+        workers=_value(args.workers),
         identify_options=_identify_options(args),
         frf_options=_frf_options(args),
         report=args.report,
@@ -533,159 +467,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     return EXIT_OK if summary.ok else EXIT_BATCH_FAILURES
 
 
-# --- demo ----------------------------------------------------------------------------------------
-def _sample_frf_file() -> Path | None:
-    """The shipped benchmark FRF file (noisy, paper's seed), if present.
-
-    Looked for in ``./sample_data`` (the README runs the demo from the repository root, where a
-    plain ``pip install .`` leaves the package in site-packages) and then beside the package
-    (an editable install or a source checkout).
-    """
-    for folder in (Path.cwd() / "sample_data", Path(__file__).resolve().parents[1] / "sample_data"):
-        if not folder.is_dir():
-            continue
-        for pattern in ("*benchmark*frf*.nc", "*frf*.nc"):
-            for path in sorted(folder.glob(pattern)):
-                name = path.name.lower()
-                if "clean" not in name and "noise_free" not in name and "noisefree" not in name:
-                    return path
-    return None
-
-
-def _cmd_demo(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    import ami_xr
-    from ami_xr.report import format_modal_table
-
-    outdir = Path(args.output)
-    sample = None if args.simulate else _sample_frf_file()
-    truth = ami_xr.simulate.benchmark_model()
-    if sample is not None:
-        g = ami_xr.open_dataset(sample)
-        _say(f"benchmark FRFs: {sample}")
-    else:
-        _, g, _ = ami_xr.simulate.benchmark(noise=args.noise, seed=args.seed)
-        _say(f"benchmark FRFs: simulated (noise {args.noise}, seed {args.seed})")
-    _say(
-        f"  {g.sizes['point']} points {list(map(str, g['point'].values))} x "
-        f"{g.sizes['frequency']} lines, 0-{float(g['frequency'][-1]):.4g} Hz, drive point "
-        f"{g.attrs.get('drive_point')}\n"
-    )
-    options = _identify_options(args)
-    result = _identify_with_progress(g, options, show=True)
-    _say(format_modal_table(result))
-    lam = np.atleast_1d(result["eigenvalue"].values) if "eigenvalue" in result else np.zeros(0)
-    exact = np.asarray(truth["eigenvalue"].values)
-    _say("\n" + _comparison_table(lam, exact, np.asarray(PAPER_AMI_EIGENVALUES)))
-    _say(
-        "\nerrors: natural frequency and damping ratio vs the simulator's exact values; "
-        "paper AMI = the averages of Tables 1-2 of Ginsberg & Allen (one noise seed)"
-    )
-    outdir.mkdir(parents=True, exist_ok=True)
-    modes_path = ami_xr.to_netcdf(
-        result, outdir / "modes.nc", function="ami_xr.identify", parameters=options
-    )
-    _say(f"\nwrote {modes_path}")
-    if not args.no_report:
-        import importlib.util
-
-        if importlib.util.find_spec("matplotlib") is None:
-            # the report is the one optional part of the demo: say how to get it, do not fail
-            _say("no report: it needs matplotlib (pip install 'ami_xr[plot]')")
-        else:
-            from ami_xr.report import report
-
-            title = "ami_xr demo: paper benchmark"
-            _say(f"wrote {report(result, outdir / 'report', title=title)}")
-    return EXIT_OK
-
-
-def _comparison_table(lam, exact, paper) -> str:
-    """Identified eigenvalues next to the paper's AMI averages and the exact values."""
-    import numpy as np
-
-    def fmt(z: complex) -> str:
-        return f"{z.real:.5f}{z.imag:+.4f}i"
-
-    def errors(z: complex, z0: complex) -> tuple[str, str]:
-        wn, wn0 = abs(z), abs(z0)
-        zeta, zeta0 = -z.real / wn, -z0.real / wn0
-        return f"{100 * (wn - wn0) / wn0:+.3f}", f"{100 * (zeta - zeta0) / zeta0:+.1f}"
-
-    header = (
-        "mode",
-        "identified [rad/s]",
-        "paper AMI [rad/s]",
-        "exact [rad/s]",
-        "f err % (ours/paper)",
-        "zeta err % (ours/paper)",
-    )
-    rows = []
-    for i, lk in enumerate(lam):
-        k = int(np.argmin(np.abs(np.abs(exact) - abs(lk))))  # nearest exact mode
-        ours = errors(lk, exact[k])
-        theirs = errors(paper[k], exact[k]) if k < paper.size else ("-", "-")
-        rows.append(
-            (
-                str(i + 1),
-                fmt(lk),
-                fmt(paper[k]) if k < paper.size else "-",
-                fmt(exact[k]),
-                f"{ours[0]} / {theirs[0]}",
-                f"{ours[1]} / {theirs[1]}",
-            )
-        )
-    widths = [
-        max(len(h), *(len(r[c]) for r in rows)) if rows else len(h) for c, h in enumerate(header)
-    ]
-    lines = [
-        "  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)),
-        "  ".join("-" * w for w in widths),
-    ]
-    lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
-    return "\n".join(line.rstrip() for line in lines)
-
-
 # --- parser --------------------------------------------------------------------------------------
-def build_parser() -> argparse.ArgumentParser:
-    """The ``ami-xr`` argument parser (every option shows its default and units in --help)."""
-    from ami_xr import __version__
-
-    parser = argparse.ArgumentParser(
-        prog="ami-xr",
-        formatter_class=_Formatter,
-        description="Experimental modal analysis with the Algorithm of Mode Isolation "
-        "(Ginsberg & Allen) on labeled xarray data.\n\n"
-        "Start with:  ami-xr demo",
-        epilog="Exit codes: 0 ok, 1 error (one line on stderr; -v shows the traceback), "
-        "2 usage error, 3 batch with failed files, 130 interrupted.",
-    )
-    parser.add_argument("--version", action="version", version=f"ami_xr {__version__}")
-    parser.add_argument(
-        "-v", "--verbose", action="store_true", default=False, help="show tracebacks of errors"
-    )
-    common = argparse.ArgumentParser(add_help=False)
-    common.add_argument(
-        "-v",
-        "--verbose",
-        action="store_true",
-        default=argparse.SUPPRESS,
-        help="show tracebacks of errors",
-    )
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-
-    def add(name: str, help_text: str, description: str) -> argparse.ArgumentParser:
-        p = sub.add_parser(
-            name,
-            help=help_text,
-            description=description,
-            formatter_class=_Formatter,
-            parents=[common],
-        )
-        p.set_defaults(_parser=p)
-        return p
-
+def _add_demo(add) -> None:
     p = add(
         "demo",
         "identify the paper's benchmark and compare with the paper",
@@ -693,7 +476,9 @@ def build_parser() -> argparse.ArgumentParser:
         "the identification, print the modal table next to the paper's AMI values and the "
         "simulator's exact values, and write modes.nc and a report/ folder.",
     )
-    _add_output(p, "output folder", required=False, default=DEFAULT_DEMO_DIR)
+    _add_output(
+        p, "output folder", required=False, default=_Default("ami_xr.demo:demo", "output_dir")
+    )
     p.add_argument(
         "--simulate",
         action="store_true",
@@ -702,14 +487,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--noise",
         type=float,
-        default=0.15,
+        default=_Default(BENCHMARK, "noise"),
         help="noise level alpha of eq. 15 (fraction of each signal's peak) when simulating",
     )
-    p.add_argument("--seed", type=int, default=0, help="noise seed when simulating")
+    p.add_argument(
+        "--seed", type=int, default=_Default(BENCHMARK, "seed"), help="noise seed when simulating"
+    )
     p.add_argument("--no-report", action="store_true", help="skip the report (no matplotlib)")
     _add_identify_options(p)
     p.set_defaults(func=_cmd_demo)
 
+
+def _add_simulate(add) -> None:
     p = add(
         "simulate",
         "simulate a test system and write its FRFs",
@@ -724,13 +513,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--noise",
         type=float,
-        default=0.15,
+        default=_Default(BENCHMARK, "noise"),
         help="noise level alpha of eq. 15 (fraction of each signal's peak; 0 = noise-free)",
     )
     p.add_argument(
         "--seed",
         type=int,
-        default=0,
+        default=_Default(BENCHMARK, "seed"),
         help="seed of the noise (and of the random system) (reproducible)",
     )
     p.add_argument(
@@ -740,8 +529,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="also write the exact modal parameters to this netCDF file",
     )
     g = p.add_argument_group("beam-absorbers options")
-    g.add_argument("--duration", type=float, default=60.0, help="record length [s]")
-    g.add_argument("--samples", type=int, default=4096, help="samples per record")
+    g.add_argument(
+        "--duration", type=float, default=_Default(BENCHMARK, "duration"), help="record length [s]"
+    )
+    g.add_argument(
+        "--samples", type=int, default=_Default(BENCHMARK, "n_samples"), help="samples per record"
+    )
     g.add_argument(
         "--time-output",
         default=None,
@@ -749,10 +542,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="also write the impulse responses [m per N s] to this netCDF file",
     )
     g = p.add_argument_group("random options")
-    g.add_argument("--points", type=int, default=8, help="measured points (5-50)")
+    g.add_argument(
+        "--points",
+        type=int,
+        default=_Default(RANDOM_SYSTEM, "n_points"),
+        help="measured points (5-50)",
+    )
     g.add_argument(
         "--topology",
-        default="chain",
+        default=_Default(RANDOM_SYSTEM, "topology"),
         choices=("chain", "grid"),
         help="masses in a grounded line, or on a grid clamped along one row",
     )
@@ -765,11 +563,14 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument(
         "--max-frequency",
         type=float,
-        default=50.0,
+        default=_Default(RANDOM_SYSTEM, "max_frequency_hz"),
         help="top of the frequency grid [Hz]; the highest mode is at 0.8 x this",
     )
     p.set_defaults(func=_cmd_simulate)
 
+
+def _add_file_commands(add) -> None:
+    """frf, identify, report and convert: one input file each."""
     p = add(
         "frf",
         "estimate FRFs from force and response time histories",
@@ -826,6 +627,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_cmd_convert)
 
+
+def _add_batch(add) -> None:
     p = add(
         "batch",
         "identify every measurement file in a folder tree",
@@ -839,7 +642,12 @@ def build_parser() -> argparse.ArgumentParser:
         "input", metavar="DIR", help="folder of measurement files (searched recursively)"
     )
     _add_output(p, "output folder (mirrors DIR)")
-    p.add_argument("--workers", type=int, default=1, help="files processed in parallel (processes)")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=_Default("ami_xr.batch:batch", "workers"),
+        help="files processed in parallel (processes)",
+    )
     p.add_argument(
         "--report", action="store_true", help="also write <stem>.report/ folders (needs matplotlib)"
     )
@@ -848,6 +656,48 @@ def build_parser() -> argparse.ArgumentParser:
     _add_identify_options(p)
     _add_frf_options(p)
     p.set_defaults(func=_cmd_batch)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``ami-xr`` argument parser (every option shows its default and units in --help)."""
+    from ami_xr import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="ami-xr",
+        formatter_class=_Formatter,
+        description="Experimental modal analysis with the Algorithm of Mode Isolation "
+        "(Ginsberg & Allen) on labeled xarray data.\n\n"
+        "Start with:  ami-xr demo",
+        epilog="Exit codes: 0 ok, 1 error (one line on stderr; -v shows the traceback), "
+        "2 usage error, 3 batch with failed files, 130 interrupted.",
+    )
+    parser.add_argument("--version", action="version", version=f"ami_xr {__version__}")
+    parser.add_argument(
+        "-v", "--verbose", action="store_true", default=False, help="show tracebacks of errors"
+    )
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        default=argparse.SUPPRESS,
+        help="show tracebacks of errors",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    def add(name: str, help_text: str, description: str) -> argparse.ArgumentParser:
+        p = sub.add_parser(
+            name,
+            help=help_text,
+            description=description,
+            formatter_class=_Formatter,
+            parents=[common],
+        )
+        p.set_defaults(_parser=p)
+        return p
+
+    for add_command in (_add_demo, _add_simulate, _add_file_commands, _add_batch):
+        add_command(add)
     return parser
 
 
