@@ -21,7 +21,7 @@ Every absorber is a degree of freedom and is always measured. The truth Dataset 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.linalg
@@ -97,6 +97,123 @@ def _assemble(n: int, elements) -> np.ndarray:
 def _undamped(M, K):
     w2, phi = scipy.linalg.eigh(K, M)
     return np.sqrt(w2), phi
+
+
+class _Structure(NamedTuple):
+    """The damped structure before any absorber: matrices, masses and undamped modes."""
+
+    M: np.ndarray
+    C: np.ndarray
+    K: np.ndarray
+    m: np.ndarray  # masses
+    w: np.ndarray  # undamped natural frequencies (rad/s), ascending
+    phi: np.ndarray  # undamped mode shapes (columns)
+
+
+def _damped_structure(n, topology, fmax, damping, rng) -> _Structure:
+    """Masses and springs scaled so the highest mode is at ``0.8 fmax``; damping: modal part
+    70 %, dashpots to ground at ~1/3 of the masses the rest (non-proportional)."""
+    m, springs = _structure(n, topology, rng)
+    M = np.diag(m)
+    K = _assemble(n, springs)
+    w, phi = _undamped(M, K)
+    K *= (2 * np.pi * 0.8 * fmax / w[-1]) ** 2
+    w, phi = _undamped(M, K)
+    zeta = rng.uniform(damping[0], damping[1], n)
+    C = M @ phi @ np.diag(0.7 * 2 * zeta * w) @ phi.T @ M
+    grounded = rng.choice(n, size=max(1, n // 3), replace=False)
+    for i in grounded:
+        C[i, i] += 0.3 * 2 * np.mean(zeta) * np.mean(w) * m[i] * rng.uniform(0.5, 1.5)
+    return _Structure(M, C, K, m, w, phi)
+
+
+def _grow(M, C, K, at, mass, stiff, damp):
+    """The system with one more mass hung from degree of freedom ``at`` by a spring and dashpot."""
+    n = M.shape[0]
+    M2, C2, K2 = (np.zeros((n + 1, n + 1)) for _ in range(3))
+    M2[:n, :n], C2[:n, :n], K2[:n, :n] = M, C, K
+    M2[n, n] = mass
+    v = np.zeros(n + 1)
+    v[at], v[n] = -1.0, 1.0
+    return M2, C2 + damp * np.outer(v, v), K2 + stiff * np.outer(v, v)
+
+
+def _add_pair_absorber(st: _Structure, pair_gap, rng):
+    """Hang an absorber tuned to a structural mode in the lower half that is well separated from
+    its neighbours (grids can have near-repeated modes), at its largest amplitude. Returns the
+    structure's ``M, C, K`` grown by it and the tuning frequency (rad/s)."""
+    w, phi = st.w, st.phi
+    rel_gap = np.diff(w) / w[:-1]
+    sep = np.minimum(np.r_[np.inf, rel_gap], np.r_[rel_gap, np.inf])
+    lower = np.arange(w.size) < max(2, (w.size + 1) // 2)
+    good = np.flatnonzero(lower & (sep > 4 * pair_gap))
+    r = int(rng.choice(good)) if good.size else int(np.argmax(np.where(lower, sep, 0)))
+    at = int(np.argmax(np.abs(phi[:, r])))
+    mass = pair_gap**2 / phi[at, r] ** 2  # splitting ~ w_r sqrt(m_a phi^2)
+    stiff = mass * w[r] ** 2
+    M, C, K = _grow(st.M, st.C, st.K, at, mass, stiff, 2 * 0.01 * np.sqrt(stiff * mass))
+    return M, C, K, w[r]
+
+
+def _weak_site(st: _Structure, topology, pair_target, rng) -> tuple[int, float, float]:
+    """Where the weak absorber hangs, its first mass and its frequency: between two structural
+    modes away from any absorber tuning, far from the drive point (near the grounded end of a
+    chain, the far corner of a grid)."""
+    w, n = st.w, st.w.size
+    cands = [
+        s
+        for s in range(n - 1)
+        if pair_target is None or not (w[s] <= pair_target * 1.3 and w[s + 1] >= pair_target / 1.3)
+    ]
+    s = int(rng.choice(cands)) if cands else 0
+    w_weak = np.sqrt(w[s] * w[s + 1])
+    at = int(rng.integers(0, max(1, n // 3))) if topology == "chain" else n - 1
+    return at, 0.02 * st.m.mean(), w_weak
+
+
+def _choose_points(must: list[int], n_points: int, n_dof: int, rng) -> list[int]:
+    """The measured degrees of freedom: ``must`` and a random choice of the others."""
+    others = [i for i in range(n_dof) if i not in must]
+    extra = (
+        rng.choice(others, size=n_points - len(must), replace=False) if n_points > len(must) else []
+    )
+    return sorted(must + [int(i) for i in extra])
+
+
+def _add_weak_absorber(M, C, K, site, points, drive, weak_level):
+    """Hang the weak absorber, halving its mass until its mode is weak enough (see
+    :func:`random_system`). Returns the grown ``M, C, K``, the truth and the weak mode's index."""
+    at, mass, w_weak = site
+    n_dof = M.shape[0] + 1
+    for _ in range(60):
+        stiff = mass * w_weak**2
+        M2, C2, K2 = _grow(M, C, K, at, mass, stiff, 2 * 0.01 * np.sqrt(stiff * mass))
+        truth = modal_model(
+            M2, C2, K2, output=np.eye(n_dof)[points], point_labels=points, drive_point=drive
+        )
+        weak_k, ratio = _weakest(truth, drive, n_dof - 1)
+        if ratio <= weak_level and contrast(truth, weak_k, drive) <= 0.1:
+            return M2, C2, K2, truth, weak_k
+        mass *= 0.5
+    raise AmiXrValueError(  # pragma: no cover - the mass halves 60 times; never seen
+        "weak_level: could not make the weak mode that weak"
+    )
+
+
+def _noisy(out: xr.Dataset, noise, kind, seed) -> xr.Dataset:
+    """Analytic FRFs with eq. 15 applied to the real and imaginary parts along frequency."""
+    if not noise:
+        return out
+    re = add_noise(out[names.FRF].real, noise, seed=seed, kind=kind, dim=names.FREQUENCY)
+    im = add_noise(
+        out[names.FRF].imag,
+        noise,
+        seed=None if seed is None else seed + 1,
+        kind=kind,
+        dim=names.FREQUENCY,
+    )
+    out[names.FRF] = (re + 1j * im).assign_attrs(out[names.FRF].attrs)
+    return out
 
 
 def random_system(
@@ -219,93 +336,23 @@ def random_system(
 
     rng = np.random.default_rng(seed)
     noise_seed = None if seed is None else int(rng.integers(2**31))
-
-    # ---- structure ----
-    m, springs = _structure(n_struct, topology, rng)
-    M = np.diag(m)
-    K = _assemble(n_struct, springs)
-    w, phi = _undamped(M, K)
-    K *= (2 * np.pi * 0.8 * fmax / w[-1]) ** 2
-    w, phi = _undamped(M, K)
+    st = _damped_structure(n_struct, topology, fmax, (zlo, zhi), rng)
+    M, C, K = st.M, st.C, st.K
     drive = n_struct - 1 if topology == "chain" else 0  # free end / clamped-edge corner
-
-    zeta = rng.uniform(zlo, zhi, n_struct)
-    # modal part 70 %, dashpots to ground at ~1/3 of the masses the rest (non-proportional)
-    C = M @ phi @ np.diag(0.7 * 2 * zeta * w) @ phi.T @ M
-    grounded = rng.choice(n_struct, size=max(1, n_struct // 3), replace=False)
-    for i in grounded:
-        C[i, i] += 0.3 * 2 * np.mean(zeta) * np.mean(w) * m[i] * rng.uniform(0.5, 1.5)
-
-    def grow(M, C, K, at, mass, stiff, damp):
-        n = M.shape[0]
-        M2, C2, K2 = (np.zeros((n + 1, n + 1)) for _ in range(3))
-        M2[:n, :n], C2[:n, :n], K2[:n, :n] = M, C, K
-        M2[n, n] = mass
-        v = np.zeros(n + 1)
-        v[at], v[n] = -1.0, 1.0
-        return M2, C2 + damp * np.outer(v, v), K2 + stiff * np.outer(v, v)
-
-    pair_dof = None
-    pair_target = None
+    pair_dof = pair_target = None
     if closely_spaced:
-        # tune to a structural mode in the lower half that is well separated from its
-        # neighbours (grids can have near-repeated modes), hang at its largest amplitude
-        rel_gap = np.diff(w) / w[:-1]
-        sep = np.minimum(np.r_[np.inf, rel_gap], np.r_[rel_gap, np.inf])
-        lower = np.arange(n_struct) < max(2, (n_struct + 1) // 2)
-        good = np.flatnonzero(lower & (sep > 4 * pair_gap))
-        r = int(rng.choice(good)) if good.size else int(np.argmax(np.where(lower, sep, 0)))
-        at = int(np.argmax(np.abs(phi[:, r])))
-        mass = pair_gap**2 / phi[at, r] ** 2  # splitting ~ w_r sqrt(m_a phi^2)
-        stiff = mass * w[r] ** 2
-        M, C, K = grow(M, C, K, at, mass, stiff, 2 * 0.01 * np.sqrt(stiff * mass))
+        M, C, K, pair_target = _add_pair_absorber(st, pair_gap, rng)
         pair_dof = M.shape[0] - 1
-        pair_target = w[r]
     if weak_mode:
-        # between two structural modes away from any absorber tuning, hung far from the drive
-        cands = [
-            s
-            for s in range(n_struct - 1)
-            if pair_target is None
-            or not (w[s] <= pair_target * 1.3 and w[s + 1] >= pair_target / 1.3)
-        ]
-        s = int(rng.choice(cands)) if cands else 0
-        w_weak = np.sqrt(w[s] * w[s + 1])
-        # far from the drive point: near the grounded end of a chain, the far corner of a grid
-        at = int(rng.integers(0, max(1, n_struct // 3))) if topology == "chain" else n_struct - 1
-        mass = 0.02 * m.mean()
-    n_dof = n_modes
-
-    def choose_points():
-        must = [drive] + [d for d in (pair_dof, n_dof - 1 if weak_mode else None) if d is not None]
-        must = list(dict.fromkeys(must))
-        others = [i for i in range(n_dof) if i not in must]
-        extra = (
-            rng.choice(others, size=n_points - len(must), replace=False)
-            if n_points > len(must)
-            else []
-        )
-        return sorted(must + [int(i) for i in extra])
-
-    points = choose_points()
+        site = _weak_site(st, topology, pair_target, rng)
+    must = [drive] + [d for d in (pair_dof, n_modes - 1 if weak_mode else None) if d is not None]
+    points = _choose_points(list(dict.fromkeys(must)), n_points, n_modes, rng)
     weak_k = None
     if weak_mode:
-        for _ in range(60):
-            stiff = mass * w_weak**2
-            M2, C2, K2 = grow(M, C, K, at, mass, stiff, 2 * 0.01 * np.sqrt(stiff * mass))
-            truth = modal_model(
-                M2, C2, K2, output=np.eye(n_dof)[points], point_labels=points, drive_point=drive
-            )
-            weak_k, ratio = _weakest(truth, drive, n_dof - 1)
-            if ratio <= weak_level and contrast(truth, weak_k, drive) <= 0.1:
-                break
-            mass *= 0.5
-        else:  # pragma: no cover - the mass halves 60 times; never seen
-            raise AmiXrValueError("weak_level: could not make the weak mode that weak")
-        M, C, K = M2, C2, K2
+        M, C, K, truth, weak_k = _add_weak_absorber(M, C, K, site, points, drive, weak_level)
     else:
         truth = modal_model(
-            M, C, K, output=np.eye(n_dof)[points], point_labels=points, drive_point=drive
+            M, C, K, output=np.eye(n_modes)[points], point_labels=points, drive_point=drive
         )
 
     truth.attrs["topology"] = topology
@@ -338,19 +385,7 @@ def random_system(
             if frequency is None
             else np.asarray(frequency, dtype=np.float64)
         )
-        out = frf(truth, f, drive)
-        if noise:
-            re = add_noise(
-                out[names.FRF].real, noise, seed=noise_seed, kind=noise_kind, dim=names.FREQUENCY
-            )
-            im = add_noise(
-                out[names.FRF].imag,
-                noise,
-                seed=None if noise_seed is None else noise_seed + 1,
-                kind=noise_kind,
-                dim=names.FREQUENCY,
-            )
-            out[names.FRF] = (re + 1j * im).assign_attrs(out[names.FRF].attrs)
+        out = _noisy(frf(truth, f, drive), noise, noise_kind, noise_seed)
     else:
         lam = truth[names.EIGENVALUE].values
         if duration is None:
