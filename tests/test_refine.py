@@ -448,4 +448,3 @@ def test_crb_bad_arguments():
     np.testing.assert_allclose(
         n[names.NATURAL_FREQUENCY_STD] / u[names.NATURAL_FREQUENCY_STD], np.sqrt(3.0), rtol=1e-9
     )
-

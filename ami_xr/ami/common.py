@@ -8,8 +8,8 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.provenance import add_history
 from ami_xr.errors import IdentificationError
+from ami_xr.provenance import add_history
 
 MODELS = ("auto", *names.AMI_MODELS)  # the ``model`` argument of subtract
 MIN_LINES = 8

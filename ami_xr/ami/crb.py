@@ -21,16 +21,13 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.provenance import add_history
 from ami_xr.core import varpro
 from ami_xr.core.modal import modal_std
 from ami_xr.core.model import resolve_model, resolve_residual_terms
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels.refine import model_columns
-
-NOISE_KINDS = ("uniform", "gaussian")
-_ATTR_NOISE_LEVEL = "noise_level"
-_ATTR_NOISE_KIND = "noise_kind"
+from ami_xr.provenance import add_history
+from ami_xr.simulate.noise import ATTR_NOISE_KIND, ATTR_NOISE_LEVEL, NOISE_KINDS
 
 
 def expected_norm(cov: np.ndarray) -> float:
@@ -139,31 +136,9 @@ def cramer_rao_bound(
     power = 0
     decay = float(frf.attrs.get(names.ATTR_EXP_DECAY, 0.0) or 0.0)
 
-    # Noise of one FRF line, sqrt(E|e|^2), per point.
-    if frf_noise_std is not None:
-        line_std = np.broadcast_to(np.asarray(frf_noise_std, dtype=float), (n_point,)).copy()
-        if isinstance(frf_noise_std, xr.DataArray) and names.POINT in frf_noise_std.dims:
-            line_std = frf_noise_std.sel({names.POINT: points}).values.astype(float)
-    else:
-        alpha = noise_level if noise_level is not None else frf.attrs.get(_ATTR_NOISE_LEVEL)
-        kind = noise_kind or frf.attrs.get(_ATTR_NOISE_KIND, "uniform")
-        if alpha is None or not np.isfinite(alpha) or alpha <= 0:
-            raise AmiXrValueError(
-                "noise_level: expected a positive alpha of eq. 15 (or frf_noise_std), "
-                f"got {alpha!r}"
-            )
-        if kind not in NOISE_KINDS:
-            raise AmiXrValueError(f"noise_kind: expected one of {NOISE_KINDS}, got {kind!r}")
-        if not dt:
-            raise AmiXrValueError(
-                "frf: eq. 15 noise needs attrs sample_interval and record_samples "
-                "(frf_source='impulse_response'); pass frf_noise_std otherwise"
-            )
-        y_max = _clean_maxima(lam, residue, dt, n_samples, power)
-        s_time = alpha * y_max / (np.sqrt(3.0) if kind == "uniform" else 1.0)
-        line_std = np.sqrt(n_samples) * dt * s_time
-    if np.any(~np.isfinite(line_std)) or np.any(line_std <= 0):
-        raise AmiXrValueError(f"frf_noise_std: expected positive values, got {line_std}")
+    line_std = _line_noise_std(
+        frf, frf_noise_std, noise_level, noise_kind, points, lam, residue, dt, n_samples, power
+    )
 
     # Noise-free model data at the truth, so that the projection returns the true residues.
     mu = lam - decay
@@ -227,6 +202,38 @@ def cramer_rao_bound(
             "residual_terms": terms,
         },
     )
+
+
+def _line_noise_std(
+    frf, frf_noise_std, noise_level, noise_kind, points, lam, residue, dt, n_samples, power
+) -> np.ndarray:
+    """Noise of one FRF line, ``sqrt(E|e|^2)``, per point: given, or from eq. 15's alpha."""
+    n_point = residue.shape[0]
+    if frf_noise_std is not None:
+        line_std = np.broadcast_to(np.asarray(frf_noise_std, dtype=float), (n_point,)).copy()
+        if isinstance(frf_noise_std, xr.DataArray) and names.POINT in frf_noise_std.dims:
+            line_std = frf_noise_std.sel({names.POINT: points}).values.astype(float)
+    else:
+        alpha = noise_level if noise_level is not None else frf.attrs.get(ATTR_NOISE_LEVEL)
+        kind = noise_kind or frf.attrs.get(ATTR_NOISE_KIND, "uniform")
+        if alpha is None or not np.isfinite(alpha) or alpha <= 0:
+            raise AmiXrValueError(
+                "noise_level: expected a positive alpha of eq. 15 (or frf_noise_std), "
+                f"got {alpha!r}"
+            )
+        if kind not in NOISE_KINDS:
+            raise AmiXrValueError(f"noise_kind: expected one of {NOISE_KINDS}, got {kind!r}")
+        if not dt:
+            raise AmiXrValueError(
+                "frf: eq. 15 noise needs attrs sample_interval and record_samples "
+                "(frf_source='impulse_response'); pass frf_noise_std otherwise"
+            )
+        y_max = _clean_maxima(lam, residue, dt, n_samples, power)
+        s_time = alpha * y_max / (np.sqrt(3.0) if kind == "uniform" else 1.0)
+        line_std = np.sqrt(n_samples) * dt * s_time
+    if np.any(~np.isfinite(line_std)) or np.any(line_std <= 0):
+        raise AmiXrValueError(f"frf_noise_std: expected positive values, got {line_std}")
+    return line_std
 
 
 def _mode_vector_error(cov, k, drive, noise_var, power, lam_k):

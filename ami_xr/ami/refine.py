@@ -51,7 +51,6 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.provenance import add_history
 from ami_xr.ami import common as c
 from ami_xr.ami.global_fit import FLAG_LOW_DRIVE_SNR, RESIDUAL_KIND
 from ami_xr.ami.settings import GlobalFitSettings, RefineSettings, from_attrs, parameters, to_attrs
@@ -66,6 +65,7 @@ from ami_xr.core.refine import (
     synthesize,
 )
 from ami_xr.errors import IdentificationError
+from ami_xr.provenance import add_history
 
 _FLAG_SEPARATOR = ","
 _LOWER_UPPER = list(names.RESIDUAL_TERM_LABELS)  # coordinate of the residual_term dim

@@ -192,6 +192,38 @@ def _lam(theta):
     return theta[0::2] + 1j * theta[1::2]
 
 
+def _secant_update(s_corr: np.ndarray, s_prev: np.ndarray, y_sharp: np.ndarray) -> np.ndarray:
+    """PSB update of the secant curvature correction ``s_corr`` after the step ``s_prev``.
+
+    ``y_sharp`` is the gradient change the Gauss-Newton matrix does not explain; the old
+    correction is first shrunk as in NL2SOL so that it never overstates the curvature.
+    """
+    sts = float(s_prev @ s_prev)
+    ss = float(s_prev @ s_corr @ s_prev)
+    if ss > 0:
+        s_corr = s_corr * min(1.0, abs(float(s_prev @ y_sharp)) / ss)
+    resid = y_sharp - s_corr @ s_prev
+    if sts > 0:
+        s_corr = (
+            s_corr
+            + (np.outer(resid, s_prev) + np.outer(s_prev, resid)) / sts
+            - float(resid @ s_prev) * np.outer(s_prev, s_prev) / sts**2
+        )
+    return s_corr
+
+
+def _mode_steps(step: np.ndarray, idx: np.ndarray, h_full: np.ndarray) -> np.ndarray:
+    """Squared step of each mode measured by its own block of the Fisher information."""
+    n_mode = h_full.shape[0] // 2
+    full_step = np.zeros(2 * n_mode)
+    full_step[idx] = step
+    out = np.zeros(n_mode)
+    for k in range(n_mode):
+        blk = slice(2 * k, 2 * k + 2)
+        out[k] = full_step[blk] @ h_full[blk, blk] @ full_step[blk]
+    return out
+
+
 def levenberg_marquardt(
     prob: Problem,
     lam0: np.ndarray,
@@ -251,18 +283,7 @@ def levenberg_marquardt(
         g = g_full[idx]
         if previous is not None:
             s_prev, g_prev = previous
-            y_sharp = (g - g_prev) - h @ s_prev
-            sts = float(s_prev @ s_prev)
-            ss = float(s_prev @ s_corr @ s_prev)
-            if ss > 0:
-                s_corr *= min(1.0, abs(float(s_prev @ y_sharp)) / ss)
-            resid = y_sharp - s_corr @ s_prev
-            if sts > 0:
-                s_corr = (
-                    s_corr
-                    + (np.outer(resid, s_prev) + np.outer(s_prev, resid)) / sts
-                    - float(resid @ s_prev) * np.outer(s_prev, s_prev) / sts**2
-                )
+            s_corr = _secant_update(s_corr, s_prev, (g - g_prev) - h @ s_prev)
         d = np.sqrt(np.maximum(np.diag(h), np.finfo(float).tiny))
         hs = h / np.outer(d, d)
         gs = g / d
@@ -315,12 +336,7 @@ def levenberg_marquardt(
             break
         previous = (step, g)
         rel = np.max(np.abs(lam_new - lam)[free] / np.abs(lam[free]))
-        full_step = np.zeros(2 * n_mode)
-        full_step[idx] = step
-        # step of each mode measured by its own block of the Fisher information
-        for k in range(n_mode):
-            blk = slice(2 * k, 2 * k + 2)
-            mode_step[k] = full_step[blk] @ h_full[blk, blk] @ full_step[blk]
+        mode_step = _mode_steps(step, idx, h_full)
         decrease = cost - cost_new
         lam, proj, cost = lam_new, proj_new, cost_new
         if check is not None:
