@@ -129,7 +129,9 @@ class _Setup:
     workers: int
 
 
-def _setup(ds, estimator, force, fs, segments, detrend, average, n_average, chunk_samples, workers):
+def _setup(
+    ds, *, estimator, force, fs, segments, detrend, average, n_average, chunk_samples, workers
+):
     """Check everything both estimators share. ``segments`` is ``(nperseg, noverlap, nfft,
     default_nperseg)``: a ``nperseg`` of None becomes ``default_nperseg`` samples, or the whole
     record where that is None or longer."""
@@ -160,9 +162,20 @@ def _setup(ds, estimator, force, fs, segments, detrend, average, n_average, chun
         raise AmiXrValueError(f"chunk_samples: expected an integer >= 1, got {chunk_samples!r}")
     siso = names.REFERENCE not in (force if force is not None else ds[names.FORCE]).dims
     return _Setup(
-        f_da, y_da, siso, fs, estimator, nperseg, noverlap, nfft, detrend, average, n_average,
-        chunk_samples, workers,
-    )  # fmt: skip
+        force=f_da,
+        response=y_da,
+        siso=siso,
+        fs=fs,
+        estimator=estimator,
+        nperseg=nperseg,
+        noverlap=noverlap,
+        nfft=nfft,
+        detrend=detrend,
+        average=average,
+        n_average=n_average,
+        chunk_samples=chunk_samples,
+        workers=workers,
+    )
 
 
 def _point_labels(y_da: xr.DataArray) -> list:
@@ -376,15 +389,15 @@ def frf(
     """
     s = _setup(
         ds,
-        estimator,
-        force,
-        fs,
-        (nperseg, noverlap, nfft, 256),
-        "constant" if detrend is None else detrend,
-        average,
-        n_average,
-        chunk_samples,
-        workers,
+        estimator=estimator,
+        force=force,
+        fs=fs,
+        segments=(nperseg, noverlap, nfft, 256),
+        detrend="constant" if detrend is None else detrend,
+        average=average,
+        n_average=n_average,
+        chunk_samples=chunk_samples,
+        workers=workers,
     )
     window = "hann" if window is None else window
     w = resolve_window(window, s.nperseg)
@@ -470,15 +483,15 @@ def impact_frf(
     """
     s = _setup(
         ds,
-        estimator,
-        force,
-        fs,
-        (nperseg, 0 if noverlap is None else noverlap, nfft, None),
-        "none" if detrend is None else detrend,
-        average,
-        n_average,
-        chunk_samples,
-        workers,
+        estimator=estimator,
+        force=force,
+        fs=fs,
+        segments=(nperseg, 0 if noverlap is None else noverlap, nfft, None),
+        detrend="none" if detrend is None else detrend,
+        average=average,
+        n_average=n_average,
+        chunk_samples=chunk_samples,
+        workers=workers,
     )
     if force_window is not None and not (
         isinstance(force_window, (int, float, np.number)) and force_window > 0
