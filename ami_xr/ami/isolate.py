@@ -13,7 +13,8 @@ from ami_xr.ami.settings import IsolateSettings, SubtractSettings, from_attrs, p
 from ami_xr.core.matching import gather, match_modes, n_labels, weighted_average
 from ami_xr.core.model import resolve_model
 from ami_xr.errors import ConvergenceWarning, IdentificationError, NoModesWarning
-from ami_xr.kernels import ami as k
+from ami_xr.kernels import isolate as ki
+from ami_xr.kernels import isolate_simo as kis
 from ami_xr.kernels import modal_basis as kb
 from ami_xr.kernels import noise as kn
 
@@ -47,7 +48,7 @@ def _isolate_block(
     m = min(n_c, max_modes)
     lam_in[:, :m] = lam0.reshape(-1, n_c)[:, :m]
     res_in[:, :m] = res0.reshape(-1, n_c)[:, :m]
-    lam, res, n, it, conv = k._isolate_batch(
+    lam, res, n, it, conv = ki.isolate_batch(
         g2,
         omega,
         dt,
@@ -56,16 +57,9 @@ def _isolate_block(
         res_in,
         np.minimum(n0.reshape(-1).astype(np.int64), m),
         sigma.reshape(-1).astype(np.float64),
-        delta,
-        tol,
-        max_iter,
-        pfa,
-        min_points,
-        zeta_max,
-        merge_tol,
-        max_modes,
-        False,
-        False,
+        ki.IsolateParams(
+            delta, tol, max_iter, pfa, min_points, zeta_max, merge_tol, max_modes, False
+        ),
     )
     return (
         lam.reshape(shape + (max_modes,)),
@@ -74,6 +68,51 @@ def _isolate_block(
         it.reshape(shape),
         conv.reshape(shape),
     )
+
+
+def _with_modes(
+    ds, eig, spread, detected, point_lam, point_snr, iterations, converged, n_modes
+) -> xr.Dataset:
+    """``ds`` with the isolation's results: modes (dim ``mode``), per-point estimates, and the
+    convergence per point (earlier isolation and global-fit results dropped)."""
+    out = c.drop_results(ds, (c.ISOLATE_VARS, c.GLOBAL_VARS))
+    mode = np.arange(1, n_modes + 1)
+    wn = np.abs(eig)
+    out = out.assign_coords({names.MODE: mode})
+    out = out.assign(
+        {
+            names.EIGENVALUE: ((names.MODE,), np.asarray(eig, np.complex128), {"units": "rad/s"}),
+            names.NATURAL_FREQUENCY: (
+                (names.MODE,),
+                wn / (2 * np.pi),
+                {"units": names.FREQUENCY_UNITS},
+            ),
+            names.DAMPING_RATIO: (
+                (names.MODE,),
+                -np.real(eig) / wn if n_modes else wn,
+                {"units": "1"},
+            ),
+            names.EIGENVALUE_SPREAD: (
+                (names.MODE,),
+                np.asarray(spread, np.complex128),
+                {"units": "rad/s", "long_name": "std(Re) + i std(Im) of the per-FRF estimates"},
+            ),
+            names.DETECTED: ((names.POINT, names.MODE), np.asarray(detected, bool)),
+            names.POINT_EIGENVALUE: (
+                (names.POINT, names.MODE),
+                np.asarray(point_lam, np.complex128),
+                {"units": "rad/s"},
+            ),
+            names.POINT_SNR: (
+                (names.POINT, names.MODE),
+                np.asarray(point_snr, float),
+                {"long_name": "peak |contribution| / noise floor"},
+            ),
+            names.ISO_ITERATIONS: ((names.POINT,), iterations),
+            names.ISO_CONVERGED: ((names.POINT,), converged),
+        }
+    )
+    return out
 
 
 def isolate(
@@ -213,7 +252,7 @@ def isolate(
         lam_in = np.full(max_modes, np.nan + 0j)
         m0 = min(n0, max_modes)
         lam_in[:m0] = lam0[:m0]
-        lam_s, res_s, n_modes, it, conv = k._isolate_simo(
+        lam_s, res_s, n_modes, it, conv = kis.isolate_simo(
             g,
             omega,
             dt,
@@ -221,16 +260,9 @@ def isolate(
             lam_in,
             m0,
             sigma,
-            delta,
-            tol,
-            max_iter,
-            pfa,
-            min_points,
-            zeta_max,
-            merge_tol,
-            max_modes,
-            snr_weighting,
-            False,
+            ki.IsolateParams(
+                delta, tol, max_iter, pfa, min_points, zeta_max, merge_tol, max_modes, snr_weighting
+            ),
         )
         n_modes = int(n_modes)
         order = np.argsort(np.abs(lam_s[:n_modes]))
@@ -239,50 +271,24 @@ def isolate(
         peaks = kb.contribution_peaks(omega, dt, n_samples, eig[None, :], res_m)
         point_snr = peaks / sigma[:, None]
         detected = point_snr**2 >= t1
-        est = k._point_estimates(
-            g, omega, dt, n_samples, np.ascontiguousarray(eig), res_m, delta, min_points, zeta_max
+        est = ki.point_estimates(
+            g,
+            omega,
+            dt,
+            n_samples,
+            np.ascontiguousarray(eig),
+            res_m,
+            delta=delta,
+            min_points=min_points,
+            zeta_max=zeta_max,
         )
         point_lam = np.where(detected, est, np.nan + 0j)
         _, spread = weighted_average(point_lam, np.ones(point_lam.shape))
         iterations = np.full(n_p, int(it), dtype=np.int64)
         converged = np.full(n_p, bool(conv))
 
-    out = c.drop_results(ds, (c.ISOLATE_VARS, c.GLOBAL_VARS))
-    mode = np.arange(1, n_modes + 1)
-    wn = np.abs(eig)
-    out = out.assign_coords({names.MODE: mode})
-    out = out.assign(
-        {
-            names.EIGENVALUE: ((names.MODE,), np.asarray(eig, np.complex128), {"units": "rad/s"}),
-            names.NATURAL_FREQUENCY: (
-                (names.MODE,),
-                wn / (2 * np.pi),
-                {"units": names.FREQUENCY_UNITS},
-            ),
-            names.DAMPING_RATIO: (
-                (names.MODE,),
-                -np.real(eig) / wn if n_modes else wn,
-                {"units": "1"},
-            ),
-            names.EIGENVALUE_SPREAD: (
-                (names.MODE,),
-                np.asarray(spread, np.complex128),
-                {"units": "rad/s", "long_name": "std(Re) + i std(Im) of the per-FRF estimates"},
-            ),
-            names.DETECTED: ((names.POINT, names.MODE), np.asarray(detected, bool)),
-            names.POINT_EIGENVALUE: (
-                (names.POINT, names.MODE),
-                np.asarray(point_lam, np.complex128),
-                {"units": "rad/s"},
-            ),
-            names.POINT_SNR: (
-                (names.POINT, names.MODE),
-                np.asarray(point_snr, float),
-                {"long_name": "peak |contribution| / noise floor"},
-            ),
-            names.ISO_ITERATIONS: ((names.POINT,), iterations),
-            names.ISO_CONVERGED: ((names.POINT,), converged),
-        }
+    out = _with_modes(
+        ds, eig, spread, detected, point_lam, point_snr, iterations, converged, n_modes
     )
     to_attrs(settings, out.attrs)
     if not np.all(converged):
