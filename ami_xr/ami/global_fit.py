@@ -11,9 +11,9 @@ from ami_xr.ami.settings import GlobalFitSettings, parameters, to_attrs
 from ami_xr.core.modal import mac_matrix, mode_vectors
 from ami_xr.core.model import resolve_model
 from ami_xr.errors import IdentificationError
-from ami_xr.kernels import ami as k
 from ami_xr.kernels import modal_basis as kb
 from ami_xr.kernels import noise as kn
+from ami_xr.kernels import residues as kr
 
 RESIDUAL_KIND = {"receptance": 0, "mobility": 1, "accelerance": 2}
 FLAG_LOW_DRIVE_SNR = "low_drive_point_snr"
@@ -37,7 +37,7 @@ def _band_mask(omega: np.ndarray, lam: np.ndarray, band) -> np.ndarray:
 def _fit_block(g, use, omega, lam, dt, n_samples, residual_kind):
     shape = g.shape[:-1]
     g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
-    coef = k._residues_fixed(g2, omega, lam, dt, n_samples, use, residual_kind)
+    coef = kr.residues_fixed(g2, omega, lam, use, dt, n_samples, residual_kind)
     n_k = lam.size
     res = np.ascontiguousarray(coef[:, :n_k])
     synth = kb.synthesize(omega, lam[None, :], res, dt, n_samples)

@@ -12,8 +12,8 @@ from ami_xr.ami import common as c
 from ami_xr.ami.settings import SubtractSettings, parameters, to_attrs
 from ami_xr.core.model import resolve_model
 from ami_xr.errors import NoModesWarning
-from ami_xr.kernels import ami as k
 from ami_xr.kernels import noise as kn
+from ami_xr.kernels import subtract as ks
 
 
 def _subtract_block(
@@ -21,8 +21,9 @@ def _subtract_block(
 ):
     shape = g.shape[:-1]
     g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
-    lam, res, blo, bhi, sigma, stat, reason, n = k._subtract_batch(
-        g2, omega, dt, n_samples, delta, max_modes, pfa, min_points, zeta_max, merge_tol
+    params = ks.SubtractParams(delta, max_modes, pfa, min_points, zeta_max, merge_tol)
+    lam, res, blo, bhi, sigma, stat, reason, n = ks.subtract_batch(
+        g2, omega, dt, n_samples, params
     )
     two_pi = 2.0 * np.pi
     return (
@@ -155,7 +156,7 @@ def subtract(
     n_keep = max(int(n.max()) if n.size else 0, 1)  # at least one (NaN) slot keeps files simple
     sl = {names.CANDIDATE: slice(0, n_keep)}
     reason_str = xr.DataArray(
-        np.array([k.STOP_REASONS[int(r)] for r in np.ravel(reason.values)], dtype=object)
+        np.array([ks.STOP_REASONS[int(r)] for r in np.ravel(reason.values)], dtype=object)
         .reshape(reason.shape)
         .astype(str),
         dims=reason.dims,
