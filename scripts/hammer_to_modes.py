@@ -53,8 +53,9 @@ def main(argv=None) -> int:
             ts,
             args.estimator,
             exponential_end_value=args.end_value,
-            path=args.out,
         )
+        if args.out:
+            ami_xr.to_netcdf(est, args.out)
     except ami_xr.AmiXrError as err:
         print(f"error: {err}", file=sys.stderr)
         return 1

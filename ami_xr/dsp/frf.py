@@ -292,10 +292,8 @@ def _spectra_to_frf(
     return out
 
 
-def _finish(
-    out: xr.Dataset, s: _Setup, function: str, window: str, extra: dict, path
-) -> xr.Dataset:
-    """Record the call in the history and, with ``path``, write the result."""
+def _finish(out: xr.Dataset, s: _Setup, function: str, window: str, extra: dict) -> xr.Dataset:
+    """Record the call in the history."""
     params = {
         "estimator": s.estimator,
         "fs": s.fs,
@@ -308,12 +306,7 @@ def _finish(
         "n_average": s.n_average,
         **extra,
     }
-    out = add_history(out, function, params)
-    if path is not None:
-        from ami_xr.io.netcdf import to_netcdf
-
-        to_netcdf(out, path, function=function, parameters=params)
-    return out
+    return add_history(out, function, params)
 
 
 def frf(
@@ -331,7 +324,6 @@ def frf(
     n_average: int = 8,
     chunk_samples: int | None = None,
     workers: int = 1,
-    path: str | None = None,
 ) -> xr.Dataset:
     """Estimate FRFs (H1, H2 or Hv) and coherence from random (continuous) excitation by Welch
     averaging. Hammer tests go through :func:`impact_frf`.
@@ -368,8 +360,6 @@ def frf(
         Samples per block read from a lazy Dataset (default: its dask chunks along ``time``).
     workers : int
         Threads of ``scipy.fft``.
-    path : str, optional
-        Also write the result there (atomically, with :func:`ami_xr.to_netcdf`).
 
     Returns
     -------
@@ -404,7 +394,7 @@ def frf(
     records = np.arange(s.force.sizes[names.RECORD])
     out = _spectra_to_frf(ds, s, (w, w), records, {}, {})
     label = window if isinstance(window, str) else "array"
-    return _finish(out, s, "ami_xr.frf", label, {"n_records_used": records.size}, path)
+    return _finish(out, s, "ami_xr.frf", label, {"n_records_used": records.size})
 
 
 def impact_frf(
@@ -429,7 +419,6 @@ def impact_frf(
     n_average: int = 8,
     chunk_samples: int | None = None,
     workers: int = 1,
-    path: str | None = None,
 ) -> xr.Dataset:
     """Estimate FRFs (H1, H2 or Hv) and coherence from an impact (hammer) test.
 
@@ -465,7 +454,7 @@ def impact_frf(
         length (default ``nperseg``).
     detrend : {"none", "constant", "linear"} or False
         Removed from each segment before windowing (``None`` also means ``"none"``).
-    average, n_average, chunk_samples, workers, path
+    average, n_average, chunk_samples, workers
         As for :func:`frf`; averaging runs over hits (segments).
 
     Returns
@@ -558,7 +547,7 @@ def impact_frf(
     out = _spectra_to_frf(ds, s, (wf * we, we), np.flatnonzero(use), extra, attrs_extra)
     label = "force*exponential" if names.ATTR_EXP_DECAY in attrs_extra else "force"
     params = {"n_records_used": int(use.sum()), **attrs_extra}
-    return _finish(out, s, "ami_xr.impact_frf", label, params, path)
+    return _finish(out, s, "ami_xr.impact_frf", label, params)
 
 
 def frf_from_options(ds: xr.Dataset, options: Mapping[str, Any]) -> xr.Dataset:
