@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
@@ -70,11 +71,26 @@ def _isolate_block(
     )
 
 
-def _with_modes(
-    ds, eig, spread, detected, point_lam, point_snr, iterations, converged, n_modes
-) -> xr.Dataset:
+@dataclass
+class _Isolated:
+    """What either isolation method finds: K modes, P points."""
+
+    eig: np.ndarray  # (K,) complex eigenvalues, by increasing natural frequency
+    spread: np.ndarray  # (K,) complex std(Re) + i std(Im) of the per-point estimates
+    detected: np.ndarray  # (P, K) bool
+    point_lam: np.ndarray  # (P, K) complex per-point estimates, NaN where not detected
+    point_snr: np.ndarray  # (P, K) peak |contribution| / noise floor
+    iterations: np.ndarray  # (P,) int
+    converged: np.ndarray  # (P,) bool
+    n_modes: int
+
+
+def _with_modes(ds: xr.Dataset, res: _Isolated) -> xr.Dataset:
     """``ds`` with the isolation's results: modes (dim ``mode``), per-point estimates, and the
     convergence per point (earlier isolation and global-fit results dropped)."""
+    eig, spread, detected = res.eig, res.spread, res.detected
+    point_lam, point_snr, n_modes = res.point_lam, res.point_snr, res.n_modes
+    iterations, converged = res.iterations, res.converged
     out = c.drop_results(ds, (c.ISOLATE_VARS, c.GLOBAL_VARS))
     mode = np.arange(1, n_modes + 1)
     wn = np.abs(eig)
@@ -113,6 +129,119 @@ def _with_modes(
         }
     )
     return out
+
+
+def _isolate_per_frf(ds, omega, data_model, sub, settings, sigma) -> _Isolated:
+    """The paper's isolation: each FRF on its own (one apply_ufunc over points), then the
+    estimates matched into modes and averaged (plain or ``snr^2``-weighted mean)."""
+    dt, n_samples = data_model.dt, data_model.n_samples
+    delta, pfa, max_modes = sub.delta, sub.pfa, sub.max_modes
+    min_points, zeta_max, merge_tol = sub.min_points, sub.zeta_max, sub.merge_tol
+    tol, max_iter, match_tol = settings.tol, settings.max_iter, settings.match_tol
+    weighting = settings.weighting
+    outs = xr.apply_ufunc(
+        _isolate_block,
+        ds[names.FRF],
+        ds[names.SUB_EIGENVALUE],
+        ds[names.SUB_RESIDUE],
+        ds[names.SUB_N_MODES],
+        ds[names.SUB_NOISE_FLOOR],
+        kwargs=dict(
+            omega=omega,
+            dt=dt,
+            n_samples=n_samples,
+            delta=delta,
+            tol=tol,
+            max_iter=max_iter,
+            pfa=pfa,
+            min_points=min_points,
+            zeta_max=zeta_max,
+            merge_tol=merge_tol,
+            max_modes=max_modes,
+        ),
+        input_core_dims=[[names.FREQUENCY], [names.CANDIDATE], [names.CANDIDATE], [], []],
+        output_core_dims=[[names.SLOT], [names.SLOT], [], [], []],
+        dask="parallelized",
+        output_dtypes=[np.complex128, np.complex128, np.int64, np.int64, np.bool_],
+        dask_gufunc_kwargs={"output_sizes": {names.SLOT: max_modes}},
+        keep_attrs=False,
+    )
+    lam_p, res_p, n_p_modes, iters, conv = (o.transpose(names.POINT, ...).values for o in outs)
+    snr_p = kb.contribution_peaks(omega, dt, n_samples, lam_p, res_p) / sigma[:, None]
+    label = match_modes(lam_p, snr_p, match_tol)
+    n_modes = n_labels(label)
+    point_lam = gather(lam_p, label, n_modes)
+    point_snr = gather(snr_p + 0j, label, n_modes).real
+    weight = np.ones_like(point_snr) if weighting == "mean" else np.nan_to_num(point_snr) ** 2
+    eig, spread = weighted_average(point_lam, weight)
+    detected = np.isfinite(point_lam)
+    iterations = np.asarray(iters, dtype=np.int64)
+    converged = np.asarray(conv, dtype=bool)
+    return _Isolated(eig, spread, detected, point_lam, point_snr, iterations, converged, n_modes)
+
+
+def _isolate_simo_modes(ds, omega, data_model, sub, settings, sigma) -> _Isolated:
+    """Global SIMO isolation: the subtraction candidates matched into starting modes, each
+    single-mode fit shared by all FRFs; per-point estimates where the mode is detected."""
+    dt, n_samples = data_model.dt, data_model.n_samples
+    delta, pfa, max_modes = sub.delta, sub.pfa, sub.max_modes
+    min_points, zeta_max, merge_tol = sub.min_points, sub.zeta_max, sub.merge_tol
+    tol, max_iter, match_tol = settings.tol, settings.max_iter, settings.match_tol
+    snr_weighting = settings.snr_weighting
+    t1 = kn.peak_threshold(omega.size, pfa)
+    n_p = ds.sizes[names.POINT]
+    g = c.frf_values(ds)
+    lam_c = np.asarray(ds[names.SUB_EIGENVALUE].transpose(names.POINT, ...).values)
+    res_c = np.asarray(ds[names.SUB_RESIDUE].transpose(names.POINT, ...).values)
+    snr_c = (
+        kb.contribution_peaks(
+            omega, dt, n_samples, np.ascontiguousarray(lam_c), np.ascontiguousarray(res_c)
+        )
+        / sigma[:, None]
+    )
+    label = match_modes(lam_c, snr_c, match_tol)
+    n0 = n_labels(label)
+    start = gather(lam_c, label, n0)
+    w0 = np.where(np.isfinite(start), np.nan_to_num(gather(snr_c + 0j, label, n0).real) ** 2, 0.0)
+    lam0, _ = weighted_average(start, w0)
+    lam_in = np.full(max_modes, np.nan + 0j)
+    m0 = min(n0, max_modes)
+    lam_in[:m0] = lam0[:m0]
+    lam_s, res_s, n_modes, it, conv = kis.isolate_simo(
+        g,
+        omega,
+        dt,
+        n_samples,
+        lam_in,
+        m0,
+        sigma,
+        ki.IsolateParams(
+            delta, tol, max_iter, pfa, min_points, zeta_max, merge_tol, max_modes, snr_weighting
+        ),
+    )
+    n_modes = int(n_modes)
+    order = np.argsort(np.abs(lam_s[:n_modes]))
+    eig = lam_s[:n_modes][order]
+    res_m = np.ascontiguousarray(res_s[:, :n_modes][:, order])
+    peaks = kb.contribution_peaks(omega, dt, n_samples, eig[None, :], res_m)
+    point_snr = peaks / sigma[:, None]
+    detected = point_snr**2 >= t1
+    est = ki.point_estimates(
+        g,
+        omega,
+        dt,
+        n_samples,
+        np.ascontiguousarray(eig),
+        res_m,
+        delta=delta,
+        min_points=min_points,
+        zeta_max=zeta_max,
+    )
+    point_lam = np.where(detected, est, np.nan + 0j)
+    _, spread = weighted_average(point_lam, np.ones(point_lam.shape))
+    iterations = np.full(n_p, int(it), dtype=np.int64)
+    converged = np.full(n_p, bool(conv))
+    return _Isolated(eig, spread, detected, point_lam, point_snr, iterations, converged, n_modes)
 
 
 def isolate(
@@ -183,122 +312,24 @@ def isolate(
     snr_weighting = IsolateSettings.snr_weighting if snr_weighting is None else bool(snr_weighting)
     settings = IsolateSettings(tol, max_iter, method, weighting, match_tol, snr_weighting)
     sub = from_attrs(SubtractSettings, ds.attrs)
-    delta, pfa, max_modes = sub.delta, sub.pfa, sub.max_modes
-    min_points, zeta_max, merge_tol = sub.min_points, sub.zeta_max, sub.merge_tol
     data_model = resolve_model(ds.attrs, "auto")
-    dt, n_samples = data_model.dt, data_model.n_samples
     omega = c.omega_of(ds)
-    t1 = kn.peak_threshold(omega.size, pfa)
     points = ds[names.POINT].values
-    n_p = points.size
     sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, dtype=float)
 
-    if method == "per_frf":
-        outs = xr.apply_ufunc(
-            _isolate_block,
-            ds[names.FRF],
-            ds[names.SUB_EIGENVALUE],
-            ds[names.SUB_RESIDUE],
-            ds[names.SUB_N_MODES],
-            ds[names.SUB_NOISE_FLOOR],
-            kwargs=dict(
-                omega=omega,
-                dt=dt,
-                n_samples=n_samples,
-                delta=delta,
-                tol=tol,
-                max_iter=max_iter,
-                pfa=pfa,
-                min_points=min_points,
-                zeta_max=zeta_max,
-                merge_tol=merge_tol,
-                max_modes=max_modes,
-            ),
-            input_core_dims=[[names.FREQUENCY], [names.CANDIDATE], [names.CANDIDATE], [], []],
-            output_core_dims=[[names.SLOT], [names.SLOT], [], [], []],
-            dask="parallelized",
-            output_dtypes=[np.complex128, np.complex128, np.int64, np.int64, np.bool_],
-            dask_gufunc_kwargs={"output_sizes": {names.SLOT: max_modes}},
-            keep_attrs=False,
-        )
-        lam_p, res_p, n_p_modes, iters, conv = (o.transpose(names.POINT, ...).values for o in outs)
-        snr_p = kb.contribution_peaks(omega, dt, n_samples, lam_p, res_p) / sigma[:, None]
-        label = match_modes(lam_p, snr_p, match_tol)
-        n_modes = n_labels(label)
-        point_lam = gather(lam_p, label, n_modes)
-        point_snr = gather(snr_p + 0j, label, n_modes).real
-        weight = np.ones_like(point_snr) if weighting == "mean" else np.nan_to_num(point_snr) ** 2
-        eig, spread = weighted_average(point_lam, weight)
-        detected = np.isfinite(point_lam)
-        iterations = np.asarray(iters, dtype=np.int64)
-        converged = np.asarray(conv, dtype=bool)
-    else:
-        g = c.frf_values(ds)
-        lam_c = np.asarray(ds[names.SUB_EIGENVALUE].transpose(names.POINT, ...).values)
-        res_c = np.asarray(ds[names.SUB_RESIDUE].transpose(names.POINT, ...).values)
-        snr_c = (
-            kb.contribution_peaks(
-                omega, dt, n_samples, np.ascontiguousarray(lam_c), np.ascontiguousarray(res_c)
-            )
-            / sigma[:, None]
-        )
-        label = match_modes(lam_c, snr_c, match_tol)
-        n0 = n_labels(label)
-        start = gather(lam_c, label, n0)
-        w0 = np.where(
-            np.isfinite(start), np.nan_to_num(gather(snr_c + 0j, label, n0).real) ** 2, 0.0
-        )
-        lam0, _ = weighted_average(start, w0)
-        lam_in = np.full(max_modes, np.nan + 0j)
-        m0 = min(n0, max_modes)
-        lam_in[:m0] = lam0[:m0]
-        lam_s, res_s, n_modes, it, conv = kis.isolate_simo(
-            g,
-            omega,
-            dt,
-            n_samples,
-            lam_in,
-            m0,
-            sigma,
-            ki.IsolateParams(
-                delta, tol, max_iter, pfa, min_points, zeta_max, merge_tol, max_modes, snr_weighting
-            ),
-        )
-        n_modes = int(n_modes)
-        order = np.argsort(np.abs(lam_s[:n_modes]))
-        eig = lam_s[:n_modes][order]
-        res_m = np.ascontiguousarray(res_s[:, :n_modes][:, order])
-        peaks = kb.contribution_peaks(omega, dt, n_samples, eig[None, :], res_m)
-        point_snr = peaks / sigma[:, None]
-        detected = point_snr**2 >= t1
-        est = ki.point_estimates(
-            g,
-            omega,
-            dt,
-            n_samples,
-            np.ascontiguousarray(eig),
-            res_m,
-            delta=delta,
-            min_points=min_points,
-            zeta_max=zeta_max,
-        )
-        point_lam = np.where(detected, est, np.nan + 0j)
-        _, spread = weighted_average(point_lam, np.ones(point_lam.shape))
-        iterations = np.full(n_p, int(it), dtype=np.int64)
-        converged = np.full(n_p, bool(conv))
+    isolate_modes = _isolate_per_frf if method == "per_frf" else _isolate_simo_modes
+    res = isolate_modes(ds, omega, data_model, sub, settings, sigma)
 
-    out = _with_modes(
-        ds, eig, spread, detected, point_lam, point_snr, iterations, converged, n_modes
-    )
+    out = _with_modes(ds, res)
     to_attrs(settings, out.attrs)
-    if not np.all(converged):
-        bad = points[~converged].tolist()
+    if not np.all(res.converged):
+        bad = points[~res.converged].tolist()
         warnings.warn(
             f"isolate: not converged within max_iter={max_iter} sweeps at point(s) "
             f"{bad} (tol={tol}); see isolation_converged",
             ConvergenceWarning,
             stacklevel=2,
         )
-    if n_modes == 0:
+    if res.n_modes == 0:
         warnings.warn("isolate: no mode identified", NoModesWarning, stacklevel=2)
     return c.finish(out, "ami_xr.isolate", "isolate", parameters(settings))
