@@ -25,7 +25,7 @@ from ami_xr.core import varpro
 from ami_xr.core.modal import modal_std
 from ami_xr.core.model import resolve_model, resolve_residual_terms
 from ami_xr.errors import AmiXrValueError
-from ami_xr.kernels.refine import model_columns
+from ami_xr.kernels.modal_basis import model_columns
 from ami_xr.provenance import add_history
 from ami_xr.simulate.noise import ATTR_NOISE_KIND, ATTR_NOISE_LEVEL, NOISE_KINDS
 
