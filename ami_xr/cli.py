@@ -9,9 +9,9 @@ subcommand, so ``ami-xr --help`` is fast and compiles nothing), and maps errors 
   line ``ami-xr <command>: error: ...`` on stderr, no traceback (``-v`` shows it); 2 a usage error
   (argparse); 3 ``batch`` finished but some files failed; 130 interrupted (Ctrl-C).
 
-Option defaults are read from the signatures of the functions they feed (:class:`_Default`),
-only when a help text shows them or a given value is compared with them; options left at their
-default are not passed on, so the library applies its own.
+Option defaults are read from the signatures of the functions they feed, only when a help text
+shows them (:mod:`ami_xr._cli_options`, which also declares the options shared by several
+subcommands); options left at their default are not passed on, so the library applies its own.
 """
 
 from __future__ import annotations
@@ -22,10 +22,19 @@ import sys
 import traceback
 import warnings
 from collections.abc import Sequence
-from functools import cached_property
 from pathlib import Path
 from typing import Any
 
+from ami_xr._cli_options import (
+    BENCHMARK,
+    RANDOM_SYSTEM,
+    Default,
+    add_frf_options,
+    add_identify_options,
+    frf_options,
+    identify_options,
+    value,
+)
 from ami_xr.errors import AmiXrError, AmiXrWarning
 
 EXIT_OK = 0
@@ -44,48 +53,7 @@ class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescription
         return super()._get_help_string(action)
 
 
-class _Default:
-    """The default of ``parameter`` of the public function ``target`` ("module:name").
-
-    Looked up (by importing the module) only when a help text shows it or a value is compared
-    with it, so building the parser imports no library module and each number is typed only in
-    the function's signature.
-    """
-
-    def __init__(self, target: str, parameter: str):
-        self.target, self.parameter = target, parameter
-
-    @cached_property
-    def value(self) -> Any:
-        import importlib
-        import inspect
-
-        module, name = self.target.split(":")
-        function = getattr(importlib.import_module(module), name)
-        return inspect.signature(function).parameters[self.parameter].default
-
-    def __str__(self) -> str:
-        return str(self.value)
-
-    def __eq__(self, other: object) -> bool:
-        return self.value == (other.value if isinstance(other, _Default) else other)
-
-    __hash__ = None  # type: ignore[assignment]  # compared by value, never a dict key
-
-
-IDENTIFY = "ami_xr:identify"
-FRF = "ami_xr:frf"
-IMPACT = "ami_xr:impact_frf"
-BENCHMARK = "ami_xr.simulate:benchmark"
-RANDOM_SYSTEM = "ami_xr.simulate:random_system"
-
-
 # --- helpers -------------------------------------------------------------------------------------
-def _value(v: Any) -> Any:
-    """An option's value, with a lazy default looked up."""
-    return v.value if isinstance(v, _Default) else v
-
-
 def _one_line(err: BaseException) -> str:
     # SchemaError lists its problems as "  - ..." bullets: join them into one line.
     lines = [re.sub(r"^\s*-\s+", "", s).strip() for s in str(err).strip().splitlines() if s.strip()]
@@ -99,234 +67,10 @@ def _say(*parts: Any) -> None:
     print(*parts, flush=True)
 
 
-def _non_default(args: argparse.Namespace, options: dict[str, Any]) -> dict[str, Any]:
-    """Only the options the user changed: the library applies its own defaults (which the help
-    shows), and batch parameter hashes match a Python call with the same settings."""
-    parser: argparse.ArgumentParser = args._parser
-    return {
-        k: v
-        for k, v in options.items()
-        if v is not None and not isinstance(v, _Default) and v != parser.get_default(k)
-    }
-
-
 def _add_output(
     p: argparse.ArgumentParser, what: str, required: bool = True, default: Any = None
 ) -> None:
     p.add_argument("-o", "--output", required=required, default=default, metavar="PATH", help=what)
-
-
-def _band(text: str) -> float | str:
-    if text == "all":
-        return text
-    try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number or 'all', got {text!r}") from None
-
-
-# --- options of ami_xr.identify and ami_xr.frf -------------------------------------------------
-# (flag, function, type or choices, help[, metavar]): the option's default is that of the
-# function's parameter of the flag's name; function None: default None (ami_xr.frf and
-# ami_xr.impact_frf differ, the excitation decides).
-IDENTIFY_OPTIONS = (
-    (
-        "--method",
-        IDENTIFY,
-        ("simo", "per_frf", "paper"),
-        "simo: one eigenvalue fit over all FRFs per mode; per_frf: the paper's per-FRF fits "
-        "averaged with SNR weights; paper: the paper's AMI exactly (plain mean, eq. 9 over "
-        "bands, continuous basis, no refinement)",
-    ),
-    ("--delta", IDENTIFY, float, "subtraction: fit the lines with |G| >= delta * peak, in (0, 1)"),
-    (
-        "--pfa",
-        IDENTIFY,
-        float,
-        "subtraction: false-alarm probability of the automatic stop (a noise peak is taken "
-        "for a mode with this probability)",
-    ),
-    ("--max-modes", IDENTIFY, int, "subtraction: most modes per FRF"),
-    (
-        "--tol",
-        IDENTIFY,
-        float,
-        "isolation: relative change of Re and Im of every eigenvalue that ends the iteration "
-        "(1e-4 = 0.01 %%)",
-    ),
-    ("--max-iter", IDENTIFY, int, "isolation: iteration cap"),
-    (
-        "--band",
-        IDENTIFY,
-        _band,
-        "global fit: half-width of the band around each mode in half-power bandwidths "
-        "2|Re lambda| [rad/s], or 'all' for every line",
-    ),
-)
-FRF_OPTIONS = (
-    (
-        "--estimator",
-        FRF,
-        ("H1", "H2", "Hv"),
-        "FRF estimator: H1 = Gfy/Gff (output noise), H2 = Gyy/Gyf (input noise), Hv (total "
-        "least squares)",
-    ),
-    (
-        "--window",
-        None,
-        str,
-        "Welch window for random excitation (hann, boxcar, flattop, ...); default hann",
-    ),
-    (
-        "--nperseg",
-        None,
-        int,
-        "segment length [samples]; default that of ami_xr.frf (random) or the whole record "
-        "(impact)",
-    ),
-    (
-        "--noverlap",
-        None,
-        int,
-        "segment overlap [samples]; default nperseg // 2 (random), 0 (impact)",
-    ),
-    ("--nfft", None, int, "FFT length [samples]; default nperseg"),
-    (
-        "--detrend",
-        None,
-        ("constant", "linear", "none"),
-        "detrend of each segment; default constant (random), none (impact)",
-    ),
-    ("--average", FRF, ("linear", "exponential"), "averaging over segments or hits"),
-    ("--n-average", FRF, int, "time constant of exponential averaging [segments]"),
-    (
-        "--force-window",
-        IMPACT,
-        float,
-        "impact: force window width [s]; default from the force pulse",
-        "SECONDS",
-    ),
-    (
-        "--exponential-decay",
-        IMPACT,
-        float,
-        "impact: exponential window decay rate [1/s] (its damping is removed again by "
-        "identification); default none",
-        "PER_SECOND",
-    ),
-    (
-        "--exponential-end-value",
-        IMPACT,
-        float,
-        "impact: exponential window by its value at the record end [0-1], instead of "
-        "--exponential-decay",
-        "FRACTION",
-    ),
-    (
-        "--double-impact-threshold",
-        IMPACT,
-        float,
-        "impact: second force pulse above this fraction of the peak = double impact",
-        "FRACTION",
-    ),
-    (
-        "--overload-samples",
-        IMPACT,
-        int,
-        "impact: this many samples at the channel's extreme = overload",
-    ),
-    (
-        "--min-force",
-        IMPACT,
-        float,
-        "impact: reject hits whose peak force is below this [force units]",
-        "NEWTON",
-    ),
-    (
-        "--weak-force-ratio",
-        IMPACT,
-        float,
-        "impact: reject hits weaker than this fraction of the median peak",
-        "FRACTION",
-    ),
-)
-
-
-def _dest(flag: str) -> str:
-    return flag.lstrip("-").replace("-", "_")
-
-
-def _add_options(group, spec: tuple) -> None:
-    """One option per entry of ``spec`` (see IDENTIFY_OPTIONS)."""
-    for flag, target, kind, help_text, *metavar in spec:
-        kind = {"choices": kind} if isinstance(kind, tuple) else {"type": kind}
-        default = None if target is None else _Default(target, _dest(flag))
-        group.add_argument(
-            flag, default=default, help=help_text, metavar=metavar[0] if metavar else None, **kind
-        )
-
-
-def _add_identify_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("identification options (ami_xr.identify)")
-    _add_options(g, IDENTIFY_OPTIONS[:1])
-    g.add_argument(
-        "--refine",
-        dest="refine",
-        action="store_const",
-        const=True,
-        default=None,
-        help="force the joint maximum-likelihood refinement (default: on unless --method paper)",
-    )
-    g.add_argument(
-        "--no-refine",
-        dest="refine",
-        action="store_const",
-        const=False,
-        help="skip the joint refinement (default: refine unless --method paper)",
-    )
-    _add_options(g, IDENTIFY_OPTIONS[1:])
-    g.add_argument(
-        "--residual-terms",
-        action="store_true",
-        help="global fit: add lower and upper residual terms for out-of-band modes (measured FRFs)",
-    )
-
-
-def _identify_options(args: argparse.Namespace) -> dict[str, Any]:
-    first, *rest = (_dest(spec[0]) for spec in IDENTIFY_OPTIONS)
-    keys = (first, "refine", *rest, "residual_terms")
-    return _non_default(args, {k: getattr(args, k) for k in keys})
-
-
-def _add_frf_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("FRF estimation options (ami_xr.frf; time-history input only)")
-    _add_options(g, FRF_OPTIONS[:1])
-    g.add_argument(
-        "--excitation",
-        default="auto",
-        choices=("auto", "random", "impact"),
-        help="impact: every record is a hammer hit (checked, windowed, averaged); "
-        "random: Welch segments; auto: impact when the data have a 'record' "
-        "dim, else random",
-    )
-    split = [spec[0] for spec in FRF_OPTIONS].index("--double-impact-threshold")
-    _add_options(g, FRF_OPTIONS[1:split])
-    g.add_argument(
-        "--no-hit-checks",
-        action="store_true",
-        help="impact: use every hit (no overload/double-impact/weak-force checks)",
-    )
-    _add_options(g, FRF_OPTIONS[split:])
-
-
-def _frf_options(args: argparse.Namespace) -> dict[str, Any]:
-    keys = [_dest(spec[0]) for spec in FRF_OPTIONS]
-    options = _non_default(args, {k: getattr(args, k) for k in keys})
-    if args.no_hit_checks:
-        options["hit_checks"] = False
-    if args.excitation != "auto":
-        options["excitation"] = args.excitation
-    return options
 
 
 # --- subcommands ---------------------------------------------------------------------------------
@@ -334,12 +78,12 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from ami_xr.demo import demo
 
     demo(
-        _value(args.output),
+        value(args.output),
         simulate=args.simulate,
-        noise=_value(args.noise),
-        seed=_value(args.seed),
+        noise=value(args.noise),
+        seed=value(args.seed),
         report=not args.no_report,
-        identify_options=_identify_options(args),
+        identify_options=identify_options(args),
     )
     return EXIT_OK
 
@@ -351,20 +95,20 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         from ami_xr.errors import AmiXrValueError
 
         raise AmiXrValueError("--time-output: only the beam-absorbers system has impulse responses")
-    common = {"noise": _value(args.noise), "seed": _value(args.seed)}
+    common = {"noise": value(args.noise), "seed": value(args.seed)}
     if args.system == "beam-absorbers":
         function = "ami_xr.simulate.benchmark"
-        kwargs = {**common, "duration": _value(args.duration), "n_samples": _value(args.samples)}
+        kwargs = {**common, "duration": value(args.duration), "n_samples": value(args.samples)}
         ts, g, truth = ami_xr.simulate.benchmark(**kwargs)
     else:
         function = "ami_xr.simulate.random_system"
         kwargs = {
-            "n_points": _value(args.points),
-            "topology": _value(args.topology),
+            "n_points": value(args.points),
+            "topology": value(args.topology),
             **common,
             "closely_spaced": args.closely_spaced,
             "weak_mode": args.weak_mode,
-            "max_frequency_hz": _value(args.max_frequency),
+            "max_frequency_hz": value(args.max_frequency),
         }
         ts, (g, truth) = None, ami_xr.simulate.random_system(**kwargs)
     params = {"system": args.system, **kwargs}
@@ -385,7 +129,7 @@ def _cmd_frf(args: argparse.Namespace) -> int:
     from ami_xr.batch import estimate_frf
     from ami_xr.io.formats import read_any
 
-    options = _frf_options(args)
+    options = frf_options(args)
     g = estimate_frf(read_any(args.input), options)
     if "hit_rejected" in g:  # impact test: say which hits were left out and why
         rejected = g["hit_rejected"].values.astype(bool)
@@ -409,7 +153,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from ami_xr.report import format_modal_table
 
     ds = read_any(args.input)
-    options = _identify_options(args)
+    options = identify_options(args)
     n = ds.sizes.get(names.POINT, 0)
     with elapsed(f"identify: {n} FRFs", n, enabled=not args.quiet):
         result = ami_xr.identify(ds, **options)
@@ -450,9 +194,9 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     summary = batch(
         args.input,
         args.output,
-        workers=_value(args.workers),
-        identify_options=_identify_options(args),
-        frf_options=_frf_options(args),
+        workers=value(args.workers),
+        identify_options=identify_options(args),
+        frf_options=frf_options(args),
         report=args.report,
         force=args.force,
         progress=not args.quiet,
@@ -477,7 +221,7 @@ def _add_demo(add) -> None:
         "simulator's exact values, and write modes.nc and a report/ folder.",
     )
     _add_output(
-        p, "output folder", required=False, default=_Default("ami_xr.demo:demo", "output_dir")
+        p, "output folder", required=False, default=Default("ami_xr.demo:demo", "output_dir")
     )
     p.add_argument(
         "--simulate",
@@ -487,14 +231,14 @@ def _add_demo(add) -> None:
     p.add_argument(
         "--noise",
         type=float,
-        default=_Default(BENCHMARK, "noise"),
+        default=Default(BENCHMARK, "noise"),
         help="noise level alpha of eq. 15 (fraction of each signal's peak) when simulating",
     )
     p.add_argument(
-        "--seed", type=int, default=_Default(BENCHMARK, "seed"), help="noise seed when simulating"
+        "--seed", type=int, default=Default(BENCHMARK, "seed"), help="noise seed when simulating"
     )
     p.add_argument("--no-report", action="store_true", help="skip the report (no matplotlib)")
-    _add_identify_options(p)
+    add_identify_options(p)
     p.set_defaults(func=_cmd_demo)
 
 
@@ -513,13 +257,13 @@ def _add_simulate(add) -> None:
     p.add_argument(
         "--noise",
         type=float,
-        default=_Default(BENCHMARK, "noise"),
+        default=Default(BENCHMARK, "noise"),
         help="noise level alpha of eq. 15 (fraction of each signal's peak; 0 = noise-free)",
     )
     p.add_argument(
         "--seed",
         type=int,
-        default=_Default(BENCHMARK, "seed"),
+        default=Default(BENCHMARK, "seed"),
         help="seed of the noise (and of the random system) (reproducible)",
     )
     p.add_argument(
@@ -530,10 +274,10 @@ def _add_simulate(add) -> None:
     )
     g = p.add_argument_group("beam-absorbers options")
     g.add_argument(
-        "--duration", type=float, default=_Default(BENCHMARK, "duration"), help="record length [s]"
+        "--duration", type=float, default=Default(BENCHMARK, "duration"), help="record length [s]"
     )
     g.add_argument(
-        "--samples", type=int, default=_Default(BENCHMARK, "n_samples"), help="samples per record"
+        "--samples", type=int, default=Default(BENCHMARK, "n_samples"), help="samples per record"
     )
     g.add_argument(
         "--time-output",
@@ -545,12 +289,12 @@ def _add_simulate(add) -> None:
     g.add_argument(
         "--points",
         type=int,
-        default=_Default(RANDOM_SYSTEM, "n_points"),
+        default=Default(RANDOM_SYSTEM, "n_points"),
         help="measured points (5-50)",
     )
     g.add_argument(
         "--topology",
-        default=_Default(RANDOM_SYSTEM, "topology"),
+        default=Default(RANDOM_SYSTEM, "topology"),
         choices=("chain", "grid"),
         help="masses in a grounded line, or on a grid clamped along one row",
     )
@@ -563,7 +307,7 @@ def _add_simulate(add) -> None:
     g.add_argument(
         "--max-frequency",
         type=float,
-        default=_Default(RANDOM_SYSTEM, "max_frequency_hz"),
+        default=Default(RANDOM_SYSTEM, "max_frequency_hz"),
         help="top of the frequency grid [Hz]; the highest mode is at 0.8 x this",
     )
     p.set_defaults(func=_cmd_simulate)
@@ -579,7 +323,7 @@ def _add_file_commands(add) -> None:
     )
     p.add_argument("input", help="time-history file (.nc, .uff, .lvm)")
     _add_output(p, "FRF netCDF file to write")
-    _add_frf_options(p)
+    add_frf_options(p)
     p.set_defaults(func=_cmd_frf)
 
     p = add(
@@ -597,7 +341,7 @@ def _add_file_commands(add) -> None:
         required=False,
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    _add_identify_options(p)
+    add_identify_options(p)
     p.set_defaults(func=_cmd_identify)
 
     p = add(
@@ -645,7 +389,7 @@ def _add_batch(add) -> None:
     p.add_argument(
         "--workers",
         type=int,
-        default=_Default("ami_xr.batch:batch", "workers"),
+        default=Default("ami_xr.batch:batch", "workers"),
         help="files processed in parallel (processes)",
     )
     p.add_argument(
@@ -653,8 +397,8 @@ def _add_batch(add) -> None:
     )
     p.add_argument("--force", action="store_true", help="redo files whose outputs are up to date")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    _add_identify_options(p)
-    _add_frf_options(p)
+    add_identify_options(p)
+    add_frf_options(p)
     p.set_defaults(func=_cmd_batch)
 
 

@@ -298,3 +298,88 @@ def test_simulate_random_system(tmp_path, capsys):
     assert code == EXIT_ERROR
     assert "--time-output" in capsys.readouterr().err
     assert not (tmp_path / "x.nc").exists()
+
+
+def test_building_the_parser_imports_no_library_module():
+    # option defaults come from the functions' signatures, looked up only when shown
+    code = (
+        "import sys\n"
+        "from ami_xr.cli import build_parser\n"
+        "build_parser()\n"
+        "mods = ('ami_xr.ami.identify', 'ami_xr.dsp.frf', 'ami_xr.simulate', 'ami_xr.demo')\n"
+        "print('LOADED', [m for m in mods if m in sys.modules])\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=ENV
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "LOADED []" in proc.stdout
+
+
+@pytest.mark.parametrize(
+    ("command", "dest", "function", "parameter"),
+    [
+        ("identify", "delta", ami_xr.identify, "delta"),
+        ("identify", "max_iter", ami_xr.identify, "max_iter"),
+        ("batch", "weak_force_ratio", ami_xr.impact_frf, "weak_force_ratio"),
+        ("batch", "n_average", ami_xr.frf, "n_average"),
+        ("simulate", "samples", ami_xr.simulate.benchmark, "n_samples"),
+        ("simulate", "points", ami_xr.simulate.random_system, "n_points"),
+    ],
+)
+def test_option_defaults_are_the_functions_defaults(command, dest, function, parameter):
+    import inspect
+
+    expected = inspect.signature(function).parameters[parameter].default
+    default = _subparsers()[command].get_default(dest)
+    assert default == expected and str(default) == str(expected)
+
+
+def test_options_left_at_or_set_to_their_default_are_not_passed_on():
+    from ami_xr._cli_options import frf_options, identify_options
+
+    parser = build_parser()
+    delta = str(_subparsers()["identify"].get_default("delta"))
+    assert identify_options(parser.parse_args(["identify", "x.nc"])) == {}
+    assert identify_options(parser.parse_args(["identify", "x.nc", "--delta", delta])) == {}
+    args = parser.parse_args(["batch", "d", "-o", "o", "--delta", "0.3", "--min-force", "2"])
+    assert identify_options(args) == {"delta": 0.3}
+    assert frf_options(args) == {"min_force": 2.0}
+
+
+def test_progress_counts_on_stderr_and_stays_silent_when_disabled(capsys, monkeypatch):
+    from ami_xr._progress import Progress, elapsed
+
+    with Progress("files", total=2, unit="file") as bar:
+        bar.update()
+        bar.update()
+    assert "files" in capsys.readouterr().err
+    with Progress("files", total=2, enabled=False) as bar:
+        bar.update()
+    with Progress("files", total=0) as bar:
+        bar.update()
+    assert capsys.readouterr().err == ""
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
+    assert not elapsed("identify", 100).enabled  # not on a terminal: no ticking line
+
+
+def test_formats_choose_by_suffix_and_name_the_file(tmp_path):
+    from ami_xr.errors import AmiXrValueError, DataFileError
+    from ami_xr.io.formats import read_any, write_any
+
+    with pytest.raises(DataFileError, match=r"data\.csv.*unknown file type"):
+        read_any(tmp_path / "data.csv")
+    with pytest.raises(AmiXrValueError, match=r"out\.txt"):
+        write_any(xr.Dataset(), tmp_path / "out.txt")
+
+
+def test_demo_finds_the_sample_and_tables_the_paper(monkeypatch):
+    from ami_xr.demo import comparison_table, find_sample_frf
+    from ami_xr.simulate.paper import AMI_EIGENVALUES, ANALYTICAL_EIGENVALUES
+
+    monkeypatch.chdir(REPO)
+    assert find_sample_frf() == REPO / "sample_data" / "benchmark_frf.nc"
+    table = comparison_table(ANALYTICAL_EIGENVALUES, ANALYTICAL_EIGENVALUES, AMI_EIGENVALUES)
+    lines = table.splitlines()
+    assert lines[0].startswith("mode  identified [rad/s]") and len(lines) == 2 + 4
+    assert "+0.000 / " in lines[2]  # exact input: zero error of ours

@@ -1,0 +1,292 @@
+"""Options of the ``ami-xr`` command line that several subcommands share.
+
+The options of :func:`ami_xr.identify` (identify, batch, demo) and of :func:`ami_xr.frf` /
+:func:`ami_xr.impact_frf` (frf, batch) are declared once, as tables, and read back from the
+parsed arguments as keyword dictionaries. An option's default is that of the function's
+parameter (:class:`Default`): nothing is restated here, and nothing is imported until a help
+text shows a default or a given value is compared with it. Options left at their default are
+not passed on (:func:`non_default`), so the library applies its own.
+"""
+
+from __future__ import annotations
+
+import argparse
+from functools import cached_property
+from typing import Any
+
+__all__ = [
+    "BENCHMARK",
+    "Default",
+    "RANDOM_SYSTEM",
+    "add_frf_options",
+    "add_identify_options",
+    "frf_options",
+    "identify_options",
+    "non_default",
+    "value",
+]
+
+
+class Default:
+    """The default of ``parameter`` of the public function ``target`` ("module:name").
+
+    Looked up (by importing the module) only when a help text shows it or a value is compared
+    with it, so building the parser imports no library module and each number is typed only in
+    the function's signature.
+    """
+
+    def __init__(self, target: str, parameter: str):
+        self.target, self.parameter = target, parameter
+
+    @cached_property
+    def value(self) -> Any:
+        import importlib
+        import inspect
+
+        module, name = self.target.split(":")
+        function = getattr(importlib.import_module(module), name)
+        return inspect.signature(function).parameters[self.parameter].default
+
+    def __str__(self) -> str:
+        return str(self.value)
+
+    def __eq__(self, other: object) -> bool:
+        return self.value == (other.value if isinstance(other, Default) else other)
+
+    __hash__ = None  # type: ignore[assignment]  # compared by value, never a dict key
+
+
+IDENTIFY = "ami_xr:identify"
+FRF = "ami_xr:frf"
+IMPACT = "ami_xr:impact_frf"
+BENCHMARK = "ami_xr.simulate:benchmark"
+RANDOM_SYSTEM = "ami_xr.simulate:random_system"
+
+
+def value(v: Any) -> Any:
+    """An option's value, with a lazy default looked up."""
+    return v.value if isinstance(v, Default) else v
+
+
+def non_default(args: argparse.Namespace, options: dict[str, Any]) -> dict[str, Any]:
+    """Only the options the user changed: the library applies its own defaults (which the help
+    shows), and batch parameter hashes match a Python call with the same settings."""
+    parser: argparse.ArgumentParser = args._parser
+    return {
+        k: v
+        for k, v in options.items()
+        if v is not None and not isinstance(v, Default) and v != parser.get_default(k)
+    }
+
+
+def _band(text: str) -> float | str:
+    if text == "all":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or 'all', got {text!r}") from None
+
+
+# --- options of ami_xr.identify and ami_xr.frf -------------------------------------------------
+# (flag, function, type or choices, help[, metavar]): the option's default is that of the
+# function's parameter of the flag's name; function None: default None (ami_xr.frf and
+# ami_xr.impact_frf differ, the excitation decides).
+IDENTIFY_OPTIONS = (
+    (
+        "--method",
+        IDENTIFY,
+        ("simo", "per_frf", "paper"),
+        "simo: one eigenvalue fit over all FRFs per mode; per_frf: the paper's per-FRF fits "
+        "averaged with SNR weights; paper: the paper's AMI exactly (plain mean, eq. 9 over "
+        "bands, continuous basis, no refinement)",
+    ),
+    ("--delta", IDENTIFY, float, "subtraction: fit the lines with |G| >= delta * peak, in (0, 1)"),
+    (
+        "--pfa",
+        IDENTIFY,
+        float,
+        "subtraction: false-alarm probability of the automatic stop (a noise peak is taken "
+        "for a mode with this probability)",
+    ),
+    ("--max-modes", IDENTIFY, int, "subtraction: most modes per FRF"),
+    (
+        "--tol",
+        IDENTIFY,
+        float,
+        "isolation: relative change of Re and Im of every eigenvalue that ends the iteration "
+        "(1e-4 = 0.01 %%)",
+    ),
+    ("--max-iter", IDENTIFY, int, "isolation: iteration cap"),
+    (
+        "--band",
+        IDENTIFY,
+        _band,
+        "global fit: half-width of the band around each mode in half-power bandwidths "
+        "2|Re lambda| [rad/s], or 'all' for every line",
+    ),
+)
+FRF_OPTIONS = (
+    (
+        "--estimator",
+        FRF,
+        ("H1", "H2", "Hv"),
+        "FRF estimator: H1 = Gfy/Gff (output noise), H2 = Gyy/Gyf (input noise), Hv (total "
+        "least squares)",
+    ),
+    (
+        "--window",
+        None,
+        str,
+        "Welch window for random excitation (hann, boxcar, flattop, ...); default hann",
+    ),
+    (
+        "--nperseg",
+        None,
+        int,
+        "segment length [samples]; default that of ami_xr.frf (random) or the whole record "
+        "(impact)",
+    ),
+    (
+        "--noverlap",
+        None,
+        int,
+        "segment overlap [samples]; default nperseg // 2 (random), 0 (impact)",
+    ),
+    ("--nfft", None, int, "FFT length [samples]; default nperseg"),
+    (
+        "--detrend",
+        None,
+        ("constant", "linear", "none"),
+        "detrend of each segment; default constant (random), none (impact)",
+    ),
+    ("--average", FRF, ("linear", "exponential"), "averaging over segments or hits"),
+    ("--n-average", FRF, int, "time constant of exponential averaging [segments]"),
+    (
+        "--force-window",
+        IMPACT,
+        float,
+        "impact: force window width [s]; default from the force pulse",
+        "SECONDS",
+    ),
+    (
+        "--exponential-decay",
+        IMPACT,
+        float,
+        "impact: exponential window decay rate [1/s] (its damping is removed again by "
+        "identification); default none",
+        "PER_SECOND",
+    ),
+    (
+        "--exponential-end-value",
+        IMPACT,
+        float,
+        "impact: exponential window by its value at the record end [0-1], instead of "
+        "--exponential-decay",
+        "FRACTION",
+    ),
+    (
+        "--double-impact-threshold",
+        IMPACT,
+        float,
+        "impact: second force pulse above this fraction of the peak = double impact",
+        "FRACTION",
+    ),
+    (
+        "--overload-samples",
+        IMPACT,
+        int,
+        "impact: this many samples at the channel's extreme = overload",
+    ),
+    (
+        "--min-force",
+        IMPACT,
+        float,
+        "impact: reject hits whose peak force is below this [force units]",
+        "NEWTON",
+    ),
+    (
+        "--weak-force-ratio",
+        IMPACT,
+        float,
+        "impact: reject hits weaker than this fraction of the median peak",
+        "FRACTION",
+    ),
+)
+
+
+def _dest(flag: str) -> str:
+    return flag.lstrip("-").replace("-", "_")
+
+
+def _add_options(group, spec: tuple) -> None:
+    """One option per entry of ``spec`` (see IDENTIFY_OPTIONS)."""
+    for flag, target, kind, help_text, *metavar in spec:
+        kind = {"choices": kind} if isinstance(kind, tuple) else {"type": kind}
+        default = None if target is None else Default(target, _dest(flag))
+        group.add_argument(
+            flag, default=default, help=help_text, metavar=metavar[0] if metavar else None, **kind
+        )
+
+
+def add_identify_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("identification options (ami_xr.identify)")
+    _add_options(g, IDENTIFY_OPTIONS[:1])
+    g.add_argument(
+        "--refine",
+        dest="refine",
+        action="store_const",
+        const=True,
+        default=None,
+        help="force the joint maximum-likelihood refinement (default: on unless --method paper)",
+    )
+    g.add_argument(
+        "--no-refine",
+        dest="refine",
+        action="store_const",
+        const=False,
+        help="skip the joint refinement (default: refine unless --method paper)",
+    )
+    _add_options(g, IDENTIFY_OPTIONS[1:])
+    g.add_argument(
+        "--residual-terms",
+        action="store_true",
+        help="global fit: add lower and upper residual terms for out-of-band modes (measured FRFs)",
+    )
+
+
+def identify_options(args: argparse.Namespace) -> dict[str, Any]:
+    first, *rest = (_dest(spec[0]) for spec in IDENTIFY_OPTIONS)
+    keys = (first, "refine", *rest, "residual_terms")
+    return non_default(args, {k: getattr(args, k) for k in keys})
+
+
+def add_frf_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("FRF estimation options (ami_xr.frf; time-history input only)")
+    _add_options(g, FRF_OPTIONS[:1])
+    g.add_argument(
+        "--excitation",
+        default="auto",
+        choices=("auto", "random", "impact"),
+        help="impact: every record is a hammer hit (checked, windowed, averaged); "
+        "random: Welch segments; auto: impact when the data have a 'record' "
+        "dim, else random",
+    )
+    split = [spec[0] for spec in FRF_OPTIONS].index("--double-impact-threshold")
+    _add_options(g, FRF_OPTIONS[1:split])
+    g.add_argument(
+        "--no-hit-checks",
+        action="store_true",
+        help="impact: use every hit (no overload/double-impact/weak-force checks)",
+    )
+    _add_options(g, FRF_OPTIONS[split:])
+
+
+def frf_options(args: argparse.Namespace) -> dict[str, Any]:
+    keys = [_dest(spec[0]) for spec in FRF_OPTIONS]
+    options = non_default(args, {k: getattr(args, k) for k in keys})
+    if args.no_hit_checks:
+        options["hit_checks"] = False
+    if args.excitation != "auto":
+        options["excitation"] = args.excitation
+    return options
