@@ -85,8 +85,15 @@ FRF_NOISE_STD = "frf_noise_std"  # sqrt(E|noise|^2) of one FRF line, dims (point
 NATURAL_FREQUENCY_ERROR = "natural_frequency_error"  # CRB: expected |error| / f_n
 DAMPING_RATIO_ERROR = "damping_ratio_error"  # CRB: expected |error| / zeta
 MODE_VECTOR_ERROR = "mode_vector_error"  # CRB: expected |dPhi_k| / |Phi_k| (Euclidean norms)
+# quality flags of a mode, joined by FLAG_SEPARATOR in QUALITY_FLAGS
+FLAG_SEPARATOR = ","
+FLAG_LOW_DRIVE_SNR = "low_drive_point_snr"  # global_fit: scale unreliable (weak at the drive point)
+FLAG_UNSCALED = "unscaled_no_drive_point"  # global_fit: mode vector normalised, not scaled
+FLAG_NOT_CONVERGED = "not_converged"  # isolation did not converge where the mode was detected
+FLAG_SINGLE_FRF = "single_frf"  # detected in one FRF only
 FLAG_REFINE_NOT_CONVERGED = "refine_not_converged"
 FLAG_REFINE_FALLBACK = "refine_fallback"
+FLAG_ADDED_BY_REFINE = "added_by_refine"  # a mode refine added
 
 # --- FRF estimation from time histories (ami_xr.frf) ------------------------------------------
 FORCE_AUTOSPECTRUM = "force_autospectrum"  # Gff, one-sided density, dims ([reference,] frequency)
@@ -149,7 +156,6 @@ ATTR_REFINE_CONVERGED = "refine_converged"  # 1 | 0
 ATTR_REFINE_COST_START = "refine_cost_start"  # objective sum_j (n/2) log |r_j|^2 at the start
 ATTR_REFINE_COST = "refine_cost"  # ... and at the optimum
 ATTR_REFINE_REMOVED_MODES = "refine_removed_modes"  # comma-separated labels of dropped modes
-FLAG_ADDED_BY_REFINE = "added_by_refine"  # quality flag of a mode refine added
 # Core dims of intermediate results (never in a returned Dataset)
 SLOT = "slot"  # per-FRF mode slots of the per_frf isolation
 FREQUENCY_OUT = "frequency_out"  # frequency as an output core dim (apply_ufunc needs a new name)

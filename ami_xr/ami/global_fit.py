@@ -16,10 +16,6 @@ from ami_xr.kernels import noise as kn
 from ami_xr.kernels import residues as kr
 
 RESIDUAL_KIND = {"receptance": 0, "mobility": 1, "accelerance": 2}
-FLAG_LOW_DRIVE_SNR = "low_drive_point_snr"
-FLAG_UNSCALED = "unscaled_no_drive_point"
-FLAG_NOT_CONVERGED = "not_converged"
-FLAG_SINGLE_FRF = "single_frf"
 
 
 def _band_mask(omega: np.ndarray, lam: np.ndarray, band) -> np.ndarray:
@@ -163,20 +159,20 @@ def global_fit(
     if drive_index is None:
         snr_drive = np.full(n_k, np.nan)
         for f in flags:
-            f.append(FLAG_UNSCALED)
+            f.append(names.FLAG_UNSCALED)
     else:
         snr_drive = peaks[drive_index] / sigma[drive_index]
         for m in range(n_k):
             if not snr_drive[m] >= drive_snr_min:
-                flags[m].append(FLAG_LOW_DRIVE_SNR)
+                flags[m].append(names.FLAG_LOW_DRIVE_SNR)
     if names.DETECTED in ds and names.ISO_CONVERGED in ds:
         det = np.asarray(ds[names.DETECTED].transpose(names.POINT, names.MODE).values, bool)
         conv = np.asarray(ds[names.ISO_CONVERGED].transpose(names.POINT).values, bool)
         for m in range(n_k):
             if np.any(det[:, m] & ~conv) or (not np.any(det[:, m]) and not np.all(conv)):
-                flags[m].append(FLAG_NOT_CONVERGED)
+                flags[m].append(names.FLAG_NOT_CONVERGED)
             if det[:, m].sum() == 1:
-                flags[m].append(FLAG_SINGLE_FRF)
+                flags[m].append(names.FLAG_SINGLE_FRF)
     out = c.drop_results(ds, (c.GLOBAL_VARS,))
     out = out.assign_coords({names.MODE_2: out[names.MODE].values})
     new = {
@@ -194,7 +190,10 @@ def global_fit(
         names.FRF_RESIDUAL: (frf - synth_da.transpose(*frf.dims)).assign_attrs(units=units),
         names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi)),
         names.DRIVE_POINT_SNR: ((names.MODE,), snr_drive),
-        names.QUALITY_FLAGS: ((names.MODE,), np.array([",".join(f) for f in flags], dtype=str)),
+        names.QUALITY_FLAGS: (
+            (names.MODE,),
+            np.array([names.FLAG_SEPARATOR.join(f) for f in flags], dtype=str),
+        ),
     }
     if kind >= 0:
         out = out.assign_coords({names.RESIDUAL_TERM: list(names.RESIDUAL_TERM_LABELS)})

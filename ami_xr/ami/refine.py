@@ -52,7 +52,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import common as c
-from ami_xr.ami.global_fit import FLAG_LOW_DRIVE_SNR, RESIDUAL_KIND
+from ami_xr.ami.global_fit import RESIDUAL_KIND
 from ami_xr.ami.settings import GlobalFitSettings, RefineSettings, from_attrs, parameters, to_attrs
 from ami_xr.core.modal import damping_ratio, mac_matrix, natural_frequency
 from ami_xr.core.model import resolve_model, resolve_residual_terms
@@ -67,7 +67,6 @@ from ami_xr.core.refine import (
 from ami_xr.errors import IdentificationError
 from ami_xr.provenance import add_history
 
-_FLAG_SEPARATOR = ","
 _LOWER_UPPER = list(names.RESIDUAL_TERM_LABELS)  # coordinate of the residual_term dim
 P, F, M = names.POINT, names.FREQUENCY, names.MODE
 # Outputs of refine_arrays: RefineResult field -> (core dims, dtype). The apply_ufunc call and the
@@ -469,18 +468,18 @@ def _merge_flags(ds, status, lam0, low_snr=None, added=None):
         old = [""] * n_mode
     new = []
     for k in range(n_mode):
-        flags = [f for f in old[k].split(_FLAG_SEPARATOR) if f]
+        flags = [f for f in old[k].split(names.FLAG_SEPARATOR) if f]
         if low_snr is not None:
-            flags = [f for f in flags if f != FLAG_LOW_DRIVE_SNR]
+            flags = [f for f in flags if f != names.FLAG_LOW_DRIVE_SNR]
             if low_snr[k]:
-                flags.insert(0, FLAG_LOW_DRIVE_SNR)
+                flags.insert(0, names.FLAG_LOW_DRIVE_SNR)
         if added is not None and added[k]:
             flags.append(names.FLAG_ADDED_BY_REFINE)
         if status[k] == STATUS_NOT_CONVERGED:
             flags.append(names.FLAG_REFINE_NOT_CONVERGED)
         elif status[k] == STATUS_FALLBACK:
             flags.append(names.FLAG_REFINE_FALLBACK)
-        new.append(_FLAG_SEPARATOR.join(flags))
+        new.append(names.FLAG_SEPARATOR.join(flags))
     return xr.DataArray(
         np.array(new, dtype=str), dims=(names.MODE,), coords={names.MODE: lam0[names.MODE].values}
     )
