@@ -45,8 +45,8 @@ from ami_xr.kernels.single_mode import (
     FitLimits,
     band_energy_drop,
     fit_single,
-    fit_two,
 )
+from ami_xr.kernels.two_mode import fit_two
 
 FREEZE_CHANGE = 1e-3
 """A mode's fit band is kept fixed once its eigenvalue changes less than this (relative)."""
@@ -167,7 +167,7 @@ def _isolate_sweeps(data, grid, params, modes, n, model):
                 continue
             ws = omega[peak] if omega[peak] > 0.0 else dw
             prev = complex(np.nan, np.nan)
-            new, r, code = fit_single(xn, x, lo, hi, ws, dt, n_samples, limits, prev)
+            new, r, code = fit_single(xn, grid, lo, hi, ws, limits, prev)
             if code != FIT_OK:
                 fails[k] += 1
                 continue
@@ -247,7 +247,7 @@ def _split_mode(data, model, grid, limits, modes, n, ks, masked, min_points):
     l2 = np.empty(2, dtype=np.complex128)
     r2 = np.empty((1, 2), dtype=np.complex128)
     ws = omega[(wl + wh) // 2]
-    code = fit_two(iso, x, wl, wh, ws, dt, n_samples, limits, np.ones(1), l2, r2)
+    code = fit_two(iso, grid, wl, wh, ws, limits, np.ones(1), l2, r2)
     if code != FIT_OK:
         return False
     lam[ks] = l2[0]
@@ -300,11 +300,11 @@ def _order_check(data, model, grid, params, modes, n, sigma, masked):
             continue
         y = data - model
         ws = omega[peak] if omega[peak] > 0.0 else dw
-        new, r, code = fit_single(y, x, lo, hi, ws, dt, n_samples, limits, complex(np.nan, np.nan))
+        new, r, code = fit_single(y, grid, lo, hi, ws, limits, complex(np.nan, np.nan))
         # no duplicate test here: a coherent residual next to a mode (two close modes fitted
         # as one) must be able to split it; true duplicates merge after the restart
         if code == FIT_OK:
-            drop = band_energy_drop(y, x, new, r, dt, n_samples, power, lo, hi, n_f)
+            drop = band_energy_drop(y, grid, new, r, power, lo, hi)
             if drop / sigma**2 < t:
                 code = FIT_NO_DROP
         if code != FIT_OK:
@@ -403,9 +403,7 @@ def _point_estimates(data, grid, lam, res, delta, min_points, zeta_max):
             if hi - lo < min_points:
                 continue
             ws = omega[peak] if omega[peak] > 0.0 else dw
-            new, r, code = fit_single(
-                xn, x, lo, hi, ws, dt, n_samples, limits, complex(np.nan, np.nan)
-            )
+            new, r, code = fit_single(xn, grid, lo, hi, ws, limits, complex(np.nan, np.nan))
             if code == FIT_OK:
                 out[j, kk] = new
     return out

@@ -44,7 +44,8 @@ from ami_xr.kernels.noise import (
     sum_threshold_kernel,
 )
 from ami_xr.kernels.residues import residues_fixed_kernel
-from ami_xr.kernels.single_mode import FIT_NO_DROP, FIT_OK, fit_single_simo, fit_two
+from ami_xr.kernels.single_mode import FIT_NO_DROP, FIT_OK, fit_single_simo
+from ami_xr.kernels.two_mode import fit_two
 
 
 class SimoWork(NamedTuple):
@@ -258,7 +259,7 @@ def _simo_sweeps(grid, params, modes, n, work, t1):
             for j in range(n_p):
                 work.wts[j] = work.wts_all[k, j] if reweight else 1.0
             new, code = fit_single_simo(
-                work.xn, x, lo, hi, ws, dt, n_samples, limits, prev, work.wts, work.rtmp
+                work.xn, grid, lo, hi, ws, limits, prev, work.wts, work.rtmp
             )
             if code != FIT_OK:
                 fails[k] += 1
@@ -390,7 +391,7 @@ def _simo_split(grid, params, modes, n, ks, work, masked, limits):
     l2 = np.empty(2, dtype=np.complex128)
     r2 = np.empty((n_p, 2), dtype=np.complex128)
     ws = omega[(wl + wh) // 2]
-    code = fit_two(iso, x, wl, wh, ws, dt, n_samples, limits, work.wts, l2, r2)
+    code = fit_two(iso, grid, wl, wh, ws, limits, work.wts, l2, r2)
     if code != FIT_OK:
         return False
     lam[ks] = l2[0]
@@ -438,9 +439,7 @@ def _simo_order_check(grid, params, modes, n, work, masked, tsum):
             continue
         ws = omega[peak] if omega[peak] > 0.0 else dw
         nan = complex(np.nan, np.nan)
-        new, code = fit_single_simo(
-            xn, x, lo, hi, ws, dt, n_samples, limits, nan, work.ones, work.rtmp
-        )
+        new, code = fit_single_simo(xn, grid, lo, hi, ws, limits, nan, work.ones, work.rtmp)
         # no duplicate test here: a coherent residual next to a mode (two close modes fitted
         # as one) must be able to split it; true duplicates merge after the restart
         if code == FIT_OK:

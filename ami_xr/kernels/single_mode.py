@@ -1,4 +1,4 @@
-"""Single-mode (per FRF and SIMO) and two-mode linear least squares of the AMI (eqs. 10-12).
+"""Single-mode linear least squares of the AMI (eqs. 10-12), per FRF and SIMO.
 
 Single-mode linear least squares in one variable ``v`` (both data models)
 -------------------------------------------------------------------------
@@ -24,10 +24,10 @@ the rows of the least-squares problem (the "equation error" of eqs. 11-12). The 
 the partial-fraction residue ``r = (e1 v1 + e0) / (v1 - v2)`` gives ``A = ws r`` (continuous) or
 ``A = p dt ws r / (dt (1 - exp(lam N dt)))`` (discrete).
 
-Jitted, unchecked helpers for the other kernel modules: ``fit_single``, ``fit_single_simo``,
-``fit_two``, ``band_energy_drop``. Checked wrappers: :func:`single_mode_rows`,
-:func:`fit_single_mode`, :func:`fit_single_mode_simo`, :func:`fit_two_modes`. A fit returns one
-of the ``FIT_*`` codes below.
+The two-mode analogue of (*) is in :mod:`.two_mode`. Jitted, unchecked helpers for the other
+kernel modules: ``fit_single``, ``fit_single_simo``, ``band_energy_drop``, ``v_at``. Checked
+wrappers: :func:`single_mode_rows`, :func:`fit_single_mode`, :func:`fit_single_mode_simo`. A fit
+returns one of the ``FIT_*`` codes below; ``FitLimits`` holds the limits a pole must meet.
 """
 
 from __future__ import annotations
@@ -39,8 +39,15 @@ import numpy as np
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
-from ami_xr.kernels.linalg import gauss_solve, solve_normal
-from ami_xr.kernels.modal_basis import add_mode, as_dt, checked_omega, line_variable, pole_factor
+from ami_xr.kernels.linalg import solve_normal
+from ami_xr.kernels.modal_basis import (
+    Grid,
+    add_mode,
+    as_dt,
+    checked_omega,
+    line_variable,
+    pole_factor,
+)
 
 FIT_OK = 0
 FIT_SINGULAR = 1
@@ -75,7 +82,8 @@ class FitLimits(NamedTuple):
 
 
 @jit
-def _v_at(xi, ws, dt):
+def v_at(xi, ws, dt):
+    """Jitted, unchecked: the variable ``v`` of (*) at line variable ``xi``."""
     if dt > 0.0:
         return (1.0 - xi) / (dt * ws)
     return xi / ws
@@ -90,23 +98,25 @@ def _v_of_pole(lam, ws, dt):
 
 
 @jit
-def _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, nss, nsl, nll, rs, rl):
+def _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, blocks):
     """Accumulate the normal equations of (*) on lines lo..hi-1 of one FRF.
 
     Unknowns: shared ``s = (c0, c1)``, local ``l = (e0, e1)``. Columns of (*) written as
     ``G v^2 = -c0 G - c1 G v + e0 + e1 v``; the data is divided by ``gscale``.
-    Blocks: ``nss`` (2x2), ``nsl`` (2x2), ``nll`` (2x2), right sides ``rs``, ``rl`` (2).
+    ``blocks = (nss, nsl, nll, rs, rl)``: ``nss``, ``nsl``, ``nll`` (2x2) and right sides ``rs``,
+    ``rl`` (2), accumulated in place.
     When ``prev`` (a previous pole estimate) is not NaN every line is divided by
     ``|D_prev(v)| = |(v - v1)(v - conj(v1))|`` (Sanathanan-Koerner / Steiglitz-McBride): at a
     fixed point the equation error becomes the output error ``G - N/D``, which removes the
     damping bias that noise in the regressor columns gives the plain eqs. 11-12.
     """
+    nss, nsl, nll, rs, rl = blocks
     cols = np.empty(4, dtype=np.complex128)
     use_w = not np.isnan(prev.real)
     pv = _v_of_pole(prev, ws, dt) if use_w else 0j
     for i in range(lo, hi):
         g = data[i] / gscale
-        v = _v_at(x[i], ws, dt)
+        v = v_at(x[i], ws, dt)
         wgt = 1.0
         if use_w:
             wgt = 1.0 / abs((v - pv) * (v - np.conj(pv)))
@@ -136,7 +146,7 @@ def _single_mode_rows(data, omega, ws, dt):
     rhs = np.empty(2 * n)
     for i in range(n):
         g = data[i]
-        v = _v_at(x[i], ws, dt)
+        v = v_at(x[i], ws, dt)
         c = (-g, -g * v, 1.0 + 0j, v)
         r = g * v * v
         for a in range(4):
@@ -188,8 +198,10 @@ def _residue_from(e0, e1, v1, v2, lam, ws, dt, n_samples, gscale):
 
 
 @jit
-def band_energy_drop(y, x, lam, res, dt, n_samples, power, lo, hi, n_f):
+def band_energy_drop(y, grid, lam, res, power, lo, hi):
     """Band energy ``sum power[lo:hi]`` minus that of ``y`` with the mode (lam, res) removed."""
+    x, dt, n_samples = grid.x, grid.dt, grid.n_samples
+    n_f = y.shape[0]
     trial = y.copy()
     add_mode(trial, x, lam, res, dt, n_samples, -1.0, 0, n_f)
     e0 = 0.0
@@ -201,8 +213,11 @@ def band_energy_drop(y, x, lam, res, dt, n_samples, power, lo, hi, n_f):
 
 
 @jit
-def fit_single(data, x, lo, hi, ws, dt, n_samples, limits, prev):
-    """Single-mode fit of one FRF on lines lo..hi-1: ``(lam, residue, code)``."""
+def fit_single(data, grid, lo, hi, ws, limits, prev):
+    """Single-mode fit of one FRF on lines lo..hi-1 with frequency scale ``ws``:
+    ``(lam, residue, code)``. ``prev``: a previous pole estimate (NaN: none) that weights the
+    rows by ``1 / |D_prev|``."""
+    x, dt, n_samples = grid.x, grid.dt, grid.n_samples
     nss = np.zeros((2, 2))
     nsl = np.zeros((2, 2))
     nll = np.zeros((2, 2))
@@ -214,7 +229,7 @@ def fit_single(data, x, lo, hi, ws, dt, n_samples, limits, prev):
     nanc = complex(np.nan, np.nan)
     if gscale == 0.0 or hi - lo < 2:
         return nanc, nanc, FIT_SINGULAR
-    _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, nss, nsl, nll, rs, rl)
+    _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, (nss, nsl, nll, rs, rl))
     nmat = np.empty((4, 4))
     rhs = np.empty((4, 1))
     for a in range(2):
@@ -236,13 +251,14 @@ def fit_single(data, x, lo, hi, ws, dt, n_samples, limits, prev):
 
 
 @jit
-def fit_single_simo(data, x, lo, hi, ws, dt, n_samples, limits, prev, wts, res_out):
+def fit_single_simo(data, grid, lo, hi, ws, limits, prev, wts, res_out):
     """Global SIMO single-mode fit: one eigenvalue from all FRFs (rows of ``data``, already
     divided by each FRF's noise floor), one residue per FRF written to ``res_out``.
 
     The per-FRF unknowns ``(e0, e1)`` are eliminated by their 2x2 Schur complements, so the cost
     is linear in the number of FRFs. Returns ``(lam, code)``.
     """
+    x, dt, n_samples = grid.x, grid.dt, grid.n_samples
     n_p = data.shape[0]
     red = np.zeros((2, 2))
     redr = np.zeros((2, 1))
@@ -265,7 +281,7 @@ def fit_single_simo(data, x, lo, hi, ws, dt, n_samples, limits, prev, wts, res_o
         rs[:] = 0.0
         rl[:] = 0.0
         # FRF weight wts[j]: rows scaled by it (1 / wts[j] as the data scale)
-        _single_mode_blocks(data[j], x, lo, hi, ws, dt, 1.0 / wts[j], prev, nss, nsl, nll, rs, rl)
+        _single_mode_blocks(data[j], x, lo, hi, ws, dt, 1.0 / wts[j], prev, (nss, nsl, nll, rs, rl))
         det = nll[0, 0] * nll[1, 1] - nll[0, 1] * nll[1, 0]
         if det == 0.0:
             return nanc, FIT_SINGULAR
@@ -306,126 +322,8 @@ def fit_single_simo(data, x, lo, hi, ws, dt, n_samples, limits, prev, wts, res_o
     return lam, FIT_OK
 
 
-@jit
-def fit_two(data, x, lo, hi, ws, dt, n_samples, limits, wts, lam_out, res_out):
-    """Two-mode linear least squares (order-4 analogue of (*)), SIMO over the rows of ``data``:
-    ``G (v^4 + c3 v^3 + c2 v^2 + c1 v + c0) = e3 v^3 + e2 v^2 + e1 v + e0`` with shared ``c`` and
-    per-FRF ``e`` (eliminated by Schur complements). Used by the model-order check to split a
-    band that holds two close modes fitted as one. Writes ``lam_out`` (2,), ``res_out`` (P, 2);
-    returns a FIT_* code."""
-    n_p = data.shape[0]
-    m = 4
-    nll = np.zeros((m, m))
-    red = np.zeros((m, m))
-    redr = np.zeros((m, 1))
-    nsl_all = np.zeros((n_p, m, m))
-    rl_all = np.zeros((n_p, m))
-    vp = np.empty(m + 1, dtype=np.complex128)
-    for i in range(lo, hi):
-        v = _v_at(x[i], ws, dt)
-        vp[0] = 1.0
-        for a in range(1, m + 1):
-            vp[a] = vp[a - 1] * v
-        for a in range(m):
-            for b in range(m):
-                nll[a, b] += (np.conj(vp[a]) * vp[b]).real
-    nll_inv, ok = gauss_solve(nll, np.eye(m))
-    if not ok:
-        return FIT_SINGULAR
-    for j in range(n_p):
-        nss = np.zeros((m, m))
-        nsl = np.zeros((m, m))
-        rs = np.zeros(m)
-        rl = np.zeros(m)
-        for i in range(lo, hi):
-            g = data[j, i] * wts[j]
-            v = _v_at(x[i], ws, dt)
-            vp[0] = 1.0
-            for a in range(1, m + 1):
-                vp[a] = vp[a - 1] * v
-            rhs = g * vp[m]
-            for a in range(m):
-                ca = np.conj(-g * vp[a])
-                for b in range(m):
-                    nss[a, b] += (ca * (-g * vp[b])).real
-                    nsl[a, b] += (ca * vp[b]).real
-                rs[a] += (ca * rhs).real
-                rl[a] += (np.conj(vp[a]) * rhs).real
-        t = nsl @ nll_inv
-        tn = t @ nsl.T
-        for a in range(m):
-            for b in range(m):
-                red[a, b] += nss[a, b] - tn[a, b]
-            acc = 0.0
-            for b in range(m):
-                acc += t[a, b] * rl[b]
-            redr[a, 0] += rs[a] - acc
-        nsl_all[j] = nsl
-        rl_all[j] = rl
-    sol, ok = solve_normal(red, redr)
-    if not ok:
-        return FIT_SINGULAR
-    coef = np.empty(m + 1, dtype=np.complex128)
-    coef[0] = 1.0
-    for a in range(m):
-        coef[m - a] = sol[a, 0]
-    roots = np.roots(coef)
-    # poles: roots whose eigenvalue lies in the upper half plane
-    cnt = 0
-    vsel = np.empty(2, dtype=np.complex128)
-    for r in range(m):
-        vr = roots[r]
-        if dt > 0.0:
-            q = 1.0 - dt * ws * vr
-            if abs(q) == 0.0:
-                return FIT_UNSTABLE
-            lam = np.log(1.0 / q) / dt
-        else:
-            lam = ws * vr
-        if lam.imag > 0.0:
-            if cnt >= 2:
-                return FIT_NOT_OSCILLATORY
-            if not (lam.real < 0.0):
-                return FIT_UNSTABLE
-            wn = abs(lam)
-            if -lam.real / wn > limits.zeta_max:
-                return FIT_DAMPING
-            if wn < limits.w_lo or wn > limits.w_hi:
-                return FIT_OUT_OF_RANGE
-            lam_out[cnt] = lam
-            vsel[cnt] = vr
-            cnt += 1
-    if cnt != 2:
-        return FIT_NOT_OSCILLATORY
-    for j in range(n_p):
-        b = np.empty((m, 1))
-        for a in range(m):
-            acc = rl_all[j, a]
-            for c in range(m):
-                acc -= nsl_all[j, c, a] * sol[c, 0]
-            b[a, 0] = acc
-        e = nll_inv @ b
-        for kk in range(2):
-            vr = vsel[kk]
-            num = 0j
-            vpow = 1.0 + 0j
-            for a in range(m):
-                num += e[a, 0] * vpow
-                vpow *= vr
-            den = 1.0 + 0j
-            for r in range(m):
-                if roots[r] != vr:
-                    den *= vr - roots[r]
-            rr = num / den / wts[j]
-            if dt > 0.0:
-                p, sc = pole_factor(lam_out[kk], dt, n_samples)
-                res_out[j, kk] = p * dt * ws * rr / sc
-            else:
-                res_out[j, kk] = ws * rr
-    return FIT_OK
-
-
-def _check_frf(data: np.ndarray, omega: np.ndarray, name: str = "data") -> np.ndarray:
+def check_frf(data: np.ndarray, omega: np.ndarray, name: str = "data") -> np.ndarray:
+    """``data`` as contiguous complex128, checked to have ``omega.size`` lines last."""
     data = np.ascontiguousarray(data, dtype=np.complex128)
     if data.shape[-1:] != omega.shape:
         raise AmiXrValueError(
@@ -434,7 +332,8 @@ def _check_frf(data: np.ndarray, omega: np.ndarray, name: str = "data") -> np.nd
     return data
 
 
-def _check_zeta_max(zeta_max: float) -> float:
+def check_zeta_max(zeta_max: float) -> float:
+    """``zeta_max`` as a float, checked positive."""
     zeta_max = float(zeta_max)
     if not zeta_max > 0.0:
         raise AmiXrValueError(f"zeta_max: expected a positive damping ratio, got {zeta_max!r}")
@@ -468,7 +367,7 @@ def single_mode_rows(
     rhs : ndarray of float, shape (2F,)
     """
     omega = checked_omega(omega)
-    data = _check_frf(data, omega)
+    data = check_frf(data, omega)
     if data.ndim != 1:
         raise AmiXrValueError(f"data: expected one FRF of shape {omega.shape}, got {data.shape}")
     if not float(scale) > 0.0:
@@ -507,16 +406,14 @@ def fit_single_mode(
         ``FIT_OK`` (0) for a physical fit, else a ``FIT_*`` rejection code.
     """
     omega = checked_omega(omega)
-    data = _check_frf(data, omega)
+    data = check_frf(data, omega)
     if data.ndim != 1:
         raise AmiXrValueError(f"data: expected one FRF of shape {omega.shape}, got {data.shape}")
     dt = as_dt(dt)
-    x = line_variable(omega, dt)
+    grid = Grid(omega, line_variable(omega, dt), dt, int(n_samples or 0))
     ws = float(np.mean(omega)) or 1.0
-    limits = FitLimits(_check_zeta_max(zeta_max), 0.0, np.inf)
-    return fit_single(
-        data, x, 0, omega.size, ws, dt, int(n_samples or 0), limits, _check_prev(prev)
-    )
+    limits = FitLimits(check_zeta_max(zeta_max), 0.0, np.inf)
+    return fit_single(data, grid, 0, omega.size, ws, limits, _check_prev(prev))
 
 
 def fit_single_mode_simo(
@@ -539,84 +436,16 @@ def fit_single_mode_simo(
     code : int
     """
     omega = checked_omega(omega)
-    data = _check_frf(np.atleast_2d(data), omega)
+    data = check_frf(np.atleast_2d(data), omega)
     if data.ndim != 2:
         raise AmiXrValueError(f"data: expected shape (P, {omega.size}), got {data.shape}")
     dt = as_dt(dt)
     x = line_variable(omega, dt)
     res = np.full(data.shape[0], complex(np.nan, np.nan))
     ws = float(np.mean(omega)) or 1.0
-    limits = FitLimits(_check_zeta_max(zeta_max), 0.0, np.inf)
+    limits = FitLimits(check_zeta_max(zeta_max), 0.0, np.inf)
+    grid = Grid(omega, x, dt, int(n_samples or 0))
     lam, code = fit_single_simo(
-        data,
-        x,
-        0,
-        omega.size,
-        ws,
-        dt,
-        int(n_samples or 0),
-        limits,
-        _check_prev(prev),
-        np.ones(data.shape[0]),
-        res,
+        data, grid, 0, omega.size, ws, limits, _check_prev(prev), np.ones(data.shape[0]), res
     )
-    return lam, res, code
-
-
-def fit_two_modes(
-    data: np.ndarray,
-    omega: np.ndarray,
-    dt: float | None = None,
-    n_samples: int | None = None,
-    *,
-    scale: float | None = None,
-    zeta_max: float = 1.0,
-    w_lo: float = 0.0,
-    w_hi: float = np.inf,
-    weights: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """Two-mode linear least squares, SIMO over the rows of ``data`` (the model-order check's
-    split of a band that holds two close modes fitted as one).
-
-    Parameters
-    ----------
-    data : ndarray of complex, shape (P, F)
-        FRFs on the fit band.
-    omega : ndarray of float, shape (F,)
-        Angular frequencies in rad/s, strictly increasing.
-    dt, n_samples : optional
-        Discrete model; None for the continuous one.
-    scale : float, optional
-        Frequency scale ``ws``; default the band centre ``omega[F // 2]``.
-    zeta_max, w_lo, w_hi : float
-        Limits of :class:`FitLimits`.
-    weights : ndarray of float, shape (P,), optional
-        Row weights (default 1).
-
-    Returns
-    -------
-    lam : ndarray of complex, shape (2,)
-    residues : ndarray of complex, shape (P, 2)
-    code : int
-        ``FIT_OK`` (0) when both poles are physical, else a ``FIT_*`` rejection code.
-    """
-    omega = checked_omega(omega)
-    data = _check_frf(np.atleast_2d(data), omega)
-    if data.ndim != 2:
-        raise AmiXrValueError(f"data: expected shape (P, {omega.size}), got {data.shape}")
-    if omega.size < 5:
-        raise AmiXrValueError(f"omega: the two-mode fit needs >= 5 lines, got {omega.size}")
-    n_p = data.shape[0]
-    wts = np.ones(n_p) if weights is None else np.ascontiguousarray(weights, dtype=np.float64)
-    if wts.shape != (n_p,) or not np.all(wts > 0):
-        raise AmiXrValueError(f"weights: expected {n_p} positive weights, got {wts!r}")
-    ws = float(omega[omega.size // 2]) if scale is None else float(scale)
-    if not ws > 0.0:
-        raise AmiXrValueError(f"scale: expected a positive frequency scale, got {scale!r}")
-    dt = as_dt(dt)
-    x = line_variable(omega, dt)
-    limits = FitLimits(_check_zeta_max(zeta_max), float(w_lo), float(w_hi))
-    lam = np.full(2, complex(np.nan, np.nan))
-    res = np.full((n_p, 2), complex(np.nan, np.nan))
-    code = fit_two(data, x, 0, omega.size, ws, dt, int(n_samples or 0), limits, wts, lam, res)
     return lam, res, code

@@ -102,16 +102,14 @@ def _subtract_one(data, grid, params, lam_out, res_out, lo_out, hi_out):
                 masked[i] = True
             continue
         ws = omega[peak] if omega[peak] > 0.0 else dw
-        lam, res, code = fit_single(
-            y, x, lo, hi, ws, dt, n_samples, limits, complex(np.nan, np.nan)
-        )
+        lam, res, code = fit_single(y, grid, lo, hi, ws, limits, complex(np.nan, np.nan))
         if code == FIT_OK:
             # natural frequency must lie near the band; the band energy must drop significantly
             bw = abs(lam.real)
             if lam.imag < omega[lo] - 2.0 * bw - dw or lam.imag > omega[hi - 1] + 2.0 * bw + dw:
                 code = FIT_OUT_OF_RANGE
             else:
-                drop = band_energy_drop(y, x, lam, res, dt, n_samples, power, lo, hi, n_f)
+                drop = band_energy_drop(y, grid, lam, res, power, lo, hi)
                 if drop / sigma**2 < t:
                     code = FIT_NO_DROP
         if code != FIT_OK:
