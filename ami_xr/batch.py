@@ -371,6 +371,36 @@ def _run_jobs(jobs: list[dict], workers: int, stop: _GracefulInterrupt) -> Itera
         pool.shutdown(wait=True, cancel_futures=True)
 
 
+def _plan(
+    inputs: list[Path], input_dir: Path, output_dir: Path, shared: dict[str, Any], force: bool
+) -> tuple[dict[str, dict], list[dict]]:
+    """Summary rows keyed by relative input path (final for name collisions and up-to-date
+    files, empty for the others) and one job per file to process (``shared`` plus its paths)."""
+    rows: dict[str, dict] = {}
+    jobs, claimed = [], {}
+    for inp in inputs:
+        out = output_path(inp, input_dir, output_dir)
+        rel = inp.relative_to(input_dir).as_posix()
+        out_rel = out.relative_to(output_dir).as_posix()
+        if out in claimed:
+            rows[rel] = _row(
+                rel,
+                out_rel,
+                STATUS_FAILED,
+                f"output name collides with that of {claimed[out]}; rename one of the files",
+            )
+            continue
+        claimed[out] = rel
+        if not force and _up_to_date(inp, out, shared["params_sha"]):
+            count, freqs = _modal_summary_from_file(out)
+            rows[rel] = _row(rel, out_rel, STATUS_UP_TO_DATE, modes=count, frequencies_hz=freqs)
+            continue
+        rows[rel] = {}
+        paths = {"input": str(inp), "output": str(out), "rel": rel, "out_rel": out_rel}
+        jobs.append({**paths, **shared})
+    return rows, jobs
+
+
 def batch(
     input_dir: str | os.PathLike,
     output_dir: str | os.PathLike,
@@ -443,40 +473,15 @@ def batch(
     params_sha = _parameters_hash(parameters)
     inputs = find_inputs(input_dir, exclude=[output_dir])
 
-    rows: dict[str, dict] = {}
-    jobs, claimed = [], {}
-    for inp in inputs:
-        out = output_path(inp, input_dir, output_dir)
-        rel = inp.relative_to(input_dir).as_posix()
-        out_rel = out.relative_to(output_dir).as_posix()
-        if out in claimed:
-            rows[rel] = _row(
-                rel,
-                out_rel,
-                STATUS_FAILED,
-                f"output name collides with that of {claimed[out]}; rename one of the files",
-            )
-            continue
-        claimed[out] = rel
-        if not force and _up_to_date(inp, out, params_sha):
-            count, freqs = _modal_summary_from_file(out)
-            rows[rel] = _row(rel, out_rel, STATUS_UP_TO_DATE, modes=count, frequencies_hz=freqs)
-            continue
-        rows[rel] = {}
-        jobs.append(
-            {
-                "input": str(inp),
-                "output": str(out),
-                "rel": rel,
-                "out_rel": out_rel,
-                "identify_options": identify_options or {},
-                "frf_options": frf_options or {},
-                "parameters": parameters,
-                "params_sha": params_sha,
-                "report": report,
-                "traceback": keep_tracebacks,
-            }
-        )
+    shared = {
+        "identify_options": identify_options or {},
+        "frf_options": frf_options or {},
+        "parameters": parameters,
+        "params_sha": params_sha,
+        "report": report,
+        "traceback": keep_tracebacks,
+    }
+    rows, jobs = _plan(inputs, input_dir, output_dir, shared, force)
 
     summary = BatchSummary(csv_path=output_dir / SUMMARY_NAME)
     stop = _GracefulInterrupt()

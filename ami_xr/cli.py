@@ -73,6 +73,13 @@ def _add_output(
     p.add_argument("-o", "--output", required=required, default=default, metavar="PATH", help=what)
 
 
+def _wrote_frfs(g, path) -> str:
+    from ami_xr import names
+
+    size = g.sizes
+    return f"wrote FRFs ({size[names.POINT]} points x {size[names.FREQUENCY]} lines) to {path}"
+
+
 # --- subcommands ---------------------------------------------------------------------------------
 def _cmd_demo(args: argparse.Namespace) -> int:
     from ami_xr.demo import demo
@@ -113,7 +120,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         ts, (g, truth) = None, ami_xr.simulate.random_system(**kwargs)
     params = {"system": args.system, **kwargs}
     ami_xr.to_netcdf(g, args.output, function=function, parameters=params)
-    _say(f"wrote FRFs ({g.sizes['point']} points x {g.sizes['frequency']} lines) to {args.output}")
+    _say(_wrote_frfs(g, args.output))
     for data, path, what in (
         (ts, args.time_output, "impulse responses"),
         (truth, args.truth_output, "exact modal parameters"),
@@ -126,22 +133,22 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 def _cmd_frf(args: argparse.Namespace) -> int:
     import ami_xr
+    from ami_xr import names
     from ami_xr.batch import estimate_frf
     from ami_xr.io.formats import read_any
 
     options = frf_options(args)
     g = estimate_frf(read_any(args.input), options)
-    if "hit_rejected" in g:  # impact test: say which hits were left out and why
-        rejected = g["hit_rejected"].values.astype(bool)
-        reasons = (
-            g["hit_reject_reason"].values if "hit_reject_reason" in g else [""] * rejected.size
-        )
+    if names.HIT_REJECTED in g:  # impact test: say which hits were left out and why
+        rejected = g[names.HIT_REJECTED].values.astype(bool)
+        reason = names.HIT_REJECT_REASON
+        reasons = g[reason].values if reason in g else [""] * rejected.size
         _say(f"hits: {rejected.size}, used {int((~rejected).sum())}")
         for i in range(rejected.size):
             if rejected[i]:
                 _say(f"  hit {i} rejected: {reasons[i]}")
     ami_xr.to_netcdf(g, args.output, function="ami_xr.frf", parameters=options)
-    _say(f"wrote FRFs ({g.sizes['point']} points x {g.sizes['frequency']} lines) to {args.output}")
+    _say(_wrote_frfs(g, args.output))
     return EXIT_OK
 
 

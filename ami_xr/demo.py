@@ -170,12 +170,12 @@ def demo(
     outdir = Path(output_dir)
     truth = ami_xr.simulate.benchmark_model()
     g = _benchmark_frf(simulate, noise, seed)
-    _say(
-        f"  {g.sizes['point']} points {list(map(str, g['point'].values))} x "
-        f"{g.sizes['frequency']} lines, 0-{float(g['frequency'][-1]):.4g} Hz, drive point "
-        f"{g.attrs.get('drive_point')}\n"
-    )
     n = g.sizes.get(names.POINT, 0)
+    _say(
+        f"  {n} points {list(map(str, g[names.POINT].values))} x "
+        f"{g.sizes[names.FREQUENCY]} lines, 0-{float(g[names.FREQUENCY][-1]):.4g} Hz, drive point "
+        f"{g.attrs.get(names.ATTR_DRIVE_POINT)}\n"
+    )
     with elapsed(f"identify: {n} FRFs", n, enabled=progress):
         result = ami_xr.identify(g, **options)
     _say(format_modal_table(result))
