@@ -7,13 +7,14 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.ami import common as c
 from ami_xr.ami.global_fit import global_fit
+from ami_xr.ami.isolate import METHODS as ISOLATE_METHODS
 from ami_xr.ami.isolate import isolate
 from ami_xr.ami.settings import GlobalFitSettings, IsolateSettings, SubtractSettings
 from ami_xr.ami.subtract import subtract
 from ami_xr.core.modal import damping_ratio, mode_vectors, natural_frequency
 from ami_xr.errors import IdentificationError
 
-METHODS = ("simo", "per_frf", "paper")
+METHODS = (*ISOLATE_METHODS, names.METHOD_PAPER)
 
 
 def _refine_function():
@@ -27,7 +28,7 @@ def _refine_function():
 def identify(
     ds: xr.Dataset,
     *,
-    method: str = "simo",
+    method: str = IsolateSettings.method,
     refine: bool | None = None,
     delta: float = SubtractSettings.delta,
     tol: float = IsolateSettings.tol,
@@ -69,7 +70,7 @@ def identify(
     c.check_choice(method, "method", METHODS)
     if refine is not None and not isinstance(refine, bool):
         raise IdentificationError(f"refine: expected True, False or None, got {refine!r}")
-    paper = method == "paper"
+    paper = method == names.METHOD_PAPER
     fn = None
     if refine or (refine is None and not paper):
         fn = _refine_function()
@@ -81,8 +82,8 @@ def identify(
         out,
         tol,
         max_iter,
-        method="per_frf" if paper else method,
-        weighting="mean" if paper else "snr",
+        method=names.METHOD_PER_FRF if paper else method,
+        weighting=names.WEIGHTING_MEAN if paper else IsolateSettings.weighting,
     )
     if out.sizes.get(names.MODE, 0) == 0:
         result = out

@@ -19,8 +19,8 @@ from ami_xr.kernels import isolate_simo as kis
 from ami_xr.kernels import modal_basis as kb
 from ami_xr.kernels import noise as kn
 
-METHODS = ("simo", "per_frf")
-WEIGHTINGS = ("snr", "mean")
+METHODS = (names.METHOD_SIMO, names.METHOD_PER_FRF)
+WEIGHTINGS = (names.WEIGHTING_SNR, names.WEIGHTING_MEAN)
 
 
 def _isolate_block(
@@ -172,7 +172,11 @@ def _isolate_per_frf(ds, omega, data_model, sub, settings, sigma) -> _Isolated:
     n_modes = n_labels(label)
     point_lam = gather(lam_p, label, n_modes)
     point_snr = gather(snr_p + 0j, label, n_modes).real
-    weight = np.ones_like(point_snr) if weighting == "mean" else np.nan_to_num(point_snr) ** 2
+    weight = (
+        np.ones_like(point_snr)
+        if weighting == names.WEIGHTING_MEAN
+        else np.nan_to_num(point_snr) ** 2
+    )
     eig, spread = weighted_average(point_lam, weight)
     detected = np.isfinite(point_lam)
     iterations = np.asarray(iters, dtype=np.int64)
@@ -317,7 +321,7 @@ def isolate(
     points = ds[names.POINT].values
     sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, dtype=float)
 
-    isolate_modes = _isolate_per_frf if method == "per_frf" else _isolate_simo_modes
+    isolate_modes = _isolate_per_frf if method == names.METHOD_PER_FRF else _isolate_simo_modes
     res = isolate_modes(ds, omega, data_model, sub, settings, sigma)
 
     out = _with_modes(ds, res)

@@ -47,8 +47,8 @@ class IsolateSettings:
 
     tol: float = _attr(1e-4, names.ATTR_AMI_TOL)
     max_iter: int = 100
-    method: str = _attr("simo", names.ATTR_AMI_METHOD)
-    weighting: str = _attr("snr", names.ATTR_AMI_WEIGHTING)
+    method: str = _attr(names.METHOD_SIMO, names.ATTR_AMI_METHOD)
+    weighting: str = _attr(names.WEIGHTING_SNR, names.ATTR_AMI_WEIGHTING)
     match_tol: float = 0.5
     snr_weighting: bool = True
 

@@ -17,7 +17,8 @@ from ami_xr.core import varpro
 from ami_xr.core.matching import match_by_distance
 from ami_xr.core.modal import modal_std, mode_vectors
 from ami_xr.core.model import RESIDUAL_TERMS
-from ami_xr.kernels.refine import model_columns, project_points
+from ami_xr.kernels.modal_basis import model_columns
+from ami_xr.kernels.projection import project_points
 
 # status of each refined mode
 STATUS_OK, STATUS_NOT_CONVERGED, STATUS_FALLBACK = 0, 1, 2
@@ -399,7 +400,7 @@ def synthesize(
 
     ``mu`` (K,) are the data's poles (eigenvalues minus any window decay), ``residue`` (P, K),
     ``residual_coefficient`` (P, 2) as in :class:`RefineResult`. The columns are those of
-    :func:`ami_xr.kernels.refine.model_columns` (the residue of mode ``k`` multiplies columns
+    :func:`ami_xr.kernels.modal_basis.model_columns` (the residue of mode ``k`` multiplies columns
     ``2k`` and ``2k + 1``).
     """
     cols, _ = model_columns(omega, mu, dt, n_samples, residual_terms, residual_kind)

@@ -16,13 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ami_xr.kernels.refine import (
-    gram,
-    matmul_small,
-    model_columns,
-    normal_equations,
-    project_points,
-)
+from ami_xr.kernels.modal_basis import model_columns
+from ami_xr.kernels.projection import gram, matmul_small, normal_equations, project_points
 
 # |r_j|^2 is floored at (RSS_FLOOR |y_j|)^2 so that noise-free data (residual at rounding
 # level) keep a finite objective.
