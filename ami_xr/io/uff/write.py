@@ -176,7 +176,7 @@ def _time_records(ds: xr.Dataset, binary: bool) -> list[dict]:
 
 def _mode_records(ds: xr.Dataset) -> list[dict]:
     """One dataset 55 (complex eigenvalue, first order, displacement) per mode."""
-    pyuff = require_pyuff()
+    require_pyuff()  # the clear "install the uff extra" error before any work
     labels = list(ds[names.POINT].values.tolist())
     dof = dof_map(labels)
     nodes = sorted({dof[lab][0] for lab in labels})
@@ -196,27 +196,30 @@ def _mode_records(ds: xr.Dataset) -> list[dict]:
             comps[axis - 1, nodes.index(node)] = sign * vectors[i, k]
         mode_n = int(modes[k]) if np.issubdtype(np.asarray(modes).dtype, np.integer) else k + 1
         kwargs = {f"r{c + 1}": comps[c] for c in range(ncomp)}
+        # The record dict that pyuff.prepare_55 builds, written out: prepare_55 of pyuff 2.5.3
+        # (what pip installs on Python 3.10) rejects complex mode shapes.
         records.append(
-            pyuff.prepare_55(
-                id1="ami_xr mode shapes",
-                id2="NONE",
-                id3="NONE",
-                id4="NONE",
-                id5="NONE",
-                model_type=1,
-                analysis_type=3,
-                data_ch=3 if rotational else 2,
-                spec_data_type=8,
-                data_type=5,
-                n_data_per_node=ncomp,
-                load_case=1,
-                mode_n=mode_n,
-                eig=complex(eig[k]),
-                modal_a=0j,
-                modal_b=0j,
-                node_nums=np.asarray(nodes),
+            {
+                "type": 55,
+                "id1": "ami_xr mode shapes",
+                "id2": "NONE",
+                "id3": "NONE",
+                "id4": "NONE",
+                "id5": "NONE",
+                "model_type": 1,
+                "analysis_type": 3,
+                "data_ch": 3 if rotational else 2,
+                "spec_data_type": 8,
+                "data_type": 5,
+                "n_data_per_node": ncomp,
+                "load_case": 1,
+                "mode_n": mode_n,
+                "eig": complex(eig[k]),
+                "modal_a": 0j,
+                "modal_b": 0j,
+                "node_nums": np.asarray(nodes),
                 **kwargs,
-            )
+            }
         )
     return records
 
