@@ -41,11 +41,11 @@ _PUBLIC: dict[str, str] = {
     "read_uff": "ami_xr.io.uff",
     "write_uff": "ami_xr.io.uff",
     # signal processing: time histories to FRFs
-    "apply_window": "ami_xr.dsp",
-    "impulse_to_frf": "ami_xr.dsp",
-    "frf": "ami_xr.dsp",
-    "impact_frf": "ami_xr.dsp",
-    "convert_quantity": "ami_xr.dsp",
+    "apply_window": "ami_xr.dsp.windows",
+    "impulse_to_frf": "ami_xr.dsp.impulse",
+    "frf": "ami_xr.dsp.frf",
+    "impact_frf": "ami_xr.dsp.frf",
+    "convert_quantity": "ami_xr.dsp.quantity",
     # campaigns, figures and reports
     "batch": "ami_xr.batch",
     "plot_bode": "ami_xr.plot",

@@ -1,18 +1,15 @@
-"""Labeled signal processing on time Datasets: windows, impulse responses to FRFs, FRF estimation
-from force and response histories (random and impact excitation), quantity conversion."""
+"""Labeled signal processing on time Datasets (the public functions are re-exported by ami_xr).
 
-from ami_xr.dsp.frf import frf, frf_from_options, impact_frf
-from ami_xr.dsp.hits import check_hits
-from ami_xr.dsp.impulse import impulse_to_frf
-from ami_xr.dsp.quantity import convert_quantity
-from ami_xr.dsp.windows import apply_window
+* :mod:`~ami_xr.dsp.windows` -- ``apply_window`` (force, exponential, hann, ... on time data).
+* :mod:`~ami_xr.dsp.impulse` -- ``impulse_to_frf``: sampled impulse responses to FRFs.
+* :mod:`~ami_xr.dsp.frf` -- ``frf`` (random excitation, Welch) and ``impact_frf`` (hammer hits),
+  one shared estimator; ``frf_from_options`` picks one by an ``excitation`` option.
+* :mod:`~ami_xr.dsp.hits` -- ``check_hits``: overload, double impact and weak force per hit.
+* :mod:`~ami_xr.dsp.spectral` -- the streaming Welch engine and array-level ``csd``, ``welch``,
+  ``coherence`` (scipy.signal's parameters).
+* :mod:`~ami_xr.dsp.timeseries` -- checks of the time Datasets FRF estimation reads.
+* :mod:`~ami_xr.dsp.quantity` -- ``convert_quantity``: receptance, mobility, accelerance.
 
-__all__ = [
-    "apply_window",
-    "check_hits",
-    "convert_quantity",
-    "frf",
-    "frf_from_options",
-    "impact_frf",
-    "impulse_to_frf",
-]
+Nothing is imported here, so ``ami_xr.dsp.frf`` is always the module (``ami_xr.frf`` the
+function).
+"""
