@@ -40,12 +40,15 @@ class _Method:
         if accessor is None:  # class attribute: the function itself, for help() and docs
             return func
         ds = accessor._ds
+        sig = inspect.signature(func)
+        params = list(sig.parameters.values())[1:]  # without ds
         if not self.writes:
 
             @functools.wraps(func)
             def method(*args: Any, **kwargs: Any) -> Any:
                 return func(ds, *args, **kwargs)
 
+            method.__signature__ = sig.replace(parameters=params)
             return method
 
         @functools.wraps(func)
@@ -57,8 +60,6 @@ class _Method:
                 _public("to_netcdf")(out, path)
             return out
 
-        sig = inspect.signature(func)
-        params = list(sig.parameters.values())[1:]  # without ds
         params.append(inspect.Parameter("path", inspect.Parameter.KEYWORD_ONLY, default=None))
         method_writing.__signature__ = sig.replace(parameters=params)
         method_writing.__doc__ = (func.__doc__ or "") + (
@@ -81,6 +82,7 @@ class AmiAccessor:
     write_uff = _Method()
     # signal processing
     frf = _Method()
+    impact_frf = _Method()
     convert_quantity = _Method()
     apply_window = _Method()
     impulse_to_frf = _Method()
