@@ -361,8 +361,7 @@ def test_identify_refines_by_default():
 # ------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("dt,n", [(None, None), (60.0 / 4096, 4096), (0.01, None)])
 def test_basis_and_derivative_against_reference(dt, n):
-    from ami_xr.kernels.basis import pole_basis
-    from ami_xr.kernels.refine import basis_and_derivative
+    from ami_xr.kernels.modal_basis import basis_and_derivative, pole_basis
 
     omega = np.linspace(0.0, 200.0, 301)
     lam = np.array([-0.4 + 65.0j, -2.0 - 30.0j])
@@ -375,7 +374,7 @@ def test_basis_and_derivative_against_reference(dt, n):
 
 
 def test_normal_equations_against_dense():
-    from ami_xr.kernels.refine import normal_equations
+    from ami_xr.kernels.projection import normal_equations
 
     rng = np.random.default_rng(0)
     n_point, n_mode = 5, 3
@@ -400,7 +399,7 @@ def test_normal_equations_against_dense():
 
 @pytest.mark.parametrize("n_point", [3, 700])  # serial and parallel paths
 def test_projection_kernels_against_numpy(n_point):
-    from ami_xr.kernels.refine import gram, matmul_small, project_points
+    from ami_xr.kernels.projection import gram, matmul_small, project_points
 
     rng = np.random.default_rng(1)
     a = rng.standard_normal((4098, 6))
@@ -415,6 +414,24 @@ def test_projection_kernels_against_numpy(n_point):
     np.testing.assert_allclose(gram(a), a.T @ a, rtol=1e-12)
     b = rng.standard_normal((6, 6))
     np.testing.assert_allclose(matmul_small(a, b), a @ b, rtol=1e-12, atol=1e-12)
+
+
+def test_projection_wrappers_validate():
+    from ami_xr.errors import AmiXrValueError
+    from ami_xr.kernels import refine as old_path
+    from ami_xr.kernels.modal_basis import model_columns
+    from ami_xr.kernels.projection import matmul_small, normal_equations, project_points
+
+    with pytest.raises(AmiXrValueError, match="coef"):
+        normal_equations(np.ones((2, 3)), np.ones(2), np.eye(4), np.ones((2, 4)), 2)
+    with pytest.raises(AmiXrValueError, match="q, v"):
+        project_points(np.ones((2, 5)), np.ones((4, 2)), np.ones((5, 1)))
+    with pytest.raises(AmiXrValueError, match="a, b"):
+        matmul_small(np.ones((3, 2)), np.ones((3, 2)))
+    with pytest.raises(AmiXrValueError, match="residual_terms"):
+        model_columns(np.arange(1.0, 4.0), np.array([-1 + 2j]), None, None, ("middle",))
+    # the former module path still serves the same functions
+    assert old_path.model_columns is model_columns and old_path.project_points is project_points
 
 
 def test_spurious_ami_mode_is_dropped():

@@ -485,7 +485,8 @@ def synthesize_residual_terms(
         Coefficients of the lower and upper term per FRF.
     residual_kind : {0, 1, 2}
         0 receptance (``1/(i w)^2``, ``1``), 1 mobility (``1/(i w)``, ``i w``), 2 accelerance
-        (``1``, ``(i w)^2``); a term singular at 0 rad/s is 0 there.
+        (``1``, ``(i w)^2``); a term singular at 0 rad/s is 0 there, and for receptance the
+        whole line at 0 rad/s (upper term included) is left at 0.
 
     Returns
     -------
