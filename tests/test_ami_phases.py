@@ -7,6 +7,8 @@ import warnings
 import numpy as np
 import pytest
 import xarray as xr
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import ami_xr
 from ami_xr import names
@@ -290,7 +292,7 @@ def test_settings_round_trip_through_attrs():
         to_attrs,
     )
 
-    for settings in (
+    for record in (
         SubtractSettings(0.4, 7, 1e-2, 4, 0.1, 0.3, names.MODEL_DISCRETE),
         IsolateSettings(tol=1e-6, method="per_frf", weighting="mean"),
         GlobalFitSettings("all", True, 5.0),
@@ -298,20 +300,20 @@ def test_settings_round_trip_through_attrs():
         RefineSettings(residual_terms=("lower", "upper")),
     ):
         attrs = {}
-        to_attrs(settings, attrs)
-        back = from_attrs(type(settings), attrs)
+        to_attrs(record, attrs)
+        back = from_attrs(type(record), attrs)
         for name, value in attrs.items():  # what netCDF can store
             assert isinstance(value, (str, int, float)), name
-        assert {a: getattr(back, a) for a in _stored(settings)} == {
-            a: getattr(settings, a) for a in _stored(settings)
+        assert {a: getattr(back, a) for a in _stored(record)} == {
+            a: getattr(record, a) for a in _stored(record)
         }
     assert from_attrs(SubtractSettings, {}) == SubtractSettings()
 
 
-def _stored(settings):
+def _stored(record):
     import dataclasses
 
-    return [f.name for f in dataclasses.fields(settings) if "attr" in f.metadata]
+    return [f.name for f in dataclasses.fields(record) if "attr" in f.metadata]
 
 
 def test_isolate_reads_subtract_settings_and_signature_defaults():
@@ -368,3 +370,45 @@ def test_resolve_model_choices():
         resolve_model({}, names.MODEL_DISCRETE)
     with pytest.raises(IdentificationError, match="model"):
         resolve_model({}, "bogus")
+
+
+def test_core_has_no_xarray():
+    import ast
+    import pathlib
+
+    import ami_xr.core
+
+    for path in pathlib.Path(ami_xr.core.__file__).parent.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                mods = [a.name for a in node.names] if isinstance(node, ast.Import) else []
+                mods.append(getattr(node, "module", None) or "")
+                assert not any(m.split(".")[0] == "xarray" for m in mods), path.name
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.integers(1, 6),
+    st.integers(1, 5),
+    st.integers(0, 2**32 - 1),
+)
+def test_match_modes_properties(n_points, n_slots, seed):
+    """Estimates of one FRF never share a mode; modes are numbered by frequency; every finite
+    estimate gets a mode; a NaN slot gets none."""
+    from ami_xr.core.matching import gather, match_modes, n_labels, weighted_average
+
+    rng = np.random.default_rng(seed)
+    wn = rng.uniform(10.0, 100.0, n_slots)
+    lam = -0.01 * wn + 1j * wn
+    est = lam[None, :] * (1 + 1e-3 * rng.standard_normal((n_points, n_slots)))
+    est[rng.random((n_points, n_slots)) < 0.3] = np.nan
+    snr = rng.uniform(1.0, 10.0, est.shape)
+    label = match_modes(est, snr, 0.5)
+    assert np.array_equal(label >= 0, np.isfinite(est))
+    for j in range(n_points):
+        used = label[j][label[j] >= 0]
+        assert used.size == np.unique(used).size
+    k = n_labels(label)
+    weight = np.nan_to_num(gather(snr + 0j, label, k).real) ** 2
+    centre, _ = weighted_average(gather(est, label, k), weight)
+    assert np.all(np.diff(np.abs(centre)) >= -1e-9 * np.abs(centre[1:]))
