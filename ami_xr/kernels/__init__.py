@@ -1,6 +1,24 @@
 """Kernel layer: plain ndarrays in, ndarrays out; numpy, numba and math only.
 
 Kernels take batch dims first and the core dim (frequency or time) last. Private ``_name`` kernels
-are jitted and assume clean input; the public wrapper of the same name checks shapes and dtypes and
-raises before any jitted code runs.
+are jitted and assume clean input; public checked wrappers raise
+:class:`~ami_xr.errors.AmiXrValueError` (naming the argument) before any jitted code runs, and are
+the only entry points of the labeled layer. Jitted helpers that other kernel modules share have
+public names and say "jitted, unchecked" in their module docstring. numba's on-disk cache is
+stamped per source file, so the modules are split by topic: an edit recompiles one topic.
+
+Modules (numba policy in ``_numba``):
+
+* ``windows``, ``fft``, ``spectral``, ``impact``: signal processing (windows, impulse -> FRF,
+  Welch accumulation, impact hit checks).
+* ``modal_basis``: the modal model b(lam, w) (continuous and exact discrete), its derivative,
+  residual terms, model columns, synthesis, contribution peaks (``basis`` re-exports
+  ``mode_contribution`` and ``pole_basis``).
+* ``linalg``: small dense solvers (Gaussian elimination, scaled normal equations).
+* ``noise``: noise floors, detection thresholds, fit bands.
+* ``single_mode`` / ``two_mode``: single-mode (per FRF, SIMO) and two-mode least squares.
+* ``residues``: residues with fixed eigenvalues (eq. 9).
+* ``subtract``, ``isolate``, ``isolate_simo``: the Subtraction Phase, the per-FRF and the global
+  SIMO Isolation Phase with the model-order check.
+* ``projection``: variable-projection refinement kernels (``refine`` re-exports its old names).
 """
