@@ -60,6 +60,9 @@ RESPONSE_UNITS = {
 FORCE_UNITS = ("N", "kN", "lbf")
 FREQUENCY_UNITS = "Hz"
 TIME_UNITS = "s"
+ANGULAR_UNITS = "rad/s"  # eigenvalues; residues are FRF units times rad/s
+DIMENSIONLESS_UNITS = "1"  # damping ratios
+ATTR_LONG_NAME = "long_name"  # CF description of a variable
 
 
 def frf_units(response_units: str, force_units: str) -> str:
@@ -168,3 +171,6 @@ MODEL_DISCRETE = "discrete"  # exact basis of dt * DFT of a sampled impulse resp
 MODEL_CONTINUOUS = "continuous"  # eq. 4
 AMI_MODELS = (MODEL_DISCRETE, MODEL_CONTINUOUS)  # values of ATTR_AMI_MODEL and refine_model
 ATTR_EXP_CORRECTED = "exponential_window_corrected"  # 1/s added to Re(lambda), when done
+ATTR_THRESHOLD = "threshold"  # on SUB_STOP_STATISTIC: the stop level t of the statistic
+ATTR_SCALING = "scaling"  # on MODE_VECTOR: how the mode vectors are scaled
+ATTR_CRB_MODEL = "crb_model"  # cramer_rao_bound: "discrete" | "continuous"

@@ -168,10 +168,10 @@ def cramer_rao_bound(
     P, M = names.POINT, names.MODE
     out = xr.Dataset(
         {
-            names.EIGENVALUE: ((M,), lam, {names.ATTR_UNITS: "rad/s"}),
+            names.EIGENVALUE: ((M,), lam, {names.ATTR_UNITS: names.ANGULAR_UNITS}),
             names.NATURAL_FREQUENCY: ((M,), wn / (2 * np.pi), {names.ATTR_UNITS: "Hz"}),
             names.DAMPING_RATIO: ((M,), zeta, {names.ATTR_UNITS: "1"}),
-            names.EIGENVALUE_STD: ((M,), eig_std, {names.ATTR_UNITS: "rad/s"}),
+            names.EIGENVALUE_STD: ((M,), eig_std, {names.ATTR_UNITS: names.ANGULAR_UNITS}),
             names.NATURAL_FREQUENCY_STD: ((M,), fn_std, {names.ATTR_UNITS: "Hz"}),
             names.DAMPING_RATIO_STD: ((M,), z_std, {names.ATTR_UNITS: "1"}),
             names.NATURAL_FREQUENCY_ERROR: ((M,), k_abs * fn_std * 2 * np.pi / wn),
@@ -191,7 +191,7 @@ def cramer_rao_bound(
         out[names.MODE_VECTOR] = ((P, M), cov.mode_vector)
         out[names.MODE_VECTOR_STD] = ((P, M), np.sqrt(cov.mode_vector_var))
         out[names.MODE_VECTOR_ERROR] = ((M,), mv_err)
-    out.attrs = {names.ATTR_DRIVE_POINT: drive, "crb_model": data_model.name}
+    out.attrs = {names.ATTR_DRIVE_POINT: drive, names.ATTR_CRB_MODEL: data_model.name}
     return add_history(
         out,
         "ami_xr.cramer_rao_bound",

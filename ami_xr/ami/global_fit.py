@@ -176,18 +176,26 @@ def global_fit(
     out = c.drop_results(ds, (c.GLOBAL_VARS,))
     out = out.assign_coords({names.MODE_2: out[names.MODE].values})
     new = {
-        names.RESIDUE: ((names.POINT, names.MODE), res, {"units": units + " rad/s"}),
+        names.RESIDUE: (
+            (names.POINT, names.MODE),
+            res,
+            {names.ATTR_UNITS: f"{units} {names.ANGULAR_UNITS}"},
+        ),
         names.MODE_VECTOR: (
             (names.POINT, names.MODE),
             phi,
             {
-                "scaling": "unit largest entry (no drive point)"
+                names.ATTR_SCALING: "unit largest entry (no drive point)"
                 if drive_index is None
                 else "eq. 8 at the drive point"
             },
         ),
-        names.FRF_SYNTHESIZED: synth_da.transpose(*frf.dims).assign_attrs(units=units),
-        names.FRF_RESIDUAL: (frf - synth_da.transpose(*frf.dims)).assign_attrs(units=units),
+        names.FRF_SYNTHESIZED: synth_da.transpose(*frf.dims).assign_attrs(
+            {names.ATTR_UNITS: units}
+        ),
+        names.FRF_RESIDUAL: (frf - synth_da.transpose(*frf.dims)).assign_attrs(
+            {names.ATTR_UNITS: units}
+        ),
         names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi)),
         names.DRIVE_POINT_SNR: ((names.MODE,), snr_drive),
         names.QUALITY_FLAGS: (

@@ -97,32 +97,39 @@ def _with_modes(ds: xr.Dataset, res: _Isolated) -> xr.Dataset:
     out = out.assign_coords({names.MODE: mode})
     out = out.assign(
         {
-            names.EIGENVALUE: ((names.MODE,), np.asarray(eig, np.complex128), {"units": "rad/s"}),
+            names.EIGENVALUE: (
+                (names.MODE,),
+                np.asarray(eig, np.complex128),
+                {names.ATTR_UNITS: names.ANGULAR_UNITS},
+            ),
             names.NATURAL_FREQUENCY: (
                 (names.MODE,),
                 wn / (2 * np.pi),
-                {"units": names.FREQUENCY_UNITS},
+                {names.ATTR_UNITS: names.FREQUENCY_UNITS},
             ),
             names.DAMPING_RATIO: (
                 (names.MODE,),
                 -np.real(eig) / wn if n_modes else wn,
-                {"units": "1"},
+                {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS},
             ),
             names.EIGENVALUE_SPREAD: (
                 (names.MODE,),
                 np.asarray(spread, np.complex128),
-                {"units": "rad/s", "long_name": "std(Re) + i std(Im) of the per-FRF estimates"},
+                {
+                    names.ATTR_UNITS: names.ANGULAR_UNITS,
+                    names.ATTR_LONG_NAME: "std(Re) + i std(Im) of the per-FRF estimates",
+                },
             ),
             names.DETECTED: ((names.POINT, names.MODE), np.asarray(detected, bool)),
             names.POINT_EIGENVALUE: (
                 (names.POINT, names.MODE),
                 np.asarray(point_lam, np.complex128),
-                {"units": "rad/s"},
+                {names.ATTR_UNITS: names.ANGULAR_UNITS},
             ),
             names.POINT_SNR: (
                 (names.POINT, names.MODE),
                 np.asarray(point_snr, float),
-                {"long_name": "peak |contribution| / noise floor"},
+                {names.ATTR_LONG_NAME: "peak |contribution| / noise floor"},
             ),
             names.ISO_ITERATIONS: ((names.POINT,), iterations),
             names.ISO_CONVERGED: ((names.POINT,), converged),

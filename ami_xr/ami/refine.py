@@ -329,14 +329,18 @@ def _with_results(ds, fields, terms, kind, data_model, decay, drive_index) -> xr
             new[names.AMI_PREFIX + var] = ds[var]
     units_frf = ds[names.FRF].attrs.get(names.ATTR_UNITS)
     hz = {names.ATTR_UNITS: names.FREQUENCY_UNITS}
-    new[names.EIGENVALUE] = lam.assign_attrs(units="rad/s")
+    new[names.EIGENVALUE] = lam.assign_attrs({names.ATTR_UNITS: names.ANGULAR_UNITS})
     new[names.NATURAL_FREQUENCY] = natural_frequency(lam).assign_attrs(hz)
-    new[names.DAMPING_RATIO] = damping_ratio(lam).assign_attrs(units="1")
+    new[names.DAMPING_RATIO] = damping_ratio(lam).assign_attrs(
+        {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
+    )
     new[names.RESIDUE] = r.residue.transpose(P, M)
     new[names.MODE_VECTOR] = r.mode_vector.transpose(P, M)
-    new[names.EIGENVALUE_STD] = r.eig_std.assign_attrs(units="rad/s")
+    new[names.EIGENVALUE_STD] = r.eig_std.assign_attrs({names.ATTR_UNITS: names.ANGULAR_UNITS})
     new[names.NATURAL_FREQUENCY_STD] = r.fn_std.assign_attrs(hz)
-    new[names.DAMPING_RATIO_STD] = r.zeta_std.assign_attrs(units="1")
+    new[names.DAMPING_RATIO_STD] = r.zeta_std.assign_attrs(
+        {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
+    )
     new[names.RESIDUE_STD] = r.residue_std.transpose(P, M)
     new[names.MODE_VECTOR_STD] = r.mode_vector_std.transpose(P, M)
     new[names.FRF_NOISE_STD] = r.noise_std.assign_attrs(

@@ -22,9 +22,7 @@ def _subtract_block(
     shape = g.shape[:-1]
     g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
     params = ks.SubtractParams(delta, max_modes, pfa, min_points, zeta_max, merge_tol)
-    lam, res, blo, bhi, sigma, stat, reason, n = ks.subtract_batch(
-        g2, omega, dt, n_samples, params
-    )
+    lam, res, blo, bhi, sigma, stat, reason, n = ks.subtract_batch(g2, omega, dt, n_samples, params)
     two_pi = 2.0 * np.pi
     return (
         lam.reshape(shape + (max_modes,)),
@@ -163,21 +161,33 @@ def subtract(
         coords=reason.coords,
     )
     out = c.drop_results(ds, (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS))
+    frf_units = ds[names.FRF].attrs.get(names.ATTR_UNITS, "")
     out = out.assign(
         {
-            names.SUB_EIGENVALUE: lam.isel(sl).assign_attrs(units="rad/s"),
-            names.SUB_RESIDUE: resid.isel(sl).assign_attrs(
-                units=ds[names.FRF].attrs.get(names.ATTR_UNITS, "") + " rad/s"
+            names.SUB_EIGENVALUE: lam.isel(sl).assign_attrs(
+                {names.ATTR_UNITS: names.ANGULAR_UNITS}
             ),
-            names.SUB_BAND_LOW: blo.isel(sl).assign_attrs(units=names.FREQUENCY_UNITS),
-            names.SUB_BAND_HIGH: bhi.isel(sl).assign_attrs(units=names.FREQUENCY_UNITS),
+            names.SUB_RESIDUE: resid.isel(sl).assign_attrs(
+                {names.ATTR_UNITS: f"{frf_units} {names.ANGULAR_UNITS}"}
+            ),
+            names.SUB_BAND_LOW: blo.isel(sl).assign_attrs(
+                {names.ATTR_UNITS: names.FREQUENCY_UNITS}
+            ),
+            names.SUB_BAND_HIGH: bhi.isel(sl).assign_attrs(
+                {names.ATTR_UNITS: names.FREQUENCY_UNITS}
+            ),
             names.SUB_NOISE_FLOOR: sigma.assign_attrs(
-                units=ds[names.FRF].attrs.get(names.ATTR_UNITS, ""),
-                long_name="noise standard deviation per line (median of adjacent differences)",
+                {
+                    names.ATTR_UNITS: frf_units,
+                    names.ATTR_LONG_NAME: "noise standard deviation per line "
+                    "(median of adjacent differences)",
+                }
             ),
             names.SUB_STOP_STATISTIC: stat.assign_attrs(
-                long_name="|Y|^2/sigma^2 of the last examined peak",
-                threshold=float(kn.peak_threshold(omega.size, pfa)),
+                {
+                    names.ATTR_LONG_NAME: "|Y|^2/sigma^2 of the last examined peak",
+                    names.ATTR_THRESHOLD: float(kn.peak_threshold(omega.size, pfa)),
+                }
             ),
             names.SUB_STOP_REASON: reason_str,
             names.SUB_N_MODES: n,
