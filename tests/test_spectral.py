@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import scipy.signal
 
+from ami_xr.dsp import spectral as sp
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels import impact as ki
 from ami_xr.kernels import spectral as ks
-from ami_xr.dsp import spectral as sp
 
 RTOL = 1e-10
 

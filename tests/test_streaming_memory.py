@@ -19,8 +19,8 @@ from xarray.indexes.range_index import RangeCoordinateTransform
 
 import ami_xr
 from ami_xr import names
-from ami_xr.errors import SchemaError
 from ami_xr.dsp.windows import sample_interval
+from ami_xr.errors import SchemaError
 
 dask = pytest.importorskip("dask")
 
@@ -33,7 +33,7 @@ def _record(n: int, *, t0: float = 0.0, seed: int = 0) -> xr.Dataset:
         rng.standard_normal((2, n)), fs=FS, force=rng.standard_normal(n), drive_point=0
     )
     if t0:
-        # keep the attrs explicitly: arithmetic drops them on older xarray (2025.4: keep_attrs default)
+        # keep attrs explicitly: arithmetic drops them on older xarray (seen on 2025.4)
         ds = ds.assign_coords(
             {names.TIME: (ds[names.TIME] + t0).assign_attrs(ds[names.TIME].attrs)}
         )

@@ -69,9 +69,7 @@ _ARGUMENTS = {
 }
 
 
-def _raise_problems(
-    ds: xr.Dataset, kind: str, require_drive_point: bool, function: str
-) -> None:
+def _raise_problems(ds: xr.Dataset, kind: str, require_drive_point: bool, function: str) -> None:
     """Validate what a constructor built; messages name its arguments (:data:`_ARGUMENTS`)."""
     _, problems = find_problems(
         ds, kind, require_drive_point=require_drive_point, arguments=_ARGUMENTS

@@ -23,8 +23,8 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.provenance import add_history
 from ami_xr.errors import AmiXrValueError, DataFileError
+from ami_xr.provenance import add_history
 
 _END = "***End_of_Header***"
 _UNIT_ALIASES = {
