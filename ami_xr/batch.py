@@ -41,7 +41,7 @@ from pathlib import Path
 from typing import Any
 
 from ami_xr import names
-from ami_xr._progress import Progress
+from ami_xr.progress import Progress
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_open, remove_stale
 from ami_xr.io.formats import INPUT_SUFFIXES, read_any

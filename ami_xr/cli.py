@@ -10,7 +10,7 @@ subcommand, so ``ami-xr --help`` is fast and compiles nothing), and maps errors 
   (argparse); 3 ``batch`` finished but some files failed; 130 interrupted (Ctrl-C).
 
 Option defaults are read from the signatures of the functions they feed, only when a help text
-shows them (:mod:`ami_xr._cli_options`, which also declares the options shared by several
+shows them (:mod:`ami_xr.cli_options`, which also declares the options shared by several
 subcommands); options left at their default are not passed on, so the library applies its own.
 """
 
@@ -25,7 +25,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ami_xr._cli_options import (
+from ami_xr.cli_options import (
     BENCHMARK,
     RANDOM_SYSTEM,
     Default,
@@ -155,7 +155,7 @@ def _cmd_frf(args: argparse.Namespace) -> int:
 def _cmd_identify(args: argparse.Namespace) -> int:
     import ami_xr
     from ami_xr import names
-    from ami_xr._progress import elapsed
+    from ami_xr.progress import elapsed
     from ami_xr.io.formats import read_any, write_any
     from ami_xr.report import format_modal_table
 

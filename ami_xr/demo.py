@@ -162,7 +162,7 @@ def demo(
 
     import ami_xr
     from ami_xr import names
-    from ami_xr._progress import elapsed
+    from ami_xr.progress import elapsed
     from ami_xr.report import format_modal_table
     from ami_xr.simulate.paper import AMI_EIGENVALUES
 

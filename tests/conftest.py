@@ -7,7 +7,7 @@ import pytest
 import xarray as xr
 
 from ami_xr import make_frf_dataset, names
-from ami_xr.kernels.basis import mode_contribution
+from ami_xr.kernels.modal_basis import mode_contribution
 
 # Two modes of a 3-point system: eigenvalues lam = -zeta*wn + i*wd (rad/s) and residues
 # A_jk = lam_k Phi_jk Phi_Pk (drive point P = point 1).

@@ -54,7 +54,7 @@ def impulse_to_frf(
     ``dt * rfft(w * response)``, exactly the paper's processing: the result carries
     ``frf_source="impulse_response"``, ``sample_interval`` (dt) and ``record_samples`` (N) so an
     identification can use the exact discrete-time basis
-    (:func:`ami_xr.kernels.basis.mode_contribution` with ``dt`` and ``n_samples``).
+    (:func:`ami_xr.kernels.modal_basis.mode_contribution` with ``dt`` and ``n_samples``).
     With a ``force`` variable (one measured hit, dims ``(time,)``) it is
     ``rfft(w * response) / rfft(w * force)``, ``frf_source="estimated"``, and no ``dt``/``N``
     attributes (the discrete basis does not model a measured force pulse).

@@ -9,7 +9,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr._coords import range_axis
+from ami_xr.coords import range_axis
 from ami_xr.errors import AmiXrValueError
 
 

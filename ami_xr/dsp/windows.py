@@ -23,7 +23,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr._coords import range_axis
+from ami_xr.coords import range_axis
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels import windows as _kw
 from ami_xr.provenance import add_history

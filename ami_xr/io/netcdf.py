@@ -35,7 +35,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr._coords import uniform_coords
+from ami_xr.coords import uniform_coords
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_path
 from ami_xr.provenance import add_history

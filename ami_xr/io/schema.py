@@ -16,7 +16,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr._coords import RangeAxis, range_axis
+from ami_xr.coords import RangeAxis, range_axis
 from ami_xr.errors import AmiXrValueError, SchemaError
 
 __all__ = [

@@ -12,13 +12,12 @@ Modules (numba policy in ``_numba``):
 * ``windows``, ``fft``, ``spectral``, ``impact``: signal processing (windows, impulse -> FRF,
   Welch accumulation, impact hit checks).
 * ``modal_basis``: the modal model b(lam, w) (continuous and exact discrete), its derivative,
-  residual terms, model columns, synthesis, contribution peaks (``basis`` re-exports
-  ``mode_contribution`` and ``pole_basis``).
+  residual terms, model columns, synthesis, contribution peaks.
 * ``linalg``: small dense solvers (Gaussian elimination, scaled normal equations).
 * ``noise``: noise floors, detection thresholds, fit bands.
 * ``single_mode`` / ``two_mode``: single-mode (per FRF, SIMO) and two-mode least squares.
 * ``residues``: residues with fixed eigenvalues (eq. 9).
 * ``subtract``, ``isolate``, ``isolate_simo``: the Subtraction Phase, the per-FRF and the global
   SIMO Isolation Phase with the model-order check.
-* ``projection``: variable-projection refinement kernels (``refine`` re-exports its old names).
+* ``projection``: variable-projection refinement kernels.
 """

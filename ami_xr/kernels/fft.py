@@ -2,7 +2,7 @@
 
 * Impulse response (the paper's processing): ``FRF = dt * rfft(w * y)`` on the one-sided grid
   ``f_k = k / (n dt)``, ``k = 0 .. n // 2``. For ``y_k = 2 Re(A exp(lam k dt))`` this equals
-  :func:`ami_xr.kernels.basis.mode_contribution` ``(2 pi f, lam, A, dt, n)`` exactly.
+  :func:`ami_xr.kernels.modal_basis.mode_contribution` ``(2 pi f, lam, A, dt, n)`` exactly.
 * Measured force: ``FRF = rfft(w * y) / rfft(w_f * f)`` (one hit, the H1 estimate of a single
   average); ``dt`` cancels. A force that is a discrete unit impulse ``f = [1/dt, 0, ...]`` gives
   back the impulse-response formula.
