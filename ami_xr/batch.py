@@ -41,10 +41,10 @@ from pathlib import Path
 from typing import Any
 
 from ami_xr import names
-from ami_xr.progress import Progress
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_open, remove_stale
 from ami_xr.io.formats import INPUT_SUFFIXES, read_any
+from ami_xr.progress import Progress
 
 __all__ = [
     "batch",

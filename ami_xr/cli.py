@@ -155,8 +155,8 @@ def _cmd_frf(args: argparse.Namespace) -> int:
 def _cmd_identify(args: argparse.Namespace) -> int:
     import ami_xr
     from ami_xr import names
-    from ami_xr.progress import elapsed
     from ami_xr.io.formats import read_any, write_any
+    from ami_xr.progress import elapsed
     from ami_xr.report import format_modal_table
 
     ds = read_any(args.input)
