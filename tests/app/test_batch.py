@@ -19,7 +19,7 @@ from ami_xr.batch import SUMMARY_NAME, batch, find_inputs
 from ami_xr.cli import EXIT_BATCH_FAILURES, EXIT_OK, main
 from ami_xr.errors import AmiXrValueError, DataFileError
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 # Subprocesses import this checkout whatever the working directory or installed version.
 ENV = {
     **os.environ,

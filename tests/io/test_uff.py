@@ -16,7 +16,7 @@ from ami_xr.io.uff import parse_point_label, point_label, read_uff, write_uff
 
 pyuff = pytest.importorskip("pyuff")
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 MEASUREMENT = DATA / "measurement.uff"
 
 

@@ -12,7 +12,7 @@ import ami_xr
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, DataFileError
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 HAMMER = DATA / "impact_hammer.lvm"
 
 HEADER = """LabVIEW Measurement\t
@@ -165,7 +165,7 @@ def test_hammer_bad_hits_found_and_frf_from_good_ones(hammer):
 
 
 def test_hammer_to_modes_script(hammer, capsys, tmp_path):
-    script = Path(__file__).resolve().parents[1] / "scripts" / "hammer_to_modes.py"
+    script = Path(__file__).resolve().parents[2] / "scripts" / "hammer_to_modes.py"
     main = runpy.run_path(str(script), run_name="hammer_to_modes")["main"]
     modes = tmp_path / "modes.nc"
     report = tmp_path / "report"
