@@ -444,7 +444,7 @@ def build_parser() -> argparse.ArgumentParser:
             formatter_class=_Formatter,
             parents=[common],
         )
-        p.set_defaults(_parser=p)
+        p.set_defaults(subcommand_parser=p)
         return p
 
     for add_command in (_add_demo, _add_simulate, _add_file_commands, _add_batch):

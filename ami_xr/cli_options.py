@@ -71,7 +71,7 @@ def value(v: Any) -> Any:
 def non_default(args: argparse.Namespace, options: dict[str, Any]) -> dict[str, Any]:
     """Only the options the user changed: the library applies its own defaults (which the help
     shows), and batch parameter hashes match a Python call with the same settings."""
-    parser: argparse.ArgumentParser = args._parser
+    parser: argparse.ArgumentParser = args.subcommand_parser
     return {
         k: v
         for k, v in options.items()

@@ -18,7 +18,7 @@ import scipy.fft
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
-from ami_xr.kernels.windows import _check_window_array, _positive_float, _samples
+from ami_xr.kernels.windows import checked_positive, checked_samples, checked_window_array
 
 
 @jit
@@ -45,13 +45,13 @@ def _divide_spectra(num, den):
 
 def rfft_frequencies(n: int, dt: float) -> np.ndarray:
     """One-sided FFT frequencies ``k / (n dt)`` in Hz, ``k = 0 .. n // 2`` (as ``rfftfreq``)."""
-    n = _samples(n, "n", 1)
+    n = checked_samples(n, "n", 1)
     dt = _check_dt(dt)
     return np.arange(n // 2 + 1, dtype=np.float64) / (n * dt)
 
 
 def _check_dt(dt) -> float:
-    return _positive_float(dt, "dt", "sample interval in s")
+    return checked_positive(dt, "dt", "sample interval in s")
 
 
 def _check_record(x, argument: str) -> np.ndarray:
@@ -68,7 +68,7 @@ def _check_record(x, argument: str) -> np.ndarray:
 def _window_for(window, n: int, argument: str) -> np.ndarray:
     if window is None:
         return np.ones(n, dtype=np.float64)
-    w = _check_window_array(window, argument)
+    w = checked_window_array(window, argument)
     if w.shape[0] != n:
         raise AmiXrValueError(
             f"{argument}: expected {n} samples to match the record, got {w.shape[0]}"

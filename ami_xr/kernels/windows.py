@@ -139,7 +139,11 @@ def _check_n(n) -> int:
     return int(n)
 
 
-def _positive_float(value, argument: str, what: str = "number") -> float:
+def checked_positive(value, argument: str, what: str = "number") -> float:
+    """``value`` as a finite float > 0, or :class:`AmiXrValueError` naming ``argument``.
+
+    Argument check shared by the signal-processing kernel wrappers (``windows``, ``fft``).
+    """
     try:
         out = float(value)
     except (TypeError, ValueError):
@@ -149,7 +153,9 @@ def _positive_float(value, argument: str, what: str = "number") -> float:
     return out
 
 
-def _samples(value, argument: str, minimum: int) -> int:
+def checked_samples(value, argument: str, minimum: int) -> int:
+    """``value`` as an integer sample count >= ``minimum``, or :class:`AmiXrValueError` naming
+    ``argument`` (booleans are refused). Shared by the ``windows`` and ``fft`` wrappers."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise AmiXrValueError(
             f"{argument}: expected an integer number of samples >= {minimum}, got {value!r}"
@@ -184,7 +190,7 @@ def exponential_decay_rate(
         ``beta`` in 1/s.
     """
     n = _check_n(n)
-    fs = _positive_float(fs, "fs")
+    fs = checked_positive(fs, "fs")
     if (decay is None) == (end_value is None):
         raise AmiXrValueError(
             "decay, end_value: the exponential window needs exactly one of decay (1/s) or "
@@ -192,7 +198,7 @@ def exponential_decay_rate(
             f"end_value={end_value!r}"
         )
     if decay is not None:
-        return _positive_float(decay, "decay")
+        return checked_positive(decay, "decay")
     end = _end_value(end_value, n)
     return -math.log(end) * fs / (n - 1)
 
@@ -258,7 +264,7 @@ def get_window(
         if decay is not None and end_value is None:
             if fs is None:
                 raise AmiXrValueError("fs: the exponential window set by decay (1/s) needs fs (Hz)")
-            tau = _positive_float(fs, "fs") / exponential_decay_rate(n, fs=fs, decay=decay)
+            tau = checked_positive(fs, "fs") / exponential_decay_rate(n, fs=fs, decay=decay)
         elif end_value is not None and decay is None:
             end = _end_value(end_value, n)
             tau = (n - 1) / -math.log(end)
@@ -268,10 +274,10 @@ def get_window(
     if canonical == "force":
         if width is None:
             raise AmiXrValueError("width: the force window needs width (samples of the pulse)")
-        width = _samples(width, "width", 1)
+        width = checked_samples(width, "width", 1)
         if width > n:
             raise AmiXrValueError(f"width: must not exceed the window length n={n}, got {width}")
-        taper = max(1, width // 10) if taper is None else _samples(taper, "taper", 0)
+        taper = max(1, width // 10) if taper is None else checked_samples(taper, "taper", 0)
         return _force(n, width, taper)
     if n == 1 or canonical == "boxcar":
         return np.ones(n, dtype=np.float64)
@@ -290,7 +296,9 @@ def _reject_unused(canonical: str, **params) -> None:
             )
 
 
-def _check_window_array(w, argument: str = "w") -> np.ndarray:
+def checked_window_array(w, argument: str = "w") -> np.ndarray:
+    """``w`` as a contiguous float64 1-D finite real array, or :class:`AmiXrValueError` naming
+    ``argument``. Shared by the ``windows`` and ``fft`` wrappers."""
     w = np.asarray(w)
     if w.ndim != 1 or w.shape[0] < 1 or not np.issubdtype(w.dtype, np.number) or np.iscomplexobj(w):
         raise AmiXrValueError(
@@ -307,7 +315,7 @@ def amplitude_correction(w: np.ndarray) -> float:
 
     2 for the periodic Hann window, 1 for boxcar.
     """
-    w = _check_window_array(w)
+    w = checked_window_array(w)
     s, _ = _sum_and_sum_sq(w)
     if s <= 0.0:
         raise AmiXrValueError(f"w: the window sum must be > 0, got {s}")
@@ -319,7 +327,7 @@ def energy_correction(w: np.ndarray) -> float:
 
     ``sqrt(8/3)`` for the periodic Hann window (any n >= 3), 1 for boxcar.
     """
-    w = _check_window_array(w)
+    w = checked_window_array(w)
     _, s2 = _sum_and_sum_sq(w)
     if s2 <= 0.0:
         raise AmiXrValueError("w: the window must not be all zeros")
@@ -341,7 +349,7 @@ def apply_window(x: np.ndarray, w: np.ndarray) -> np.ndarray:
     ndarray, shape of ``x``
     """
     x = np.asarray(x)
-    w = _check_window_array(w)
+    w = checked_window_array(w)
     if x.ndim < 1 or x.shape[-1] != w.shape[0]:
         raise AmiXrValueError(
             f"x: expected a last axis of {w.shape[0]} samples to match the window, "
