@@ -23,6 +23,16 @@ from ami_xr.kernels.modal_basis import mode_contribution
 
 EPS = np.finfo(np.float64).eps
 
+# --- shared test systems --------------------------------------------------------------------
+
+# The paper's record: 60 s sampled at 2^12 points (the grid of sample_data/benchmark_impulse.nc).
+PAPER_N = 4096
+PAPER_DT = 60.0 / PAPER_N
+# Two lightly damped modes seen at two points: eigenvalues (mode,) in rad/s, residues
+# (point, mode); the FFT tests transform their impulse responses on the paper's record.
+TWO_MODE_LAM = np.array([-0.05 + 10.0j, -0.4 + 31.0j])
+TWO_MODE_RES = np.array([[0.3 - 0.2j, 0.1 + 0.1j], [0.05j, -0.2 + 0.02j]])
+
 # --- windows --------------------------------------------------------------------------------
 
 
