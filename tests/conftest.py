@@ -1,13 +1,24 @@
-"""Shared fixtures. Append new fixtures at the bottom; keep each small and documented."""
+"""Shared fixtures: small simulated datasets, numpy- and dask-backed.
+
+Session-scoped fixtures hand every test the same object: tests must not modify them in place
+(the ami_xr functions never do; use ``.copy()`` before assigning into one). Naive oracles and
+tolerance helpers live in ``tests/reference.py``.
+"""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
 import xarray as xr
 
+import ami_xr
 from ami_xr import make_frf_dataset, names
-from ami_xr.kernels.modal_basis import mode_contribution
+
+from .reference import frf_from_residues
+
+REPO = Path(__file__).resolve().parents[1]
 
 # Two modes of a 3-point system: eigenvalues lam = -zeta*wn + i*wd (rad/s) and residues
 # A_jk = lam_k Phi_jk Phi_Pk (drive point P = point 1).
@@ -47,10 +58,7 @@ def frf_dataset() -> xr.Dataset:
     lam, residue = _frf_fixture_modes()
     frequency = np.linspace(0.5, 50.0, 200)
     omega = 2 * np.pi * frequency
-    frf = np.zeros((3, frequency.size), dtype=complex)
-    for j in range(3):
-        for k in range(lam.size):
-            frf[j] += mode_contribution(omega, lam[k], residue[j, k])
+    frf = frf_from_residues(omega, lam, residue)
     return make_frf_dataset(
         frf,
         frequency,
@@ -61,3 +69,39 @@ def frf_dataset() -> xr.Dataset:
         force_units="N",
         frf_source=names.SOURCE_ANALYTIC,
     )
+
+
+@pytest.fixture(scope="session")
+def paper_benchmark_clean() -> tuple[xr.Dataset, xr.Dataset, xr.Dataset]:
+    """The paper's beam benchmark without noise: (time histories, FRFs, truth)."""
+    return ami_xr.simulate.benchmark(noise=0.0)
+
+
+@pytest.fixture(scope="session")
+def paper_benchmark_noisy() -> tuple[xr.Dataset, xr.Dataset, xr.Dataset]:
+    """The paper's beam benchmark with its 15 % noise, seed 0: (time histories, FRFs, truth)."""
+    return ami_xr.simulate.benchmark(noise=0.15, seed=0)
+
+
+@pytest.fixture(scope="session")
+def sample_benchmark_frf() -> xr.Dataset:
+    """sample_data/benchmark_frf.nc, loaded into memory (skips where the checkout lacks it)."""
+    path = REPO / "sample_data" / "benchmark_frf.nc"
+    if not path.exists():
+        pytest.skip("sample_data/ not generated in this checkout")
+    return ami_xr.open_dataset(path).load()
+
+
+@pytest.fixture(scope="session")
+def small_random_system() -> tuple[xr.Dataset, xr.Dataset]:
+    """A random 5-point chain with 5 modes, 2 % noise, 1024 lines: (FRFs, truth)."""
+    return ami_xr.simulate.random_system(
+        n_points=5, n_modes=5, noise=0.02, seed=3, n_frequencies=1024
+    )
+
+
+@pytest.fixture
+def small_random_system_dask(small_random_system) -> xr.Dataset:
+    """The FRFs of ``small_random_system`` as a dask-backed Dataset, one chunk per point."""
+    g, _ = small_random_system
+    return g.chunk({names.POINT: 1})
