@@ -6,15 +6,44 @@
 * ``fastmath`` stays off: results must match the numpy references to rounding.
 * ``NUMBA_DISABLE_JIT=1`` (numba's own switch) runs every kernel as plain Python for debugging
   and coverage.
+
+Cache stamps that follow calls across files
+-------------------------------------------
+numba stamps a cached kernel with its own source file only, but a kernel that calls a jitted
+function of another module has that function compiled into it: after an edit to
+``single_mode.py`` the cached kernels of ``isolate.py`` would still run the old code. So every
+function compiled through :func:`jit` or :func:`guvectorize` gets a stamp made of numba's own
+stamp of its file plus the content hash of each *kernel module* its module imports,
+transitively (a kernel module is one that imports this policy module; this file counts too,
+since a policy change such as ``fastmath`` is not part of numba's cache key). An edit to one
+kernel module therefore recompiles its own kernels and those of the modules that import it,
+directly or not, and no others; a ``touch`` or a checkout that leaves the text unchanged
+recompiles nothing extra.
+
+This hooks into numba's cache-locator list (``numba.core.caching.CacheImpl._locator_classes``, a
+private interface, present from numba 0.58 to at least 0.68). If that interface is missing or
+behaves differently, or the dependencies cannot be worked out, the kernels fall back to numba's
+default per-file stamp; the hook never makes a kernel fail to compile or to cache.
 """
 
 from __future__ import annotations
 
+import ast
+import functools
+import hashlib
+import importlib.util
 import os
+import sys
+import weakref
+from collections.abc import Callable
+from typing import Any
 
 import numba
 
 CACHE = os.environ.get("AMI_XR_NUMBA_CACHE", "1").strip().lower() not in ("0", "false", "no", "off")
+
+# Python functions compiled with this policy: only their cache stamps are widened.
+_POLICY_FUNCTIONS: weakref.WeakSet = weakref.WeakSet()
 
 
 def jit(func=None, *, parallel: bool = False, **options):
@@ -24,6 +53,7 @@ def jit(func=None, *, parallel: bool = False, **options):
     options.setdefault("nogil", True)
 
     def decorate(f):
+        _POLICY_FUNCTIONS.add(f)
         return numba.njit(parallel=parallel, **options)(f)
 
     return decorate if func is None else decorate(func)
@@ -39,8 +69,161 @@ def guvectorize(signatures, layout: str, **options):
     options.setdefault("fastmath", False)
     options.setdefault("nopython", True)
     if signatures:
-        return numba.guvectorize(signatures, layout, **options)
-    return numba.guvectorize(layout, **options)
+        decorator = numba.guvectorize(signatures, layout, **options)
+    else:
+        decorator = numba.guvectorize(layout, **options)
+
+    def decorate(f):
+        _POLICY_FUNCTIONS.add(f)
+        return decorator(f)
+
+    return decorate
 
 
 prange = numba.prange
+
+
+# --- dependency-aware cache stamps ------------------------------------------------------------
+
+
+@functools.cache
+def _file_hash(path: str, mtime_ns: int, size: int) -> str:
+    """sha256 of a file's bytes (memoised on its mtime and size, like numba's own stamp)."""
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+@functools.cache
+def _imports(path: str, mtime_ns: int, size: int) -> tuple[tuple[int, str, tuple[str, ...]], ...]:
+    """``(level, module, names)`` of every import statement in a source file."""
+    with open(path, "rb") as f:
+        tree = ast.parse(f.read(), filename=path)
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out.extend((0, alias.name, ()) for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            out.append((node.level, node.module or "", tuple(a.name for a in node.names)))
+    return tuple(out)
+
+
+def _source_file(module: Any) -> str | None:
+    path = getattr(module, "__file__", None)
+    if isinstance(path, str) and path.endswith(".py") and os.path.isfile(path):
+        return path
+    return None
+
+
+def _is_kernel_module(module: Any) -> bool:
+    """Whether ``module`` compiles kernels with this policy (it holds ``jit``, ``guvectorize``
+    or this module), or is this policy module itself."""
+    if module is sys.modules.get(__name__):
+        return True
+    try:
+        values = list(vars(module).values())
+    except TypeError:
+        return False
+    policy = sys.modules.get(__name__)
+    return any(v is jit or v is guvectorize or (policy is not None and v is policy) for v in values)
+
+
+def _imported_modules(name: str) -> set[str]:
+    """Names of the already imported modules that module ``name`` imports, including the
+    modules of jitted functions it imports by name (so re-exports are followed)."""
+    module = sys.modules.get(name)
+    path = _source_file(module)
+    if path is None:
+        return set()
+    st = os.stat(path)
+    package = getattr(module, "__package__", None) or ""
+    found: set[str] = set()
+    for level, target, names in _imports(path, st.st_mtime_ns, st.st_size):
+        if level:
+            try:
+                target = importlib.util.resolve_name("." * level + target, package)
+            except (ImportError, ValueError):
+                continue
+        found.add(target)
+        parent = sys.modules.get(target)
+        for n in names:
+            found.add(f"{target}.{n}")
+            py_func = getattr(getattr(parent, n, None), "py_func", None)
+            owner = getattr(py_func, "__module__", None)
+            if isinstance(owner, str):
+                found.add(owner)
+    found.discard(name)
+    return {m for m in found if m in sys.modules}
+
+
+@functools.cache
+def _dependency_stamp(name: str) -> tuple[tuple[str, str], ...]:
+    """``(module, sha256)`` of every kernel module that module ``name`` imports, transitively,
+    sorted by name (``name`` itself left out: numba's own stamp covers it).
+
+    Memoised per module for the life of the process, like the imported code it describes.
+    """
+    seen: set[str] = set()
+    todo = [name]
+    while todo:
+        for dep in _imported_modules(todo.pop()):
+            if dep not in seen and _is_kernel_module(sys.modules[dep]):
+                seen.add(dep)
+                todo.append(dep)
+    seen.discard(name)
+    stamp = []
+    for dep in sorted(seen):
+        path = _source_file(sys.modules[dep])
+        if path is not None:
+            st = os.stat(path)
+            stamp.append((dep, _file_hash(path, st.st_mtime_ns, st.st_size)))
+    return tuple(stamp)
+
+
+class _DependencyStampLocator:
+    """Entry of numba's locator list for the functions compiled here: it takes the locator
+    numba would have chosen and widens that locator's source stamp with
+    :func:`_dependency_stamp`. For any other function, or on any failure, it returns ``None``
+    and numba goes on to its own locators unchanged."""
+
+    @classmethod
+    def from_function(cls, py_func: Callable, py_file: str) -> Any:
+        try:
+            if py_func not in _POLICY_FUNCTIONS:
+                return None
+            from numba.core import caching
+
+            for other in list(caching.CacheImpl._locator_classes):
+                if other is cls:
+                    continue
+                locator = other.from_function(py_func, py_file)
+                if locator is not None:
+                    break
+            else:
+                return None
+            own_stamp = locator.get_source_stamp
+            deps = _dependency_stamp(py_func.__module__)
+        except Exception:  # numba's internals differ: keep its default behaviour
+            return None
+        if not deps:
+            return locator
+        locator.get_source_stamp = lambda: (own_stamp(), deps)
+        return locator
+
+
+def _install_dependency_stamps() -> bool:
+    """Put :class:`_DependencyStampLocator` first in numba's locator list; ``False`` (and numba's
+    default per-file stamps) where that list is not there."""
+    try:
+        from numba.core import caching
+
+        classes = caching.CacheImpl._locator_classes
+        if not isinstance(classes, list):
+            return False
+        if _DependencyStampLocator not in classes:
+            classes.insert(0, _DependencyStampLocator)
+        return True
+    except Exception:
+        return False
+
+
+DEPENDENCY_STAMPS = CACHE and _install_dependency_stamps()
