@@ -74,7 +74,7 @@ def test_projection_kernels_against_numpy(n_point):
     # V^T y - (V^T Q)(Q^T y) vs V^T r: sums of 4098 terms of O(1) that cancel to O(sqrt n): absolute
     # rounding ~1e-12
     np.testing.assert_allclose(vtr, r @ v, rtol=1e-9, atol=1e-9)
-    # sums of 4098 products in another order (BLAS blocks): error ~eps sum|a_i b_i| ~ 1e-12 absolute;
+    # sums of 4098 products in another order (BLAS blocks): error ~eps sum|a_i b_i| ~ 1e-12;
     # diagonal O(4098), off-diagonal O(sqrt(4098) = 64), so rtol 1e-12 holds with margin
     np.testing.assert_allclose(gram(a), a.T @ a, rtol=1e-12)
     b = rng.standard_normal((6, 6))
