@@ -34,6 +34,7 @@ ATTR_NSAMPLES = "record_samples"  # number of time samples the FFT used
 ATTR_EXP_DECAY = "exponential_window_decay"  # 1/s, decay rate an exponential window added
 ATTR_HISTORY = "ami_xr_history"  # provenance: JSON list of {function, parameters, time, ...}
 ATTR_VERSION = "ami_xr_version"
+ATTR_FUNCTION = "ami_xr_function"  # provenance: the function of the latest history record
 ATTR_SOURCE_FILE = "source_file"
 ATTR_EXCITATION = "excitation"  # on time Datasets: "unit_impulse" when there is no force record
 EXCITATION_UNIT_IMPULSE = "unit_impulse"
@@ -45,6 +46,8 @@ QUANTITY_TO_FRF_TYPE = {
     "acceleration": "accelerance",
 }
 FRF_TYPE_TO_QUANTITY = {v: k for k, v in QUANTITY_TO_FRF_TYPE.items()}
+# derivative order k of each response quantity: its FRF is (i w)^k times the receptance
+QUANTITY_POWER = {"displacement": 0, "velocity": 1, "acceleration": 2}
 
 SOURCE_IMPULSE = "impulse_response"  # FRF = dt * FFT(sampled impulse response)
 SOURCE_ANALYTIC = "analytic"  # FRF evaluated from the continuous-time model (eq. 4)
@@ -57,6 +60,7 @@ RESPONSE_UNITS = {
     "velocity": ("m/s", "mm/s", "in/s"),
     "acceleration": ("m/s^2", "mm/s^2", "g", "in/s^2"),
 }
+SI_RESPONSE_UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s^2"}
 FORCE_UNITS = ("N", "kN", "lbf")
 FREQUENCY_UNITS = "Hz"
 TIME_UNITS = "s"

@@ -5,8 +5,8 @@ appends one record with :func:`add_history`; :func:`history` reads them back. Th
 JSON list in the Dataset attribute ``ami_xr_history`` (:data:`ami_xr.names.ATTR_HISTORY`), oldest
 first, each ``{"function", "parameters", "time_utc", "ami_xr_version"[, "source_file"]}``; the
 latest function, the ami_xr version and the source file are also plain attributes
-(:data:`ATTR_FUNCTION`, :data:`ami_xr.names.ATTR_VERSION`, :data:`ami_xr.names.ATTR_SOURCE_FILE`)
-so ``ncdump -h`` shows them.
+(:data:`ami_xr.names.ATTR_FUNCTION`, :data:`~ami_xr.names.ATTR_VERSION`,
+:data:`~ami_xr.names.ATTR_SOURCE_FILE`) so ``ncdump -h`` shows them.
 """
 
 from __future__ import annotations
@@ -19,10 +19,9 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.names import ATTR_FUNCTION  # kept importable from here, defined in names
 
 __all__ = ["add_history", "history", "ATTR_FUNCTION"]
-
-ATTR_FUNCTION = "ami_xr_function"  # the function of the latest provenance record
 
 
 def _jsonable(value: Any) -> Any:

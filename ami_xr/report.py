@@ -19,7 +19,6 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_open
-from ami_xr.provenance import ATTR_FUNCTION
 
 __all__ = ["modal_table", "format_modal_table", "report", "FIGURES"]
 
@@ -187,7 +186,7 @@ def _attrs_summary(ds: xr.Dataset) -> list[tuple[str, str]]:
         names.ATTR_FRF_TYPE,
         names.ATTR_SOURCE,
         names.ATTR_VERSION,
-        ATTR_FUNCTION,
+        names.ATTR_FUNCTION,
     )
     out = [(k, str(ds.attrs[k])) for k in keys if k in ds.attrs]
     if names.POINT in ds.sizes:

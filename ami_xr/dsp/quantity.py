@@ -11,7 +11,6 @@ from ami_xr.errors import AmiXrValueError
 from ami_xr.provenance import add_history
 
 QUANTITIES = tuple(names.QUANTITY_TO_FRF_TYPE)
-_POWER = {"displacement": 0, "velocity": 1, "acceleration": 2}
 _G = 9.80665  # m/s^2 per g
 
 
@@ -62,13 +61,13 @@ def convert_quantity(ds: xr.Dataset, to: str, *, dc: str = "nan") -> xr.Dataset:
     to = check_choice(to, QUANTITIES, "to")
     dc = check_choice(dc, ("nan", "zero", "drop"), "dc")
     src = ds.attrs.get(names.ATTR_QUANTITY)
-    if src not in _POWER:
+    if src not in names.QUANTITY_POWER:
         raise AmiXrValueError(
             f"ds: attribute {names.ATTR_QUANTITY!r} must be one of {QUANTITIES}, got {src!r}"
         )
-    k = _POWER[to] - _POWER[src]
+    k = names.QUANTITY_POWER[to] - names.QUANTITY_POWER[src]
     ru = ds.attrs.get(names.ATTR_RESPONSE_UNITS, "")
-    new_units, scale = _convert_units(ru, _POWER[src], _POWER[to])
+    new_units, scale = _convert_units(ru, names.QUANTITY_POWER[src], names.QUANTITY_POWER[to])
     f = ds[names.FREQUENCY]
     iw = xr.DataArray(2j * np.pi * f.values, dims=[names.FREQUENCY])
     with np.errstate(divide="ignore", invalid="ignore"):

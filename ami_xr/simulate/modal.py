@@ -33,9 +33,6 @@ from ami_xr import names
 from ami_xr.errors import AmiXrValueError
 from ami_xr.provenance import add_history
 
-_QUANTITY_POWER = {"displacement": 0, "velocity": 1, "acceleration": 2}
-_DEFAULT_UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s^2"}
-
 
 # --------------------------------------------------------------------------------------------
 # validation helpers
@@ -398,9 +395,9 @@ def frf(
     xarray.Dataset
         FRF Dataset of the data model with ``frf_source="analytic"``.
     """
-    if response_quantity not in _QUANTITY_POWER:
+    if response_quantity not in names.QUANTITY_POWER:
         raise AmiXrValueError(
-            f"response_quantity: expected one of {tuple(_QUANTITY_POWER)}, "
+            f"response_quantity: expected one of {tuple(names.QUANTITY_POWER)}, "
             f"got {response_quantity!r}"
         )
     f = _frequency_axis(frequency_hz)
@@ -411,7 +408,7 @@ def frf(
         model[names.RESIDUE],
         model[names.EIGENVALUE],
         omega,
-        kwargs={"power": _QUANTITY_POWER[response_quantity]},
+        kwargs={"power": names.QUANTITY_POWER[response_quantity]},
         input_core_dims=[[names.MODE], [names.MODE], [names.FREQUENCY]],
         output_core_dims=[[names.FREQUENCY]],
         dask="parallelized",
@@ -419,7 +416,7 @@ def frf(
         keep_attrs=False,
     )
     force_units = model.attrs.get(names.ATTR_FORCE_UNITS, "N")
-    ru = response_units or _DEFAULT_UNITS[response_quantity]
+    ru = response_units or names.SI_RESPONSE_UNITS[response_quantity]
     ds = xr.Dataset(
         {names.FRF: g.transpose(names.POINT, names.FREQUENCY)},
         coords={

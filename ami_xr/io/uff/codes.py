@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from ami_xr import names
 from ami_xr.errors import DataFileError
 
 __all__ = [
@@ -44,7 +45,7 @@ QUANTITY_TO_SPEC = {v: k for k, v in SPEC_TO_QUANTITY.items()}
 SPEC_FORCE = (13, 9)  # excitation force, reaction force
 SPEC_TIME = 17
 SPEC_FREQUENCY = 18
-SI_UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s^2"}
+SI_UNITS = names.SI_RESPONSE_UNITS  # units assumed when a record gives none
 AXES = {1: "X", 2: "Y", 3: "Z", 4: "RX", 5: "RY", 6: "RZ"}
 AXIS_CODES = {v: k for k, v in AXES.items()}
 LABEL_RE = re.compile(r"^\s*(\d+)\s*([+-])\s*(X|Y|Z|RX|RY|RZ)\s*$", re.IGNORECASE)
