@@ -75,15 +75,63 @@ def _load(da: xr.DataArray, r: int, a: int, b: int, argument: str) -> np.ndarray
     return block
 
 
+def _labels(da: xr.DataArray, dim: str) -> list:
+    """Labels along ``dim`` as plain Python values (for messages), else the positions."""
+    return da[dim].values.tolist() if dim in da.coords else list(range(da.sizes[dim]))
+
+
+def check_live_channels(f_range, y_range, f_da: xr.DataArray, y_da: xr.DataArray) -> None:
+    """Raise when a force or response channel is constant (all zeros included) over every used
+    sample: a dead sensor or an unplugged cable. Its spectra are zero, so its FRF would be NaN
+    (0/0) or zero without any error. ``f_range``/``y_range`` are ``(min, max)`` pairs of arrays
+    per channel, ``(reference,)`` and ``(point,)``.
+
+    A dead response channel among good ones is an error too, not dropped with a warning: a
+    dropped point would silently change the point set that mode shapes, geometry and the UFF
+    writer expect; the message names the points and how to leave them out.
+    """
+    dead_f = np.flatnonzero(np.asarray(f_range[1]) == np.asarray(f_range[0]))
+    if dead_f.size:
+        refs = _labels(f_da, names.REFERENCE)
+        which = "" if len(refs) == 1 else f" {[refs[i] for i in dead_f]} (along reference)"
+        raise AmiXrValueError(
+            f"force: the force channel{which} is zero/constant (dead sensor or unplugged?); "
+            f"value {float(np.asarray(f_range[0])[dead_f[0]]):.6g} in every sample"
+        )
+    dead_y = np.flatnonzero(np.asarray(y_range[1]) == np.asarray(y_range[0]))
+    if dead_y.size:
+        points = [_labels(y_da, names.POINT)[i] for i in dead_y]
+        raise AmiXrValueError(
+            f"response: the response channel(s) at point(s) {points} are zero/constant (dead "
+            f"sensor or unplugged?); leave them out with ds.drop_sel(point={points!r})"
+        )
+
+
+def _channel_range(block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(min, max) per channel of a (channel, time) block."""
+    return block.min(axis=-1), block.max(axis=-1)
+
+
+def _merge_range(old, new):
+    return new if old is None else (np.minimum(old[0], new[0]), np.maximum(old[1], new[1]))
+
+
 def _feed_all(acc: WelchAccumulator, f_da, y_da, records, blocks) -> None:
     """Feed every block of every used record. A lazy Dataset's next block is read in a
     background thread while this one is processed (reads and the nogil kernels overlap); at
-    most two blocks are in memory."""
+    most two blocks are in memory. A lazy Dataset's channels are checked for being dead here,
+    on the blocks as they are read (a separate pass would read the file twice)."""
     jobs = [(int(r), a, b) for r in records for a, b in blocks]
+    lazy = is_lazy(f_da) or is_lazy(y_da)
+    ranges: list = [None, None]
 
     def load(job):
         r, a, b = job
-        return _load(f_da, r, a, b, "force"), _load(y_da, r, a, b, "response")
+        f, y = _load(f_da, r, a, b, "force"), _load(y_da, r, a, b, "response")
+        if lazy:  # data in memory were checked in _setup
+            ranges[0] = _merge_range(ranges[0], _channel_range(f))
+            ranges[1] = _merge_range(ranges[1], _channel_range(y))
+        return f, y
 
     def run(next_block):
         for i, (_, a, _) in enumerate(jobs):
@@ -91,23 +139,25 @@ def _feed_all(acc: WelchAccumulator, f_da, y_da, records, blocks) -> None:
                 acc.end_record()  # segments never span two records
             acc.feed(*next_block(i))
 
-    if not (is_lazy(f_da) or is_lazy(y_da)) or len(jobs) < 2:
+    if not lazy or len(jobs) < 2:
         run(lambda i: load(jobs[i]))
-        return
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        pending = {0: pool.submit(load, jobs[0])}
+    else:
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            pending = {0: pool.submit(load, jobs[0])}
 
-        def next_block(i):
-            data = pending.pop(i).result()
-            if i + 1 < len(jobs):
-                pending[i + 1] = pool.submit(load, jobs[i + 1])
-            return data
+            def next_block(i):
+                data = pending.pop(i).result()
+                if i + 1 < len(jobs):
+                    pending[i + 1] = pool.submit(load, jobs[i + 1])
+                return data
 
-        try:
-            run(next_block)
-        finally:
-            for fut in pending.values():
-                fut.cancel()
+            try:
+                run(next_block)
+            finally:
+                for fut in pending.values():
+                    fut.cancel()
+    if lazy:
+        check_live_channels(ranges[0], ranges[1], f_da, y_da)
 
 
 @dataclass(frozen=True)
@@ -160,6 +210,15 @@ def _setup(
         or chunk_samples < 1
     ):
         raise AmiXrValueError(f"chunk_samples: expected an integer >= 1, got {chunk_samples!r}")
+    if not (is_lazy(f_da) or is_lazy(y_da)):  # in memory: dead channels before any spectra
+        f_all = np.asarray(f_da.values, np.float64)
+        y_all = np.asarray(y_da.values, np.float64)
+        check_live_channels(
+            (f_all.min(axis=(0, 2)), f_all.max(axis=(0, 2))),
+            (y_all.min(axis=(0, 2)), y_all.max(axis=(0, 2))),
+            f_da,
+            y_da,
+        )
     siso = names.REFERENCE not in (force if force is not None else ds[names.FORCE]).dims
     return _Setup(
         force=f_da,

@@ -30,6 +30,7 @@ def check_hits(
       maximum or minimum (the converter's limit code, i.e. clipping);
     * double impact: a second force pulse, i.e. ``|f|`` above ``double_impact_threshold`` times
       the peak again after the first pulse has ended (quiet for at least the pulse's length);
+    * no force: the force is constant (zero included) throughout the hit;
     * weak force: peak ``|f|`` below ``min_force``, or below ``weak_force_ratio`` times the median
       peak of the hits, or below ``min_snr`` times the force noise (1.4826 * MAD of the hit).
     """
@@ -73,7 +74,14 @@ def check_hits(
                 f"double impact: a second force pulse {delay} samples after the first "
                 f"(|force| > {double_impact_threshold:g} x peak again)"
             )
-        if min_force is not None and peak[r] < min_force:
+        if not np.ptp(f0[r]) > 0:
+            # no pulse at all: with one hit there is no median to compare with, and a zero
+            # noise skips the SNR test below, so this must be caught on its own
+            reasons[r].append(
+                f"no force: the force is {f0[r, 0]:.6g} in every sample of the hit (no impact "
+                "recorded: dead sensor or unplugged?)"
+            )
+        elif min_force is not None and peak[r] < min_force:
             reasons[r].append(f"force too weak: peak {peak[r]:.4g} < min_force={min_force:g}")
         elif nrec > 1 and peak[r] < weak_force_ratio * median_peak:
             reasons[r].append(
