@@ -20,8 +20,10 @@ from ami_xr.kernels import subtract as ks
 from ami_xr.kernels import two_mode as k2
 from ami_xr.kernels.modal_basis import mode_contribution, pole_basis
 
-N = 4096
-DT = 60.0 / N
+from ..reference import PAPER_DT as DT
+from ..reference import PAPER_N as N
+from ..reference import frf_from_residues, single_mode_lstsq
+
 OMEGA = 2 * np.pi * np.fft.rfftfreq(N, DT)
 MODELS = [(None, None), (DT, N)]
 
@@ -45,6 +47,8 @@ def test_rows_are_eqs_11_12():
             2 * a.real / ws,
         ]
     )
+    # the exact unknowns satisfy every row; rounding of 4-term dot products of O(|rhs|) values: a
+    # few ulp of the largest right-hand side (norm-wise: the residual is 0)
     np.testing.assert_allclose(rows @ x, rhs, atol=1e-12 * np.abs(rhs).max())
     # eq. 11 (real part) and eq. 12 (imaginary part) written out with numpy
     w = OMEGA[sel]
@@ -54,6 +58,8 @@ def test_rows_are_eqs_11_12():
         + 2 * (lam.real * a.real + lam.imag * a.imag)
     )
     eq12 = g.imag * (abs(lam) ** 2 - w**2) - 2 * w * g.real * lam.real - 2 * w * a.real
+    # exact data satisfies eqs. 11-12 identically: the residual is rounding of terms of size |g| w^2
+    # (w ~ 65), so the bound is relative to that scale, not to 0
     np.testing.assert_allclose(eq11, 0, atol=1e-12 * np.abs(g).max() * 65**2)
     np.testing.assert_allclose(eq12, 0, atol=1e-12 * np.abs(g).max() * 65**2)
     # rows as numpy builds them: G v^2 = -c0 G - c1 G v + e0 + e1 v, v = i w / ws
@@ -61,6 +67,8 @@ def test_rows_are_eqs_11_12():
     cols = np.stack([-g, -g * v, np.ones_like(g), v], axis=1)
     ref = np.empty((2 * w.size, 4))
     ref[0::2], ref[1::2] = cols.real, cols.imag
+    # the same products in another order: <= 2-3 roundings each, no entry is near zero (|g| and w/ws
+    # ~ 1)
     np.testing.assert_allclose(rows, ref, rtol=1e-14, atol=0)
 
 
@@ -71,7 +79,11 @@ def test_single_mode_exact(dt, n):
     g = mode_contribution(OMEGA, lam, a, dt, n)[sel]
     est, res, code = k.fit_single_mode(g, OMEGA[sel], dt, n)
     assert code == k.FIT_OK
+    # exact data: the linear least squares is consistent, so only rounding remains (measured 2e-16);
+    # 1e-12 leaves room for other CPUs and BLAS
     assert abs(est - lam) / abs(lam) < 1e-12
+    # the residue follows from the eigenvalue through the basis near resonance, which amplifies its
+    # error by up to |lam| / |Re lam| ~ 1.6e2 (measured 1.5e-14)
     assert abs(res - a) / abs(a) < 1e-10
 
 
@@ -86,12 +98,11 @@ def test_single_mode_matches_lstsq(dt, n):
     g = g + scale * (rng.standard_normal(g.size) + 1j * rng.standard_normal(g.size))
     ws = float(np.mean(OMEGA[sel]))
     rows, rhs = k.single_mode_rows(g, OMEGA[sel], ws, dt)
-    sol = np.linalg.lstsq(rows, rhs, rcond=None)[0]
-    c0, c1 = sol[0], sol[1]
-    v1 = complex(-c1 / 2, math.sqrt(4 * c0 - c1**2) / 2)
-    lam_ref = ws * v1 if dt is None else np.log(1 / (1 - dt * ws * v1)) / dt
+    lam_ref = single_mode_lstsq(rows, rhs, ws, dt)
     est, _, code = k.fit_single_mode(g, OMEGA[sel], dt, n)
     assert code == k.FIT_OK
+    # normal equations vs QR-based lstsq on the same noisy rows: they differ by up to cond(rows)^2
+    # eps
     assert abs(est - lam_ref) / abs(lam_ref) < 1e-10
 
 
@@ -103,7 +114,11 @@ def test_simo_single_mode_exact(dt, n):
     g = np.stack([mode_contribution(OMEGA, lam, r, dt, n)[sel] for r in res])
     est, r_est, code = k.fit_single_mode_simo(g, OMEGA[sel], dt, n)
     assert code == k.FIT_OK
+    # exact data: the linear least squares is consistent, so only rounding remains (measured 2e-16);
+    # 1e-12 leaves room for other CPUs and BLAS
     assert abs(est - lam) / abs(lam) < 1e-12
+    # SIMO residues from the fitted eigenvalue's basis: its rounding error times the resonance
+    # sensitivity (~1e2); no residue near zero
     np.testing.assert_allclose(r_est, res, rtol=1e-9)
 
 
@@ -124,7 +139,11 @@ def test_two_mode_fit_exact(dt, n):
     )
     assert code == k.FIT_OK
     order = np.argsort(lam.imag)
+    # two overlapping modes (1.4 % apart) from exact data: the 2-mode polynomial is ill-conditioned;
+    # measured 2.6e-11
     np.testing.assert_allclose(lam[order], [l1, l2], rtol=1e-10)
+    # residues of close modes are ~|lam| / |l1 - l2| ~ 1e2 more sensitive than the poles: measured
+    # 2.8e-9
     np.testing.assert_allclose(res[:, order], r, rtol=1e-7)
 
 
@@ -133,12 +152,9 @@ def test_synthesize_matches_basis(dt, n):
     lam = np.array([-0.4 + 30j, -0.7 + 48j, np.nan + 0j])
     res = np.array([[1e-3 + 1e-3j, 2e-3 - 1e-3j, 1.0], [-1e-3j, 5e-4 + 0j, np.nan]])
     out = kb.synthesize(OMEGA, lam, res, dt, n)
-    ref = np.stack(
-        [
-            sum(mode_contribution(OMEGA, lam[m], res[j, m], dt, n) for m in range(2))
-            for j in range(2)
-        ]
-    )
+    ref = frf_from_residues(OMEGA, lam[:2], res[:, :2], dt, n)  # the NaN mode is skipped
+    # the same basis sums in another order: a few ulp of each term; atol (1e-15 of the |g| ~ 1e-3
+    # scale) covers sums that cancel
     np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-18)
 
 
@@ -156,8 +172,13 @@ def test_residue_normal_equations_numpy(dt, n):
         cols += [b + bc, 1j * (b - bc)]
     cmat = np.stack(cols, axis=1)
     real = np.vstack([cmat.real, cmat.imag])
-    np.testing.assert_allclose(nmat, real.T @ real, rtol=1e-10)
+    want = real.T @ real
+    # sums of ~600 products of basis values in another order: rounding ~sqrt(n) eps of the largest
+    # terms; cross terms between the two modes are small, so the bound is relative to the largest
+    np.testing.assert_allclose(nmat, want, rtol=1e-10, atol=1e-10 * np.abs(want).max())
     data = np.hstack([g[:, use].real, g[:, use].imag]).T
+    # sums of ~600 products of random data with the basis: rounding ~sqrt(n) eps of the largest;
+    # atol for entries that cancel
     np.testing.assert_allclose(rhs, real.T @ data, rtol=1e-10, atol=1e-10 * np.abs(rhs).max())
 
 
@@ -167,13 +188,20 @@ def test_residues_fixed_exact(dt, n):
     res = np.array([[1e-3 + 1e-3j, 2e-3 - 1e-3j, 1e-4j], [-1e-3j, 5e-4 + 0j, 3e-3 + 1e-3j]])
     g = kb.synthesize(OMEGA, lam, res, dt, n)
     out = kr.residues_fixed(g, OMEGA, lam, None, dt, n)
+    # exact data, least squares with the exact eigenvalues: rounding only (measured 5e-15), the
+    # smallest |res| is 1e-4 so none is near zero; 1e-9 leaves room for the ill-conditioned basis of
+    # other grids
     np.testing.assert_allclose(out, res, rtol=1e-9)
     # with residual terms (receptance): exact data of modes + R_L/(iw)^2 + R_U
     w = OMEGA[1:]
     extra = np.array([[1e-2 + 0j, 2e-6 + 1e-7j], [-3e-2 + 0j, 1e-6 + 0j]])
     g2 = g[:, 1:] + extra[:, :1] / (1j * w) ** 2 + extra[:, 1:]
     out2 = kr.residues_fixed(g2, w, lam, None, dt, n, residual_kind=0)
+    # with residual terms the columns 1/w^2 and 1 are nearly collinear with the modes' low/high
+    # tails: measured 5e-14, kept loose for that conditioning
     np.testing.assert_allclose(out2[:, :3], res, rtol=1e-7)
+    # the residual-term coefficients carry the collinearity relative to the smallest coefficient
+    # (|2e-6|): measured 1.5e-11
     np.testing.assert_allclose(out2[:, 3:], extra, rtol=1e-6)
 
 
@@ -182,12 +210,19 @@ def test_noise_floor_and_threshold():
     sigma = 0.7
     shape = (4, 20000)
     noise = sigma / np.sqrt(2) * (rng.standard_normal(shape) + 1j * rng.standard_normal(shape))
+    # statistical: a scale estimated from 20000 samples per row scatters by ~1/sqrt(20000) ~ 0.7 %
+    # (measured up to 0.4 % for this seed); 3 % is a wrong constant's margin
     np.testing.assert_allclose(kn.noise_floor(noise), sigma, rtol=0.03)
     t = kn.peak_threshold(2049, 1e-3)
+    # t is the root of this equation: the 2049-th power amplifies the rounding of 1 - exp(-t) ~ 1 by
+    # 2049: ~5e-13
     assert abs((1 - math.exp(-t)) ** 2049 - (1 - 1e-3)) < 1e-12
     ts = kn.sum_threshold(4, 2049, 1e-3)
+    # ts is found by a root finder with tolerance ~1e-12 on a tail of size 5e-7: absolute 1e-9 (a
+    # wrong k is off by orders of magnitude)
     assert abs(kn.gamma_tail(4, ts) - (1 - (1 - 1e-3) ** (1 / 2049))) < 1e-9
     # gamma tail against the closed form for k = 2
+    # closed form exp(-x)(1 + x) = 0.199: a few ulp absolute
     assert abs(kn.gamma_tail(2, 3.0) - math.exp(-3.0) * 4.0) < 1e-15
 
 
@@ -206,7 +241,10 @@ def test_solve_normal_equations_against_numpy():
     rhs = rng.standard_normal((6, 3))
     x, ok = kl.solve_normal_equations(nmat, rhs)
     assert ok
-    np.testing.assert_allclose(x, np.linalg.solve(nmat, rhs), rtol=1e-10)
+    want = np.linalg.solve(nmat, rhs)
+    # Cholesky vs LU of a 6x6 SPD matrix with cond ~10: both backward stable, so they agree to
+    # ~cond * eps of the largest entry; atol covers entries near zero
+    np.testing.assert_allclose(x, want, rtol=1e-10, atol=1e-10 * np.abs(want).max())
     x1, ok1 = kl.solve_normal_equations(nmat, rhs[:, 0])
     assert ok1 and x1.shape == (6, 1)
     _, ok_singular = kl.solve_normal_equations(np.zeros((2, 2)), np.ones(2))
@@ -243,6 +281,8 @@ def test_synthesize_residual_terms_numpy(kind):
     if kind == 0:
         ref[:, w == 0] = 0  # receptance: the whole line at 0 Hz is left out (documented)
     out = kb.synthesize_residual_terms(w, coef, kind)
+    # one or two complex products/divisions per entry; no cancellation (|upper| >> |lower| for w <=
+    # 5 rad/s), so a few ulp relative
     np.testing.assert_allclose(out, ref, rtol=1e-13, atol=0)
     with pytest.raises(AmiXrValueError, match="residual_kind"):
         kb.synthesize_residual_terms(w, coef, 3)
@@ -263,6 +303,8 @@ def test_contribution_peaks_numpy(dt, n):
             c = int(np.argmin(np.abs(OMEGA - lam[0, m].imag)))
             near = slice(max(c - 1, 0), c + 2)
             ref = np.abs(mode_contribution(OMEGA[near], lam[0, m], res[j, m], dt, n)).max()
+            # the kernel evaluates the same closed form at the same three lines: a few ulp, times
+            # the resonance cancellation (~1e2)
             assert out[j, m] == pytest.approx(ref, rel=1e-12)
     with pytest.raises(AmiXrValueError, match="lam"):
         kb.contribution_peaks(OMEGA, dt, n, lam[:, :2], res)
@@ -298,9 +340,10 @@ def _isolate_params(**kw):
     return ki.IsolateParams(**base)
 
 
-def _close(lam, ref, rtol):
+def _assert_same_eigenvalues(lam, ref, rtol):
     lam = np.sort_complex(lam[np.isfinite(lam)])
     assert lam.size == ref.size
+    # rtol from the caller (a relative error in |lam|, which is far from zero)
     np.testing.assert_allclose(lam, np.sort_complex(ref), rtol=rtol)
 
 
@@ -310,24 +353,32 @@ def test_subtract_isolate_recover_two_modes():
     lam, res, blo, bhi, sigma, stat, reason, n = ks.subtract_batch(g, W2, None, None, params)
     assert lam.shape == (2, 6) and np.all(n >= 2)
     assert all(ks.STOP_REASONS[r] in ks.STOP_REASONS for r in reason)
+    # statistical: the noise floor is estimated from a few hundred lines after subtraction, biased
+    # by the modes' remains: 20 %
     np.testing.assert_allclose(sigma, 1e-4 * np.sqrt(2), rtol=0.2)
     for j in range(2):  # every true mode among the candidates (spurious ones are isolate's job)
         for true in TRUE_LAM:
+            # subtract's candidates are one-mode fits without isolation: biased by the other mode's
+            # tail (~1e-4 relative here); 1e-3 is still well inside the half-power bandwidth
             assert np.nanmin(np.abs(lam[j, : n[j]] - true)) < 1e-3 * abs(true)
     lam_i, res_i, n_i, it, conv = ki.isolate_batch(
         g, W2, None, None, lam, res, n, sigma, _isolate_params(reweight=False)
     )
     assert conv.all() and list(n_i) == [2, 2]
     for j in range(2):
-        _close(lam_i[j], TRUE_LAM, 1e-4)
+        # 1e-4 noise on peaks of ~1e-1: isolated estimates scatter by ~1e-5 relative; 1e-4 is ~1 %
+        # of the half-power bandwidth
+        _assert_same_eigenvalues(lam_i[j], TRUE_LAM, 1e-4)
     start = np.full(6, np.nan + 0j)
     start[:2] = lam[0, :2]
     lam_s, res_s, n_s, it_s, conv_s = kis.isolate_simo(
         g, W2, None, None, start, 2, sigma, _isolate_params()
     )
     assert conv_s and n_s == 2
-    _close(lam_s, TRUE_LAM, 1e-4)
+    _assert_same_eigenvalues(lam_s, TRUE_LAM, 1e-4)
     order = np.argsort(lam_s[:2].imag)
+    # residues from a narrow band around each peak (no residual terms): the other mode's tail biases
+    # them by up to ~1 %
     np.testing.assert_allclose(res_s[:, :2][:, order], TRUE_RES, rtol=1e-2)
     est = ki.point_estimates(
         g,
@@ -340,6 +391,7 @@ def test_subtract_isolate_recover_two_modes():
         min_points=3,
         zeta_max=0.25,
     )
+    # per-point estimates with the same noise: as for the isolated eigenvalues above
     np.testing.assert_allclose(est, np.broadcast_to(TRUE_LAM, est.shape), rtol=1e-4)
 
 
