@@ -160,6 +160,9 @@ ATTR_AMI_TOL = "ami_tol"  # isolate: relative convergence tolerance
 ATTR_AMI_BAND = "ami_band"  # global_fit: band half-width in half-power bandwidths, or "all"
 ATTR_AMI_RESIDUAL_TERMS = "ami_residual_terms"  # global_fit: 1 with residual terms, else 0
 ATTR_AMI_DRIVE_SNR_MIN = "ami_drive_snr_min"  # global_fit: threshold of low_drive_point_snr
+ATTR_AMI_STOP_REASON = "ami_stop_reason"  # subtract, when no FRF has a candidate: why (below)
+STOP_NO_SIGNIFICANT_PEAK = "no_significant_peak"  # no FRF has a peak above its noise floor
+STOP_NO_ACCEPTED_FIT = "no_accepted_fit"  # peaks above the noise floor, but no fit accepted
 # Results of ami_xr.refine, as attributes
 ATTR_REFINE_MODEL = "refine_model"  # "discrete" | "continuous"
 ATTR_REFINE_RESIDUAL_TERMS = "refine_residual_terms"  # "", "lower", "upper" or "lower,upper"
