@@ -313,8 +313,9 @@ def plot_subtraction(
             "(run ami_xr.subtract or ami_xr.identify first)"
         )
     threshold = None
-    if names.SUB_STOP_STATISTIC in ds and "threshold" in ds[names.SUB_STOP_STATISTIC].attrs:
-        threshold = float(ds[names.SUB_STOP_STATISTIC].attrs["threshold"])
+    stop_attrs = ds[names.SUB_STOP_STATISTIC].attrs if names.SUB_STOP_STATISTIC in ds else {}
+    if names.ATTR_THRESHOLD in stop_attrs:
+        threshold = float(stop_attrs[names.ATTR_THRESHOLD])
     pts = _select_points(ds, points, "plot_subtraction")
     freq = ds[names.FREQUENCY].values
     ncol = min(len(pts), 4)

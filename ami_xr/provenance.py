@@ -86,10 +86,10 @@ def add_history(
         "function": function,
         "parameters": _jsonable(parameters or {}),
         "time_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "ami_xr_version": __version__,
+        names.ATTR_VERSION: __version__,
     }
     if source_file is not None:
-        record["source_file"] = str(source_file)
+        record[names.ATTR_SOURCE_FILE] = str(source_file)
     out = ds.copy()
     out.attrs = dict(ds.attrs)
     out.attrs[names.ATTR_HISTORY] = json.dumps(history(ds) + [record])

@@ -169,11 +169,15 @@ def cramer_rao_bound(
     out = xr.Dataset(
         {
             names.EIGENVALUE: ((M,), lam, {names.ATTR_UNITS: names.ANGULAR_UNITS}),
-            names.NATURAL_FREQUENCY: ((M,), wn / (2 * np.pi), {names.ATTR_UNITS: "Hz"}),
-            names.DAMPING_RATIO: ((M,), zeta, {names.ATTR_UNITS: "1"}),
+            names.NATURAL_FREQUENCY: (
+                (M,),
+                wn / (2 * np.pi),
+                {names.ATTR_UNITS: names.FREQUENCY_UNITS},
+            ),
+            names.DAMPING_RATIO: ((M,), zeta, {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}),
             names.EIGENVALUE_STD: ((M,), eig_std, {names.ATTR_UNITS: names.ANGULAR_UNITS}),
-            names.NATURAL_FREQUENCY_STD: ((M,), fn_std, {names.ATTR_UNITS: "Hz"}),
-            names.DAMPING_RATIO_STD: ((M,), z_std, {names.ATTR_UNITS: "1"}),
+            names.NATURAL_FREQUENCY_STD: ((M,), fn_std, {names.ATTR_UNITS: names.FREQUENCY_UNITS}),
+            names.DAMPING_RATIO_STD: ((M,), z_std, {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}),
             names.NATURAL_FREQUENCY_ERROR: ((M,), k_abs * fn_std * 2 * np.pi / wn),
             names.DAMPING_RATIO_ERROR: ((M,), k_abs * z_std / zeta),
             names.RESIDUE_STD: ((P, M), np.sqrt(cov.residue_var)),

@@ -250,7 +250,7 @@ def modal_model(
     mode = np.arange(1, n + 1)
     ds = xr.Dataset(
         {
-            names.EIGENVALUE: (names.MODE, lam, {names.ATTR_UNITS: "rad/s"}),
+            names.EIGENVALUE: (names.MODE, lam, {names.ATTR_UNITS: names.ANGULAR_UNITS}),
             names.NATURAL_FREQUENCY: (
                 names.MODE,
                 wn / (2 * np.pi),
