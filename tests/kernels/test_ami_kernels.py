@@ -49,7 +49,7 @@ def test_rows_are_eqs_11_12():
     )
     # the exact unknowns satisfy every row; rounding of 4-term dot products of O(|rhs|) values: a
     # few ulp of the largest right-hand side (norm-wise: the residual is 0)
-    np.testing.assert_allclose(rows @ x, rhs, atol=1e-12 * np.abs(rhs).max())
+    np.testing.assert_allclose(rows @ x, rhs, rtol=0, atol=1e-12 * np.abs(rhs).max())
     # eq. 11 (real part) and eq. 12 (imaginary part) written out with numpy
     w = OMEGA[sel]
     eq11 = (
