@@ -1,13 +1,25 @@
 """The ``ami-xr`` command line: a thin shell over the public functions.
 
 Each subcommand parses its options, calls one public function (heavy imports happen inside the
-subcommand, so ``ami-xr --help`` is fast and compiles nothing), and maps errors to exit codes:
+subcommand, so ``ami-xr --help`` is fast and compiles nothing), and maps errors to exit codes.
+One rule holds for every subcommand (:func:`main`):
 
+* Outputs are checked before any work (:func:`check_paths`, table :data:`PATHS`): an output that
+  is one of the inputs (also through a symlink or a hard link) or another output of the same
+  run, whose suffix is not that of the format written (``.nc`` for netCDF; ``.nc``, ``.uff`` or
+  ``.unv`` where the suffix chooses), that exists and is read-only (mode 0444: refused, never
+  replaced), a file where a folder goes, or a missing or read-only folder is refused. An
+  existing writable output is replaced, atomically.
 * Warnings of ami_xr (e.g. no modes found, iteration cap reached) print as one line each;
   other packages' warnings only with ``-v``.
-* 0 success; 1 a library error (bad input file, bad option value, failed identification): one
-  line ``ami-xr <command>: error: ...`` on stderr, no traceback (``-v`` shows it); 2 a usage error
-  (argparse); 3 ``batch`` finished but some files failed; 130 interrupted (Ctrl-C).
+* Every error is one line ``ami-xr <command>: error: ...`` on stderr, never a bare traceback
+  (``-v`` shows it). An expected error (bad input file, bad option value, failed
+  identification: :class:`~ami_xr.errors.AmiXrError`, ValueError, OSError) says what is wrong;
+  anything else is a bug, named with its type and "run with -v for the traceback".
+* Exit codes (defined once, here): 0 success (:data:`EXIT_OK`); 1 an error
+  (:data:`EXIT_ERROR`); 2 a usage error (argparse, :data:`EXIT_USAGE`); 3 ``batch`` finished but
+  some files failed (:data:`EXIT_BATCH_FAILURES`); 130 interrupted by Ctrl-C
+  (:data:`EXIT_INTERRUPTED`, one line ``ami-xr <command>: interrupted``).
 
 Option defaults are read from the signatures of the functions they feed, only when a help text
 shows them (:mod:`ami_xr.cli_options`, which also declares the options shared by several
@@ -35,13 +47,34 @@ from ami_xr.cli_options import (
     identify_options,
     value,
 )
-from ami_xr.errors import AmiXrError, AmiXrWarning
+from ami_xr.errors import AmiXrError, AmiXrValueError, AmiXrWarning
 
 EXIT_OK = 0
 EXIT_ERROR = 1
-EXIT_USAGE = 2
+EXIT_USAGE = 2  # argparse exits with this itself
 EXIT_BATCH_FAILURES = 3
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a Ctrl-C
+
+#: Errors a user can cause (bad file, bad value, missing optional package): their message is
+#: the whole story. Anything else escaping a command is a bug and says how to see its traceback.
+EXPECTED_ERRORS = (AmiXrError, ValueError, OSError, ImportError)
+VERBOSE_HINT = "run with -v for the traceback"
+
+#: What each subcommand reads and writes, for :func:`check_paths`: the argument names of its
+#: inputs, and of its outputs with their kind (see :func:`ami_xr.io.formats.check_output`).
+#: Every subcommand is listed (a test checks it), so a new one cannot skip the rule.
+PATHS: dict[str, tuple[tuple[str, ...], tuple[tuple[str, str], ...]]] = {
+    "demo": ((), (("output", "folder"),)),
+    "simulate": (
+        (),
+        (("output", "netcdf"), ("time_output", "netcdf"), ("truth_output", "netcdf")),
+    ),
+    "frf": (("input",), (("output", "netcdf"),)),
+    "identify": (("input",), (("output", "file"),)),
+    "report": (("input",), (("output", "folder"),)),
+    "convert": (("input",), (("output", "file"),)),
+    "batch": (("input",), (("output", "folder"),)),
+}
 
 
 class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
@@ -65,6 +98,30 @@ def _one_line(err: BaseException) -> str:
 
 def _say(*parts: Any) -> None:
     print(*parts, flush=True)
+
+
+def check_paths(args: argparse.Namespace) -> None:
+    """Apply the output rule (module docstring) to the paths of ``args.command``, before any work.
+
+    Raises
+    ------
+    DataFileError
+        Naming the option, the output and, where it clashes with one, the input.
+    """
+    from ami_xr.io.formats import check_output
+
+    reads, writes = PATHS[args.command]
+    inputs = [value(getattr(args, a)) for a in reads]
+    done: list[str] = []
+    for attr, kind in writes:
+        path = value(getattr(args, attr))
+        if path is None:
+            continue
+        flag = "-o" if attr == "output" else "--" + attr.replace("_", "-")
+        check_output(
+            path, kind, inputs=inputs, outputs=done, name=flag, writer=f"ami-xr {args.command}"
+        )
+        done.append(str(path))
 
 
 def _add_output(
@@ -99,8 +156,6 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     import ami_xr
 
     if args.time_output and args.system != "beam-absorbers":
-        from ami_xr.errors import AmiXrValueError
-
         raise AmiXrValueError("--time-output: only the beam-absorbers system has impulse responses")
     common = {"noise": value(args.noise), "seed": value(args.seed)}
     if args.system == "beam-absorbers":
@@ -152,14 +207,26 @@ def _cmd_frf(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _frf_first(path: str) -> str:
+    stem = Path(path).stem
+    return (
+        f"input {path!r} holds time histories, identify needs FRFs: run "
+        f"'ami-xr frf {path} -o {stem}_frf.nc' first, then 'ami-xr identify {stem}_frf.nc'"
+    )
+
+
 def _cmd_identify(args: argparse.Namespace) -> int:
     import ami_xr
     from ami_xr import names
-    from ami_xr.io.formats import read_any, write_any
+    from ami_xr.io.formats import LVM_SUFFIX, read_any, write_any
     from ami_xr.progress import elapsed
     from ami_xr.report import format_modal_table
 
+    if Path(args.input).suffix.lower() == LVM_SUFFIX:  # always time histories: say so unread
+        raise AmiXrValueError(_frf_first(args.input))
     ds = read_any(args.input)
+    if names.FRF not in ds and names.TIME in ds.dims:
+        raise AmiXrValueError(_frf_first(args.input))
     options = identify_options(args)
     n = ds.sizes.get(names.POINT, 0)
     with elapsed(f"identify: {n} FRFs", n, enabled=not args.quiet):
@@ -469,17 +536,22 @@ def main(argv: Sequence[str] | None = None) -> int:
                 file=sys.stderr,
             )
 
+    prefix = f"ami-xr {args.command}"
     try:
         with warnings.catch_warnings():
             warnings.showwarning = show_warning
+            check_paths(args)
             return int(args.func(args) or EXIT_OK)
     except KeyboardInterrupt:
-        print("ami-xr: interrupted", file=sys.stderr)
+        print(f"{prefix}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except (AmiXrError, ValueError, OSError, ImportError) as err:
+    except Exception as err:  # the one place that turns any error into one line and exit 1
         if args.verbose:
             traceback.print_exc()
-        print(f"ami-xr {args.command}: error: {_one_line(err)}", file=sys.stderr)
+        text = _one_line(err)
+        if not isinstance(err, EXPECTED_ERRORS):
+            text = f"unexpected {text}" + ("" if args.verbose else f" ({VERBOSE_HINT})")
+        print(f"{prefix}: error: {text}", file=sys.stderr)
         return EXIT_ERROR
 
 

@@ -109,10 +109,19 @@ def _benchmark_frf(simulate: bool, noise: float | None, seed: int | None):
     """The benchmark FRFs: the shipped sample file, else simulated (benchmark's defaults for
     ``noise`` and ``seed`` when None)."""
     import ami_xr
+    from ami_xr.errors import AmiXrValueError, DataFileError
 
     sample = None if simulate else find_sample_frf()
     if sample is not None:
         g = ami_xr.open_dataset(sample)
+        try:  # structure only: a stray *frf*.nc in sample_data/ must fail here, in one line
+            ami_xr.validate(g, "frf", require_drive_point=False, check_values=False)
+        except AmiXrValueError as err:
+            detail = "; ".join(getattr(err, "problems", ())) or str(err)
+            raise DataFileError(
+                f"{sample}: not an FRF file the demo can use ({detail}); move it out of "
+                f"{sample.parent} or run the demo with --simulate"
+            ) from err
         _say(f"benchmark FRFs: {sample}")
         return g
     defaults = inspect.signature(ami_xr.simulate.benchmark).parameters
@@ -155,6 +164,13 @@ def demo(
     -------
     pathlib.Path
         The ``modes.nc`` written.
+
+    Raises
+    ------
+    DataFileError
+        Before any work: ``output_dir`` is an existing file or not writable, or its
+        ``modes.nc`` exists and is read-only (see :func:`ami_xr.io.formats.check_output`); or the
+        sample file found is not an FRF file.
     """
     import importlib.util
 
@@ -162,12 +178,19 @@ def demo(
 
     import ami_xr
     from ami_xr import names
+    from ami_xr.io.formats import OUTPUT_FOLDER, OUTPUT_NETCDF, check_output
     from ami_xr.progress import elapsed
     from ami_xr.report import format_modal_table
     from ami_xr.simulate.paper import AMI_EIGENVALUES
 
     options = dict(identify_options or {})
-    outdir = Path(output_dir)
+    # Every output is checked before the identification, which is the slow part.
+    outdir = check_output(output_dir, OUTPUT_FOLDER, name="output_dir")
+    modes_file = outdir / "modes.nc"
+    if outdir.is_dir():
+        check_output(modes_file, OUTPUT_NETCDF, name="output_dir", writer="demo")
+    if report:
+        check_output(outdir / "report", OUTPUT_FOLDER, name="output_dir")
     truth = ami_xr.simulate.benchmark_model()
     g = _benchmark_frf(simulate, noise, seed)
     n = g.sizes.get(names.POINT, 0)
@@ -187,7 +210,7 @@ def demo(
     )
     outdir.mkdir(parents=True, exist_ok=True)
     modes_path = ami_xr.to_netcdf(
-        result, outdir / "modes.nc", function="ami_xr.identify", parameters=options
+        result, modes_file, function="ami_xr.identify", parameters=options
     )
     _say(f"\nwrote {modes_path}")
     if report:

@@ -8,17 +8,33 @@ so the optional ``pyuff`` is needed for UFF files only.
 * ``.uff``, ``.unv``: read with :func:`ami_xr.read_uff`, written with
   :func:`ami_xr.io.uff.write_uff`;
 * ``.lvm``: read with :func:`ami_xr.read_lvm` (not written).
+
+:func:`check_output` is the output rule every writing command applies before any work: an
+output never names one of the inputs (also through a symlink or a hard link), its suffix is
+that of the format written, and an existing read-only output, an existing file where a folder
+goes or a missing or read-only folder is refused instead of failing after the computation.
 """
 
 from __future__ import annotations
 
 import os
+import stat
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 from ami_xr.errors import AmiXrValueError, DataFileError
 
-__all__ = ["INPUT_SUFFIXES", "OUTPUT_SUFFIXES", "read_any", "write_any"]
+__all__ = [
+    "INPUT_SUFFIXES",
+    "OUTPUT_ANY",
+    "OUTPUT_FOLDER",
+    "OUTPUT_NETCDF",
+    "OUTPUT_SUFFIXES",
+    "check_output",
+    "read_any",
+    "write_any",
+]
 
 NETCDF_SUFFIX = ".nc"
 UFF_SUFFIXES = (".uff", ".unv")
@@ -27,6 +43,117 @@ LVM_SUFFIX = ".lvm"
 INPUT_SUFFIXES = (NETCDF_SUFFIX, *UFF_SUFFIXES, LVM_SUFFIX)
 #: File suffixes (lower case) :func:`write_any` writes.
 OUTPUT_SUFFIXES = (NETCDF_SUFFIX, *UFF_SUFFIXES)
+#: ``kind`` of :func:`check_output`: a file of any of :data:`OUTPUT_SUFFIXES` (:func:`write_any`),
+#: a netCDF file only (:func:`ami_xr.to_netcdf`), or a folder (created if missing).
+OUTPUT_ANY = "file"
+OUTPUT_NETCDF = "netcdf"
+OUTPUT_FOLDER = "folder"
+_WRITE_BITS = stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """``a`` and ``b`` name one file: the same resolved path (symlinks) or inode (hard links)."""
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist: not the same file
+        return False
+
+
+def _writable(path: Path) -> bool:
+    # Write permission bits as well as access(2): root passes access() for a 0444 file, and
+    # replacing it anyway would silently undo a user's "chmod a-w" protection.
+    return os.access(path, os.W_OK) and bool(path.stat().st_mode & _WRITE_BITS)
+
+
+def _nearest_existing(path: Path) -> Path:
+    path = Path(os.path.abspath(path))
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return path
+
+
+def check_output(
+    path: str | os.PathLike,
+    kind: str = OUTPUT_ANY,
+    *,
+    inputs: Iterable[str | os.PathLike] = (),
+    outputs: Iterable[str | os.PathLike] = (),
+    name: str = "output",
+    writer: str = "",
+) -> Path:
+    """Refuse an output path before any work is done; return it as a :class:`~pathlib.Path`.
+
+    Existing writable outputs are replaced (atomically, by the writers); everything that would
+    lose data or fail only after the computation is an error here.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The output file or folder.
+    kind : {"file", "netcdf", "folder"}
+        ``"file"``: a ``.nc``, ``.uff`` or ``.unv`` file (:func:`write_any`); ``"netcdf"``: a
+        ``.nc`` file; ``"folder"``: a folder, created with its parents if missing.
+    inputs, outputs : iterable of path-like
+        Files or folders the command reads, and the other outputs it writes: ``path`` must be
+        none of them, also through a symlink or a hard link.
+    name : str, default "output"
+        How the message names ``path`` (the option, e.g. ``"-o"``).
+    writer : str, optional
+        What writes ``path`` (e.g. ``"simulate"``), for the message on a wrong suffix.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    DataFileError
+        ``path`` is one of ``inputs`` or ``outputs``; its suffix is not one the format has; it
+        exists and is read-only; a file output is an existing folder, a folder output an
+        existing file; or the folder it goes in is missing (file outputs) or not writable.
+    """
+    path = Path(path)
+    label = f"{name} {str(path)!r}"
+    for other in inputs:
+        if _same_file(path, Path(other)):
+            same = "" if str(other) == str(path) else f" {str(other)!r}"
+            harm = "mix results with the inputs" if kind == OUTPUT_FOLDER else "destroy the input"
+            raise DataFileError(
+                f"{label} is the input{same}: writing there would {harm}; "
+                "choose another output name"
+            )
+    for other in outputs:
+        if _same_file(path, Path(other)):
+            raise DataFileError(
+                f"{label} is also the output {str(other)!r}; give each its own name"
+            )
+    suffix = path.suffix.lower()
+    by = f"{writer} writes" if writer else "writes"
+    if kind == OUTPUT_NETCDF and suffix != NETCDF_SUFFIX:
+        raise DataFileError(f"{label}: {by} netCDF; expected a {NETCDF_SUFFIX} file name")
+    if kind == OUTPUT_ANY and suffix not in OUTPUT_SUFFIXES:
+        raise DataFileError(f"{label}: expected a .nc, .uff or .unv file name, got {suffix!r}")
+    if kind == OUTPUT_FOLDER:
+        if path.exists() and not path.is_dir():
+            raise DataFileError(f"{label} exists and is not a folder")
+        folder = _nearest_existing(path)
+    else:
+        if path.is_dir():
+            raise DataFileError(f"{label} is a folder; expected a file name")
+        if path.exists() and not _writable(path):
+            mode = stat.S_IMODE(path.stat().st_mode)
+            raise DataFileError(
+                f"{label} exists and is read-only (mode {mode:04o}); make it writable or "
+                "choose another output name"
+            )
+        folder = Path(os.path.abspath(path)).parent
+        if not folder.is_dir():
+            raise DataFileError(f"{label}: folder {str(folder)!r} does not exist")
+    if not folder.is_dir() or not _writable(folder):
+        raise DataFileError(f"{label}: folder {str(folder)!r} is not writable")
+    return path
 
 
 def read_any(path: str | os.PathLike):
