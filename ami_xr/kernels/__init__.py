@@ -4,8 +4,10 @@ Kernels take batch dims first and the core dim (frequency or time) last. Private
 are jitted and assume clean input; public checked wrappers raise
 :class:`~ami_xr.errors.AmiXrValueError` (naming the argument) before any jitted code runs, and are
 the only entry points of the labeled layer. Jitted helpers that other kernel modules share have
-public names and say "jitted, unchecked" in their module docstring. numba's on-disk cache is
-stamped per source file, so the modules are split by topic: an edit recompiles one topic.
+public names and say "jitted, unchecked" in their module docstring. The modules are split by
+topic, and each kernel's on-disk cache is stamped with its own file and the kernel modules it
+imports (``_numba``): an edit recompiles that topic's kernels and those of the topics that call
+it, no others.
 
 Modules (numba policy in ``_numba``):
 

@@ -32,11 +32,17 @@ from ami_xr.kernels.isolate import (
     fit_limits,
     relative_change,
 )
-from ami_xr.kernels.modal_basis import Grid, add_mode, contribution_peak, line_variable, mode_basis
+from ami_xr.kernels.modal_basis import (
+    Grid,
+    add_mode,
+    contribution_peak,
+    line_variable,
+    mode_basis,
+    nearest_line,
+)
 from ami_xr.kernels.noise import (
     band_around,
     band_energy_peak,
-    nearest_line,
     normalized_distance,
     peak_threshold_kernel,
     pole_band,

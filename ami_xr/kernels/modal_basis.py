@@ -20,12 +20,12 @@ results were fixed by its order, so the three evaluations are kept side by side 
 merged into one expression.
 
 The :class:`Grid` record carries ``(omega, x, dt, n_samples)`` between kernels. Jitted,
-unchecked helpers for the other kernel modules: ``line_variable``, ``pole_factor``,
-``basis_at``, ``add_mode``, ``mode_basis``, ``contribution_peak``, ``tolerance_envelope``,
-``residual_basis``. Checked wrappers: :func:`pole_basis`, :func:`mode_contribution`,
-:func:`basis_and_derivative`, :func:`model_columns`, :func:`synthesize`,
-:func:`synthesize_residual_terms`, :func:`contribution_peaks`; :func:`checked_omega` and
-:func:`as_dt` are the argument checks the other wrappers share.
+unchecked helpers for the other kernel modules: ``nearest_line``, ``line_variable``,
+``pole_factor``, ``basis_at``, ``add_mode``, ``mode_basis``, ``contribution_peak``,
+``tolerance_envelope``, ``residual_basis``. Checked wrappers: :func:`pole_basis`,
+:func:`mode_contribution`, :func:`basis_and_derivative`, :func:`model_columns`,
+:func:`synthesize`, :func:`synthesize_residual_terms`, :func:`contribution_peaks`;
+:func:`checked_omega` and :func:`as_dt` are the argument checks the other wrappers share.
 """
 
 from __future__ import annotations
@@ -36,7 +36,6 @@ import numpy as np
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
-from ami_xr.kernels.noise import nearest_line
 
 RESIDUAL_TERMS = ("lower", "upper")
 """Names of the residual terms: ``lower`` (below the band) and ``upper`` (above it)."""
@@ -58,6 +57,26 @@ class Grid(NamedTuple):
 # ----------------------------------------------------------------------------------------------
 # one mode on a grid of lines: the AMI kernels' evaluation (eqs. 4, 6, 7)
 # ----------------------------------------------------------------------------------------------
+@jit
+def nearest_line(omega, w):
+    """Index of the line of the ascending grid ``omega`` nearest to ``w`` (the lower one on a
+    tie; the first or last line outside the grid)."""
+    n = omega.shape[0]
+    lo = 0
+    hi = n - 1
+    if w <= omega[0]:
+        return 0
+    if w >= omega[n - 1]:
+        return n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if omega[mid] <= w:
+            lo = mid
+        else:
+            hi = mid
+    return lo if (w - omega[lo]) <= (omega[hi] - w) else hi
+
+
 @jit
 def line_variable(omega, dt):
     """``q = exp(-i w dt)`` for the discrete model, ``i w`` for the continuous one (dt <= 0)."""

@@ -6,7 +6,7 @@ is Gamma(k, 1). Thresholds are set for a false-alarm probability ``pfa`` over al
 
 Jitted, unchecked helpers for the other kernel modules: ``noise_floor_kernel``,
 ``peak_threshold_kernel``, ``gamma_tail_kernel``, ``sum_threshold_kernel``, ``band_around``,
-``nearest_line``, ``local_peak``, ``pole_band``, ``band_energy_peak``, ``split_target``,
+``local_peak``, ``pole_band``, ``band_energy_peak``, ``split_target``,
 ``normalized_distance``. Checked wrappers: :func:`noise_floor`, :func:`peak_threshold`,
 :func:`sum_threshold`, :func:`gamma_tail`.
 """
@@ -19,6 +19,7 @@ import numpy as np
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
+from ami_xr.kernels.modal_basis import nearest_line
 
 
 @jit
@@ -82,24 +83,6 @@ def band_around(power, peak, level):
     while hi < n and power[hi] >= level:
         hi += 1
     return lo, hi
-
-
-@jit
-def nearest_line(omega, w):
-    n = omega.shape[0]
-    lo = 0
-    hi = n - 1
-    if w <= omega[0]:
-        return 0
-    if w >= omega[n - 1]:
-        return n - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if omega[mid] <= w:
-            lo = mid
-        else:
-            hi = mid
-    return lo if (w - omega[lo]) <= (omega[hi] - w) else hi
 
 
 @jit

@@ -168,7 +168,7 @@ def test_unknown_numba_internals_fall_back_to_numba_defaults(monkeypatch):
     ("module", "expected"),
     [
         ("ami_xr.kernels.linalg", {"_numba"}),
-        ("ami_xr.kernels.single_mode", {"_numba", "linalg", "modal_basis", "noise"}),
+        ("ami_xr.kernels.single_mode", {"_numba", "linalg", "modal_basis"}),
     ],
 )
 def test_kernel_modules_are_stamped_with_the_kernel_modules_they_import(module, expected):
