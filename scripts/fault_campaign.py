@@ -1,0 +1,989 @@
+"""Fault-injection campaign: nothing lost, nothing hangs, no traceback (issue 9).
+
+Usage::
+
+    python scripts/fault_campaign.py                       # default: >= 1000 faults, 2 processes
+    python scripts/fault_campaign.py --cases 200 --seed 3 --categories truncate flip
+    python scripts/fault_campaign.py --workers 4 --keep /tmp/campaign
+
+Categories (each case is one injected fault):
+
+``truncate``    every supported input (netCDF FRF and time files, UFF ASCII and binary, LVM)
+                cut at a random byte, fed to ``ami-xr convert/identify/frf``
+``flip``        the same files with 1-8 random bytes changed
+``signal``      SIGINT, SIGTERM, SIGKILL (or a double SIGINT) at a random moment of
+                ``ami-xr convert big.nc -o out.nc`` (a file of tens of MB), over an existing
+                destination or none
+``batch``       the same signals during ``ami-xr batch``
+``concurrent``  2-4 ``ami-xr convert`` processes writing one destination at the same time
+``dataset``     hypothesis-generated Datasets (valid, or with one defect) through
+                ``ami_xr.validate`` and ``ami_xr.identify``
+
+Every outcome is classified as
+
+``clean error``     exit code 1, 2 or 130 (or, in-process, a ``ValueError`` subclass) with a
+                    one-line message that names the file or argument, no traceback;
+``correct result``  exit 0 and the result equals that of the intact input (truncations), is
+                    complete and valid (byte flips: a flipped data byte cannot be detected), or
+                    the destination is old-or-new-complete (signals, concurrent writers);
+``anything else``   a traceback, exit 0 with a wrong or partial result, a hang past the
+                    timeout, a crash (killed by a signal it was not sent), an invalid Dataset
+                    accepted, a lost or partial file, a temporary file left after a rerun, or
+                    a changed input.
+
+CLI cases run as real processes: ``truncate``/``flip``/``dataset`` cases in a child forked from
+a worker that has already imported ``ami_xr`` (so a case costs the command's work, not the
+interpreter start-up; the child runs ``ami_xr.cli.main`` exactly as the console script does and
+is killed at the timeout), ``signal``/``batch``/``concurrent`` cases as ``ami-xr`` subprocesses.
+Exits 1 when any case ends as "anything else" or any file was lost or left partial.
+
+Written against the public API (``ami_xr.cli.main``, ``ami_xr.open_dataset``,
+``ami_xr.read_uff``, ``ami_xr.validate``, ``ami_xr.identify``, ``ami_xr.write_uff``,
+``ami_xr.make_frf_dataset``, ``ami_xr.make_time_dataset``). ``tests/test_faults.py`` runs a
+small seeded subset of the same generators.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import traceback
+import warnings
+from collections import Counter, defaultdict
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+CLEAN, CORRECT, OTHER = "clean error", "correct result", "anything else"
+OUTCOMES = (CLEAN, CORRECT, OTHER)
+CATEGORIES = ("truncate", "flip", "signal", "batch", "concurrent", "dataset")
+#: Share of the default case count per category (the write-interrupt cases are slow).
+DEFAULT_SHARE = {
+    "truncate": 0.42,
+    "flip": 0.42,
+    "signal": 0.03,
+    "batch": 0.015,
+    "concurrent": 0.015,
+    "dataset": 0.10,
+}
+EXIT_CLEAN = (1, 2, 130)
+CASE_TIMEOUT_S = 60.0  # one forked CLI or in-process case
+STOP_BOUND_S = 15.0  # a process sent SIGINT/SIGTERM must be gone within this
+#: Besides a file name, an error may name one of these (a variable or coordinate of the data
+#: model, or an option) to count as naming what is wrong.
+NAMED_THINGS = (
+    "'frf'",
+    "frequency",
+    "'point'",
+    "'time'",
+    "force",
+    "response",
+    "coherence",
+    "drive_point",
+    "--",
+)
+TEMP_GLOB = ".*.tmp"  # temporary folders of ami_xr's atomic writer (hidden, .tmp suffix)
+AMI_XR = [sys.executable, "-c", "import sys; from ami_xr.cli import main; sys.exit(main())"]
+
+
+class Result(NamedTuple):
+    """Outcome of one injected fault."""
+
+    category: str
+    case: str
+    outcome: str
+    detail: str = ""
+    lost: tuple[str, ...] | list[str] = ()  # files lost or left partial
+
+
+# --- input files ---------------------------------------------------------------------------------
+
+LVM_HEADER = (
+    "LabVIEW Measurement\t\nWriter_Version\t2\nReader_Version\t2\nSeparator\tTab\n"
+    "Decimal_Separator\t.\nMulti_Headings\tYes\nX_Columns\tNo\nTime_Pref\tAbsolute\n"
+    "***End_of_Header***\t\n\t\n"
+)
+LVM_SEGMENT = (
+    "Channels\t2\t\t\nSamples\t{n}\t{n}\t\nY_Unit_Label\tNewtons\tm/s^2\t\n"
+    "X_Dimension\tTime\tTime\t\nX0\t{x0}\t{x0}\t\nDelta_X\t{dx}\t{dx}\t\n"
+    "***End_of_Header***\t\t\t\nX_Value\tForce (Trigger)\tAcceleration (Trigger)\tComment\n"
+)
+
+
+def write_lvm(path: Path, force: np.ndarray, response: np.ndarray, dx: float) -> Path:
+    """Write records (n_record, n_time) of force and response as a LabVIEW LVM file."""
+    parts = [LVM_HEADER]
+    for i, (f, a) in enumerate(zip(force, response, strict=True)):
+        parts.append(LVM_SEGMENT.format(n=f.size, x0=float(i), dx=dx))
+        parts.extend(f"\t{fi:.6e}\t{ai:.6e}\n" for fi, ai in zip(f, a, strict=True))
+        parts.append("\n")
+    path.write_text("".join(parts))
+    return path
+
+
+def small_frf(seed: int = 0, n_points: int = 3, n_frequency: int = 256, scale: float = 1.0):
+    """A small valid FRF Dataset of two modes plus noise (``ami_xr.make_frf_dataset``)."""
+    import ami_xr
+
+    rng = np.random.default_rng(seed)
+    f = np.linspace(0.0, 50.0, n_frequency)
+    w = 2 * np.pi * f
+    fn = np.sort(rng.uniform(8.0, 40.0, 2))
+    zeta = rng.uniform(0.01, 0.03, 2)
+    phi = rng.uniform(0.3, 1.0, (2, n_points))
+    h = np.zeros((n_points, n_frequency), complex)
+    for k in range(2):
+        wn = 2 * np.pi * fn[k]
+        h += np.outer(phi[k] * phi[k, 0], 1.0 / (wn**2 - w**2 + 2j * zeta[k] * wn * w))
+    h += 1e-3 * np.abs(h).max() * (rng.standard_normal(h.shape) + 1j * rng.standard_normal(h.shape))
+    return ami_xr.make_frf_dataset(scale * h, f, drive_point=0)
+
+
+def small_time(seed: int = 0, n_records: int = 3, n_time: int = 512, fs: float = 256.0):
+    """Impact-like force and response records (n_record, n_point=1, n_time)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n_time) / fs
+    force = np.zeros((n_records, n_time))
+    # an asymmetric pulse: its spectrum has no exact zero (a symmetric 4-tap one is 0 at Nyquist)
+    force[:, 5:10] = np.array([0.3, 0.8, 1.0, 0.6, 0.2]) * rng.uniform(50, 100, (n_records, 1))
+    kernel = np.exp(-3.0 * t) * np.sin(2 * np.pi * 20.0 * t)
+    response = np.array([np.convolve(fr, kernel)[:n_time] for fr in force])
+    response += 1e-3 * rng.standard_normal(response.shape)
+    return force, response, fs
+
+
+def make_inputs(folder: Path, seed: int = 0) -> dict[str, Path]:
+    """The intact input files of every supported format, written into ``folder``."""
+    import ami_xr
+
+    folder.mkdir(parents=True, exist_ok=True)
+    g = small_frf(seed)
+    force, response, fs = small_time(seed)
+    tds = ami_xr.make_time_dataset(response[:, None, :], fs=fs, force=force, drive_point=0)
+    files = {
+        "frf.nc": folder / "frf.nc",
+        "time.nc": folder / "time.nc",
+        "frf_ascii.uff": folder / "frf_ascii.uff",
+        "frf_binary.uff": folder / "frf_binary.uff",
+        "time.uff": folder / "time.uff",
+        "hits.lvm": folder / "hits.lvm",
+    }
+    ami_xr.to_netcdf(g, files["frf.nc"])
+    ami_xr.to_netcdf(tds, files["time.nc"])
+    ami_xr.write_uff(g, files["frf_ascii.uff"])
+    ami_xr.write_uff(g, files["frf_binary.uff"], binary=True)
+    ami_xr.write_uff(tds, files["time.uff"])
+    write_lvm(files["hits.lvm"], force, response, 1.0 / fs)
+    return files
+
+
+def commands_for(name: str) -> list[list[str]]:
+    """CLI commands (``IN`` = the input, ``OUT.x`` = an output) run on an input file."""
+    if name.startswith("frf"):
+        out = "OUT.uff" if name.endswith(".nc") else "OUT.nc"
+        return [["convert", "IN", "-o", out], ["identify", "IN", "-q", "--no-refine"]]
+    if name.endswith(".nc"):
+        return [["convert", "IN", "-o", "OUT.uff"], ["frf", "IN", "-o", "OUT.nc"]]
+    return [["convert", "IN", "-o", "OUT.nc"], ["frf", "IN", "-o", "OUT.nc"]]
+
+
+# --- running one CLI command in a forked child ---------------------------------------------------
+
+
+def _child_cli(argv: list[str]) -> int:
+    from ami_xr.cli import main
+
+    try:
+        return int(main(argv) or 0)
+    except SystemExit as err:  # argparse; the console script turns these into the exit code
+        return err.code if isinstance(err.code, int) else 1
+    except BaseException:  # what the console script would print: a raw traceback
+        traceback.print_exc()
+        return 1
+
+
+def run_forked(
+    func: Callable[..., int], args: tuple, cwd: Path, timeout: float = CASE_TIMEOUT_S
+) -> tuple[int | None, str, str, float]:
+    """Run ``func(*args)`` in a forked child in ``cwd``; (exit code or None on hang, out, err, s).
+
+    The child gets default signal handling and its own stdout/stderr files; it is killed with
+    its process group when it runs past ``timeout``.
+    """
+    out_path, err_path = cwd / ".stdout", cwd / ".stderr"
+    start = time.monotonic()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:  # child
+        code = 1
+        try:
+            os.setpgid(0, 0)
+            os.chdir(cwd)
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            fd_out = os.open(out_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+            fd_err = os.open(err_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+            os.dup2(fd_out, 1)
+            os.dup2(fd_err, 2)
+            # the parent's sys.stdout may not write to fd 1 (pytest's capture replaces it)
+            sys.stdout = open(1, "w", closefd=False)  # noqa: SIM115
+            sys.stderr = open(2, "w", closefd=False)  # noqa: SIM115
+            code = func(*args)
+        except BaseException:
+            traceback.print_exc()
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(code)
+    code: int | None = None
+    while True:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            code = os.waitstatus_to_exitcode(status)
+            break
+        if time.monotonic() - start > timeout:
+            try:
+                os.killpg(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            os.waitpid(pid, 0)
+            break
+        time.sleep(0.005)
+    elapsed = time.monotonic() - start
+    read = lambda p: p.read_text(errors="replace") if p.exists() else ""  # noqa: E731
+    out, err = read(out_path), read(err_path)
+    for p in (out_path, err_path):
+        p.unlink(missing_ok=True)
+    return code, out, err, elapsed
+
+
+# --- checks shared by the categories -------------------------------------------------------------
+
+
+def digest(path: Path) -> str | None:
+    """SHA-256 of a file, or None when it does not exist."""
+    return hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
+
+
+def leftovers(folder: Path) -> list[str]:
+    """Temporary files/folders of the atomic writer anywhere under ``folder``."""
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob(TEMP_GLOB))
+
+
+def read_result(path: Path):
+    """An output file as a Dataset (netCDF or UFF), loaded; raises if unreadable."""
+    import ami_xr
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        if path.suffix == ".nc":
+            with ami_xr.open_dataset(path) as ds:
+                return ds.load()
+        return ami_xr.read_uff(path)
+
+
+def same_data(a, b) -> bool:
+    """Same variables, coordinates and values (attributes such as provenance ignored)."""
+    try:
+        return bool(a.equals(b))
+    except Exception:  # noqa: BLE001 - different structures compare unequal
+        return False
+
+
+def clean_error(code: int | None, err: str, names: list[str]) -> tuple[bool, str]:
+    """Whether (exit code, stderr) is a clean error; else why not.
+
+    Clean: exit 1, 2 or 130, no traceback, one error line (warning lines aside) that names
+    one of ``names`` (the files) or of :data:`NAMED_THINGS`, and is not the CLI's
+    "unexpected ... (run with -v ...)" fallback.
+    """
+    if code not in EXIT_CLEAN:
+        return False, f"exit code {code}"
+    if "Traceback (most recent call last)" in err:
+        return False, "traceback on stderr: " + err.strip().splitlines()[-1][:200]
+    lines = [ln for ln in err.strip().splitlines() if ln.strip() and ": warning: " not in ln]
+    if code == 2:  # argparse usage error: usage lines plus one error line
+        return (bool(lines) and "error:" in lines[-1]), "usage error without an error line"
+    if code == 130:
+        return True, ""
+    if len(lines) != 1:
+        return False, f"{len(lines)} error lines: " + " | ".join(lines)[:300]
+    if "run with -v" in lines[0]:  # the CLI's fallback for an exception nobody anticipated
+        return False, f"unexpected exception: {lines[0][:300]}"
+    if not any(n in lines[0] for n in (*names, *NAMED_THINGS)):
+        return False, f"error names no file or argument ({names}): {lines[0][:200]}"
+    return True, ""
+
+
+# --- categories truncate and flip ----------------------------------------------------------------
+
+REFERENCE: dict[tuple[str, int], tuple[int, str, Any]] = {}  # per worker: intact-input results
+
+
+def _prepare_case(work: Path, src: Path, argv: list[str]) -> tuple[Path, list[str], Path | None]:
+    case_dir = Path(tempfile.mkdtemp(dir=work, prefix="case"))
+    target = case_dir / src.name
+    shutil.copyfile(src, target)
+    out = None
+    real = []
+    for a in argv:
+        if a == "IN":
+            real.append(src.name)
+        elif a.startswith("OUT"):
+            out = case_dir / ("result" + Path(a).suffix)
+            real.append(out.name)
+        else:
+            real.append(a)
+    return case_dir, real, out
+
+
+def _reference(work: Path, src: Path, k: int) -> tuple[int, str, Any]:
+    key = (str(src), k)
+    if key not in REFERENCE:
+        case_dir, argv, out = _prepare_case(work, src, commands_for(src.name)[k])
+        code, stdout, _, _ = run_forked(_child_cli, (argv,), case_dir)
+        data = read_result(out) if out is not None and out.exists() else None
+        REFERENCE[key] = (code, stdout, data)
+        shutil.rmtree(case_dir)
+    return REFERENCE[key]
+
+
+def corrupt(data: bytes, kind: str, rng: random.Random) -> tuple[bytes, str]:
+    """Truncate ``data`` at a random byte, or change 1-8 random bytes; (new data, what)."""
+    if kind == "truncate":
+        cut = rng.randrange(0, len(data))
+        return data[:cut], f"cut at byte {cut} of {len(data)}"
+    buf = bytearray(data)
+    where = sorted(rng.randrange(len(buf)) for _ in range(rng.randint(1, 8)))
+    for i in where:
+        buf[i] = (buf[i] + rng.randrange(1, 256)) % 256
+    return bytes(buf), f"bytes changed at {where}"
+
+
+def file_fault_case(kind: str, src: Path, k: int, seed: int, work: Path) -> Result:
+    """One truncation or byte-flip case: fault ``src``, run command ``k`` on it, classify."""
+    rng = random.Random(seed)
+    ref_code, ref_out, ref_data = _reference(work, src, k)
+    case_dir, argv, out = _prepare_case(work, src, commands_for(src.name)[k])
+    target = case_dir / src.name
+    bad, what = corrupt(src.read_bytes(), kind, rng)
+    target.write_bytes(bad)
+    before = digest(target)
+    code, stdout, err, elapsed = run_forked(_child_cli, (argv,), case_dir)
+    label = f"ami-xr {' '.join(argv)} ({src.name} {what}, seed {seed})"
+    lost = []
+    try:
+        if code is None:
+            return Result(kind, label, OTHER, f"hang: no exit within {CASE_TIMEOUT_S:.0f} s")
+        if digest(target) != before:
+            lost.append(f"{label}: input changed")
+        left = leftovers(case_dir)
+        if left:
+            lost.append(f"{label}: temporary files left: {left}")
+        if code != 0:
+            ok, why = clean_error(code, err, [src.name] + ([out.name] if out else []))
+            if out is not None and out.exists():
+                lost.append(f"{label}: output written although exit {code}")
+            return Result(kind, label, CLEAN if ok and not lost else OTHER, why, lost)
+        if "Traceback (most recent call last)" in err:
+            return Result(kind, label, OTHER, "exit 0 with a traceback on stderr", lost)
+        if out is None:  # identify: a flipped value may change the modes legitimately
+            good = kind == "flip" or (ref_code == 0 and stdout == ref_out)
+            why = "" if good else "exit 0 but printed table differs from the intact file's"
+        else:
+            try:
+                data = read_result(out)
+            except Exception as exc:  # noqa: BLE001 - any unreadable output is partial
+                lost.append(f"{label}: output unreadable: {type(exc).__name__}: {exc}")
+                return Result(kind, label, OTHER, "exit 0 with an unreadable output", lost)
+            if kind == "truncate":
+                good = ref_data is not None and same_data(data, ref_data)
+                why = "" if good else "exit 0 with a result that differs from the intact file's"
+            else:  # a changed data byte is undetectable; the output must still be complete
+                good = ref_data is not None and dict(data.sizes) == dict(ref_data.sizes)
+                why = "" if good else f"exit 0 with sizes {dict(data.sizes)}"
+        return Result(kind, label, CORRECT if good and not lost else OTHER, why, lost)
+    finally:
+        shutil.rmtree(case_dir, ignore_errors=True)
+
+
+# --- category dataset (hypothesis) ---------------------------------------------------------------
+
+#: Defects that make a Dataset invalid: validate and identify must raise a ValueError subclass.
+DEFECTS = (
+    "nan_frf",
+    "inf_frf",
+    "real_frf",
+    "decreasing_frequency",
+    "duplicate_frequency",
+    "negative_frequency",
+    "duplicate_points",
+    "drop_frf",
+    "drop_frequency_coord",
+    "rename_point_dim",
+    "empty_points",
+    "one_frequency",
+    "frequency_times_2pi",
+    "extra_dim",
+)
+
+
+def dataset_strategy():
+    """Hypothesis strategy of (n_points, n_frequency, seed, scale exponent, defect or None)."""
+    from hypothesis import strategies as st
+
+    return st.tuples(
+        st.integers(1, 4),
+        st.integers(16, 160),
+        st.integers(0, 2**16),
+        st.sampled_from([0, 0, 0, -12, 12, -300, 300]),
+        st.one_of(st.none(), st.sampled_from(DEFECTS)),
+    )
+
+
+def build_dataset(n_points: int, n_frequency: int, seed: int, exponent: int, defect: str | None):
+    """A small FRF Dataset, with ``defect`` applied (None: valid)."""
+    import xarray as xr
+
+    ds = small_frf(seed, n_points, n_frequency, scale=10.0**exponent)
+    if defect is None:
+        return ds
+    frf = ds["frf"]
+    if defect == "nan_frf":
+        return ds.assign(frf=frf.where(frf.frequency != frf.frequency[n_frequency // 2]))
+    if defect == "inf_frf":
+        return ds.assign(frf=frf.where(frf.frequency != frf.frequency[1], np.inf + 0j))
+    if defect == "real_frf":
+        return ds.assign(frf=np.abs(frf))
+    if defect == "decreasing_frequency":
+        return ds.assign_coords(frequency=ds.frequency.values[::-1].copy())
+    if defect == "duplicate_frequency":
+        f = ds.frequency.values.copy()
+        f[3] = f[2]
+        return ds.assign_coords(frequency=f)
+    if defect == "negative_frequency":
+        return ds.assign_coords(frequency=ds.frequency.values - 10.0)
+    if defect == "duplicate_points":
+        if n_points < 2:
+            return build_dataset(2, n_frequency, seed, exponent, defect)
+        p = ds.point.values.copy()
+        p[1] = p[0]
+        return ds.assign_coords(point=p)
+    if defect == "drop_frf":
+        return ds.drop_vars("frf")
+    if defect == "drop_frequency_coord":
+        return ds.drop_vars("frequency")
+    if defect == "rename_point_dim":
+        return ds.rename({"point": "channel"})
+    if defect == "empty_points":
+        return ds.isel(point=slice(0, 0))
+    if defect == "one_frequency":
+        return ds.isel(frequency=slice(0, 1))
+    if defect == "frequency_times_2pi":
+        # frequency in rad/s labelled Hz: disagrees with sample_interval/record_samples if the
+        # Dataset records them; else the lines are merely spaced differently (still valid)
+        return ds.assign_coords(frequency=ds.frequency.values * 2 * np.pi)
+    if defect == "extra_dim":
+        return ds.assign(frf=xr.concat([frf, frf], dim="repeat"))
+    raise ValueError(f"unknown defect {defect!r}")
+
+
+#: Defects that need not be rejected (a Dataset may be valid after them).
+MAY_PASS = {"frequency_times_2pi"}
+
+
+def check_dataset(params: tuple) -> tuple[str, str]:
+    """Run validate and identify on one generated Dataset; (outcome, detail)."""
+    import ami_xr
+
+    defect = params[-1]
+    try:
+        ds = build_dataset(*params)
+    except Exception as exc:  # noqa: BLE001 - a generator bug, reported, not hidden
+        return OTHER, f"building the Dataset failed: {type(exc).__name__}: {exc}"
+    for step in ("validate", "identify"):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ami_xr.errors.AmiXrWarning)
+                warnings.simplefilter("ignore", RuntimeWarning)
+                if step == "validate":
+                    ami_xr.validate(ds)
+                else:
+                    res = ami_xr.identify(ds, refine=False)
+                    if not isinstance(res, type(ds)):
+                        return OTHER, f"identify returned {type(res).__name__}"
+        except ami_xr.AmiXrValueError as exc:
+            msg = str(exc)
+            if "\n" in msg.strip() and step == "identify":
+                return OTHER, f"{step}: multi-line message: {msg[:200]}"
+            if defect is None and step == "validate":
+                return OTHER, f"validate rejected a valid Dataset: {msg[:200]}"
+            return CLEAN, f"{step}: {type(exc).__name__}"
+        except Exception as exc:  # noqa: BLE001 - exactly what the campaign looks for
+            return OTHER, f"{step}: {type(exc).__name__}: {str(exc)[:200]}"
+        if step == "validate" and defect is not None and defect not in MAY_PASS:
+            return OTHER, "validate accepted an invalid Dataset"
+    if defect is not None and defect not in MAY_PASS:
+        return OTHER, "identify accepted an invalid Dataset"
+    return CORRECT, ""
+
+
+def _child_dataset(params: tuple, result_file: str) -> int:
+    outcome, detail = check_dataset(params)
+    Path(result_file).write_text(json.dumps([outcome, detail]))
+    return 0
+
+
+def draw_datasets(n: int, seed: int) -> list[tuple]:
+    """``n`` parameter tuples drawn by hypothesis from :func:`dataset_strategy` with ``seed``."""
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import seed as hseed
+
+    drawn: list[tuple] = []
+
+    @hseed(seed)
+    @settings(
+        max_examples=n,
+        database=None,
+        deadline=None,
+        suppress_health_check=list(HealthCheck),
+        phases=["generate"],
+    )
+    @given(dataset_strategy())
+    def collect(params):
+        drawn.append(params)
+
+    collect()
+    return drawn[:n]
+
+
+def dataset_case(params: tuple, work: Path) -> Result:
+    """One generated Dataset, checked in a forked child (so a hang is caught)."""
+    case_dir = Path(tempfile.mkdtemp(dir=work, prefix="ds"))
+    result_file = case_dir / "result.json"
+    try:
+        code, _, err, _ = run_forked(_child_dataset, (params, str(result_file)), case_dir)
+        n_points, n_frequency, seed, exponent, defect = params
+        label = (
+            f"validate/identify of n_points={n_points} n_frequency={n_frequency} seed={seed} "
+            f"scale=1e{exponent} defect={defect}"
+        )
+        if code is None:
+            return Result("dataset", label, OTHER, f"hang: no result within {CASE_TIMEOUT_S} s")
+        if code != 0 or not result_file.exists():
+            return Result("dataset", label, OTHER, f"crash: exit {code}: {err.strip()[-200:]}")
+        outcome, detail = json.loads(result_file.read_text())
+        return Result("dataset", label, outcome, detail)
+    finally:
+        shutil.rmtree(case_dir, ignore_errors=True)
+
+
+# --- categories signal, batch and concurrent (real ami-xr processes) -----------------------------
+
+
+def big_file(folder: Path, megabytes: float = 24.0, seed: int = 0) -> Path:
+    """A netCDF FRF file of about ``megabytes`` MB (complex128 values, 16 bytes each)."""
+    import ami_xr
+
+    n_points = 24
+    n_freq = int(megabytes * 2**20 / 16 / n_points)
+    rng = np.random.default_rng(seed)
+    h = rng.standard_normal((n_points, n_freq)) + 1j * rng.standard_normal((n_points, n_freq))
+    path = folder / "big.nc"
+    ami_xr.to_netcdf(ami_xr.make_frf_dataset(h, np.linspace(0, 1000, n_freq)), path)
+    return path
+
+
+def _spawn(argv: list[str], cwd: Path) -> subprocess.Popen:
+    return subprocess.Popen(
+        AMI_XR + argv,
+        cwd=cwd,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+    )
+
+
+def _stop(proc: subprocess.Popen, sig_name: str, bound: float) -> tuple[int | None, str, float]:
+    """Send the signal(s); wait up to ``bound`` s; (exit code or None if hung, stderr, s)."""
+    start = time.monotonic()
+    if proc.poll() is None:
+        if sig_name == "SIGINTx2":
+            proc.send_signal(signal.SIGINT)
+            time.sleep(0.2)
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+        else:
+            proc.send_signal(getattr(signal, sig_name))
+    try:
+        _, err = proc.communicate(timeout=bound)
+        code: int | None = proc.returncode
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        _, err = proc.communicate()
+        code = None
+    return code, err.decode(errors="replace"), time.monotonic() - start
+
+
+def _interrupt_problems(code: int | None, err: str, sig_name: str, waited: float) -> list[str]:
+    sent = {getattr(signal, sig_name.replace("x2", ""))}
+    problems = []
+    if code is None:
+        problems.append(f"hang: still running {waited:.0f} s after {sig_name}")
+    elif "Traceback (most recent call last)" in err:
+        problems.append("traceback: " + err.strip().splitlines()[-1][:200])
+    elif code < 0 and -code not in sent:  # dying of the signal sent is the Unix convention
+        problems.append(f"crashed with signal {-code}")
+    return problems
+
+
+SIGNALS = ("SIGINT", "SIGTERM", "SIGKILL", "SIGINTx2")  # SIGINTx2: Ctrl-C twice, 0.2 s apart
+
+
+def signal_case(
+    seed: int, work: Path, big: Path, full_s: float, sig_name: str | None = None
+) -> Result:
+    """Signal ``ami-xr convert big.nc -o out.nc`` at a random moment; check the destination.
+
+    ``full_s`` is the time of an uninterrupted run; ``sig_name`` (one of :data:`SIGNALS`)
+    defaults to a random one.
+    """
+    rng = random.Random(seed)
+    sig_name = sig_name or rng.choice(SIGNALS)
+    case_dir = Path(tempfile.mkdtemp(dir=work, prefix="sig"))
+    src = case_dir / big.name
+    shutil.copyfile(big, src)
+    dest = case_dir / "out.nc"
+    existed = rng.random() < 0.5
+    if existed:
+        dest.write_bytes(b"old destination content")
+    old, before = digest(dest), digest(src)
+    delay = rng.uniform(0.3, 1.15) * full_s
+    label = f"ami-xr convert big.nc -o out.nc, {sig_name} at {delay:.2f} s (seed {seed})"
+    label += ", out.nc existed" if existed else ""
+    try:
+        proc = _spawn(["convert", src.name, "-o", dest.name], case_dir)
+        time.sleep(delay)
+        code, err, waited = _stop(proc, sig_name, STOP_BOUND_S)
+        problems = _interrupt_problems(code, err, sig_name, waited)
+        lost = []
+        now = digest(dest)
+        if now != old:
+            try:
+                if not same_data(read_result(dest), read_result(src)):
+                    lost.append(f"{label}: out.nc is neither the old file nor the full result")
+            except Exception as exc:  # noqa: BLE001
+                what = "lost" if now is None else f"partial ({type(exc).__name__})"
+                lost.append(f"{label}: out.nc {what}")
+        if digest(src) != before:
+            lost.append(f"{label}: input big.nc changed")
+        rerun = subprocess.run(
+            AMI_XR + ["convert", src.name, "-o", dest.name],
+            cwd=case_dir,
+            capture_output=True,
+            timeout=CASE_TIMEOUT_S,
+        )
+        if rerun.returncode != 0:
+            problems.append(f"rerun exit {rerun.returncode}: {rerun.stderr.decode()[-200:]}")
+        left = leftovers(case_dir)
+        if left:
+            lost.append(f"{label}: temporary files left after a rerun: {left}")
+        detail = "; ".join(problems) + (f" (exit {code}, stopped in {waited:.1f} s)")
+        return Result("signal", label, OTHER if problems or lost else CORRECT, detail, lost)
+    finally:
+        shutil.rmtree(case_dir, ignore_errors=True)
+
+
+def batch_case(
+    seed: int, work: Path, inputs: dict[str, Path], full_s: float, sig_name: str | None = None
+) -> Result:
+    """Signal ``ami-xr batch`` at a random moment; every output complete or absent."""
+    import ami_xr
+
+    rng = random.Random(seed)
+    sig_name = sig_name or rng.choice(SIGNALS)
+    case_dir = Path(tempfile.mkdtemp(dir=work, prefix="batch"))
+    src_dir, out_dir = case_dir / "in", case_dir / "out"
+    src_dir.mkdir()
+    for i in range(4):
+        ami_xr.to_netcdf(small_frf(seed + i), src_dir / f"f{i}.nc")
+    shutil.copyfile(inputs["hits.lvm"], src_dir / "hits.lvm")
+    before = {p.name: digest(p) for p in src_dir.iterdir()}
+    delay = rng.uniform(0.2, 1.0) * full_s
+    label = f"ami-xr batch in -o out, {sig_name} at {delay:.2f} s (seed {seed})"
+    argv = ["batch", "in", "-o", "out", "-q", "--no-refine"]
+    try:
+        proc = _spawn(argv, case_dir)
+        time.sleep(delay)
+        # one Ctrl-C finishes the file in progress: allow the time of a whole batch on top
+        code, err, waited = _stop(proc, sig_name, STOP_BOUND_S + full_s)
+        problems = _interrupt_problems(code, err, sig_name, waited)
+        lost = []
+        for p in out_dir.rglob("*.modes.nc") if out_dir.exists() else []:
+            try:
+                read_result(p)
+            except Exception as exc:  # noqa: BLE001
+                lost.append(f"{label}: {p.name} partial ({type(exc).__name__})")
+        rerun = subprocess.run(
+            AMI_XR + argv, cwd=case_dir, capture_output=True, timeout=4 * CASE_TIMEOUT_S
+        )
+        if rerun.returncode != 0:
+            problems.append(f"rerun exit {rerun.returncode}: {rerun.stderr.decode()[-200:]}")
+        missing = [f"f{i}" for i in range(4) if not (out_dir / f"f{i}.modes.nc").exists()]
+        if missing:
+            lost.append(f"{label}: after a rerun no output for {missing}")
+        left = leftovers(case_dir)
+        if left:
+            lost.append(f"{label}: temporary files left after a rerun: {left}")
+        if {p.name: digest(p) for p in src_dir.iterdir()} != before:
+            lost.append(f"{label}: input folder changed")
+        detail = "; ".join(problems) + f" (exit {code}, stopped in {waited:.1f} s)"
+        return Result("batch", label, OTHER if problems or lost else CORRECT, detail, lost)
+    finally:
+        shutil.rmtree(case_dir, ignore_errors=True)
+
+
+def concurrent_case(seed: int, work: Path) -> Result:
+    """2-4 ``ami-xr convert`` to one destination at once: it ends as exactly one full result."""
+    import ami_xr
+
+    rng = random.Random(seed)
+    n = rng.randint(2, 4)
+    case_dir = Path(tempfile.mkdtemp(dir=work, prefix="conc"))
+    dest = case_dir / "shared.nc"
+    if rng.random() < 0.5:
+        dest.write_bytes(b"old")
+    sources = []
+    for i in range(n):
+        p = case_dir / f"src{i}.nc"
+        ami_xr.to_netcdf(small_frf(seed + i, n_points=8, n_frequency=4096), p)
+        sources.append(p)
+    label = f"{n} x ami-xr convert srcI.nc -o shared.nc at once (seed {seed})"
+    try:
+        procs = [_spawn(["convert", p.name, "-o", dest.name], case_dir) for p in sources]
+        problems, lost = [], []
+        for p in procs:
+            try:
+                _, err = p.communicate(timeout=CASE_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.communicate()
+                problems.append("hang")
+                continue
+            text = err.decode(errors="replace")
+            if p.returncode != 0 and not clean_error(p.returncode, text, ["shared.nc"])[0]:
+                problems.append(f"exit {p.returncode}: {text.strip()[-200:]}")
+        try:
+            got = read_result(dest)
+            if not any(same_data(got, read_result(s)) for s in sources):
+                lost.append(f"{label}: shared.nc is none of the written results")
+        except Exception as exc:  # noqa: BLE001
+            lost.append(f"{label}: shared.nc unreadable ({type(exc).__name__})")
+        left = leftovers(case_dir)
+        if left:
+            lost.append(f"{label}: temporary files left: {left}")
+        outcome = OTHER if problems or lost else CORRECT
+        return Result("concurrent", label, outcome, "; ".join(problems), lost)
+    finally:
+        shutil.rmtree(case_dir, ignore_errors=True)
+
+
+# --- the campaign --------------------------------------------------------------------------------
+
+_WORKER: dict[str, Any] = {}
+
+
+def _init_worker(work: str, inputs: dict[str, str]) -> None:
+    """Import what the children need once, so each forked case skips the start-up."""
+    import xarray  # noqa: F401
+
+    import ami_xr.cli  # noqa: F401
+    import ami_xr.io.formats  # noqa: F401
+    import ami_xr.io.lvm  # noqa: F401
+    import ami_xr.io.netcdf  # noqa: F401
+    import ami_xr.io.uff  # noqa: F401
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the campaign's own Ctrl-C stops the parent
+    _WORKER["work"] = Path(work)
+    _WORKER["inputs"] = {k: Path(v) for k, v in inputs.items()}
+    warm_up(_WORKER["work"], _WORKER["inputs"])
+
+
+def warm_up(work: Path, inputs: dict[str, Path]) -> None:
+    """Load the numba kernels of identify and frf once, so forked cases need not (seconds each).
+
+    Small data only: numba's parallel kernels, whose thread pool must not be forked, stay idle.
+    """
+    for name in ("frf.nc", "hits.lvm"):
+        for k in range(len(commands_for(name))):
+            _reference(work, inputs[name], k)
+    import ami_xr
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ami_xr.identify(small_frf(0), refine=False)
+        ami_xr.frf(ami_xr.read_lvm(inputs["hits.lvm"]))
+
+
+def run_case(spec: tuple) -> Result:
+    """Run one case spec (category, ...) in a pool worker."""
+    category, *rest = spec
+    work, inputs = _WORKER["work"], _WORKER["inputs"]
+    try:
+        if category in ("truncate", "flip"):
+            name, k, seed = rest
+            return file_fault_case(category, inputs[name], k, seed, work)
+        if category == "dataset":
+            return dataset_case(tuple(rest[0]), work)
+        if category == "signal":
+            seed, full_s = rest
+            return signal_case(seed, work, inputs["big.nc"], full_s)
+        if category == "batch":
+            seed, full_s = rest
+            return batch_case(seed, work, inputs, full_s)
+        if category == "concurrent":
+            return concurrent_case(rest[0], work)
+    except Exception as exc:  # noqa: BLE001 - a harness failure is reported as such
+        return Result(category, repr(spec), OTHER, f"harness error: {type(exc).__name__}: {exc}")
+    raise ValueError(f"unknown category {category!r}")
+
+
+def plan(counts: dict[str, int], seed: int, inputs: dict[str, Path], timings: dict) -> list:
+    """Case specs per category, reproducible from ``seed``."""
+    rng = random.Random(seed)
+    names = [n for n in inputs if n != "big.nc"]
+    specs: list[tuple] = []
+    for kind in ("truncate", "flip"):
+        for i in range(counts.get(kind, 0)):
+            name = names[i % len(names)]
+            k = (i // len(names)) % len(commands_for(name))
+            specs.append((kind, name, k, rng.randrange(2**31)))
+    if counts.get("dataset"):
+        specs += [("dataset", p) for p in draw_datasets(counts["dataset"], seed)]
+    for _ in range(counts.get("signal", 0)):
+        specs.append(("signal", rng.randrange(2**31), timings["convert"]))
+    for _ in range(counts.get("batch", 0)):
+        specs.append(("batch", rng.randrange(2**31), timings["batch"]))
+    for _ in range(counts.get("concurrent", 0)):
+        specs.append(("concurrent", rng.randrange(2**31)))
+    # slow cases first so the pool ends on short ones
+    order = {"signal": 0, "batch": 0, "concurrent": 1}
+    return sorted(specs, key=lambda s: order.get(s[0], 2))
+
+
+def time_commands(work: Path, big: Path, inputs: dict[str, Path]) -> dict[str, float]:
+    """Wall time of an uninterrupted big convert and a small batch (where to aim the signals)."""
+    import ami_xr
+
+    timings = {}
+    d = Path(tempfile.mkdtemp(dir=work))
+    start = time.monotonic()
+    subprocess.run(
+        AMI_XR + ["convert", str(big), "-o", str(d / "o.nc")], check=True, capture_output=True
+    )
+    timings["convert"] = time.monotonic() - start
+    (d / "in").mkdir()
+    for i in range(4):
+        ami_xr.to_netcdf(small_frf(i), d / "in" / f"f{i}.nc")
+    shutil.copyfile(inputs["hits.lvm"], d / "in" / "hits.lvm")
+    start = time.monotonic()
+    subprocess.run(
+        AMI_XR + ["batch", "in", "-o", "out", "-q", "--no-refine"], cwd=d, capture_output=True
+    )
+    timings["batch"] = time.monotonic() - start
+    shutil.rmtree(d)
+    return timings
+
+
+def run_campaign(
+    counts: dict[str, int], seed: int, workers: int, work: Path, progress: bool = True
+) -> list[Result]:
+    """Make the inputs, run every case in a process pool, return the results."""
+    inputs = make_inputs(work / "inputs", seed)
+    timings = {}
+    if counts.get("signal") or counts.get("batch"):
+        inputs["big.nc"] = big_file(work / "inputs", seed=seed)
+        timings = time_commands(work, inputs["big.nc"], inputs)
+    specs = plan(counts, seed, inputs, timings)
+    results = []
+    init_args = (str(work), {k: str(v) for k, v in inputs.items()})
+    with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=init_args) as pool:
+        for i, res in enumerate(pool.map(run_case, specs, chunksize=1)):
+            results.append(res)
+            if progress and (i + 1) % 50 == 0:
+                print(f"  {i + 1}/{len(specs)} cases", file=sys.stderr, flush=True)
+    return results
+
+
+def summarize(results: list[Result]) -> tuple[str, bool]:
+    """The printed table and whether the campaign passed."""
+    per = defaultdict(Counter)
+    for r in results:
+        per[r.category][r.outcome] += 1
+    lines = [f"{'category':<12}{'cases':>7}{CLEAN:>14}{CORRECT:>16}{OTHER:>15}"]
+    for cat in CATEGORIES:
+        if cat in per:
+            c = per[cat]
+            total = sum(c.values())
+            lines.append(f"{cat:<12}{total:>7}{c[CLEAN]:>14}{c[CORRECT]:>16}{c[OTHER]:>15}")
+    total = Counter()
+    for c in per.values():
+        total.update(c)
+    lines.append(
+        f"{'total':<12}{sum(total.values()):>7}{total[CLEAN]:>14}"
+        f"{total[CORRECT]:>16}{total[OTHER]:>15}"
+    )
+    lost = [item for r in results for item in r.lost]
+    lines.append(f"files lost or left partial: {len(lost)}")
+    lines += [f"  {item}" for item in lost]
+    others = [r for r in results if r.outcome == OTHER]
+    if others:
+        lines.append("anything else:")
+        lines += [f"  [{r.category}] {r.case}: {r.detail}" for r in others]
+    return "\n".join(lines), not others and not lost
+
+
+def default_counts(n: int, categories: list[str]) -> dict[str, int]:
+    """Split ``n`` cases over ``categories`` by :data:`DEFAULT_SHARE`."""
+    share = {c: DEFAULT_SHARE[c] for c in categories}
+    total = sum(share.values())
+    return {c: max(1, round(n * s / total)) for c, s in share.items()}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--cases", type=int, default=1100, help="injected faults in all")
+    parser.add_argument("--seed", type=int, default=0, help="seed of every random choice")
+    parser.add_argument("--categories", nargs="+", choices=CATEGORIES, default=list(CATEGORIES))
+    parser.add_argument("--workers", type=int, default=2, help="processes")
+    parser.add_argument("--keep", type=Path, help="work folder to keep (default: a temp one)")
+    args = parser.parse_args(argv)
+    counts = default_counts(args.cases, args.categories)
+    start = time.monotonic()
+    if args.keep:
+        args.keep.mkdir(parents=True, exist_ok=True)
+        results = run_campaign(counts, args.seed, args.workers, args.keep)
+    else:
+        with tempfile.TemporaryDirectory(prefix="fault_campaign") as tmp:
+            results = run_campaign(counts, args.seed, args.workers, Path(tmp))
+    table, ok = summarize(results)
+    print(table)
+    print(f"{len(results)} cases in {time.monotonic() - start:.0f} s, seed {args.seed}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
