@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import xarray as xr
 
 from ami_xr import names
@@ -10,7 +11,7 @@ from ami_xr.ami.global_fit import global_fit
 from ami_xr.ami.isolate import METHODS as ISOLATE_METHODS
 from ami_xr.ami.isolate import isolate
 from ami_xr.ami.settings import GlobalFitSettings, IsolateSettings, SubtractSettings
-from ami_xr.ami.subtract import subtract
+from ami_xr.ami.subtract import power_of_two_scale, subtract
 from ami_xr.core.modal import damping_ratio, mode_vectors, natural_frequency
 from ami_xr.errors import IdentificationError
 
@@ -25,6 +26,39 @@ def _refine_function():
     return fn
 
 
+# Outputs in FRF units (scale with the FRF) and those that scale with its square root (mode
+# vectors: Phi_j Phi_P = A_jP / lam). Everything else (eigenvalues, frequencies, damping ratios,
+# SNRs, MAC, counts, flags) is scale-free.
+_LINEAR_VARS = (
+    names.SUB_RESIDUE,
+    names.SUB_NOISE_FLOOR,
+    names.RESIDUE,
+    names.RESIDUE_STD,
+    names.FRF_SYNTHESIZED,
+    names.FRF_RESIDUAL,
+    names.FRF_NOISE_STD,
+    names.RESIDUAL_COEFFICIENT,
+    names.AMI_PREFIX + names.RESIDUE,
+)
+_SQRT_VARS = (names.MODE_VECTOR, names.MODE_VECTOR_STD, names.AMI_PREFIX + names.MODE_VECTOR)
+
+
+def _unscale(result: xr.Dataset, ds: xr.Dataset, scale: float) -> xr.Dataset:
+    """Results of the FRF scaled by the power of two ``scale`` back to ``ds`` as given (exact:
+    ``scale`` and its square root are powers of two)."""
+    result = result.assign({names.FRF: ds[names.FRF]})
+    for factor, variables in ((scale, _LINEAR_VARS), (np.sqrt(scale), _SQRT_VARS)):
+        for v in variables:
+            if v in result:
+                result[v] = result[v].copy(data=result[v].values / factor)
+    # the refinement's objective sum_j (n_rows / 2) log rss_j, rss ~ scale^2, n_rows = 2 F
+    shift = ds.sizes[names.POINT] * 2 * ds.sizes[names.FREQUENCY] * float(np.log(scale))
+    for key in (names.ATTR_REFINE_COST_START, names.ATTR_REFINE_COST):
+        if key in result.attrs:
+            result.attrs[key] = float(result.attrs[key]) - shift
+    return result
+
+
 def identify(
     ds: xr.Dataset,
     *,
@@ -37,6 +71,7 @@ def identify(
     residual_terms: bool = GlobalFitSettings.residual_terms,
     pfa: float = SubtractSettings.pfa,
     max_modes: int = SubtractSettings.max_modes,
+    zeta_max: float = SubtractSettings.zeta_max,
 ) -> xr.Dataset:
     """Identify modes: :func:`subtract`, :func:`isolate`, :func:`global_fit` and, by default,
     the maximum-likelihood refinement :func:`ami_xr.ami.refine.refine`.
@@ -51,8 +86,9 @@ def identify(
         discrete basis for impulse-response FRFs, SNR weighting, and refine by default.
     refine : bool, optional
         Run the joint refinement (default: when available and ``method != "paper"``).
-    delta, pfa, max_modes :
-        See :func:`ami_xr.subtract`.
+    delta, pfa, max_modes, zeta_max :
+        See :func:`ami_xr.subtract`. Raise ``zeta_max`` for heavily damped structures (the
+        zero-modes warning says when the peaks were significant but no fit was accepted).
     tol, max_iter :
         See :func:`ami_xr.isolate`.
     band, residual_terms :
@@ -65,6 +101,13 @@ def identify(
         the identified eigenvalues are corrected ``lam = lam_measured + beta`` (the window
         multiplies the impulse response by ``exp(-beta t)``); natural frequency, damping ratio
         and mode vectors follow, and attr ``exponential_window_corrected`` records beta.
+
+    Notes
+    -----
+    FRFs of any representable magnitude are identified: when the largest ``|frf|`` lies outside
+    ``2^-250 .. 2^250`` (e.g. an FRF scaled by 1e-300, whose squares underflow), the phases run
+    on the FRF scaled by a power of two and the results are scaled back, exactly, so they equal
+    those of the FRF in ordinary units times the scale. Within that range nothing is scaled.
     """
     c.check_frf(ds, "identify")
     c.check_choice(method, "method", METHODS)
@@ -77,7 +120,11 @@ def identify(
         if fn is None and refine:
             raise IdentificationError("refine: ami_xr.ami.refine is not available")
     model = names.MODEL_CONTINUOUS if paper else "auto"
-    out = subtract(ds, delta, pfa=pfa, max_modes=max_modes, model=model)
+    # one power of two for all FRFs (the isolation and the global fit combine them)
+    peak = np.abs(ds[names.FRF]).max(skipna=False).values
+    scale = float(power_of_two_scale(peak))
+    work = ds if scale == 1.0 else ds.assign({names.FRF: ds[names.FRF] * scale})
+    out = subtract(work, delta, pfa=pfa, max_modes=max_modes, model=model, zeta_max=zeta_max)
     out = isolate(
         out,
         tol,
@@ -92,6 +139,8 @@ def identify(
         if fn is not None:
             out = fn(out)
         result = out
+    if scale != 1.0:
+        result = _unscale(result, ds, scale)
     beta = float(ds.attrs.get(names.ATTR_EXP_DECAY, 0.0) or 0.0)
     if beta and result.sizes.get(names.MODE, 0):
         lam = result[names.EIGENVALUE].values + beta
@@ -117,5 +166,6 @@ def identify(
         residual_terms=bool(residual_terms),
         pfa=pfa,
         max_modes=max_modes,
+        zeta_max=zeta_max,
     )
     return c.finish(result, "ami_xr.identify", "identify", params)

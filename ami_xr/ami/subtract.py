@@ -15,14 +15,41 @@ from ami_xr.errors import NoModesWarning
 from ami_xr.kernels import noise as kn
 from ami_xr.kernels import subtract as ks
 
+# FRF magnitudes inside which the kernels run on the data as given. Outside, squares (|Y|^2,
+# sigma^2, Gram matrices) under- or overflow (an FRF scaled by 1e-300 divided by sigma^2 = 0), so
+# the data are first scaled by a power of two: exact in floating point, and the kernels are
+# equivariant under it, so the results are those of the data as given, scaled back exactly.
+# Inside the range the scale is 1: results on data in any usual unit are bit-identical.
+SAFE_MAGNITUDE = (2.0**-250, 2.0**250)
+
+
+def power_of_two_scale(peak: np.ndarray | float) -> np.ndarray | float:
+    """Power-of-two factor that brings a peak magnitude into :data:`SAFE_MAGNITUDE` (1 inside it,
+    and for a zero or non-finite peak, which the value checks report). The exponent is even, so
+    square roots of scaled quantities (mode vectors) scale exactly too."""
+    peak = np.asarray(peak, dtype=np.float64)
+    lo, hi = SAFE_MAGNITUDE
+    out_of_range = np.isfinite(peak) & (peak > 0) & ((peak < lo) | (peak > hi))
+    exponent = np.frexp(np.where(out_of_range, peak, 1.0))[1]
+    exponent = -2 * (exponent // 2)  # even; the scaled peak lies in [2^-2, 2)
+    scale = np.where(out_of_range, np.ldexp(1.0, exponent), 1.0)
+    return scale if scale.ndim else float(scale)
+
 
 def _subtract_block(
     g, omega, dt, n_samples, delta, max_modes, pfa, min_points, zeta_max, merge_tol
 ):
     shape = g.shape[:-1]
     g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
+    scale = power_of_two_scale(np.max(np.abs(g2), axis=-1)) if g2.size else np.ones(0)
+    rescaled = bool(np.any(scale != 1.0))
+    if rescaled:
+        g2 = g2 * scale[:, None]
     params = ks.SubtractParams(delta, max_modes, pfa, min_points, zeta_max, merge_tol)
     lam, res, blo, bhi, sigma, stat, reason, n = ks.subtract_batch(g2, omega, dt, n_samples, params)
+    if rescaled:  # residues and noise floors are in FRF units: back to the data as given
+        res = res / scale[:, None]
+        sigma = sigma / scale
     two_pi = 2.0 * np.pi
     return (
         lam.reshape(shape + (max_modes,)),
@@ -196,10 +223,45 @@ def subtract(
     out = out.assign_coords({names.CANDIDATE: np.arange(n_keep)})
     to_attrs(settings, out.attrs)
     if int(n.sum()) == 0:
+        _explain_no_modes(out, frf, sigma, pfa, zeta_max, omega.size)
+    return c.finish(out, "ami_xr.subtract", "subtract", parameters(settings))
+
+
+def _explain_no_modes(out, frf, sigma, pfa, zeta_max, n_lines) -> None:
+    """Say truthfully why no FRF has a candidate, in a warning and in attr ``ami_stop_reason``.
+
+    Two cases look alike in the kernel's stop reason: pure noise (no line above the threshold)
+    and clean FRFs whose peaks are significant but whose single-mode fits were all rejected
+    (heavily damped or overlapping modes: damping ratio above ``zeta_max``, or a pole outside
+    its band). The peak statistic of the data themselves, ``max |G|^2 / sigma^2`` against the
+    threshold ``t``, tells them apart; FRFs of the second kind get the point stop reason
+    ``"no_accepted_fit"``.
+    """
+    t = float(kn.peak_threshold(n_lines, pfa))
+    # (max|G| / sigma)^2, not max|G|^2 / sigma^2: no overflow for any representable FRF
+    ratio = np.asarray((np.abs(frf).max(names.FREQUENCY) / sigma).values, dtype=np.float64)
+    significant = ratio**2 >= t
+    if not np.any(significant):
+        out.attrs[names.ATTR_AMI_STOP_REASON] = names.STOP_NO_SIGNIFICANT_PEAK
         warnings.warn(
             "subtract: no FRF has a peak significantly above its noise floor "
             f"(pfa={pfa}); zero modes found",
             NoModesWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
-    return c.finish(out, "ami_xr.subtract", "subtract", parameters(settings))
+        return
+    out.attrs[names.ATTR_AMI_STOP_REASON] = names.STOP_NO_ACCEPTED_FIT
+    reason = out[names.SUB_STOP_REASON]
+    mask = significant & (np.asarray(reason.values) == ks.STOP_REASONS[ks.STOP_BELOW_FLOOR])
+    out[names.SUB_STOP_REASON] = reason.copy(
+        data=np.where(mask, names.STOP_NO_ACCEPTED_FIT, np.asarray(reason.values)).astype(str)
+    )
+    warnings.warn(
+        f"subtract: zero modes found, although {int(significant.sum())} of {significant.size} "
+        f"FRF(s) have a peak significantly above the noise floor (pfa={pfa}): no single-mode "
+        f"fit was accepted (damping ratio above zeta_max={zeta_max:g}, or the peak is wider "
+        "than its fit band: heavily damped or overlapping modes?). If the modes are this "
+        "heavily damped, raise zeta_max (e.g. ami_xr.identify(ds, zeta_max=0.6))",
+        NoModesWarning,
+        stacklevel=3,
+    )
