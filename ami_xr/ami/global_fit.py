@@ -76,6 +76,9 @@ def global_fit(
     (isolation did not converge at a point that detected it), ``single_frf`` (detected in one
     FRF only).
 
+    Long because it is checks, one ``apply_ufunc`` call, the quality flags above and the output
+    variables in sequence (119 lines of code); split, each part would be used once.
+
     Parameters
     ----------
     ds : xarray.Dataset

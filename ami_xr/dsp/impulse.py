@@ -62,6 +62,9 @@ def impulse_to_frf(
     Sample 0 is taken as the instant of the impulse (``t = 0``) whatever the origin of the
     ``time`` coordinate: trim any pre-trigger first.
 
+    Long because it checks the Dataset, applies the optional windows and writes every attribute the
+    schema requires around one ``apply_ufunc`` call; 97 lines of code.
+
     Parameters
     ----------
     ds : xarray.Dataset
