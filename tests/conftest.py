@@ -7,8 +7,6 @@ tolerance helpers live in ``tests/reference.py``.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import xarray as xr
@@ -16,9 +14,7 @@ import xarray as xr
 import ami_xr
 from ami_xr import make_frf_dataset, names
 
-from .reference import frf_from_residues
-
-REPO = Path(__file__).resolve().parents[1]
+from .reference import REPO, frf_from_residues
 
 # Two modes of a 3-point system: eigenvalues lam = -zeta*wn + i*wd (rad/s) and residues
 # A_jk = lam_k Phi_jk Phi_Pk (drive point P = point 1).

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import os
+from pathlib import Path
 
 import numpy as np
 import scipy.signal
@@ -22,6 +23,10 @@ import scipy.signal
 from ami_xr.kernels.modal_basis import mode_contribution
 
 EPS = np.finfo(np.float64).eps
+
+# The repository root and the shared measured-data folder beside it (skipped where absent).
+REPO = Path(__file__).resolve().parents[1]
+SHARED_DATA = REPO.parent / "shared" / "data"
 
 # --- shared test systems --------------------------------------------------------------------
 

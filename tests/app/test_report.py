@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import stat
 
 import numpy as np
@@ -15,24 +14,24 @@ from ami_xr.ami import identify
 from ami_xr.errors import AmiXrValueError
 from ami_xr.report import FIGURES, format_modal_table, modal_table, report
 
+from ..reference import normal_file_mode
+
 pytest.importorskip("matplotlib")
 
 ALL_PNGS = {f"{stem}.png" for stem in FIGURES}
 
 
 @pytest.fixture(scope="module")
-def benchmark_result() -> xr.Dataset:
+def benchmark_result(paper_benchmark_noisy) -> xr.Dataset:
     """The identified paper benchmark (15 % noise, seed 0)."""
-    _, g, _ = ami_xr.simulate.benchmark(noise=0.15, seed=0)
+    _, g, _ = paper_benchmark_noisy
     return identify(g)
 
 
 @pytest.fixture(scope="module")
-def chain_result() -> xr.Dataset:
+def chain_result(small_random_system) -> xr.Dataset:
     """An identified random chain without point coordinates (labels 0..n-1)."""
-    g, _ = ami_xr.simulate.random_system(
-        n_points=5, n_modes=5, noise=0.02, seed=3, n_frequencies=1024
-    )
+    g, _ = small_random_system
     for coord in ("point_x", "point_y", "point_z"):
         if coord in g.coords:
             g = g.drop_vars(coord)
@@ -130,8 +129,11 @@ def test_modal_table_rows_and_text(benchmark_result):
     lam = np.atleast_1d(benchmark_result[names.EIGENVALUE].values)
     assert len(rows) == lam.size
     for row, lk in zip(rows, lam, strict=True):
+        # the table applies these same formulas to the same eigenvalues: a rounding or two (the
+        # default rel 1e-6 is loose; a unit error is O(1))
         assert row["frequency_rad_s"] == pytest.approx(abs(lk))
         assert row["frequency_hz"] == pytest.approx(abs(lk) / (2 * np.pi))
+        # as above; rel 1e-6 is far above the few roundings
         assert row["damping_percent"] == pytest.approx(-100 * lk.real / abs(lk), rel=1e-6)
         assert row["detected_in"]
     text = format_modal_table(benchmark_result)
@@ -141,21 +143,15 @@ def test_modal_table_rows_and_text(benchmark_result):
 
 
 # --- atomic, normal-mode files ------------------------------------------------------------------
-def _normal_mode() -> int:
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o666 & ~umask
-
-
 def test_report_files_get_the_normal_file_mode(tmp_path, benchmark_result):
     index = report(benchmark_result, tmp_path / "rep", figures=("mac",))
     files = sorted(index.parent.iterdir())
     assert [p.name for p in files] == ["index.html", "mac.png", "modal_table.csv"]
     for p in files:
-        assert stat.S_IMODE(p.stat().st_mode) == _normal_mode(), p.name
+        assert stat.S_IMODE(p.stat().st_mode) == normal_file_mode(), p.name
     saved = ami_xr.plot_mac(benchmark_result, path=tmp_path / "mac.svg")
     assert saved.axes and (tmp_path / "mac.svg").read_text().lstrip().startswith("<?xml")
-    assert stat.S_IMODE((tmp_path / "mac.svg").stat().st_mode) == _normal_mode()
+    assert stat.S_IMODE((tmp_path / "mac.svg").stat().st_mode) == normal_file_mode()
 
 
 def test_failure_mid_report_leaves_files_intact_and_no_temporary(

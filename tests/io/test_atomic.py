@@ -10,12 +10,7 @@ import pytest
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_open, atomic_path, remove_stale
 
-
-def normal_mode() -> int:
-    """The permission bits of a freshly created file: 0o666 less the umask."""
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o666 & ~umask
+from ..reference import normal_file_mode
 
 
 def _mode(path) -> int:
@@ -28,7 +23,7 @@ def test_atomic_open_writes_with_the_normal_file_mode(tmp_path, mode, data):
     with atomic_open(target, mode) as fh:
         fh.write(data)
     assert (target.read_text() if mode == "w" else target.read_bytes()) == data
-    assert _mode(target) == normal_mode()
+    assert _mode(target) == normal_file_mode()
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
 
 
@@ -39,7 +34,7 @@ def test_atomic_path_writes_with_the_normal_file_mode(tmp_path):
         assert tmp.name == "out" and tmp.parent.parent == tmp_path
         tmp.write_bytes(b"new")
     assert target.read_bytes() == b"new"
-    assert _mode(target) == normal_mode()
+    assert _mode(target) == normal_file_mode()
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
 
 

@@ -12,7 +12,9 @@ import ami_xr
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, DataFileError
 
-DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
+from ..reference import REPO
+from ..reference import SHARED_DATA as DATA
+
 HAMMER = DATA / "impact_hammer.lvm"
 
 HEADER = """LabVIEW Measurement\t
@@ -59,9 +61,14 @@ def test_reads_segments_as_records(tmp_path):
     ds = ami_xr.read_lvm(_write(tmp_path / "a.lvm", segs))
     assert ds[names.RESPONSE].dims == (names.RECORD, names.POINT, names.TIME)
     assert ds[names.FORCE].dims == (names.RECORD, names.TIME)
+    # values written with 6 decimals and parsed back: the parser's float() is correctly rounded, so
+    # bit-identical to the same decimal literals
     np.testing.assert_array_equal(ds[names.FORCE].values, np.array(segs)[:, :, 0])
     np.testing.assert_array_equal(ds[names.RESPONSE].values[:, 0], np.array(segs)[:, :, 1])
+    # k * dt from the header's Delta_X vs k * 0.001: one or two roundings (the default rtol 1e-7 is
+    # loose; a wrong dt is off by O(1))
     np.testing.assert_allclose(ds[names.TIME].values, np.arange(50) * 0.001)
+    # parsed from the header, no arithmetic
     np.testing.assert_array_equal(ds[names.RECORD_START].values, [0.0, 1.0, 2.0])
     assert ds.attrs[names.ATTR_FORCE_UNITS] == "N"
     assert ds.attrs[names.ATTR_RESPONSE_UNITS] == "m/s^2"
@@ -136,6 +143,8 @@ def hammer():
 def test_hammer_file_reads(hammer):
     assert hammer.sizes == {names.RECORD: 5, names.POINT: 1, names.TIME: 51200}
     fs = 1.0 / float(hammer[names.TIME][1] - hammer[names.TIME][0])
+    # 1 / (t1 - t0) with t1 - t0 = 1 / 51200 parsed from the header: a few roundings (default rel
+    # 1e-6 is loose; a wrong rate is off by O(1))
     assert fs == pytest.approx(51200.0)
     ami_xr.validate(hammer)
 
@@ -144,10 +153,12 @@ def test_hammer_bad_hits_found_and_frf_from_good_ones(hammer):
     est = ami_xr.impact_frf(hammer, exponential_end_value=0.01)
     rejected = est[names.HIT_REJECTED].values
     reasons = est[names.HIT_REJECT_REASON].values
+    # booleans
     np.testing.assert_array_equal(rejected, [True, False, True, False, False])
     assert reasons[0].startswith("overload: force clipped")
     assert reasons[2].startswith("double impact")
     assert est.attrs[names.ATTR_N_AVERAGES] == 3
+    # beta = -ln(end) fs / (n - 1) with fs from the time axis: a few roundings (default rel 1e-6)
     assert est.attrs[names.ATTR_EXP_DECAY] == pytest.approx(-np.log(0.01) * 51200 / 51199)
     assert est[names.FRF].attrs[names.ATTR_UNITS] == "m/s^2/N"
     ami_xr.validate(est)
@@ -161,11 +172,14 @@ def test_hammer_bad_hits_found_and_frf_from_good_ones(hammer):
         exponential_end_value=0.01,
         force_window=est.attrs[names.ATTR_FORCE_WINDOW_WIDTH],
     )
+    # the same three hits averaged in the same order (rejected hits are skipped before any
+    # arithmetic): bit-identical in practice, 1e-12 only allows for the FFT's batch size; the
+    # averaged spectra of real hits have no exact zeros
     np.testing.assert_allclose(good[names.FRF].values, est[names.FRF].values, rtol=1e-12)
 
 
 def test_hammer_to_modes_script(hammer, capsys, tmp_path):
-    script = Path(__file__).resolve().parents[2] / "scripts" / "hammer_to_modes.py"
+    script = REPO / "scripts" / "hammer_to_modes.py"
     main = runpy.run_path(str(script), run_name="hammer_to_modes")["main"]
     modes = tmp_path / "modes.nc"
     report = tmp_path / "report"

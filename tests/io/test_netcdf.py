@@ -21,6 +21,8 @@ from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io import netcdf
 from ami_xr.io.netcdf import open_dataset, to_netcdf
 
+from ..reference import forbid_compute
+
 dask = pytest.importorskip("dask")
 
 # Attributes to_netcdf/open_dataset add; the round-trip comparison removes exactly these, and
@@ -192,6 +194,7 @@ def test_plain_xarray_recovers_complex_values(tmp_path, frf_dataset):
     assert frf.attrs[netcdf.ATTR_COMPLEX] == "real,imag along last dim complex"
     assert frf.attrs["units"] == "m/N"
     recovered = frf.isel(complex=0) + 1j * frf.isel(complex=1)
+    # re + 1j * im is exact for finite values (its products are with 0 and 1): bit-identical
     np.testing.assert_array_equal(recovered.values, frf_dataset.frf.values)
     # the bit-exact recipe from the README
     exact = np.ascontiguousarray(frf.values).view(np.complex128)[..., 0]
@@ -218,6 +221,7 @@ def test_encoded_attributes_are_documented_on_disk(tmp_path, frf_dataset):
     raw = xr.open_dataset(to_netcdf(ds, tmp_path / "a.nc"))
     tags = json.loads(raw.attrs[netcdf.ATTR_ENCODED_ATTRS])
     assert tags == {"flag": "bool", "pole": "complex", "meta": "json"}
+    # an attribute written and read: no arithmetic
     np.testing.assert_array_equal(raw.attrs["pole"], [1.0, 2.0])
     assert json.loads(raw.attrs["meta"]) == {"a": 1}
     raw.close()
@@ -301,6 +305,7 @@ def test_add_history_values_and_unreadable_history():
 def test_to_netcdf_does_not_mutate_input(tmp_path, frf_dataset):
     before = frf_dataset.copy(deep=True)
     to_netcdf(frf_dataset, tmp_path / "x.nc")
+    # input untouched: no arithmetic
     xr.testing.assert_identical(frf_dataset, before)
 
 
@@ -365,6 +370,7 @@ def test_overwrite_the_file_a_lazy_dataset_was_opened_from(tmp_path):
     doubled = lazy * 2  # still lazy: reads the file while the new one is written
     to_netcdf(doubled, path)
     back = open_dataset(path)
+    # doubling is exact in binary floating point and the file stores float64: bit-identical
     np.testing.assert_array_equal(back.response.values, 2 * ds.response.values)
     np.testing.assert_array_equal(back.z.values, 2 * ds.z.values)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.nc"]
@@ -378,6 +384,8 @@ def test_overwrite_the_file_an_eager_dataset_was_opened_from(tmp_path, frf_datas
     path = to_netcdf(frf_dataset, tmp_path / "frf.nc")
     eager = open_dataset(path)
     to_netcdf(eager.assign(frf=eager.frf * 3), path)
+    # the same single multiplication of the same values on both sides, stored losslessly: bit-
+    # identical
     np.testing.assert_array_equal(open_dataset(path).frf.values, 3 * frf_dataset.frf.values)
 
 
@@ -419,6 +427,7 @@ def test_opens_files_not_written_by_ami_xr(tmp_path, fmt):
     path = tmp_path / "plain.nc"
     ds.to_netcdf(path, format=fmt, engine="netcdf4")
     back = open_dataset(path)
+    # a file round trip: no arithmetic
     np.testing.assert_array_equal(back.y.values, ds.y.values)
     assert back.attrs["a"] == 1 and back.attrs[names.ATTR_SOURCE_FILE] == str(path)
 
@@ -443,10 +452,6 @@ def test_wrongly_flagged_complex_variable_is_a_data_file_error(tmp_path):
 # --- lazy opening --------------------------------------------------------------------------------
 
 
-def _no_compute(*args, **kwargs):
-    raise AssertionError("data was computed/read although the open should be lazy")
-
-
 @pytest.fixture
 def long_record(tmp_path):
     rng = np.random.default_rng(3)
@@ -459,7 +464,7 @@ def long_record(tmp_path):
 
 def test_chunks_open_lazily_without_reading(long_record):
     ds, path = long_record
-    with dask.config.set(scheduler=_no_compute):
+    with dask.config.set(scheduler=forbid_compute):
         lazy = open_dataset(path, chunks={names.TIME: 2**12})
         for name in (names.RESPONSE, names.FORCE, "spectrum"):
             assert isinstance(lazy[name].data, dask.array.Array), name

@@ -22,6 +22,8 @@ from ami_xr import names
 from ami_xr.dsp.windows import sample_interval
 from ami_xr.errors import SchemaError
 
+from ..reference import forbid_compute
+
 dask = pytest.importorskip("dask")
 
 FS = 1000.0
@@ -59,10 +61,6 @@ def computed_positions(monkeypatch):
     return sizes
 
 
-def _no_compute(*args, **kwargs):
-    raise AssertionError("a dask computation ran (data was read)")
-
-
 @pytest.mark.parametrize("t0", [0.0, 12.345, -3.0])
 def test_lazy_open_gives_range_index_equal_to_stored_values(tmp_path, t0):
     n = 50_001
@@ -72,17 +70,24 @@ def test_lazy_open_gives_range_index_equal_to_stored_values(tmp_path, t0):
     assert isinstance(index, RangeIndex) and index.size == n
     stored = _stored_time(path)
     scale = np.abs(stored).max()
+    # the RangeIndex computes start + k * step; the stored values were computed as t0 + k / fs: they
+    # differ by a few roundings of the largest time (atol relative to it: values near t = 0 have no
+    # relative accuracy to offer)
     np.testing.assert_allclose(lazy[names.TIME].values, stored, rtol=0, atol=1e-12 * scale)
     assert lazy[names.TIME].dtype == np.float64
     eager = ami_xr.open_dataset(path)
     assert lazy[names.TIME].attrs == eager[names.TIME].attrs == {names.ATTR_UNITS: "s"}
     # eager opens are unchanged: an ordinary index holding exactly the stored values
     assert isinstance(eager.xindexes[names.TIME], PandasIndex)
+    # an eager open reads the stored values: no arithmetic
     np.testing.assert_array_equal(eager[names.TIME].values, stored)
     # positional slices stay O(1) RangeIndexes with the right values
     part = lazy.isel({names.TIME: slice(1000, 3000)})
     assert isinstance(part.xindexes[names.TIME], RangeIndex)
+    # as above: start + k * step vs the stored values, a few roundings of the largest time
     np.testing.assert_allclose(part[names.TIME].values, stored[1000:3000], atol=1e-12 * scale)
+    # data variables are read identically; only the time coordinate differs by the rounding above
+    # (times are far from 0 except at the first samples, which agree exactly)
     xr.testing.assert_allclose(lazy.compute(), eager, rtol=1e-12)
 
 
@@ -91,7 +96,7 @@ def test_open_reads_no_values_and_holds_no_axis_array(tmp_path):
     path = ami_xr.to_netcdf(_record(n), tmp_path / "long.nc")
     tracemalloc.start()
     try:
-        with dask.config.set(scheduler=_no_compute):
+        with dask.config.set(scheduler=forbid_compute):
             lazy = ami_xr.open_dataset(path, chunks={names.TIME: 2**16})
         _, peak = tracemalloc.get_traced_memory()
     finally:
@@ -105,10 +110,11 @@ def test_validate_and_sampling_read_no_time_values(tmp_path, computed_positions)
     path = ami_xr.to_netcdf(_record(n), tmp_path / "rec.nc")
     lazy = ami_xr.open_dataset(path, chunks={names.TIME: 8192})
     computed_positions.clear()  # the open itself computes the probed positions only
-    with dask.config.set(scheduler=_no_compute):
+    with dask.config.set(scheduler=forbid_compute):
         assert ami_xr.validate(lazy, "time", check_values=False) is lazy
         dt = sample_interval(lazy)
     assert computed_positions == []
+    # the step of the range index, a few roundings of 1 / fs
     assert dt == pytest.approx(1 / FS, rel=1e-12)
     ami_xr.validate(lazy, "time")  # the value scan reads data chunks, never the time axis
     assert computed_positions == []
@@ -138,6 +144,9 @@ def test_frf_from_lazy_file_equals_in_memory_without_materialising_time(
     mem = ami_xr.frf(ds, "H1", **kw)
     assert streamed.attrs[names.ATTR_N_AVERAGES] == mem.attrs[names.ATTR_N_AVERAGES]
     for v in (names.FRF, names.COHERENCE):
+        # the same samples and segments; only the sampling rate comes from the range index (a few
+        # ulp), which scales the spectra identically on both sides up to that rounding; no FRF or
+        # coherence value near zero (random data)
         np.testing.assert_allclose(streamed[v].values, mem[v].values, rtol=1e-12)
 
 
@@ -169,5 +178,6 @@ def test_non_uniform_time_falls_back_to_stored_values(tmp_path, case):
     _write_time(path, t, dtype)
     lazy = ami_xr.open_dataset(path, chunks={names.TIME: 4096})
     assert isinstance(lazy.xindexes[names.TIME], PandasIndex)
+    # non-uniform axes fall back to the stored values: read, not computed
     np.testing.assert_array_equal(lazy[names.TIME].values, _stored_time(path).astype(dtype))
     assert lazy[names.TIME].attrs == {names.ATTR_UNITS: "s"}

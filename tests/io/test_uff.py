@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import xarray as xr
@@ -14,10 +12,11 @@ from ami_xr.ami import identify
 from ami_xr.errors import DataFileError
 from ami_xr.io.uff import parse_point_label, point_label, read_uff, write_uff
 
+from ..reference import SHARED_DATA
+
 pyuff = pytest.importorskip("pyuff")
 
-DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
-MEASUREMENT = DATA / "measurement.uff"
+MEASUREMENT = SHARED_DATA / "measurement.uff"
 
 
 def _frf(points, drive, seed=0, n=64):
@@ -60,10 +59,15 @@ def test_frf_58_round_trip(tmp_path, binary, points, drive):
     assert back.attrs[names.ATTR_QUANTITY] == "acceleration"
     assert back.attrs[names.ATTR_RESPONSE_UNITS] == "m/s^2"
     assert back[names.FRF].attrs["units"] == "m/s^2/N"
+    # the frequency axis is stored as start and step of an even grid and rebuilt exactly (k * step
+    # of exactly representable values)
     np.testing.assert_array_equal(back[names.FREQUENCY].values, ds[names.FREQUENCY].values)
     if binary:
+        # binary 58 stores float64: no arithmetic
         np.testing.assert_array_equal(back[names.FRF].values, ds[names.FRF].values)
     else:  # ASCII holds about 12 significant digits
+        # ASCII 58 writes %20.11e, 12 significant digits: half a unit in the last is 5e-12 relative
+        # per component, for values near zero too (floating format)
         np.testing.assert_allclose(back[names.FRF].values, ds[names.FRF].values, rtol=1e-10)
 
 
@@ -71,10 +75,11 @@ def test_coherence_travels_with_frfs(tmp_path):
     ds = _frf(["1+Z", "2+Z"], "1+Z")
     ds[names.COHERENCE] = ((names.POINT, names.FREQUENCY), np.full((2, 64), 0.75))
     back = read_uff(write_uff(ds, tmp_path / "c.uff", binary=True))
+    # stored as float64 and read back: no arithmetic
     np.testing.assert_array_equal(back[names.COHERENCE].values, ds[names.COHERENCE].values)
 
 
-def _modes(points):
+def _mode_shapes(points):
     rng = np.random.default_rng(1)
     vec = rng.normal(size=(len(points), 3)) + 1j * rng.normal(size=(len(points), 3))
     lam = np.array([-0.5 + 30j, -0.7 + 48j, -0.4 + 65j])
@@ -89,14 +94,17 @@ def _modes(points):
 
 @pytest.mark.parametrize("points", [["1+X", "1+Z", "2+Z", "4-Y"], ["tip", "m1", "m2"]])
 def test_mode_shapes_55_round_trip(tmp_path, points):
-    modes = _modes(points)
+    modes = _mode_shapes(points)
     path = write_uff(modes, tmp_path / "modes.uff")
     raw = pyuff.UFF(str(path)).read_sets()
     assert [s["type"] for s in raw] == [55, 55, 55]
     assert [s["mode_n"] for s in raw] == [1, 2, 3]
+    # the test eigenvalues have <= 3 significant digits, which %13.5e holds exactly (the default
+    # rtol never binds)
     np.testing.assert_allclose([s["eig"] for s in raw], modes[names.EIGENVALUE].values)
     back = read_uff(path)
     assert names.MODE_VECTOR in back and names.EIGENVALUE in back
+    # as above: exact through %13.5e
     np.testing.assert_allclose(back[names.EIGENVALUE].values, modes[names.EIGENVALUE].values)
     if points[0] == "tip":  # free labels come back as node numbers (scalar DOF -> "n+Z")
         assert back.sizes[names.POINT] == 3
@@ -105,16 +113,19 @@ def test_mode_shapes_55_round_trip(tmp_path, points):
         assert sorted(back[names.POINT].values.tolist()) == sorted(["1+X", "1+Z", "2+Z", "4+Y"])
         got = back[names.MODE_VECTOR].sel({names.POINT: ["1+X", "1+Z", "2+Z", "4+Y"]}).values
         got = got * np.array([1, 1, 1, -1])[:, None]  # "4-Y" is stored as -(+Y)
+    # dataset 55 writes %13.5e, 6 significant digits: half a unit in the last is 5e-6 relative per
+    # component (floating format, so none is "near zero")
     np.testing.assert_allclose(got, modes[names.MODE_VECTOR].values, rtol=1e-5)
 
 
-def test_identification_result_writes_frfs_and_modes(tmp_path):
+def test_identification_result_writes_frfs_and_mode_shapes(tmp_path):
     ds = _frf(["1+Z", "2+Z", "3+Z"], "1+Z")
-    modes = _modes(["1+Z", "2+Z", "3+Z"])
+    modes = _mode_shapes(["1+Z", "2+Z", "3+Z"])
     result = ds.merge(modes)
     path = write_uff(result, tmp_path / "result.uff", binary=True)
     types = [s["type"] for s in pyuff.UFF(str(path)).read_sets()]
     assert types.count(58) == 3 and types.count(55) == 3
+    # binary float64 round trip: no arithmetic
     xr.testing.assert_equal(read_uff(path)[names.FRF], ds[names.FRF])
     assert read_uff(path, kind="modes").sizes[names.MODE] == 3
 
@@ -133,8 +144,11 @@ def test_time_histories_58_round_trip(tmp_path):
         response_units="m/s^2",
     )
     back = read_uff(write_uff(ts, tmp_path / "t.uff", binary=True))
+    # binary float64 round trip: no arithmetic
     np.testing.assert_array_equal(back[names.RESPONSE].values, resp)
     np.testing.assert_array_equal(back[names.FORCE].values, force)
+    # the time axis is stored as start and increment and rebuilt as k * dt: a few roundings of k dt;
+    # the 0 s sample is exactly 0 in both
     np.testing.assert_allclose(back[names.TIME].values, ts[names.TIME].values, rtol=1e-12)
     assert back.attrs[names.ATTR_DRIVE_POINT] == "1+Z"
     ami_xr.validate(back)
@@ -154,6 +168,7 @@ def test_node_coordinates_become_point_coords(tmp_path):
     )
     pyuff.UFF(str(path)).write_sets([nodes], mode="add")
     back = read_uff(path)
+    # exactly representable coordinates through %13.5e: exact (the default rtol never binds)
     np.testing.assert_allclose(back["point_x"].values, [0.0, 0.5, 1.0])
 
 
