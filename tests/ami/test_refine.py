@@ -69,6 +69,8 @@ def test_noise_free_analytic_continuous_model(paper_benchmark_clean):
     g2 = g.assign_attrs({names.ATTR_SOURCE: names.SOURCE_MEASURED})
     out2 = refine(_start(g2, truth, 0.002))
     assert out2.attrs["refine_residual_terms"] == "lower,upper"
+    # with residual terms the model is larger but the data still exact: the same conditioning-
+    # limited bound
     assert (np.abs(out2[names.EIGENVALUE].values - lam) / np.abs(lam)).max() < 1e-8
     # residual terms of exact modal data are zero up to the fit's rounding relative to the FRF's
     # scale (norm-wise, not elementwise: the true value is 0)

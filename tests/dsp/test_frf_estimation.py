@@ -512,6 +512,8 @@ def test_frf_from_options_names_misplaced_options(small, options, match):
 def test_frf_from_options_dispatches_by_excitation(small):
     """The options dictionary of batch runs and the CLI: same result as the direct call."""
     got = frf_from_options(small, {"nperseg": 200, "excitation": "random"})
+    # the dispatcher calls the same function with the same arguments: the same operations, bit-
+    # identical
     xr.testing.assert_equal(got, ami_xr.frf(small, nperseg=200))
     got = frf_from_options(small, {"excitation": "impact", "hit_checks": False, "window": None})
     xr.testing.assert_equal(got, ami_xr.impact_frf(small, hit_checks=False))
