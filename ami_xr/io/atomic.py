@@ -22,14 +22,31 @@ Two entry points::
     with atomic_open(target, "w") as fh:    # a writer that takes an open file
         fh.write(text)
 
-Leftovers of a hard crash (``kill -9``, power loss) are folders matching :data:`TEMP_GLOB`;
-:func:`remove_stale` deletes them.
+Interrupts. SIGINT and SIGTERM never leave a partial target and never hang:
+
+* in the main thread, a SIGTERM whose action is the default (kill at once) raises
+  ``SystemExit(143)`` while a write is in progress, so the temporary folder is removed as for
+  Ctrl-C (``KeyboardInterrupt``);
+* :func:`interrupts_deferred` holds SIGINT/SIGTERM while code runs that must not be
+  interrupted half-way (netCDF/HDF5 calls under xarray's file locks: an exception raised there
+  can leave a lock held, and the next ``close`` waits on it forever) and delivers them to the
+  handlers in place as soon as the block ends (or earlier, at a safe point, see
+  :meth:`DeferredSignals.deliver`).
+
+Leftovers of a hard crash (``kill -9``, power loss) are folders matching :data:`TEMP_GLOB`.
+Each writer holds an advisory lock (``flock``) on its temporary folder, so a leftover is one
+nobody holds: :func:`atomic_path` removes those of its own target before it writes, and
+:func:`remove_stale` those of a whole folder tree; folders of live writers (another process
+writing the same target) are left alone.
 """
 
 from __future__ import annotations
 
+import glob
 import os
 import shutil
+import signal
+import threading
 import time
 import uuid
 from collections.abc import Iterator
@@ -39,7 +56,25 @@ from typing import IO, Any
 
 from ami_xr.errors import AmiXrValueError, DataFileError
 
-__all__ = ["atomic_path", "atomic_open", "remove_stale", "TEMP_GLOB"]
+try:  # POSIX advisory locks tell a live writer's temporary folder from a crash leftover
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None
+
+__all__ = [
+    "atomic_path",
+    "atomic_open",
+    "remove_stale",
+    "interrupts_deferred",
+    "DeferredSignals",
+    "TEMP_GLOB",
+    "EXIT_TERMINATED",
+]
+
+#: Exit status of a process stopped by SIGTERM during a write (128 + 15, as a shell reports it).
+EXIT_TERMINATED = 128 + signal.SIGTERM
+# Signals that stop a command and are held by :func:`interrupts_deferred`.
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 TEMP_SUFFIX = ".tmp"
 # Glob pattern of the temporary folders (hidden, ``.tmp`` suffix) for :func:`remove_stale`.
@@ -74,6 +109,160 @@ def _fsync_file(path: Path) -> None:
         os.fsync(f.fileno())
 
 
+# --- signals -------------------------------------------------------------------------------------
+def _in_main_thread() -> bool:
+    # Python runs signal handlers (and may only install them) in the main thread.
+    return threading.current_thread() is threading.main_thread()
+
+
+def _deliver(signum: int, handler: Any) -> None:
+    """Run what ``handler`` (a value of :func:`signal.getsignal`) would have done for ``signum``."""
+    if callable(handler):
+        handler(signum, None)
+    elif handler != signal.SIG_IGN:  # SIG_DFL, or a handler not installed from Python
+        signal.raise_signal(signum)
+
+
+class DeferredSignals:
+    """The SIGINT/SIGTERM held by :func:`interrupts_deferred` (in the order received)."""
+
+    def __init__(self) -> None:
+        self.received: list[int] = []
+        self._previous: dict[int, Any] = {}
+
+    def _record(self, signum: int, frame: Any) -> None:
+        self.received.append(signum)
+
+    def deliver(self) -> None:
+        """Hand the held signals to the handlers that were in place, now.
+
+        Call it only at a point where an exception is safe (no file lock held); the handlers
+        may raise (``KeyboardInterrupt``), or not (a batch's first Ctrl-C only asks to stop
+        after the current file). Does nothing outside the main thread.
+        """
+        if not _in_main_thread():
+            return
+        while self.received:
+            signum = self.received.pop(0)
+            _deliver(signum, self._previous.get(signum, signal.SIG_DFL))
+
+
+@contextmanager
+def interrupts_deferred() -> Iterator[DeferredSignals]:
+    """Hold SIGINT and SIGTERM while the block runs; deliver them when it ends.
+
+    In the main thread the handlers are replaced by one that only records the signal; on exit
+    (normal or by an exception) the previous handlers are restored and each recorded signal is
+    passed to its previous handler, so Ctrl-C raises ``KeyboardInterrupt`` right after the
+    block. Elsewhere (signals only reach the main thread) it does nothing.
+
+    Yields
+    ------
+    DeferredSignals
+        Its :meth:`~DeferredSignals.deliver` hands the held signals over earlier, at a safe
+        point of a long block.
+    """
+    deferred = DeferredSignals()
+    if not _in_main_thread():
+        yield deferred
+        return
+    try:
+        for signum in _STOP_SIGNALS:
+            deferred._previous[signum] = signal.signal(signum, deferred._record)
+        yield deferred
+    finally:
+        for signum, handler in deferred._previous.items():
+            signal.signal(signum, handler)
+        deferred.deliver()
+
+
+def _raise_exit(signum: int, frame: Any) -> None:
+    raise SystemExit(128 + signum)
+
+
+@contextmanager
+def _sigterm_as_exit() -> Iterator[None]:
+    """While a write runs in the main thread: a SIGTERM that would kill the process at once
+    raises ``SystemExit(143)`` instead, so the temporary folder is removed first."""
+    if not _in_main_thread() or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_exit)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+# --- temporary folders: lock, create, remove leftovers -------------------------------------------
+def _lock(entry: Path, *, wait: bool) -> int | None:
+    """An open descriptor of ``entry`` holding an exclusive ``flock``; None when another
+    process holds it (``wait=False``), ``entry`` is gone, or there is no ``fcntl``."""
+    if fcntl is None:  # pragma: no cover - Windows
+        return None
+    try:
+        fd = os.open(entry, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX if wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return None
+    return fd
+
+
+def _new_temp_dir(path: Path) -> tuple[Path, int | None]:
+    """Create and lock a fresh temporary folder for ``path``; return it and the lock."""
+    for _ in range(10):
+        tmp_dir = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}{TEMP_SUFFIX}")
+        tmp_dir.mkdir()
+        if fcntl is None:  # pragma: no cover - Windows
+            return tmp_dir, None
+        fd = _lock(tmp_dir, wait=True)
+        # A cleaner may have taken the unlocked folder between mkdir and flock: try another.
+        if fd is not None and tmp_dir.exists() and os.path.samestat(os.fstat(fd), tmp_dir.stat()):
+            return tmp_dir, fd
+        if fd is not None:
+            os.close(fd)
+    raise OSError(f"cannot create a temporary folder next to {path}")
+
+
+def _is_temp_name(name: str) -> bool:
+    """Whether ``name`` is that of a temporary folder (``.<name>.<12 hex>.tmp``)."""
+    if not (name.startswith(".") and name.endswith(TEMP_SUFFIX)):
+        return False
+    token = name[: -len(TEMP_SUFFIX)].rsplit(".", 1)[-1]
+    return len(token) == 12 and all(c in "0123456789abcdef" for c in token)
+
+
+def _remove_abandoned(entry: Path, *, unlocked_ok: bool) -> bool:
+    """Remove a leftover temporary folder (or file) no live writer holds; True if removed.
+
+    Without ``flock`` (Windows) it is removed only when ``unlocked_ok``.
+    """
+    fd = _lock(entry, wait=False)
+    if fd is None and not (fcntl is None and unlocked_ok):
+        return False
+    try:
+        if entry.is_dir():
+            _remove_tree(entry)
+        else:
+            entry.unlink(missing_ok=True)
+    finally:
+        if fd is not None:
+            os.close(fd)
+    return True
+
+
+def _remove_stale_of(path: Path) -> None:
+    """Remove the leftovers of earlier, killed writes of ``path`` (not those of live ones)."""
+    pattern = glob.escape(f".{path.name}.") + "*" + TEMP_SUFFIX
+    for entry in path.parent.glob(pattern):
+        if _is_temp_name(entry.name) and entry.name[: -len(TEMP_SUFFIX) - 13] == f".{path.name}":
+            _remove_abandoned(entry, unlocked_ok=False)
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary file path; on a clean exit it replaces ``path`` in one rename.
@@ -98,20 +287,29 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         is untouched.
     """
     path = _checked_target(path)
-    tmp_dir = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}{TEMP_SUFFIX}")
-    tmp = tmp_dir / path.name
-    try:
-        tmp_dir.mkdir()
-        yield tmp
-        _fsync_file(tmp)
-        os.replace(tmp, path)
-        tmp_dir.rmdir()
-    except OSError as err:
-        _remove_tree(tmp_dir)
-        raise DataFileError(f"{path}: cannot write: {type(err).__name__}: {err}") from err
-    except BaseException:
-        _remove_tree(tmp_dir)
-        raise
+    with _sigterm_as_exit():
+        try:
+            _remove_stale_of(path)
+            tmp_dir, lock = _new_temp_dir(path)
+        except OSError as err:
+            raise DataFileError(f"{path}: cannot write: {type(err).__name__}: {err}") from err
+        tmp = tmp_dir / path.name
+        try:
+            yield tmp
+            _fsync_file(tmp)
+            os.replace(tmp, path)
+            tmp_dir.rmdir()
+        except OSError as err:
+            with interrupts_deferred():  # a second Ctrl-C must not stop the cleanup half-way
+                _remove_tree(tmp_dir)
+            raise DataFileError(f"{path}: cannot write: {type(err).__name__}: {err}") from err
+        except BaseException:
+            with interrupts_deferred():
+                _remove_tree(tmp_dir)
+            raise
+        finally:
+            if lock is not None:
+                os.close(lock)
 
 
 @contextmanager
@@ -156,17 +354,15 @@ def atomic_open(
 def remove_stale(folder: str | os.PathLike) -> list[Path]:
     """Remove temporary folders a hard crash left in ``folder`` (recursively); return them.
 
-    Only hidden entries named like :func:`atomic_path`'s (``.<name>.<12 hex>.tmp``) are removed.
-    Do not call this while another process may be writing into ``folder``.
+    Only hidden entries named like :func:`atomic_path`'s (``.<name>.<12 hex>.tmp``), files or
+    folders, are removed, and only those no live writer holds (each writer keeps an ``flock``
+    on its folder; without ``fcntl``, on Windows, do not call this while another process may
+    be writing into ``folder``).
     """
     removed = []
     for entry in sorted(Path(folder).rglob(TEMP_GLOB)):
-        stem = entry.name[: -len(TEMP_SUFFIX)]
-        token = stem.rsplit(".", 1)[-1]
-        if len(token) == 12 and all(c in "0123456789abcdef" for c in token):
-            if entry.is_dir():
-                _remove_tree(entry)
-            else:
-                entry.unlink(missing_ok=True)
+        if not entry.exists():  # inside a leftover removed just before
+            continue
+        if _is_temp_name(entry.name) and _remove_abandoned(entry, unlocked_ok=True):
             removed.append(entry)
     return removed

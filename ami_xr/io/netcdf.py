@@ -24,6 +24,7 @@ On-disk conventions (readable without ami_xr, see the README's "netCDF files" se
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -37,7 +38,7 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.coords import uniform_coords
 from ami_xr.errors import AmiXrValueError, DataFileError
-from ami_xr.io.atomic import atomic_path
+from ami_xr.io.atomic import DeferredSignals, atomic_path, interrupts_deferred
 from ami_xr.provenance import add_history
 
 __all__ = [
@@ -380,6 +381,18 @@ def _uniform_time_axis(path: Path) -> xr.Coordinates | None:
     return coords
 
 
+def _check_utf8_name(path: Path) -> None:
+    """Raise :class:`DataFileError` for a path that is not valid UTF-8 (netCDF-C takes UTF-8
+    names only; ``os.listdir`` hands such names over with surrogate escapes)."""
+    try:
+        str(path).encode("utf-8")
+    except UnicodeEncodeError:
+        shown = os.fsencode(path).decode("utf-8", "backslashreplace")
+        raise DataFileError(
+            f"{shown}: the path is not valid UTF-8, which netCDF cannot open; rename the file"
+        ) from None
+
+
 def open_dataset(
     path: str | os.PathLike,
     chunks: dict[str, int] | int | str | None = None,
@@ -433,23 +446,27 @@ def open_dataset(
         raise DataFileError(f"{path}: no such file")
     if not path.is_file():
         raise DataFileError(f"{path}: not a file")
+    _check_utf8_name(path)
     if lazy is None:
         lazy = chunks is not None or path.stat().st_size > LAZY_THRESHOLD_BYTES
     if lazy:
         _check_dask("lazy")
         chunks = "auto" if chunks is None else chunks
     try:
-        time_axis = _uniform_time_axis(path) if lazy else None
-        raw = xr.open_dataset(
-            path,
-            engine=ENGINE,
-            chunks=chunks if lazy else None,
-            decode_timedelta=False,
-            drop_variables=[names.TIME] if time_axis is not None else None,
-        )
-        if not lazy:
-            with raw:
-                raw = raw.load()
+        # Ctrl-C waits until the file is read or opened: raised under xarray's file lock it
+        # could leave the lock held and the next close of the file wait forever.
+        with interrupts_deferred():
+            time_axis = _uniform_time_axis(path) if lazy else None
+            raw = xr.open_dataset(
+                path,
+                engine=ENGINE,
+                chunks=chunks if lazy else None,
+                decode_timedelta=False,
+                drop_variables=[names.TIME] if time_axis is not None else None,
+            )
+            if not lazy:
+                with raw:
+                    raw = raw.load()
         ds = decode(raw)
         if time_axis is not None:
             ds = ds.assign_coords(time_axis)
@@ -481,6 +498,14 @@ def to_netcdf(
     Guarantees: on any error the temporary folder and file are removed and an existing ``path``
     is left untouched; ``path`` may be the file ``ds`` was lazily opened from (the old file stays
     readable until the new one is complete, then is swapped in one rename; POSIX only).
+    Leftover temporary folders of earlier, killed writes of ``path`` are removed first.
+
+    Interrupts (main thread): SIGINT and SIGTERM are held while xarray writes (an exception
+    raised under its file lock could leave the lock held and the process hanging) and handed
+    to their handlers once the file is closed, or, for a dask-backed Dataset, as soon as the
+    chunk being written is done; the write is then rolled back (``KeyboardInterrupt``, or
+    ``SystemExit(143)`` for a default SIGTERM) and ``path`` stays as it was. A handler that
+    does not raise (a batch's first Ctrl-C) lets the write complete.
 
     Parameters
     ----------
@@ -509,6 +534,7 @@ def to_netcdf(
     if not isinstance(ds, xr.Dataset):
         raise AmiXrValueError(f"ds: expected an xarray.Dataset, got {type(ds).__name__}")
     path = Path(path).absolute()
+    _check_utf8_name(path)
     recorded = add_history(
         ds,
         function or "ami_xr.to_netcdf",
@@ -516,20 +542,29 @@ def to_netcdf(
         source_file=ds.attrs.get(names.ATTR_SOURCE_FILE),
     )
     encoded = encode(recorded)  # raises on unstorable content before any file exists
-    with atomic_path(path) as tmp, _drained_on_error(encoded):
-        encoded.to_netcdf(tmp, mode="w", format=FORMAT, engine=ENGINE)
+    with atomic_path(path) as tmp, interrupts_deferred() as held:
+        with _drained_on_error(encoded, held):
+            encoded.to_netcdf(tmp, mode="w", format=FORMAT, engine=ENGINE)
     return path
 
 
-def _draining_threaded_get(dsk, keys, **kwargs):
+def _draining_threaded_get(dsk, keys, *, held: DeferredSignals | None = None, **kwargs):
     """dask's threaded scheduler on a private pool that is drained before an error propagates.
 
     The stock scheduler re-raises the first failing task at once while other worker threads may
     still be writing chunks; xarray then closes the netCDF file under them (and the atomic writer
     removes it), which can crash the process inside HDF5 (a segfault, seen with netCDF4 1.6.5).
+    With ``held``, the signals it holds are delivered after each finished task (in the main
+    thread, which holds no file lock there), so Ctrl-C stops a long lazy write within a chunk.
     """
     import dask.threaded
 
+    if held is not None:
+        from dask.callbacks import Callback
+
+        callbacks = kwargs.pop("callbacks", None)
+        callbacks = list(Callback.active if callbacks is None else callbacks)
+        kwargs["callbacks"] = [*callbacks, (None, None, None, lambda *_: held.deliver(), None)]
     pool = ThreadPoolExecutor(max_workers=kwargs.pop("num_workers", None) or os.cpu_count() or 1)
     try:
         return dask.threaded.get(dsk, keys, pool=pool, **kwargs)
@@ -538,7 +573,7 @@ def _draining_threaded_get(dsk, keys, **kwargs):
 
 
 @contextlib.contextmanager
-def _drained_on_error(ds: xr.Dataset):
+def _drained_on_error(ds: xr.Dataset, held: DeferredSignals | None = None):
     """Write ``ds`` with :func:`_draining_threaded_get` when dask's threaded scheduler is in effect.
 
     A distributed client, the synchronous or the process scheduler are left alone.
@@ -554,5 +589,5 @@ def _drained_on_error(ds: xr.Dataset):
     if dask.base.get_scheduler(collections=lazy) is not dask.threaded.get:
         yield
         return
-    with dask.config.set(scheduler=_draining_threaded_get):
+    with dask.config.set(scheduler=functools.partial(_draining_threaded_get, held=held)):
         yield
