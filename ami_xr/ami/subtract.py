@@ -96,7 +96,7 @@ def subtract(
     into it (residues added). Other stops: ``"max_modes"``, ``"max_rejected_peaks"``
     (``3 max_modes + 10`` peaks examined).
 
-    Long because the docstring documents the phase's eight settings and its outputs; the code (95
+    Long because the docstring documents the phase's seven settings and its outputs; the code (95
     lines) is checks, one ``apply_ufunc`` call and the output variables.
 
     Parameters
