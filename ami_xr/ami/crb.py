@@ -75,7 +75,7 @@ def cramer_rao_bound(
 ) -> xr.Dataset:
     """Cramér-Rao bound of eigenvalues, residues and mode vectors of a known system.
 
-    Long because it assembles a Dataset of eleven documented variables around one covariance call of
+    Long because it assembles the documented output variables around one covariance call of
     :mod:`ami_xr.core.varpro`; 101 lines of code.
 
     Parameters

@@ -171,7 +171,7 @@ def refine(
 ) -> xr.Dataset:
     """Maximum-likelihood joint refinement of all eigenvalues and residues over all FRFs.
 
-    Long because the docstring documents nine settings; the code (71 lines) is checks, one
+    Long because the docstring documents eight settings; the code (71 lines) is checks, one
     ``apply_ufunc`` call and the output attributes.
 
     Parameters
