@@ -238,8 +238,8 @@ def random_system(
 ) -> tuple[xr.Dataset, xr.Dataset]:
     """A random lumped-mass system: its FRFs at the measured points and the exact truth.
 
-    Long because each of its 17 parameters is checked here, in the order of the list below, before
-    one straight build (structure, points, truth, FRFs, noise); 117 lines of code.
+    Long because its 17 parameters are checked here, in the order of the list below, before one
+    straight build (structure, points, truth, FRFs, noise); 117 lines of code.
 
     Parameters
     ----------
