@@ -131,6 +131,10 @@ def _parse(path: Path) -> tuple[dict, list[dict]]:
             ) from None
         width = {"No": 1 + channels, "One": 1 + channels, "Multi": 2 * channels}[x_columns]
         cols = list(range(1, 1 + channels)) if x_columns != "Multi" else list(range(1, width, 2))
+        ch_titles = titles[1 : 1 + channels] if x_columns != "Multi" else titles[1::2][:channels]
+        # Before the rows are parsed: a file cut inside a row is reported as cut short, not as
+        # a row with too few columns.
+        _check_sample_counts(seg_header, len(rows), ch_titles, len(segments) + 1, start, path)
         try:  # fast path (C parser); the row loop below finds the bad line on failure
             rows_text = "\n".join(rows)
             if decimal != ".":
@@ -165,7 +169,6 @@ def _parse(path: Path) -> tuple[dict, list[dict]]:
             if np.isnan(values).any():
                 bad = int(np.argwhere(np.isnan(values))[0, 0])
                 raise DataFileError(f"{path}: line {rows_start + bad + 1}: missing sample value")
-        ch_titles = titles[1 : 1 + channels] if x_columns != "Multi" else titles[1::2][:channels]
         segments.append(
             {
                 "header": seg_header,
@@ -178,6 +181,34 @@ def _parse(path: Path) -> tuple[dict, list[dict]]:
     if not segments:
         raise DataFileError(f"{path}: no data segments after the file header")
     return header, segments
+
+
+def _check_sample_counts(
+    seg_header: dict, found: int, titles: list[str], number: int, start: int, path: Path
+) -> None:
+    """Compare the rows read with the segment header's ``Samples`` count of each channel.
+
+    A file cut short (a copy or a transfer stopped part-way) otherwise reads as a shorter
+    record; a count the header does not give (an optional field for hand-made files) is not
+    checked.
+    """
+    raw = [v.strip() for v in seg_header.get("Samples", [])][: len(titles)]
+    for c, text in enumerate(raw):
+        if not text:
+            continue
+        try:
+            expected = int(text)
+        except ValueError:
+            raise DataFileError(
+                f"{path}: segment {number} (line {start + 1}): bad Samples count {text!r}"
+            ) from None
+        if expected != found:
+            cause = " (the file is truncated?)" if found < expected else ""
+            raise DataFileError(
+                f"{path}: segment {number} (line {start + 1}), channel {titles[c].strip()!r}: "
+                f"the header says Samples {expected}; expected {expected} samples, "
+                f"found {found}{cause}"
+            )
 
 
 def _float_list(seg: dict, key: str, path: Path) -> list[float]:
@@ -258,8 +289,9 @@ def read_lvm(
     Raises
     ------
     DataFileError
-        Malformed file (message names the file and line), or segments of different lengths or
-        sampling intervals.
+        Malformed file (message names the file and line), a segment with fewer (or more) rows
+        than its header's ``Samples`` count (a truncated file: the message names the segment,
+        the channel and both counts), or segments of different lengths or sampling intervals.
     AmiXrValueError
         Bad arguments (unknown force channel, ...).
     """

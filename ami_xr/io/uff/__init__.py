@@ -21,6 +21,16 @@ rotations RX, RY, RZ; negative codes point the other way; 0 = scalar). It become
 integer node number. Labels that are neither (``"tip"``) are written with node numbers 1, 2, ...
 and the label in ID line 2 (``"ami_xr point=tip"``), which the reader restores.
 
+Completeness and validity
+-------------------------
+Every dataset must close with its ``    -1`` line and every dataset-58 record must hold the
+``num_pts`` values its header declares; a file cut short (ASCII or binary) is a
+:class:`~ami_xr.errors.DataFileError` that says where the incomplete dataset starts and how many
+datasets before it are complete (pyuff alone silently drops the incomplete one). The writer
+checks the Dataset first (finite ``frf``/``coherence``/``response``/``force``, a complex
+``frf``, a strictly increasing abscissa of at least 2 values, unique point labels) and writes
+nothing when any check fails.
+
 Single-reference grouping and the drive point
 ---------------------------------------------
 ami_xr's FRF Dataset holds one column of the FRF matrix: responses at many points to a force at one
