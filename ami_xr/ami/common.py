@@ -9,6 +9,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.errors import IdentificationError
+from ami_xr.io.schema import impulse_grid_problem
 from ami_xr.provenance import add_history
 
 MODELS = ("auto", *names.AMI_MODELS)  # the ``model`` argument of subtract
@@ -50,7 +51,12 @@ GLOBAL_VARS = (
 
 
 def check_frf(ds: Any, function: str) -> xr.Dataset:
-    """Structural checks every phase needs (cheap; values are checked per FRF in the kernels)."""
+    """The input checks every phase makes before any work.
+
+    Structure (dims, dtype, a strictly increasing frequency axis that fits ``sample_interval``
+    and ``record_samples`` for impulse-response FRFs), unique point labels, and finite values
+    (one pass over the data; NaN and inf are named with their points and counts).
+    """
     if not isinstance(ds, xr.Dataset):
         raise IdentificationError(f"ds: expected an xarray.Dataset, got {type(ds).__name__}")
     if names.FRF not in ds:
@@ -74,12 +80,54 @@ def check_frf(ds: Any, function: str) -> xr.Dataset:
         raise IdentificationError(f"{names.FREQUENCY}: must be strictly increasing")
     if f[0] < 0:
         raise IdentificationError(f"{names.FREQUENCY}: must be >= 0 Hz")
+    grid = impulse_grid_problem(ds)
+    if grid:
+        raise IdentificationError(grid)
+    _check_unique_points(ds)
+    _check_finite(frf, ds)
     return ds
+
+
+def _shorten(values: list, limit: int = 8) -> str:
+    more = f", ... ({len(values)} in all)" if len(values) > limit else ""
+    return ", ".join(map(str, values[:limit])) + more
+
+
+def _check_unique_points(ds: xr.Dataset) -> None:
+    """Each point label once: results are selected and written (report, UFF) by label."""
+    labels = np.asarray(ds[names.POINT].values)
+    keys = labels.astype(str) if labels.dtype.kind in "OUS" else labels
+    uniq, first, counts = np.unique(keys, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        dup = [labels[i].item() if hasattr(labels[i], "item") else labels[i] for i in first]
+        dup = [d for d, c in zip(dup, counts, strict=True) if c > 1]
+        raise IdentificationError(
+            f"coordinate {names.POINT!r}: expected unique point labels, found duplicates "
+            f"{_shorten([repr(d) for d in dup])}"
+        )
+
+
+def _check_finite(frf: xr.DataArray, ds: xr.Dataset) -> None:
+    """NaN/inf in ``frf`` are named with their points before any work (one pass over the data;
+    a NaN would otherwise surface deep in a fit as an SVD that does not converge)."""
+    counts = np.asarray((~np.isfinite(frf)).sum(names.FREQUENCY).transpose(names.POINT).values)
+    bad = np.flatnonzero(counts)
+    if bad.size:
+        labels = np.asarray(ds[names.POINT].values)
+        where = [
+            f"{labels[i].item() if hasattr(labels[i], 'item') else labels[i]!r}: {int(counts[i])}"
+            for i in bad
+        ]
+        raise IdentificationError(
+            f"variable {names.FRF!r}: expected finite values, found {int(counts.sum())} NaN or "
+            f"inf value(s) at {bad.size} point(s) (point: count) {_shorten(where)}"
+        )
 
 
 def check_values(ds: xr.Dataset) -> None:
     """All-zero or non-finite FRFs are errors naming the point (one reduction over the data)."""
-    peak = np.asarray(np.abs(ds[names.FRF]).max(names.FREQUENCY).values)
+    # skipna=False: the default max skips NaN, so a partly NaN FRF would pass.
+    peak = np.asarray(np.abs(ds[names.FRF]).max(names.FREQUENCY, skipna=False).values)
     points = np.asarray(ds[names.POINT].values)
     bad = ~np.isfinite(peak)
     if np.any(bad):

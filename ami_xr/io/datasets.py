@@ -110,7 +110,8 @@ def make_frf_dataset(
         ``frf.attrs["units"]`` becomes ``"<response_units>/<force_units>"``.
     frf_source : str
         One of ``names.SOURCES``. For ``"impulse_response"`` pass ``sample_interval=dt`` and
-        ``record_samples=N`` as keyword attributes.
+        ``record_samples=N`` as keyword attributes; ``frequency`` must then be lines of the
+        rfft grid ``k / (N * dt)`` Hz, ``0 <= k <= N // 2`` (all of them or a band).
     **attrs
         Further Dataset attributes (e.g. ``sample_interval``, ``record_samples``,
         ``exponential_window_decay``, ``title``).

@@ -26,6 +26,8 @@ __all__ = [
     "python_scalar",
     "KINDS",
     "UNIFORM_RTOL",
+    "IMPULSE_GRID_RTOL",
+    "impulse_grid_problem",
 ]
 
 KINDS = ("frf", "time")
@@ -292,6 +294,76 @@ def _check_quantity_units(
     return resp_units, force_units
 
 
+# How far a frequency may sit from the rfft grid k / (N dt), as a fraction of its own value
+# (and of one line spacing at k = 0). k / (N dt) computed in float64 -- by rfftfreq, by
+# arange(k) / (N dt) or by k * (1 / (N dt)) -- differs from the exact value by a few ulp
+# (~1e-15 relative), and dt read back from a text file written with 7 or more significant
+# digits by less than 1e-6; an axis that disagrees with dt or N (a wrong dt, a padded FFT, Hz
+# multiplied by 2 pi) is off by a whole fraction of a line at most lines, far above this.
+IMPULSE_GRID_RTOL = 1e-6
+
+
+def impulse_grid_problem(ds: xr.Dataset, namer: _Namer | None = None) -> str | None:
+    """Why the frequency axis of an impulse-response FRF Dataset is not its rfft grid, or None.
+
+    An FRF with ``frf_source == "impulse_response"`` is ``dt * rfft`` of ``record_samples``
+    samples, so its lines are ``k / (record_samples * sample_interval)`` Hz with
+    ``0 <= k <= record_samples // 2`` (a band of them is fine). The discrete modal model uses
+    ``sample_interval`` and the axis together: when they disagree its modes are wrong.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        FRF Dataset; only checked when ``frf_source`` is ``"impulse_response"`` and the
+        frequency axis, ``sample_interval`` and ``record_samples`` are usable (their own
+        problems are reported by :func:`validate`).
+    namer : optional
+        How the message names the frequency coordinate (default "coordinate 'frequency'").
+
+    Returns
+    -------
+    str or None
+        One message naming ``frequency`` and the expected spacing, or None when the axis fits.
+    """
+    namer = namer or _Namer()
+    attrs = ds.attrs
+    dt, n = attrs.get(names.ATTR_DT), attrs.get(names.ATTR_NSAMPLES)
+    if attrs.get(names.ATTR_SOURCE) != names.SOURCE_IMPULSE or names.FREQUENCY not in ds.coords:
+        return None
+    if not (is_positive_number(dt) and is_positive_number(n) and isinstance(n, Integral)):
+        return None
+    coord = ds.coords[names.FREQUENCY]
+    if coord.ndim != 1 or coord.size == 0 or coord.dtype.kind not in "fiu":
+        return None
+    axis = range_axis(ds, names.FREQUENCY)
+    if axis is not None:  # uniform by construction: its first, second and last lines suffice
+        idx = np.unique(np.array([0, 1, axis.size - 1]).clip(0, axis.size - 1))
+        freq = axis.start + idx * axis.step
+    else:
+        idx = np.arange(coord.size)
+        freq = np.asarray(coord.values, dtype=np.float64)
+    if not np.all(np.isfinite(freq)):
+        return None
+    df = 1.0 / (float(n) * float(dt))
+    lines = freq / df
+    k = np.rint(lines)
+    off = (np.abs(lines - k) > IMPULSE_GRID_RTOL * np.maximum(np.abs(lines), 1.0)) | (k < 0)
+    off |= k > int(n) // 2
+    if not off.any():
+        return None
+    first = int(np.argmax(off))
+    units = coord.attrs.get(names.ATTR_UNITS)
+    return (
+        f"{namer.coord(names.FREQUENCY)}: expected the rfft grid of an impulse response, "
+        f"k / (record_samples * sample_interval) = k * {df!r} Hz with 0 <= k <= "
+        f"{int(n) // 2} (frf_source {names.SOURCE_IMPULSE!r}, sample_interval {float(dt)!r} s, "
+        f"record_samples {int(n)}), but {int(off.sum())} of {off.size} checked lines are off "
+        f"it (first: index {int(idx[first])} = {float(freq[first])!r} {units}, {lines[first]:.6g} "
+        "line spacings); are the frequencies in Hz (not rad/s), and are sample_interval and "
+        "record_samples those of the record?"
+    )
+
+
 def is_positive_number(value: Any) -> bool:
     """True for a finite real number above 0 (not a bool)."""
     return (
@@ -370,6 +442,10 @@ def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool,
                 f"{namer.attr(names.ATTR_NSAMPLES)}: expected a positive integer record length "
                 f"because frf_source is {source!r}, {got}"
             )
+        elif is_positive_number(dt):
+            grid = impulse_grid_problem(ds, namer)
+            if grid:
+                problems.append(grid)
     if names.ATTR_EXP_DECAY in ds.attrs:
         decay = ds.attrs[names.ATTR_EXP_DECAY]
         if not (is_positive_number(decay) or (isinstance(decay, Real) and decay == 0)):
@@ -502,7 +578,9 @@ def validate(
 
     Every problem found is reported at once in one :class:`~ami_xr.errors.SchemaError` whose
     ``problems`` list names, for each, the variable, coordinate or attribute and what was
-    expected.
+    expected. Besides structure, units and finite values, the parts must agree: an FRF with
+    ``frf_source="impulse_response"`` must have its lines on the rfft grid
+    ``k / (record_samples * sample_interval)`` Hz (see :func:`impulse_grid_problem`).
 
     Parameters
     ----------

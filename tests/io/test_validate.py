@@ -279,9 +279,9 @@ def test_bad_frf_dataset(frf_dataset, case):
 
 
 def test_valid_impulse_response_source(frf_dataset):
-    ds = _with_attrs(
-        frf_dataset, frf_source="impulse_response", sample_interval=0.01, record_samples=4096
-    )
+    # the lines must be a band of the rfft grid k / (record_samples * sample_interval)
+    grid = _with_coord(frf_dataset, names.FREQUENCY, np.arange(1, 201) / (4096 * 0.01))
+    ds = _with_attrs(grid, frf_source="impulse_response", sample_interval=0.01, record_samples=4096)
     assert validate(ds) is ds
 
 
@@ -453,7 +453,7 @@ def test_make_frf_dataset_extra_attrs_and_quantity():
         response_units="g",
         force_units="lbf",
         frf_source="impulse_response",
-        sample_interval=0.01,
+        sample_interval=0.25,  # lines k / (4 * 0.25 s) = 0, 1, 2 Hz
         record_samples=4,
         title="bench",
     )

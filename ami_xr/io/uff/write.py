@@ -14,7 +14,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.errors import AmiXrValueError
+from ami_xr.errors import AmiXrValueError, SchemaError
 from ami_xr.io.atomic import atomic_path
 from ami_xr.io.uff.codes import (
     FUNC_COHERENCE,
@@ -27,7 +27,90 @@ from ami_xr.io.uff.codes import (
     require_pyuff,
 )
 
-__all__ = ["write_uff"]
+__all__ = ["write_uff", "check_writable"]
+
+
+def _nonfinite(values: np.ndarray, dims: Sequence[str]) -> str | None:
+    """How many NaN or inf ``values`` holds, and where the first is; None when none."""
+    bad = ~np.isfinite(values)
+    if not bad.any():
+        return None
+    first = np.unravel_index(int(np.argmax(bad)), bad.shape)
+    where = ", ".join(f"{dim}={int(i)}" for dim, i in zip(dims, first, strict=True))
+    return f"{int(bad.sum())} NaN or inf value(s) (first at index {where})"
+
+
+def _axis_problems(ds: xr.Dataset, dim: str, units: str) -> list[str]:
+    """The abscissa of dataset 58: present, finite, strictly increasing."""
+    if dim not in ds.coords or ds.coords[dim].ndim != 1:
+        return [f"coordinate {dim!r}: missing (expected 1-D values in {units} along dim {dim!r})"]
+    coord = ds.coords[dim]
+    if coord.dtype.kind not in "fiu":
+        return [f"coordinate {dim!r}: expected real numbers in {units}, got dtype {coord.dtype}"]
+    values = np.asarray(coord.values, dtype=np.float64)
+    if values.size < 2:
+        # pyuff cannot write a one-value record (it fails with a bare Exception).
+        return [f"coordinate {dim!r}: expected at least 2 values, got {values.size}"]
+    bad = _nonfinite(values, (dim,))
+    if bad:
+        return [f"coordinate {dim!r}: expected finite values, found {bad}"]
+    steps = np.diff(values)
+    if np.any(steps <= 0):
+        i = int(np.argmax(steps <= 0))
+        return [
+            f"coordinate {dim!r}: expected strictly increasing values, not increasing at "
+            f"{int((steps <= 0).sum())} place(s) (first: index {i} = {float(values[i])!r} then "
+            f"{float(values[i + 1])!r})"
+        ]
+    return []
+
+
+def _signal_problems(ds: xr.Dataset, var: str, dims: set[str], dtype_kind: str) -> list[str]:
+    """Dims, dtype and finiteness of one variable written as dataset-58 records."""
+    da = ds[var]
+    what = {"c": "complex", "f": "real float"}[dtype_kind]
+    if not dims <= set(da.dims):
+        return [f"variable {var!r}: expected dims including {sorted(dims)}, got {da.dims}"]
+    if da.dtype.kind != dtype_kind:
+        return [f"variable {var!r}: expected {what} values, got dtype {da.dtype}"]
+    bad = _nonfinite(np.asarray(da.values), da.dims)
+    return [f"variable {var!r}: expected finite values, found {bad}"] if bad else []
+
+
+def _point_problems(ds: xr.Dataset) -> list[str]:
+    """Unique point labels: each becomes one UFF degree of freedom."""
+    labels = [str(v) for v in ds[names.POINT].values.tolist()]
+    dup = sorted({lab for lab in labels if labels.count(lab) > 1})
+    return [f"coordinate {names.POINT!r}: expected unique labels, duplicates {dup}"] if dup else []
+
+
+def check_writable(ds: xr.Dataset, include: Sequence[str]) -> None:
+    """Check what :func:`write_uff` will write, before any record is made.
+
+    A UFF file with NaN values, a real-valued FRF record, a decreasing abscissa or two records on
+    one degree of freedom reads back wrong (or not at all) in any program, so it is never
+    written. Every problem is reported at once.
+
+    Raises
+    ------
+    SchemaError
+        Naming each variable or coordinate and what was expected.
+    """
+    problems: list[str] = []
+    if "frf" in include and names.FRF in ds:
+        problems += _signal_problems(ds, names.FRF, {names.POINT, names.FREQUENCY}, "c")
+        if names.COHERENCE in ds:
+            problems += _signal_problems(ds, names.COHERENCE, {names.POINT, names.FREQUENCY}, "f")
+        problems += _axis_problems(ds, names.FREQUENCY, names.FREQUENCY_UNITS)
+    if "time" in include and names.RESPONSE in ds:
+        problems += _signal_problems(ds, names.RESPONSE, {names.POINT, names.TIME}, "f")
+        if names.FORCE in ds:
+            problems += _signal_problems(ds, names.FORCE, {names.TIME}, "f")
+        problems += _axis_problems(ds, names.TIME, names.TIME_UNITS)
+    if names.POINT in ds.coords:
+        problems += _point_problems(ds)
+    if problems:
+        raise SchemaError(problems, what="Dataset to write as UFF")
 
 
 def _units_lab(text: str) -> str:
@@ -256,12 +339,22 @@ def write_uff(
     -------
     pathlib.Path
         The written file.
+
+    Raises
+    ------
+    SchemaError
+        The Dataset would make an invalid UFF file (see :func:`check_writable`): NaN or inf in
+        ``frf``/``coherence``/``response``/``force``, a real-valued ``frf``, a frequency or time
+        axis that is not strictly increasing, duplicate point labels. Nothing is written.
+    AmiXrValueError
+        Unknown ``include`` entries, or nothing to write.
     """
     pyuff = require_pyuff()
     path = Path(path)
     bad = set(include) - {"frf", "time", "modes"}
     if bad:
         raise AmiXrValueError(f"include must hold 'frf', 'time' or 'modes'; got {sorted(bad)}")
+    check_writable(ds, include)
     records: list[dict] = []
     if "frf" in include and names.FRF in ds:
         records += _frf_records(ds, binary)
