@@ -8,9 +8,11 @@ Guarantees
 ----------
 * **Atomic outputs.** Each result is written with :func:`ami_xr.to_netcdf` (temporary file in the
   target folder, then a rename), so an output file is either complete or absent; a crash,
-  ``kill`` or Ctrl-C never leaves a partial result (stale temporary files of an earlier crash are
+  ``kill`` or Ctrl-C never leaves a partial result (temporary folders left by a killed run are
   removed at the start of the next run). The first Ctrl-C lets the files in progress finish,
-  writes the summary and then raises ``KeyboardInterrupt``; a second one stops at once.
+  writes the summary and then raises ``KeyboardInterrupt``; a second one stops at once (with
+  ``--workers 1`` the file being written is rolled back, never partial) and SIGTERM likewise
+  (``SystemExit(143)``); the summary is written in every case.
 * **Resumable, incremental.** Each output records the SHA-256 of its input file, the input's size
   and mtime, and a hash of the pipeline parameters (attributes ``batch_input_sha256``,
   ``batch_parameters_sha256``). A re-run skips a file whose output matches both (the content
@@ -42,7 +44,7 @@ from typing import Any
 
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, DataFileError
-from ami_xr.io.atomic import atomic_open, remove_stale
+from ami_xr.io.atomic import EXIT_TERMINATED, atomic_open, interrupts_deferred, remove_stale
 from ami_xr.io.formats import INPUT_SUFFIXES, read_any
 from ami_xr.progress import Progress
 
@@ -110,7 +112,7 @@ class BatchSummary:
             status = r["status"]
             if status == STATUS_FAILED:
                 freqs = r["message"].splitlines()[0][:width] if r["message"] else ""
-            body.append((r["file"], status, str(r["modes"]), freqs))
+            body.append(tuple(map(_printable, (r["file"], status, str(r["modes"]), freqs))))
         if not body:
             return "no input files found"
         widths = [max(len(h), *(len(row[i]) for row in body)) for i, h in enumerate(header)]
@@ -133,6 +135,26 @@ class BatchSummary:
 
     def __str__(self) -> str:
         return self.format()
+
+
+def _printable(text: Any) -> Any:
+    """``text`` with the bytes of a file name that is not valid UTF-8 shown as ``\\xff``.
+
+    ``os.walk`` hands such names over with surrogate escapes, which no UTF-8 file or terminal
+    can take; other values pass unchanged.
+    """
+    if not isinstance(text, str):
+        return text
+    try:
+        text.encode("utf-8")
+        return text
+    except UnicodeEncodeError:
+        pass
+    try:
+        raw = text.encode("utf-8", "surrogateescape")
+    except UnicodeEncodeError:  # a lone surrogate that is no escaped byte
+        return text.encode("utf-8", "backslashreplace").decode("utf-8")
+    return raw.decode("utf-8", "backslashreplace")
 
 
 # --- discovery -----------------------------------------------------------------------------------
@@ -295,31 +317,40 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
 
 # --- the batch ----------------------------------------------------------------------------------
 def _write_summary(rows: list[dict], path: Path) -> None:
-    with atomic_open(path, "w") as fh:
+    # Held Ctrl-C: the summary of an interrupted batch is written in full (it is small).
+    with interrupts_deferred(), atomic_open(path, "w") as fh:
         writer = csv.DictWriter(fh, fieldnames=SUMMARY_FIELDS, extrasaction="ignore")
         writer.writeheader()
-        writer.writerows(rows)
+        writer.writerows({k: _printable(v) for k, v in row.items()} for row in rows)
 
 
 class _GracefulInterrupt:
     """While a batch runs: the first Ctrl-C lets the files in progress finish (so their outputs
-    are written completely) and starts no new one; a second Ctrl-C stops at once.
+    are written completely) and starts no new one; a second Ctrl-C stops at once
+    (``KeyboardInterrupt``; a file being written is rolled back). SIGTERM stops at once too
+    (``SystemExit(143)``), after the same cleanup, instead of killing the process.
 
-    Only installed in the main thread and only over Python's default SIGINT handler; the
-    previous handler is restored on exit, so nothing changes outside :func:`batch`.
+    Only installed in the main thread and only over Python's default handlers; the previous
+    handlers are restored on exit, so nothing changes outside :func:`batch`.
     """
 
     def __init__(self):
         self.requested = False
         self._previous = None
+        self._previous_term = None
 
     def __enter__(self):
-        if (
-            threading.current_thread() is threading.main_thread()
-            and signal.getsignal(signal.SIGINT) is signal.default_int_handler
-        ):
+        if threading.current_thread() is not threading.main_thread():
+            return self
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
             self._previous = signal.signal(signal.SIGINT, self._handler)
+        if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+            self._previous_term = signal.signal(signal.SIGTERM, self._terminate)
         return self
+
+    @staticmethod
+    def _terminate(signum, frame):
+        raise SystemExit(EXIT_TERMINATED)
 
     def _handler(self, signum, frame):
         if self.requested:
@@ -334,6 +365,8 @@ class _GracefulInterrupt:
     def __exit__(self, *exc):
         if self._previous is not None:
             signal.signal(signal.SIGINT, self._previous)
+        if self._previous_term is not None:
+            signal.signal(signal.SIGTERM, self._previous_term)
         return False
 
 
