@@ -361,6 +361,30 @@ def _reference(work: Path, src: Path, k: int) -> tuple[int, str, Any]:
     return REFERENCE[key]
 
 
+def undetectable_cut(data: bytes, cut: int, suffix: str) -> bool:
+    """Whether ``data[:cut]`` is itself a well-formed file, so no reader can see the cut.
+
+    UFF has no dataset count: a cut between two datasets (the kept part ends with a closing
+    ``-1`` line, the rest starts with the next opening one) leaves a valid file of fewer
+    datasets. LVM has no checksum: a cut at the end of a segment, or inside the last value of
+    a segment's last row (``4.123e-01`` -> ``4.12``), leaves a valid file. Anything else is
+    detectable (a dataset without its ``-1``, a segment short of its ``Samples``).
+    """
+    kept, rest = data[:cut], data[cut:]
+    if suffix == ".uff":
+        return kept.rstrip().endswith(b"-1") and rest.lstrip().startswith(b"-1")
+    line_start = kept.rfind(b"\n") + 1
+    line_end = data.find(b"\n", cut)
+    line_end = len(data) if line_end < 0 else line_end
+    full, partial = data[line_start:line_end], kept[line_start:]
+    after = data[line_end:].strip()
+    at_segment_end = not after or after.startswith(b"Channels")
+    if not partial.strip():  # cut at a line start: fine only after a segment's last row
+        return not full.strip() or (at_segment_end and not full.strip(b"\t "))
+    same_fields = partial.count(b"\t") == full.count(b"\t") and partial.split(b"\t")[-1]
+    return at_segment_end and bool(same_fields) and partial[-1:].isdigit()
+
+
 def corrupt(data: bytes, kind: str, rng: random.Random) -> tuple[bytes, str]:
     """Truncate ``data`` at a random byte, or change 1-8 random bytes; (new data, what)."""
     if kind == "truncate":
@@ -379,7 +403,10 @@ def file_fault_case(kind: str, src: Path, k: int, seed: int, work: Path) -> Resu
     ref_code, ref_out, ref_data = _reference(work, src, k)
     case_dir, argv, out = _prepare_case(work, src, commands_for(src.name)[k])
     target = case_dir / src.name
-    bad, what = corrupt(src.read_bytes(), kind, rng)
+    original = src.read_bytes()
+    bad, what = corrupt(original, kind, rng)
+    undetectable = kind == "truncate" and undetectable_cut(original, len(bad), src.suffix)
+    what += " (a well-formed shorter file)" if undetectable else ""
     target.write_bytes(bad)
     before = digest(target)
     code, stdout, err, elapsed = run_forked(_child_cli, (argv,), case_dir)
@@ -401,7 +428,7 @@ def file_fault_case(kind: str, src: Path, k: int, seed: int, work: Path) -> Resu
         if "Traceback (most recent call last)" in err:
             return Result(kind, label, OTHER, "exit 0 with a traceback on stderr", lost)
         if out is None:  # identify: a flipped value may change the modes legitimately
-            good = kind == "flip" or (ref_code == 0 and stdout == ref_out)
+            good = kind == "flip" or undetectable or (ref_code == 0 and stdout == ref_out)
             why = "" if good else "exit 0 but printed table differs from the intact file's"
         else:
             try:
@@ -409,9 +436,12 @@ def file_fault_case(kind: str, src: Path, k: int, seed: int, work: Path) -> Resu
             except Exception as exc:  # noqa: BLE001 - any unreadable output is partial
                 lost.append(f"{label}: output unreadable: {type(exc).__name__}: {exc}")
                 return Result(kind, label, OTHER, "exit 0 with an unreadable output", lost)
-            if kind == "truncate":
+            if kind == "truncate" and not undetectable:
                 good = ref_data is not None and same_data(data, ref_data)
                 why = "" if good else "exit 0 with a result that differs from the intact file's"
+            elif kind == "truncate":  # a valid file of fewer records: must be read whole
+                good = ref_data is not None and set(data.sizes) == set(ref_data.sizes)
+                why = "" if good else f"exit 0 with sizes {dict(data.sizes)}"
             else:  # a changed data byte is undetectable; the output must still be complete
                 good = ref_data is not None and dict(data.sizes) == dict(ref_data.sizes)
                 why = "" if good else f"exit 0 with sizes {dict(data.sizes)}"
