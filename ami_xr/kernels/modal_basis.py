@@ -305,14 +305,21 @@ def tolerance_envelope(omega, lam, res, n, tol):
 # checked wrappers
 # ----------------------------------------------------------------------------------------------
 def checked_omega(omega: np.ndarray) -> np.ndarray:
-    """``omega`` as a contiguous float64 array, checked 1-D and strictly increasing (>= 2 lines).
+    """``omega`` as a contiguous float64 array, checked 1-D, finite and strictly increasing
+    (>= 2 lines).
 
     Raises :class:`~ami_xr.errors.AmiXrValueError` naming ``omega`` otherwise.
     """
     omega = np.ascontiguousarray(omega, dtype=np.float64)
-    if omega.ndim != 1 or omega.size < 2 or not np.all(np.diff(omega) > 0):
+    # isfinite too: an infinite first or last line still passes the diff test
+    if (
+        omega.ndim != 1
+        or omega.size < 2
+        or not np.all(np.isfinite(omega))
+        or not np.all(np.diff(omega) > 0)
+    ):
         raise AmiXrValueError(
-            "omega: expected a 1-D, strictly increasing array of angular frequencies"
+            "omega: expected a 1-D, finite, strictly increasing array of angular frequencies"
         )
     return omega
 
