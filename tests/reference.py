@@ -27,12 +27,21 @@ EPS = np.finfo(np.float64).eps
 # The repository root and the shared measured-data folder beside it (skipped where absent).
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data"
+HAMMER_LVM = SHARED_DATA / "impact_hammer.lvm"  # a measured five-hit hammer test
+# The environment for subprocesses: they import this checkout whatever the working directory or
+# the installed version.
+SUBPROCESS_ENV = {
+    **os.environ,
+    "PYTHONPATH": os.pathsep.join([str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])]),
+}
 
 # --- shared test systems --------------------------------------------------------------------
 
 # The paper's record: 60 s sampled at 2^12 points (the grid of sample_data/benchmark_impulse.nc).
 PAPER_N = 4096
 PAPER_DT = 60.0 / PAPER_N
+PAPER_FREQUENCY = np.fft.rfftfreq(PAPER_N, PAPER_DT)  # Hz
+PAPER_OMEGA = 2 * np.pi * PAPER_FREQUENCY  # rad/s
 # Two lightly damped modes seen at two points: eigenvalues (mode,) in rad/s, residues
 # (point, mode); the FFT tests transform their impulse responses on the paper's record.
 TWO_MODE_LAM = np.array([-0.05 + 10.0j, -0.4 + 31.0j])

@@ -13,11 +13,10 @@ from ami_xr import names
 from ami_xr.errors import ConvergenceWarning, IdentificationError, NoModesWarning
 
 from ..reference import PAPER_DT as DT
+from ..reference import PAPER_FREQUENCY as FREQ
 from ..reference import PAPER_N as N
+from ..reference import PAPER_OMEGA as OMEGA
 from ..reference import frf_from_residues
-
-FREQ = np.fft.rfftfreq(N, DT)
-OMEGA = 2 * np.pi * FREQ
 
 
 def _dataset(lam, res, *, discrete=True, noise=0.0, seed=0, drive_point=0):

@@ -19,12 +19,7 @@ from ami_xr.batch import SUMMARY_NAME, batch, find_inputs
 from ami_xr.cli import EXIT_BATCH_FAILURES, EXIT_OK, main
 from ami_xr.errors import AmiXrValueError, DataFileError
 
-REPO = Path(__file__).resolve().parents[2]
-# Subprocesses import this checkout whatever the working directory or installed version.
-ENV = {
-    **os.environ,
-    "PYTHONPATH": os.pathsep.join([str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])]),
-}
+from ..reference import REPO, SUBPROCESS_ENV
 
 
 def _small_frf(seed: int):
@@ -182,7 +177,7 @@ def test_ctrl_c_leaves_no_partial_files_and_resumes(tmp_path, workers):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        env=ENV,
+        env=SUBPROCESS_ENV,
     )
     try:
         deadline = time.monotonic() + 300
@@ -217,9 +212,9 @@ def test_ctrl_c_leaves_no_partial_files_and_resumes(tmp_path, workers):
 def test_batch_campaign_script(tmp_path):
     script = REPO / "scripts" / "batch_campaign.py"
     cmd = [sys.executable, str(script), "--example", "2", "-o", str(tmp_path / "c")]
-    first = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=ENV)
+    first = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=SUBPROCESS_ENV)
     assert first.returncode == 0, first.stderr
     assert "2 processed" in first.stdout and "max |f error|" in first.stdout
-    second = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=ENV)
+    second = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=SUBPROCESS_ENV)
     assert second.returncode == 0, second.stderr
     assert "2 up to date" in second.stdout

@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,13 +14,9 @@ import ami_xr
 from ami_xr import names
 from ami_xr.cli import EXIT_ERROR, EXIT_OK, EXIT_USAGE, build_parser, main
 
+from ..reference import HAMMER_LVM, REPO, SUBPROCESS_ENV
+
 COMMANDS = ("demo", "simulate", "frf", "identify", "report", "convert", "batch")
-REPO = Path(__file__).resolve().parents[2]
-# Subprocesses import this checkout whatever the working directory or installed version.
-ENV = {
-    **os.environ,
-    "PYTHONPATH": os.pathsep.join([str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])]),
-}
 
 
 def _run(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
@@ -31,7 +25,7 @@ def _run(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
         capture_output=True,
         text=True,
         timeout=timeout,
-        env=ENV,
+        env=SUBPROCESS_ENV,
     )
 
 
@@ -83,7 +77,11 @@ def test_help_compiles_nothing_and_imports_no_extras():
         "print('COMPILED', compiled, 'EXTRAS', extras)\n"
     )
     proc = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=ENV
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=SUBPROCESS_ENV,
     )
     assert proc.returncode == 0, proc.stderr
     assert "COMPILED [] EXTRAS []" in proc.stdout
@@ -213,13 +211,10 @@ def test_demo_uses_sample_data_of_working_directory_and_skips_report_without_mat
     assert not (tmp_path / "demo" / "report").exists()
 
 
-HAMMER = REPO.parent / "shared" / "data" / "impact_hammer.lvm"
-
-
-@pytest.mark.skipif(not HAMMER.is_file(), reason="shared/data folder absent")
+@pytest.mark.skipif(not HAMMER_LVM.is_file(), reason="shared/data folder absent")
 def test_frf_from_hammer_lvm_reports_rejected_hits(tmp_path, capsys):
     out = tmp_path / "hammer_frf.nc"
-    assert main(["frf", str(HAMMER), "-o", str(out)]) == EXIT_OK
+    assert main(["frf", str(HAMMER_LVM), "-o", str(out)]) == EXIT_OK
     text = capsys.readouterr().out
     assert "hit 0 rejected: overload" in text and "hit 2 rejected: double impact" in text
     g = ami_xr.open_dataset(out)
@@ -313,7 +308,11 @@ def test_building_the_parser_imports_no_library_module():
         "print('LOADED', [m for m in mods if m in sys.modules])\n"
     )
     proc = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=ENV
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=SUBPROCESS_ENV,
     )
     assert proc.returncode == 0, proc.stderr
     assert "LOADED []" in proc.stdout

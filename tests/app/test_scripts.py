@@ -7,11 +7,12 @@ the end and print their sections.
 from __future__ import annotations
 
 import runpy
-from pathlib import Path
 
 import pytest
 
-SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"
+from ..reference import REPO
+
+SCRIPTS = REPO / "scripts"
 
 
 def _main(name: str):

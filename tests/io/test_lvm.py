@@ -12,10 +12,7 @@ import ami_xr
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, DataFileError
 
-from ..reference import REPO
-from ..reference import SHARED_DATA as DATA
-
-HAMMER = DATA / "impact_hammer.lvm"
+from ..reference import HAMMER_LVM, REPO
 
 HEADER = """LabVIEW Measurement\t
 Writer_Version\t2
@@ -135,9 +132,9 @@ def test_segments_that_cannot_be_stacked(tmp_path):
 
 @pytest.fixture(scope="module")
 def hammer():
-    if not HAMMER.is_file():
-        pytest.skip(f"real measurement data not available ({HAMMER})")
-    return ami_xr.read_lvm(HAMMER)
+    if not HAMMER_LVM.is_file():
+        pytest.skip(f"real measurement data not available ({HAMMER_LVM})")
+    return ami_xr.read_lvm(HAMMER_LVM)
 
 
 def test_hammer_file_reads(hammer):
@@ -183,7 +180,7 @@ def test_hammer_to_modes_script(hammer, capsys, tmp_path):
     main = runpy.run_path(str(script), run_name="hammer_to_modes")["main"]
     modes = tmp_path / "modes.nc"
     report = tmp_path / "report"
-    assert main([str(HAMMER), "--modes", str(modes), "--report", str(report)]) == 0
+    assert main([str(HAMMER_LVM), "--modes", str(modes), "--report", str(report)]) == 0
     out = capsys.readouterr().out
     assert "overload" in out and "double impact" in out and "3 hit(s)" in out
     assert "modes identified by ami_xr.identify" in out

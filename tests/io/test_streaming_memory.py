@@ -26,13 +26,13 @@ from ..reference import forbid_compute
 
 dask = pytest.importorskip("dask")
 
-FS = 1000.0
+RECORD_FS = 1000.0  # Hz, the sampling rate of the long test records
 
 
 def _record(n: int, *, t0: float = 0.0, seed: int = 0) -> xr.Dataset:
     rng = np.random.default_rng(seed)
     ds = ami_xr.make_time_dataset(
-        rng.standard_normal((2, n)), fs=FS, force=rng.standard_normal(n), drive_point=0
+        rng.standard_normal((2, n)), fs=RECORD_FS, force=rng.standard_normal(n), drive_point=0
     )
     if t0:
         # keep attrs explicitly: arithmetic drops them on older xarray (seen on 2025.4)
@@ -115,7 +115,7 @@ def test_validate_and_sampling_read_no_time_values(tmp_path, computed_positions)
         dt = sample_interval(lazy)
     assert computed_positions == []
     # the step of the range index, a few roundings of 1 / fs
-    assert dt == pytest.approx(1 / FS, rel=1e-12)
+    assert dt == pytest.approx(1 / RECORD_FS, rel=1e-12)
     ami_xr.validate(lazy, "time")  # the value scan reads data chunks, never the time axis
     assert computed_positions == []
 
@@ -162,10 +162,10 @@ def _write_time(path, t: np.ndarray, dtype=np.float64) -> None:
 )
 def test_non_uniform_time_falls_back_to_stored_values(tmp_path, case):
     n = 20_001
-    t = np.arange(n) / FS
+    t = np.arange(n) / RECORD_FS
     dtype = np.float64
     if case == "second step off":
-        t[1] += 1e-7 / FS
+        t[1] += 1e-7 / RECORD_FS
     elif case == "middle value off":
         t[10_000] += 1e-9  # lies on the probe stride
     elif case == "last value nan":

@@ -22,9 +22,9 @@ from ami_xr.kernels.modal_basis import mode_contribution, pole_basis
 
 from ..reference import PAPER_DT as DT
 from ..reference import PAPER_N as N
+from ..reference import PAPER_OMEGA as OMEGA
 from ..reference import frf_from_residues, single_mode_lstsq
 
-OMEGA = 2 * np.pi * np.fft.rfftfreq(N, DT)
 MODELS = [(None, None), (DT, N)]
 
 

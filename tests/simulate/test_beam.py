@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import importlib.util
-import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,9 +23,7 @@ from ami_xr.simulate.beam import (
     clamped_free_roots,
 )
 
-from ..reference import frf_from_residues
-
-REPO = Path(__file__).resolve().parents[2]
+from ..reference import REPO, SUBPROCESS_ENV, frf_from_residues
 
 # np.trapezoid is numpy >= 2.0; np.trapz (removed in numpy 2.x later) is the same rule on 1.24.
 trapezoid = getattr(np, "trapezoid", None) or np.trapz
@@ -256,15 +252,11 @@ def test_sample_data_regenerate_to_rounding(tmp_path, sample_benchmark_frf):
     if not all((committed / f).exists() for f in SAMPLE_FILES):
         pytest.skip("sample_data/ not generated in this checkout")
     # the script's --check: regenerate, compare norm-wise to RTOL (justified in the script)
-    env = {
-        **os.environ,
-        "PYTHONPATH": os.pathsep.join([str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])]),
-    }
     run = subprocess.run(
         [sys.executable, str(REPO / "scripts" / "make_sample_data.py"), "--check"],
         capture_output=True,
         text=True,
-        env=env,
+        env=SUBPROCESS_ENV,
     )
     assert run.returncode == 0, run.stdout + run.stderr
     assert "agree with this code" in run.stdout
