@@ -19,7 +19,9 @@ One rule holds for every subcommand (:func:`main`):
 * Exit codes (defined once, here): 0 success (:data:`EXIT_OK`); 1 an error
   (:data:`EXIT_ERROR`); 2 a usage error (argparse, :data:`EXIT_USAGE`); 3 ``batch`` finished but
   some files failed (:data:`EXIT_BATCH_FAILURES`); 130 interrupted by Ctrl-C
-  (:data:`EXIT_INTERRUPTED`, one line ``ami-xr <command>: interrupted``).
+  (:data:`EXIT_INTERRUPTED`, one line ``ami-xr <command>: interrupted``); 143 terminated by
+  SIGTERM (:data:`EXIT_TERMINATED`, one line ``ami-xr: terminated``; a write in progress is
+  rolled back first).
 
 Option defaults are read from the signatures of the functions they feed, only when a help text
 shows them (:mod:`ami_xr.cli_options`, which also declares the options shared by several
@@ -30,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import signal
 import sys
 import traceback
 import warnings
@@ -54,6 +57,7 @@ EXIT_ERROR = 1
 EXIT_USAGE = 2  # argparse exits with this itself
 EXIT_BATCH_FAILURES = 3
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a Ctrl-C
+EXIT_TERMINATED = 143  # 128 + SIGTERM
 
 #: Errors a user can cause (bad file, bad value, missing optional package): their message is
 #: the whole story. Anything else escaping a command is a bug and says how to see its traceback.
@@ -97,7 +101,10 @@ def _one_line(err: BaseException) -> str:
 
 
 def _say(*parts: Any) -> None:
-    print(*parts, flush=True)
+    # a path that is not valid UTF-8 (surrogate-escaped by os) must not kill the output
+    text = " ".join(str(p) for p in parts)
+    encoding = getattr(sys.stdout, "encoding", None) or "utf-8"
+    print(text.encode(encoding, "backslashreplace").decode(encoding), flush=True)
 
 
 def check_paths(args: argparse.Namespace) -> None:
@@ -555,5 +562,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_ERROR
 
 
+def _terminate(signum: int, frame: Any) -> None:
+    raise SystemExit(EXIT_TERMINATED)
+
+
+def run() -> None:
+    """Console-script entry point: :func:`main` with the process-wide signal handling.
+
+    SIGTERM becomes ``SystemExit(143)``, so ``finally`` blocks (rolling back a write in progress)
+    run and one line is printed; after an interrupt, a second Ctrl-C arriving while Python shuts
+    down is ignored instead of ending in a traceback. Kept out of :func:`main`, which tests and
+    scripts call in-process.
+    """
+    signal.signal(signal.SIGTERM, _terminate)
+    try:
+        code = main()
+    except SystemExit as stop:
+        if stop.code != EXIT_TERMINATED:
+            raise
+        print("ami-xr: terminated", file=sys.stderr)
+        code = EXIT_TERMINATED
+    if code in (EXIT_INTERRUPTED, EXIT_TERMINATED):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    sys.exit(code)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    run()

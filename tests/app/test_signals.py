@@ -1,0 +1,48 @@
+"""Process-level signals of the ``ami-xr`` entry point (``ami_xr.cli.run``)."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+# A command that is busy when the signal arrives: check_paths (the first thing main() does)
+# is replaced by a sleep, so the test does not depend on how fast identification runs.
+CHILD = """
+import sys, time
+import ami_xr.cli as cli
+cli.check_paths = lambda args: (print("busy", flush=True), time.sleep(60))
+sys.argv = ["ami-xr", "identify", "x.nc"]
+cli.run()
+"""
+
+
+def _signal_busy_child(signum: int) -> subprocess.CompletedProcess:
+    proc = subprocess.Popen(
+        [sys.executable, "-c", CHILD], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    assert proc.stdout.readline().strip() == "busy"
+    time.sleep(0.2)
+    proc.send_signal(signum)
+    try:
+        out, err = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        pytest.fail("ami-xr did not stop within 30 s of the signal")
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+def test_sigterm_is_one_line_and_exit_143():
+    done = _signal_busy_child(signal.SIGTERM)
+    assert done.returncode == 143
+    assert done.stderr.strip() == "ami-xr: terminated"
+
+
+def test_ctrl_c_is_one_line_and_exit_130():
+    done = _signal_busy_child(signal.SIGINT)
+    assert done.returncode == 130
+    assert done.stderr.strip() == "ami-xr identify: interrupted"
+    assert "Traceback" not in done.stderr
