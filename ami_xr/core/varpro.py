@@ -243,6 +243,9 @@ def levenberg_marquardt(
     mode: 0 fine, 1 outside its region, 2 impossible (unstable, merged); the iteration stops with
     ``FitResult.bad`` set as soon as a mode is impossible or has been outside its region for
     ``patience`` accepted steps in a row (a far start may overshoot for a step or two).
+
+    Long because one loop holds the step, the acceptance test and the four stopping rules, which
+    share their state; the code is 103 lines.
     """
     lam = np.asarray(lam0, dtype=np.complex128).copy()
     n_mode = lam.shape[0]

