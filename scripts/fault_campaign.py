@@ -164,6 +164,11 @@ def small_time(seed: int = 0, n_records: int = 3, n_time: int = 512, fs: float =
     return force, response, fs
 
 
+#: The intact inputs, one per supported format: FRF and time netCDF, UFF dataset 58 FRFs in
+#: ASCII and binary, UFF time responses, LabVIEW LVM hammer hits.
+INPUT_NAMES = ("frf.nc", "time.nc", "frf_ascii.uff", "frf_binary.uff", "time.uff", "hits.lvm")
+
+
 def make_inputs(folder: Path, seed: int = 0) -> dict[str, Path]:
     """The intact input files of every supported format, written into ``folder``."""
     import ami_xr
@@ -172,14 +177,7 @@ def make_inputs(folder: Path, seed: int = 0) -> dict[str, Path]:
     g = small_frf(seed)
     force, response, fs = small_time(seed)
     tds = ami_xr.make_time_dataset(response[:, None, :], fs=fs, force=force, drive_point=0)
-    files = {
-        "frf.nc": folder / "frf.nc",
-        "time.nc": folder / "time.nc",
-        "frf_ascii.uff": folder / "frf_ascii.uff",
-        "frf_binary.uff": folder / "frf_binary.uff",
-        "time.uff": folder / "time.uff",
-        "hits.lvm": folder / "hits.lvm",
-    }
+    files = {name: folder / name for name in INPUT_NAMES}
     ami_xr.to_netcdf(g, files["frf.nc"])
     ami_xr.to_netcdf(tds, files["time.nc"])
     ami_xr.write_uff(g, files["frf_ascii.uff"])

@@ -19,7 +19,7 @@ _spec = importlib.util.spec_from_file_location("fault_campaign", SCRIPT)
 fc = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(fc)
 
-INPUTS = ("frf.nc", "time.nc", "frf_ascii.uff", "frf_binary.uff", "time.uff", "hits.lvm")
+INPUTS = fc.INPUT_NAMES
 # (input, command index into fc.commands_for(input), seed): 3 truncations, 2 flips each
 TRUNCATIONS = [(n, k, s) for n in INPUTS for k in (0, 1) for s in (11, 12, 13)]
 FLIPS = [(n, k, s) for n in INPUTS for k in (0, 1) for s in (21, 22)]
