@@ -14,7 +14,8 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, SchemaError
-from ami_xr.io.schema import find_problems, is_positive_number, python_scalar
+from ami_xr.io.messages import is_positive_number, python_scalar
+from ami_xr.io.schema import find_problems
 
 __all__ = ["make_frf_dataset", "make_time_dataset"]
 

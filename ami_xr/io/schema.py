@@ -18,6 +18,7 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.coords import RangeAxis, range_axis
 from ami_xr.errors import AmiXrValueError, SchemaError
+from ami_xr.io.messages import Namer, is_positive_number, python_scalar, shorten
 
 __all__ = [
     "validate",
@@ -41,48 +42,6 @@ _MULTI_REFERENCE = (
     f"has a leading {names.REFERENCE!r} dim: multi-reference not supported yet "
     f"(select one reference first, e.g. ds.isel({names.REFERENCE}=0))"
 )
-
-
-def _shorten(values: Any, limit: int = 8) -> str:
-    values = list(values)
-    text = ", ".join(repr(python_scalar(v)) for v in values[:limit])
-    return f"[{text}{', ...' if len(values) > limit else ''}]"
-
-
-def python_scalar(value: Any) -> Any:
-    """numpy scalars -> Python scalars so messages read ``3`` rather than ``np.int64(3)``."""
-    return value.item() if isinstance(value, np.generic) else value
-
-
-class _Namer:
-    """Says how a message refers to a variable, coordinate or attribute.
-
-    ``validate`` names Dataset parts ("variable 'frf'"); the ``make_*`` constructors map them to
-    their own argument names ("argument 'points'").
-    """
-
-    def __init__(self, arguments: Mapping[str, str] | None = None):
-        self.arguments = dict(arguments or {})
-
-    def _name(self, kind: str, name: str) -> str:
-        if name in self.arguments:
-            return f"argument {self.arguments[name]!r}"
-        return f"{kind} {name!r}"
-
-    def var(self, name: str) -> str:
-        return self._name("variable", name)
-
-    def coord(self, name: str) -> str:
-        return self._name("coordinate", name)
-
-    def attr(self, name: str) -> str:
-        return self._name("attribute", name)
-
-    def var_attr(self, var: str, attr: str) -> str:
-        key = f"{var}.{attr}"
-        if key in self.arguments:
-            return f"argument {self.arguments[key]!r}"
-        return f"attribute {attr!r} of variable {var!r}"
 
 
 # --- small checks, each appends to ``problems`` -------------------------------------------------
@@ -111,7 +70,7 @@ def _check_axis(
     ds: xr.Dataset,
     dim: str,
     units: str,
-    namer: _Namer,
+    namer: Namer,
     problems: list[str],
     *,
     uniform: bool = False,
@@ -154,7 +113,7 @@ def _check_axis(
     if dup.size:
         problems.append(
             f"{subject}: expected strictly increasing values, found duplicate {dim} values "
-            f"{_shorten(values[dup])}"
+            f"{shorten(values[dup])}"
         )
     down = np.flatnonzero(steps < 0)
     if down.size:
@@ -197,7 +156,7 @@ def _check_range_axis(
         )
 
 
-def _check_points(ds: xr.Dataset, namer: _Namer, problems: list[str]) -> np.ndarray | None:
+def _check_points(ds: xr.Dataset, namer: Namer, problems: list[str]) -> np.ndarray | None:
     """Check the point labels; return them when usable, else None."""
     subject = namer.coord(names.POINT)
     if names.POINT not in ds.coords:
@@ -217,13 +176,13 @@ def _check_points(ds: xr.Dataset, namer: _Namer, problems: list[str]) -> np.ndar
     uniq, counts = np.unique(labels.astype(str) if is_str else labels, return_counts=True)
     if np.any(counts > 1):
         problems.append(
-            f"{subject}: expected unique labels, duplicates {_shorten(uniq[counts > 1])}"
+            f"{subject}: expected unique labels, duplicates {shorten(uniq[counts > 1])}"
         )
     return labels
 
 
 def _check_drive_point(
-    ds: xr.Dataset, labels: np.ndarray | None, require: bool, namer: _Namer, problems: list[str]
+    ds: xr.Dataset, labels: np.ndarray | None, require: bool, namer: Namer, problems: list[str]
 ) -> None:
     subject = namer.attr(names.ATTR_DRIVE_POINT)
     if names.ATTR_DRIVE_POINT not in ds.attrs:
@@ -249,12 +208,12 @@ def _check_drive_point(
         )
     elif not np.any(labels == dp):
         problems.append(
-            f"{subject}: {python_scalar(dp)!r} is not among the point labels {_shorten(labels)}"
+            f"{subject}: {python_scalar(dp)!r} is not among the point labels {shorten(labels)}"
         )
 
 
 def _check_quantity_units(
-    ds: xr.Dataset, namer: _Namer, problems: list[str], *, need_frf_type: bool
+    ds: xr.Dataset, namer: Namer, problems: list[str], *, need_frf_type: bool
 ) -> tuple[str | None, str | None]:
     """Check quantity, frf_type and units attrs; return the (response, force) units if valid."""
     quantities = tuple(names.RESPONSE_UNITS)
@@ -303,7 +262,7 @@ def _check_quantity_units(
 IMPULSE_GRID_RTOL = 1e-6
 
 
-def impulse_grid_problem(ds: xr.Dataset, namer: _Namer | None = None) -> str | None:
+def impulse_grid_problem(ds: xr.Dataset, namer: Namer | None = None) -> str | None:
     """Why the frequency axis of an impulse-response FRF Dataset is not its rfft grid, or None.
 
     An FRF with ``frf_source == "impulse_response"`` is ``dt * rfft`` of ``record_samples``
@@ -325,7 +284,7 @@ def impulse_grid_problem(ds: xr.Dataset, namer: _Namer | None = None) -> str | N
     str or None
         One message naming ``frequency`` and the expected spacing, or None when the axis fits.
     """
-    namer = namer or _Namer()
+    namer = namer or Namer()
     attrs = ds.attrs
     dt, n = attrs.get(names.ATTR_DT), attrs.get(names.ATTR_NSAMPLES)
     if attrs.get(names.ATTR_SOURCE) != names.SOURCE_IMPULSE or names.FREQUENCY not in ds.coords:
@@ -364,16 +323,6 @@ def impulse_grid_problem(ds: xr.Dataset, namer: _Namer | None = None) -> str | N
     )
 
 
-def is_positive_number(value: Any) -> bool:
-    """True for a finite real number above 0 (not a bool)."""
-    return (
-        isinstance(value, Real)
-        and not isinstance(value, (bool, np.bool_))
-        and bool(np.isfinite(value))
-        and value > 0
-    )
-
-
 def _check_empty(da: xr.DataArray, subject: str, problems: list[str]) -> bool:
     if da.size == 0:
         problems.append(f"{subject}: empty (expected at least one value, got shape {da.shape})")
@@ -384,7 +333,7 @@ def _check_empty(da: xr.DataArray, subject: str, problems: list[str]) -> bool:
 # --- the two kinds of Dataset -------------------------------------------------------------------
 
 
-def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool, namer: _Namer):
+def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool, namer: Namer):
     problems: list[str] = []
     want_dims = (names.POINT, names.FREQUENCY)
     if names.FRF not in ds.data_vars:
@@ -461,7 +410,7 @@ def _signal_problems(
     var: str,
     allowed: tuple[tuple[str, ...], ...],
     check_values: bool,
-    namer: _Namer,
+    namer: Namer,
 ) -> list[str]:
     problems: list[str] = []
     da = ds[var]
@@ -478,7 +427,7 @@ def _signal_problems(
     return problems
 
 
-def _time_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool, namer: _Namer):
+def _time_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool, namer: Namer):
     problems: list[str] = []
     p, t, r = names.POINT, names.TIME, names.RECORD
     if names.RESPONSE not in ds.data_vars:
@@ -544,7 +493,7 @@ def find_problems(
     AmiXrValueError
         If ``ds`` is not a Dataset or ``kind`` is unknown.
     """
-    namer = _Namer(arguments)
+    namer = Namer(arguments)
     if not isinstance(ds, xr.Dataset):
         hint = " (e.g. da.to_dataset(name='frf'))" if isinstance(ds, xr.DataArray) else ""
         raise AmiXrValueError(f"ds: expected an xarray.Dataset{hint}, got {type(ds).__name__}")
