@@ -7,11 +7,16 @@ first, each ``{"function", "parameters", "time_utc", "ami_xr_version"[, "source_
 latest function, the ami_xr version and the source file are also plain attributes
 (:data:`ami_xr.names.ATTR_FUNCTION`, :data:`~ami_xr.names.ATTR_VERSION`,
 :data:`~ami_xr.names.ATTR_SOURCE_FILE`) so ``ncdump -h`` shows them.
+
+No machine path is recorded: ``source_file`` (record and attribute) holds the file name only,
+and a string parameter that is an absolute path is stored as its file name, so a file can be
+handed to a colleague without telling where it lay on the author's machine.
 """
 
 from __future__ import annotations
 
 import json
+import os
 from datetime import datetime, timezone
 from typing import Any
 
@@ -21,11 +26,19 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.names import ATTR_FUNCTION  # kept importable from here, defined in names
 
-__all__ = ["add_history", "history", "ATTR_FUNCTION"]
+__all__ = ["add_history", "history", "file_name", "ATTR_FUNCTION"]
+
+
+def file_name(path: str | os.PathLike) -> str:
+    """The last component of ``path`` (``"/home/me/run1.lvm"`` -> ``"run1.lvm"``)."""
+    return os.path.basename(os.fspath(path).rstrip("/\\")) or os.fspath(path)
 
 
 def _jsonable(value: Any) -> Any:
-    """``value`` as JSON-serialisable data (complex as [real, imag], unknown types as repr)."""
+    """``value`` as JSON-serialisable data (complex as [real, imag], unknown types as repr,
+    absolute paths as their file name)."""
+    if isinstance(value, os.PathLike) or (isinstance(value, str) and os.path.isabs(value)):
+        return file_name(value)
     if isinstance(value, (str, int, float, bool)) or value is None:
         return value
     if isinstance(value, np.generic):
@@ -71,14 +84,15 @@ def add_history(
     parameters : dict, optional
         Its parameters; stored as JSON (arrays as lists, complex numbers as ``[real, imag]``,
         anything else as its ``repr``).
-    source_file : str, optional
-        File the data came from.
+    source_file : str or path-like, optional
+        File the data came from; only its name is stored.
 
     Returns
     -------
     xarray.Dataset
         ``ds`` with the record appended to ``ami_xr_history``, and the plain attributes
-        :data:`ATTR_FUNCTION`, ``ami_xr_version`` and (when given) ``source_file`` set.
+        :data:`ATTR_FUNCTION`, ``ami_xr_version`` and (when given) ``source_file`` (the file
+        name, without its folder) set.
     """
     from ami_xr import __version__
 
@@ -89,12 +103,12 @@ def add_history(
         names.ATTR_VERSION: __version__,
     }
     if source_file is not None:
-        record[names.ATTR_SOURCE_FILE] = str(source_file)
+        record[names.ATTR_SOURCE_FILE] = file_name(source_file)
     out = ds.copy()
     out.attrs = dict(ds.attrs)
     out.attrs[names.ATTR_HISTORY] = json.dumps(history(ds) + [record])
     out.attrs[names.ATTR_VERSION] = __version__
     out.attrs[ATTR_FUNCTION] = function
     if source_file is not None:
-        out.attrs[names.ATTR_SOURCE_FILE] = str(source_file)
+        out.attrs[names.ATTR_SOURCE_FILE] = file_name(source_file)
     return out

@@ -278,7 +278,7 @@ def _read_frf(frfs: list[dict], coh: list[dict], coords: dict, path: Path) -> xr
             names.ATTR_RESPONSE_UNITS: resp_units,
             names.ATTR_FORCE_UNITS: force_units,
             names.ATTR_SOURCE: names.SOURCE_MEASURED,
-            names.ATTR_SOURCE_FILE: str(path),
+            names.ATTR_SOURCE_FILE: path.name,
             "uff_layout": layout,
         },
     )
@@ -339,7 +339,7 @@ def _read_time(records: list[dict], coords: dict, path: Path) -> xr.Dataset:
             names.ATTR_QUANTITY: quantity,
             names.ATTR_RESPONSE_UNITS: resp_units,
             names.ATTR_FORCE_UNITS: force_units or "N",
-            names.ATTR_SOURCE_FILE: str(path),
+            names.ATTR_SOURCE_FILE: path.name,
         },
     )
     if force_recs:
@@ -410,7 +410,7 @@ def _read_modes(modes: list[dict], coords: dict, path: Path) -> xr.Dataset:
             names.POINT: labels,
             names.MODE: [int(m.get("mode_n", k + 1)) for k, m in enumerate(modes)],
         },
-        attrs={names.ATTR_SOURCE_FILE: str(path)},
+        attrs={names.ATTR_SOURCE_FILE: path.name},
     )
     return _attach_coordinates(
         ds, coords, {lab: n for lab, (n, _) in zip(labels, dofs, strict=True)}
