@@ -20,7 +20,14 @@ from ami_xr import names
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_open
 
-__all__ = ["modal_table", "format_modal_table", "report", "FIGURES"]
+__all__ = [
+    "modal_table",
+    "modal_table_csv_rows",
+    "format_modal_table",
+    "report",
+    "FIGURES",
+    "STD_COLUMNS",
+]
 
 
 #: Report figures: file stem -> (plot function name in ami_xr.plot, caption).
@@ -109,6 +116,7 @@ def modal_table(ds: xr.Dataset) -> list[dict[str, Any]]:
         if names.QUALITY_FLAGS in ds
         else [""] * fn.size
     )
+    stds = _std_columns(ds, fn.size)
     return [
         {
             "mode": modes[k],
@@ -116,11 +124,73 @@ def modal_table(ds: xr.Dataset) -> list[dict[str, Any]]:
             "frequency_rad_s": float(wn[k]),
             "damping_percent": float(100 * zeta[k]),
             "eigenvalue": complex(lam[k]),
+            **{key: float(values[k]) for key, values in stds.items()},
             "detected_in": detected[k],
             "flags": flags[k],
         }
         for k in range(fn.size)
     ]
+
+
+#: Standard deviations the table shows when the Dataset has them: row key -> (variable, part,
+#: header text). ``part`` picks the real or imaginary part of a complex std.
+STD_COLUMNS: dict[str, tuple[str, str, str]] = {
+    "frequency_hz_std": (names.NATURAL_FREQUENCY_STD, "real", "std f [Hz]"),
+    "damping_percent_std": (names.DAMPING_RATIO_STD, "percent", "std zeta [%]"),
+    "eigenvalue_real_std_rad_s": (names.EIGENVALUE_STD, "real", "std Re(lambda) [rad/s]"),
+    "eigenvalue_imag_std_rad_s": (names.EIGENVALUE_STD, "imag", "std Im(lambda) [rad/s]"),
+}
+
+
+def _std_columns(ds: xr.Dataset, n_mode: int) -> dict[str, np.ndarray]:
+    out: dict[str, np.ndarray] = {}
+    for key, (var, part, _) in STD_COLUMNS.items():
+        if var not in ds:
+            continue
+        values = np.atleast_1d(np.asarray(ds[var].values))
+        if values.size != n_mode:
+            continue
+        if part == "imag":
+            out[key] = np.imag(values).astype(float)
+        elif part == "percent":
+            out[key] = 100 * np.real(values).astype(float)
+        else:
+            out[key] = np.real(values).astype(float)
+    return out
+
+
+def modal_table_csv_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The rows of ``modal_table.csv``: one column per real quantity, numbers as plain floats.
+
+    The complex eigenvalue becomes ``eigenvalue_real_rad_s`` and ``eigenvalue_imag_rad_s``
+    (a spreadsheet cannot read Python's ``(-0.44+30.6j)``); the damping is given as a ratio as
+    well as in percent; std columns follow their quantity; flags stay text.
+    """
+    out = []
+    for r in rows:
+        lam = r["eigenvalue"]
+        row: dict[str, Any] = {
+            "mode": r["mode"],
+            "frequency_hz": r["frequency_hz"],
+            "frequency_rad_s": r["frequency_rad_s"],
+            "damping_ratio": r["damping_percent"] / 100,
+            "damping_percent": r["damping_percent"],
+            "eigenvalue_real_rad_s": lam.real,
+            "eigenvalue_imag_rad_s": lam.imag,
+        }
+        row.update({key: r[key] for key in STD_COLUMNS if key in r})
+        row["detected_in"] = r["detected_in"]
+        row["flags"] = r["flags"]
+        out.append(row)
+    return out
+
+
+def _source_name(ds: xr.Dataset) -> str:
+    """The source file's name without its folder (no machine path goes into a report)."""
+    source = ds.attrs.get(names.ATTR_SOURCE_FILE)
+    if source is None:
+        return "dataset"
+    return Path(str(source).replace("\\", "/")).name or "dataset"
 
 
 def _short_points(detected: str, n_points: int, max_points: int) -> str:
@@ -188,7 +258,11 @@ def _attrs_summary(ds: xr.Dataset) -> list[tuple[str, str]]:
         names.ATTR_VERSION,
         names.ATTR_FUNCTION,
     )
-    out = [(k, str(ds.attrs[k])) for k in keys if k in ds.attrs]
+    out = [
+        (k, _source_name(ds) if k == names.ATTR_SOURCE_FILE else str(ds.attrs[k]))
+        for k in keys
+        if k in ds.attrs
+    ]
     if names.POINT in ds.sizes:
         out.append(("points", str(ds.sizes[names.POINT])))
     if names.FREQUENCY in ds.coords and ds.sizes.get(names.FREQUENCY, 0):
@@ -255,17 +329,12 @@ def report(
         rows = []
         skipped.append(("modal table", str(err)))
     if rows:
+        csv_rows = modal_table_csv_rows(rows)
         with atomic_open(outdir / "modal_table.csv", "w") as fh:
-            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            writer = csv.DictWriter(fh, fieldnames=list(csv_rows[0]))
             writer.writeheader()
-            writer.writerows(rows)
-    page = _html(
-        ds,
-        rows,
-        made,
-        skipped,
-        title or f"ami_xr report: {ds.attrs.get(names.ATTR_SOURCE_FILE, 'dataset')}",
-    )
+            writer.writerows(csv_rows)
+    page = _html(ds, rows, made, skipped, title or f"ami_xr report: {_source_name(ds)}")
     index = outdir / "index.html"
     with atomic_open(index, "wb") as fh:
         fh.write(page.encode("utf-8"))
