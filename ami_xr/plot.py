@@ -22,7 +22,6 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError
-from ami_xr.io.atomic import atomic_open
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -37,91 +36,18 @@ __all__ = [
     "mac_matrix",
 ]
 
-POINT_COORDS = tuple(f"{names.POINT}_{axis}" for axis in "xyz")
-
-_MAX_POINTS = 12  # beyond this, figures show the points with the strongest response
-
-
-def _new_figure(width: float, height: float) -> Figure:
-    try:
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-    except ImportError as err:  # pragma: no cover - depends on the environment
-        raise ImportError(
-            "plots need the optional package matplotlib: pip install 'ami_xr[plot]'"
-        ) from err
-    fig = Figure(figsize=(width, height), layout="constrained")
-    FigureCanvasAgg(fig)  # Agg for this figure only; the global backend is left alone
-    return fig
-
-
-def _finish(fig: Figure, path: str | os.PathLike | None) -> Figure:
-    if path is not None:
-        # Saved atomically; matplotlib cannot see the suffix of a file object, so pass it on.
-        suffix = os.path.splitext(os.fspath(path))[1][1:].lower()
-        with atomic_open(path, "wb") as fh:
-            fig.savefig(fh, format=suffix or None, dpi=110)
-    return fig
-
-
-def _require(ds: xr.Dataset, *variables: str, figure: str) -> None:
-    missing = [v for v in variables if v not in ds.variables]
-    if missing:
-        raise AmiXrValueError(
-            f"{figure}: the Dataset has no {', '.join(repr(m) for m in missing)} "
-            f"(it has {sorted(map(str, ds.data_vars))})"
-        )
-
-
-def _select_points(ds: xr.Dataset, points: Sequence[Hashable] | None, figure: str) -> list:
-    labels = list(ds[names.POINT].values.tolist())
-    if points is not None:
-        points = list(points)
-        unknown = [p for p in points if p not in labels]
-        if unknown:
-            raise AmiXrValueError(f"{figure}: points {unknown} are not among the points {labels}")
-        return points
-    if len(labels) <= _MAX_POINTS or names.FRF not in ds:
-        return labels[:_MAX_POINTS]
-    # Many points: show the strongest FRFs, in their original order.
-    peak = np.abs(ds[names.FRF]).max(names.FREQUENCY).values
-    keep = set(np.argsort(peak)[::-1][:_MAX_POINTS].tolist())
-    return [lab for i, lab in enumerate(labels) if i in keep]
-
-
-def _natural_frequencies(ds: xr.Dataset) -> np.ndarray:
-    if names.NATURAL_FREQUENCY in ds:
-        return np.atleast_1d(np.asarray(ds[names.NATURAL_FREQUENCY].values, dtype=float))
-    if names.EIGENVALUE in ds:
-        return np.abs(np.atleast_1d(ds[names.EIGENVALUE].values)) / (2 * np.pi)
-    return np.zeros(0)
-
-
-def _mode_labels(ds: xr.Dataset) -> list:
-    if names.MODE in ds.coords:
-        return list(ds[names.MODE].values.tolist())
-    return list(range(1, _natural_frequencies(ds).size + 1))
-
-
-def _mark_modes(ax, fn: np.ndarray, labels: Sequence, text: bool) -> None:
-    for f, lab in zip(fn, labels, strict=False):
-        if not np.isfinite(f):
-            continue
-        ax.axvline(f, color="tab:red", lw=0.8, ls="--", alpha=0.7)
-        if text:
-            ax.annotate(
-                str(lab),
-                (f, 1.0),
-                xycoords=("data", "axes fraction"),
-                ha="center",
-                va="bottom",
-                fontsize=7,
-                color="tab:red",
-            )
-
-
-def _units(ds: xr.Dataset, var: str) -> str:
-    return str(ds[var].attrs.get(names.ATTR_UNITS, "")) if var in ds else ""
+from ami_xr.plot_common import (
+    POINT_COORDS,
+    _finish,
+    _in_band,
+    _mark_modes,
+    _mode_labels,
+    _natural_frequencies,
+    _new_figure,
+    _require,
+    _select_points,
+    _units,
+)
 
 
 # --- Bode --------------------------------------------------------------------------------------
@@ -129,13 +55,15 @@ def plot_bode(
     ds: xr.Dataset,
     *,
     points: Sequence[Hashable] | None = None,
+    frequency_range: tuple[float, float] | None = None,
     path: str | os.PathLike | None = None,
 ) -> Figure:
     """Bode magnitude and phase of the measured FRF, and the synthesised one where present.
 
-    One column per point (at most 12; by default the 12 with the largest peak), magnitude on top
-    (log scale, FRF units) and phase (degrees) below; the identified natural frequencies are
-    marked with dashed red lines labelled by mode number.
+    One column per point (at most 12; by default the 12 with the largest peak; at most 3 columns,
+    at least 10 inches = 1100 px wide), magnitude on top (log scale, FRF units) and phase
+    (degrees) below, each with a legend; the identified natural frequencies are marked with
+    dashed red lines labelled by mode number (labels of close modes staggered).
 
     Parameters
     ----------
@@ -144,40 +72,47 @@ def plot_bode(
         ``natural_frequency``).
     points : sequence of point labels, optional
         Points to show.
+    frequency_range : (float, float), optional
+        Band to show, in Hz (default the whole band).
     path : str or path-like, optional
         Save the figure there.
     """
     _require(ds, names.FRF, figure="plot_bode")
     pts = _select_points(ds, points, "plot_bode")
     fn, mode_labels = _natural_frequencies(ds), _mode_labels(ds)
+    ds = _in_band(ds, frequency_range, "plot_bode")
     freq = ds[names.FREQUENCY].values
-    ncol = min(len(pts), 4)
+    band = (float(freq[0]), float(freq[-1]))
+    ncol = min(len(pts), 3)
     nrow_pts = int(np.ceil(len(pts) / ncol))
-    fig = _new_figure(3.4 * ncol, 3.6 * nrow_pts)
+    fig = _new_figure(max(10.0, 4.0 * ncol), 4.2 * nrow_pts)
     grid = fig.add_gridspec(2 * nrow_pts, ncol, height_ratios=[2, 1] * nrow_pts)
     synth = ds[names.FRF_SYNTHESIZED] if names.FRF_SYNTHESIZED in ds else None
+    units = _units(ds, names.FRF)
     for i, p in enumerate(pts):
         r, c = divmod(i, ncol)
         ax_mag = fig.add_subplot(grid[2 * r, c])
         ax_ph = fig.add_subplot(grid[2 * r + 1, c], sharex=ax_mag)
         g = ds[names.FRF].sel({names.POINT: p}).values
         ax_mag.semilogy(freq, np.abs(g), color="0.55", lw=0.8, label="measured")
-        ax_ph.plot(freq, np.degrees(np.angle(g)), color="0.55", lw=0.8)
+        ax_ph.plot(freq, np.degrees(np.angle(g)), color="0.55", lw=0.8, label="measured")
         if synth is not None:
             s = synth.sel({names.POINT: p}).values
             ax_mag.semilogy(freq, np.abs(s), color="tab:blue", lw=1.2, label="synthesised")
-            ax_ph.plot(freq, np.degrees(np.angle(s)), color="tab:blue", lw=1.2)
-        _mark_modes(ax_mag, fn, mode_labels, text=True)
-        _mark_modes(ax_ph, fn, mode_labels, text=False)
+            ax_ph.plot(freq, np.degrees(np.angle(s)), color="tab:blue", lw=1.2, label="synthesised")
+        _mark_modes(ax_mag, fn, mode_labels, text=True, band=band)
+        _mark_modes(ax_ph, fn, mode_labels, text=False, band=band)
+        ax_mag.set_xlim(band)
         drive = " (drive point)" if p == ds.attrs.get(names.ATTR_DRIVE_POINT) else ""
-        ax_mag.set_title(f"point {p}{drive}", fontsize=9, pad=12)
-        ax_mag.set_ylabel(f"|FRF| [{_units(ds, names.FRF)}]", fontsize=8)
+        ax_mag.set_title(f"point {p}{drive}", fontsize=9)
+        ax_mag.set_ylabel(f"|FRF| [{units}]" if units else "|FRF|", fontsize=8)
         ax_ph.set_ylabel("phase [deg]", fontsize=8)
         ax_ph.set_xlabel("frequency [Hz]", fontsize=8)
         ax_ph.set_ylim(-190, 190)
         ax_ph.set_yticks([-180, -90, 0, 90, 180])
-        if i == 0:
-            ax_mag.legend(fontsize=7, loc="best")
+        ax_mag.legend(fontsize=7, loc="lower right")
+        if synth is not None:
+            ax_ph.legend(fontsize=6, loc="lower right")
     return _finish(fig, path)
 
 
@@ -284,6 +219,7 @@ def plot_subtraction(
     ds: xr.Dataset,
     *,
     points: Sequence[Hashable] | None = None,
+    frequency_range: tuple[float, float] | None = None,
     path: str | os.PathLike | None = None,
 ) -> Figure:
     """What the Subtraction Phase saw: the FRF, its residual, the noise floor and the threshold.
@@ -303,6 +239,8 @@ def plot_subtraction(
         ``subtraction_noise_floor``; candidates, bands and the stop statistic when present).
     points : sequence of point labels, optional
         Points to show.
+    frequency_range : (float, float), optional
+        Band to show, in Hz (default the whole band).
     path : str or path-like, optional
         Save the figure there.
     """
@@ -317,7 +255,9 @@ def plot_subtraction(
     if names.ATTR_THRESHOLD in stop_attrs:
         threshold = float(stop_attrs[names.ATTR_THRESHOLD])
     pts = _select_points(ds, points, "plot_subtraction")
+    ds = _in_band(ds, frequency_range, "plot_subtraction")
     freq = ds[names.FREQUENCY].values
+    band = (float(freq[0]), float(freq[-1]))
     ncol = min(len(pts), 4)
     nrow = int(np.ceil(len(pts) / ncol))
     fig = _new_figure(3.4 * ncol, 2.8 * nrow)
@@ -341,7 +281,7 @@ def plot_subtraction(
         if names.SUB_EIGENVALUE in ds:
             lam = np.atleast_1d(ds[names.SUB_EIGENVALUE].sel(sel).values)
             lam = lam[np.isfinite(lam)]
-            _mark_modes(ax, np.abs(lam) / (2 * np.pi), [""] * lam.size, text=False)
+            _mark_modes(ax, np.abs(lam) / (2 * np.pi), [""] * lam.size, text=False, band=band)
         if names.SUB_BAND_LOW in ds and names.SUB_BAND_HIGH in ds:
             lo = np.atleast_1d(ds[names.SUB_BAND_LOW].sel(sel).values)
             hi = np.atleast_1d(ds[names.SUB_BAND_HIGH].sel(sel).values)
@@ -352,8 +292,8 @@ def plot_subtraction(
         ax.set_title(f"point {p}{drive}", fontsize=9)
         ax.set_xlabel("frequency [Hz]", fontsize=8)
         ax.set_ylabel(f"magnitude [{_units(ds, names.FRF)}]", fontsize=8)
-        if i == 0:
-            ax.legend(fontsize=7, loc="best")
+        ax.set_xlim(band)
+        ax.legend(fontsize=6, loc="lower right")
     return _finish(fig, path)
 
 

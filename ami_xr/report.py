@@ -26,6 +26,7 @@ __all__ = [
     "format_modal_table",
     "report",
     "FIGURES",
+    "MEASUREMENT_FIGURES",
     "STD_COLUMNS",
 ]
 
@@ -54,6 +55,26 @@ FIGURES: dict[str, tuple[str, str]] = {
         "are given).",
     ),
     "mac": ("plot_mac", "Modal Assurance Criterion between the identified mode vectors."),
+}
+
+#: Figures of the measurement (ami_xr.plot_measurement): stem -> (function, caption, the
+#: variable they need). By default drawn only when that variable is present.
+MEASUREMENT_FIGURES: dict[str, tuple[str, str, str]] = {
+    "coherence": (
+        "plot_coherence",
+        "Coherence of each FRF: where it drops well below 1 the FRF is not to be trusted.",
+        names.COHERENCE,
+    ),
+    "force_spectrum": (
+        "plot_force_spectrum",
+        "Force autospectrum relative to its peak: the band the excitation reached.",
+        names.FORCE_AUTOSPECTRUM,
+    ),
+    "hits": (
+        "plot_hits",
+        "Peak force of each impact hit; rejected hits (red) with their reason.",
+        names.HIT_PEAK_FORCE,
+    ),
 }
 
 
@@ -277,9 +298,15 @@ def report(
     *,
     title: str | None = None,
     figures: tuple[str, ...] | None = None,
+    frequency_range: tuple[float, float] | None = None,
 ) -> Path:
     """Write the identification report: one PNG per figure, the table as CSV, and index.html.
 
+    The page opens with what an engineer checks first when the FRFs were estimated by
+    :func:`ami_xr.frf` or :func:`ami_xr.impact_frf`: the estimator and number of averages, the
+    impact hits (rejected ones with their reason) and the coherence, force-spectrum and hits
+    figures (:data:`MEASUREMENT_FIGURES`, drawn when their inputs are present). Then the modal
+    table (with the std columns when the Dataset has them) and the figures of :data:`FIGURES`.
     Figures whose inputs are missing from ``ds`` (e.g. no subtraction outputs, no mode vectors)
     are skipped and listed in the page as "not produced" with the reason. Every file is written
     atomically; an existing report in ``outdir`` is overwritten file by file.
@@ -292,37 +319,51 @@ def report(
     outdir : str or path-like
         Folder to write (created if missing).
     title : str, optional
-        Page title; by default from the source file attribute.
+        Page title; by default "ami_xr report: " and the source file's name (never its folder).
     figures : tuple of str, optional
-        Subset of :data:`FIGURES` keys to draw (default all).
+        Keys of :data:`FIGURES` and :data:`MEASUREMENT_FIGURES` to draw (default: all of
+        FIGURES, and the measurement figures whose inputs are present).
+    frequency_range : (float, float), optional
+        Band in Hz for the figures with a frequency axis (Bode, subtraction, coherence, force
+        spectrum); default the whole band.
 
     Returns
     -------
     pathlib.Path
         Path of ``index.html``.
     """
-    from ami_xr import plot
+    from ami_xr import plot, plot_measurement
+    from ami_xr.plot_common import DPI
 
     outdir = Path(outdir)
     if outdir.exists() and not outdir.is_dir():
         raise DataFileError(f"report: output {str(outdir)!r} exists and is not a folder")
-    outdir.mkdir(parents=True, exist_ok=True)
-    wanted = tuple(FIGURES) if figures is None else tuple(figures)
-    unknown = [f for f in wanted if f not in FIGURES]
+    known = {**MEASUREMENT_FIGURES, **FIGURES}
+    if figures is None:
+        wanted = tuple(k for k, v in MEASUREMENT_FIGURES.items() if v[2] in ds) + tuple(FIGURES)
+    else:
+        wanted = tuple(figures)
+    unknown = [f for f in wanted if f not in known]
     if unknown:
-        raise AmiXrValueError(f"report: unknown figures {unknown}; choose from {list(FIGURES)}")
-    made: list[tuple[str, str]] = []
+        raise AmiXrValueError(f"report: unknown figures {unknown}; choose from {list(known)}")
+    frequency_range = _check_range(frequency_range)
+    outdir.mkdir(parents=True, exist_ok=True)
+    made: list[tuple[str, str, bytes]] = []
     skipped: list[tuple[str, str]] = []
-    for stem in wanted:
-        func_name, caption = FIGURES[stem]
+    for stem in sorted(wanted, key=list(known).index):
+        func_name, caption = known[stem][:2]
+        module = plot_measurement if stem in MEASUREMENT_FIGURES else plot
+        kwargs = {"frequency_range": frequency_range} if stem in _BANDED and frequency_range else {}
         try:
-            fig = getattr(plot, func_name)(ds)
+            fig = getattr(module, func_name)(ds, **kwargs)
         except AmiXrValueError as err:
             skipped.append((stem, str(err)))
             continue
+        png = io.BytesIO()
+        fig.savefig(png, format="png", dpi=DPI)
         with atomic_open(outdir / f"{stem}.png", "wb") as fh:
-            fig.savefig(fh, format="png", dpi=110)
-        made.append((stem, caption))
+            fh.write(png.getvalue())
+        made.append((stem, caption, png.getvalue()))
     try:
         rows = modal_table(ds)
     except AmiXrValueError as err:
@@ -334,52 +375,130 @@ def report(
             writer = csv.DictWriter(fh, fieldnames=list(csv_rows[0]))
             writer.writeheader()
             writer.writerows(csv_rows)
-    page = _html(ds, rows, made, skipped, title or f"ami_xr report: {_source_name(ds)}")
+    summary = plot_measurement.measurement_summary(ds)
+    page = _html(ds, rows, summary, made, skipped, title or f"ami_xr report: {_source_name(ds)}")
     index = outdir / "index.html"
     with atomic_open(index, "wb") as fh:
         fh.write(page.encode("utf-8"))
     return index
 
 
-def _html(ds, rows, made, skipped, title) -> str:
+#: Figures with a frequency axis: they take ``frequency_range``.
+_BANDED = frozenset({"bode", "subtraction", "coherence", "force_spectrum"})
+
+
+def _check_range(frequency_range) -> tuple[float, float] | None:
+    if frequency_range is None:
+        return None
+    try:
+        f0, f1 = (float(f) for f in frequency_range)
+    except (TypeError, ValueError):
+        raise AmiXrValueError(
+            f"report: frequency_range must be two numbers (f0, f1) in Hz, got {frequency_range!r}"
+        ) from None
+    if not (np.isfinite(f0) and np.isfinite(f1) and f0 < f1):
+        raise AmiXrValueError(
+            f"report: frequency_range must satisfy f0 < f1 (finite, Hz), got {(f0, f1)!r}"
+        )
+    return f0, f1
+
+
+_CSS = (
+    "body{font-family:sans-serif;margin:2em;max-width:1200px}"
+    "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;"
+    "text-align:right}th{background:#eee}td.l{text-align:left}"
+    "img{max-width:100%;border:1px solid #ddd}.flag{color:#b00}"
+)
+
+
+def _measurement_html(summary: dict[str, Any]) -> str:
+    e = html.escape
+    if not summary:
+        return ""
+    buf = io.StringIO()
+    buf.write("<h2>Measurement</h2>\n<p>")
+    if names.ATTR_ESTIMATOR in summary:
+        buf.write(f"FRF estimator: <b>{e(str(summary[names.ATTR_ESTIMATOR]))}</b>. ")
+    if names.ATTR_N_AVERAGES in summary:
+        buf.write(f"Number of averages: <b>{e(str(summary[names.ATTR_N_AVERAGES]))}</b>. ")
+    hits = summary.get("hits", [])
+    if hits:
+        n_bad = sum(h["rejected"] for h in hits)
+        buf.write(f"Impact hits: {len(hits)}, of which {n_bad} rejected.")
+    buf.write("</p>\n")
+    if hits:
+        units = e(str(summary.get("force_units") or ""))
+        buf.write(
+            f"<table><tr><th>hit</th><th>peak force [{units}]</th><th>averaged</th>"
+            "<th>reason rejected</th></tr>\n"
+        )
+        for h in hits:
+            used = "no" if h["rejected"] else "yes"
+            cls = " class='l flag'" if h["rejected"] else " class='l'"
+            buf.write(
+                f"<tr><td>{e(str(h['record']))}</td><td>{h['peak_force']:.6g}</td>"
+                f"<td{cls}>{used}</td><td{cls}>{e(h['reason'])}</td></tr>\n"
+            )
+        buf.write("</table>\n")
+    return buf.getvalue()
+
+
+def _table_html(rows: list[dict[str, Any]]) -> str:
+    e = html.escape
+    if not rows:
+        return "<p>No modes identified.</p>\n"
+    stds = [k for k in STD_COLUMNS if k in rows[0]]
+    buf = io.StringIO()
+    buf.write(
+        "<table><tr><th>mode</th><th>f [Hz]</th><th>&omega; [rad/s]</th>"
+        "<th>&zeta; [%]</th><th>eigenvalue [rad/s]</th>"
+    )
+    buf.write("".join(f"<th>{e(STD_COLUMNS[k][2])}</th>" for k in stds))
+    buf.write("<th>detected in</th><th>flags</th></tr>\n")
+    for r in rows:
+        lam = r["eigenvalue"]
+        lam_text = "" if not np.isfinite(lam) else f"{lam.real:.6g}{lam.imag:+.6g}i"
+        buf.write(
+            f"<tr><td>{e(str(r['mode']))}</td><td>{r['frequency_hz']:.6g}</td>"
+            f"<td>{r['frequency_rad_s']:.6g}</td><td>{r['damping_percent']:.4g}</td>"
+            f"<td>{e(lam_text)}</td>"
+        )
+        buf.write("".join(f"<td>{r[k]:.3g}</td>" for k in stds))
+        buf.write(
+            f"<td class='l'>{e(r['detected_in'])}</td>"
+            f"<td class='l flag'>{e(r['flags'])}</td></tr>\n"
+        )
+    buf.write("</table>\n")
+    if stds:
+        buf.write(
+            "<p>Standard deviations (columns "
+            + ", ".join(e(STD_COLUMNS[k][2]) for k in stds)
+            + ") from the Cram&eacute;r-Rao bound of the fit.</p>\n"
+        )
+    buf.write("<p><a href='modal_table.csv'>modal_table.csv</a> (one number per column)</p>\n")
+    return buf.getvalue()
+
+
+def _html(ds, rows, summary, made, skipped, title) -> str:
     e = html.escape
     buf = io.StringIO()
     buf.write(
         "<!DOCTYPE html>\n<html><head><meta charset='utf-8'>"
-        f"<title>{e(title)}</title><style>"
-        "body{font-family:sans-serif;margin:2em;max-width:1200px}"
-        "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;"
-        "text-align:right}th{background:#eee}td.l{text-align:left}"
-        "img{max-width:100%;border:1px solid #ddd}.flag{color:#b00}"
-        "</style></head><body>\n"
+        f"<title>{e(title)}</title><style>{_CSS}</style></head><body>\n"
     )
     buf.write(f"<h1>{e(title)}</h1>\n<table>\n")
     for k, v in _attrs_summary(ds):
         buf.write(f"<tr><th>{e(k)}</th><td class='l'>{e(v)}</td></tr>\n")
-    buf.write("</table>\n<h2>Modal table</h2>\n")
-    if rows:
-        buf.write(
-            "<table><tr><th>mode</th><th>f [Hz]</th><th>&omega; [rad/s]</th>"
-            "<th>&zeta; [%]</th><th>eigenvalue [rad/s]</th><th>detected in</th>"
-            "<th>flags</th></tr>\n"
-        )
-        for r in rows:
-            lam = r["eigenvalue"]
-            lam_text = "" if not np.isfinite(lam) else f"{lam.real:.6g}{lam.imag:+.6g}i"
-            buf.write(
-                f"<tr><td>{e(str(r['mode']))}</td><td>{r['frequency_hz']:.6g}</td>"
-                f"<td>{r['frequency_rad_s']:.6g}</td><td>{r['damping_percent']:.4g}</td>"
-                f"<td>{e(lam_text)}</td><td class='l'>{e(r['detected_in'])}</td>"
-                f"<td class='l flag'>{e(r['flags'])}</td></tr>\n"
-            )
-        buf.write("</table>\n<p><a href='modal_table.csv'>modal_table.csv</a></p>\n")
-    else:
-        buf.write("<p>No modes identified.</p>\n")
-    for stem, caption in made:
-        buf.write(
-            f"<h2>{e(stem.replace('_', ' '))}</h2>\n<p>{e(caption)}</p>\n"
-            f"<img src='{e(stem)}.png' alt='{e(stem)}'>\n"
-        )
+    buf.write("</table>\n")
+    buf.write(_measurement_html(summary))
+    for stem, caption, png in made:
+        if stem in MEASUREMENT_FIGURES:
+            buf.write(_figure_html(stem, caption, png))
+    buf.write("<h2>Modal table</h2>\n")
+    buf.write(_table_html(rows))
+    for stem, caption, png in made:
+        if stem not in MEASUREMENT_FIGURES:
+            buf.write(_figure_html(stem, caption, png))
     if skipped:
         buf.write("<h2>Not produced</h2>\n<ul>\n")
         for stem, why in skipped:
@@ -387,3 +506,11 @@ def _html(ds, rows, made, skipped, title) -> str:
         buf.write("</ul>\n")
     buf.write("</body></html>\n")
     return buf.getvalue()
+
+
+def _figure_html(stem: str, caption: str, png: bytes) -> str:
+    e = html.escape
+    return (
+        f"<h2>{e(stem.replace('_', ' '))}</h2>\n<p>{e(caption)}</p>\n"
+        f"<img src='{e(stem)}.png' alt='{e(stem)}.png'>\n"
+    )

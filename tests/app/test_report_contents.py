@@ -5,6 +5,7 @@ legends and units, and one self-contained index.html."""
 from __future__ import annotations
 
 import csv
+import html
 import math
 import warnings
 from pathlib import Path
@@ -106,3 +107,82 @@ def test_no_machine_path_in_the_html(tmp_path, simulated_result):
     assert "/home/someone" not in page and "secret" not in page
     assert "<title>ami_xr report: chain.nc</title>" in page
     assert str(tmp_path) not in page
+
+
+# --- measurement contents: estimator, averages, hits, coherence, force spectrum -----------------
+def _data_lines(ax) -> list:
+    """Lines that carry data (more than two vertices: not axhline/axvline marks)."""
+    return [line for line in ax.get_lines() if len(line.get_xdata()) > 2]
+
+
+def test_hammer_report_shows_what_the_engineer_checks_first(tmp_path, hammer_result):
+    index = report(hammer_result, tmp_path / "rep", figures=("coherence", "force_spectrum", "hits"))
+    page = index.read_text()
+    assert "FRF estimator: <b>H1</b>" in page
+    assert f"Number of averages: <b>{hammer_result.attrs['n_averages']}</b>" in page
+    rejected = hammer_result[names.HIT_REJECTED].values
+    assert rejected.any()
+    assert f"Impact hits: {rejected.size}, of which {int(rejected.sum())} rejected." in page
+    for reason in hammer_result[names.HIT_REJECT_REASON].values[rejected]:
+        assert html.escape(str(reason)) in page  # every rejected hit marked with its reason
+    for stem in ("coherence", "force_spectrum", "hits"):
+        assert f"<h2>{stem.replace('_', ' ')}</h2>" in page
+    # the measurement comes before the modal table
+    assert page.index("<h2>Measurement</h2>") < page.index("<h2>Modal table</h2>")
+
+
+def test_measurement_figures_by_default_only_when_their_inputs_exist(
+    tmp_path, hammer_result, simulated_result
+):
+    index = report(hammer_result, tmp_path / "hammer", figures=None)
+    made = {p.stem for p in index.parent.glob("*.png")}
+    assert {"coherence", "force_spectrum", "hits"} <= made
+    index = report(simulated_result, tmp_path / "sim", figures=("bode",))
+    page = index.read_text()
+    assert "<h2>Measurement</h2>" not in page and "coherence" not in page
+
+
+def test_coherence_figure_labels_and_legend(hammer_result):
+    from ami_xr import plot_measurement
+
+    fig = plot_measurement.plot_coherence(hammer_result)
+    (ax,) = fig.axes
+    assert ax.get_xlabel() == "frequency [Hz]" and ax.get_ylabel() == "coherence [-]"
+    assert ax.get_legend() is not None
+    assert ax.get_ylim()[1] <= 1.1
+
+
+def test_force_spectrum_figure_in_db_with_units(hammer_result):
+    from ami_xr import plot_measurement
+
+    fig = plot_measurement.plot_force_spectrum(hammer_result, frequency_range=(0, 500))
+    (ax,) = fig.axes
+    assert "dB" in ax.get_ylabel() and "N^2/Hz" in ax.get_ylabel()
+    assert ax.get_xlabel() == "frequency [Hz]"
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "-10 dB" in labels and "-20 dB" in labels
+    (line,) = _data_lines(ax)
+    assert line.get_xdata().max() <= 500
+
+
+def test_hits_figure_marks_rejected_hits_with_reason(hammer_result):
+    from ami_xr import plot_measurement
+
+    fig = plot_measurement.plot_hits(hammer_result)
+    (ax,) = fig.axes
+    assert ax.get_ylabel() == "peak force [N]"
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["averaged", "rejected"]
+    notes = {t.get_text() for t in ax.texts}
+    assert notes == {"overload", "double impact"}
+    n_hits = hammer_result.sizes[names.RECORD]
+    assert len(ax.patches) == n_hits
+    assert f"{n_hits - int(hammer_result[names.HIT_REJECTED].sum())} of {n_hits} averaged" in (
+        ax.get_title()
+    )
+
+
+def test_html_modal_table_lists_std_columns(tmp_path, simulated_result):
+    index = report(simulated_result, tmp_path / "rep", figures=("modal_table",))
+    page = index.read_text()
+    for header in ("std f [Hz]", "std zeta [%]", "std Re(lambda) [rad/s]"):
+        assert f"<th>{header}</th>" in page

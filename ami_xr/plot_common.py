@@ -1,0 +1,153 @@
+"""Helpers shared by the figure modules (:mod:`ami_xr.plot`, :mod:`ami_xr.plot_measurement`):
+a Figure on its own Agg canvas, atomic saving, input checks, point and band selection, mode
+marks. No matplotlib is imported until a figure is made.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Hashable, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.errors import AmiXrValueError
+from ami_xr.io.atomic import atomic_open
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+#: Dots per inch of every saved figure (the report's PNGs): pixel size = inches x DPI.
+DPI = 110
+
+POINT_COORDS = tuple(f"{names.POINT}_{axis}" for axis in "xyz")
+
+_MAX_POINTS = 12  # beyond this, figures show the points with the strongest response
+
+
+def _new_figure(width: float, height: float) -> Figure:
+    try:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+    except ImportError as err:  # pragma: no cover - depends on the environment
+        raise ImportError(
+            "plots need the optional package matplotlib: pip install 'ami_xr[plot]'"
+        ) from err
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)  # Agg for this figure only; the global backend is left alone
+    return fig
+
+
+def _finish(fig: Figure, path: str | os.PathLike | None) -> Figure:
+    if path is not None:
+        # Saved atomically; matplotlib cannot see the suffix of a file object, so pass it on.
+        suffix = os.path.splitext(os.fspath(path))[1][1:].lower()
+        with atomic_open(path, "wb") as fh:
+            fig.savefig(fh, format=suffix or None, dpi=DPI)
+    return fig
+
+
+def _require(ds: xr.Dataset, *variables: str, figure: str) -> None:
+    missing = [v for v in variables if v not in ds.variables]
+    if missing:
+        raise AmiXrValueError(
+            f"{figure}: the Dataset has no {', '.join(repr(m) for m in missing)} "
+            f"(it has {sorted(map(str, ds.data_vars))})"
+        )
+
+
+def _select_points(ds: xr.Dataset, points: Sequence[Hashable] | None, figure: str) -> list:
+    labels = list(ds[names.POINT].values.tolist())
+    if points is not None:
+        points = list(points)
+        unknown = [p for p in points if p not in labels]
+        if unknown:
+            raise AmiXrValueError(f"{figure}: points {unknown} are not among the points {labels}")
+        return points
+    if len(labels) <= _MAX_POINTS or names.FRF not in ds:
+        return labels[:_MAX_POINTS]
+    # Many points: show the strongest FRFs, in their original order.
+    peak = np.abs(ds[names.FRF]).max(names.FREQUENCY).values
+    keep = set(np.argsort(peak)[::-1][:_MAX_POINTS].tolist())
+    return [lab for i, lab in enumerate(labels) if i in keep]
+
+
+def _natural_frequencies(ds: xr.Dataset) -> np.ndarray:
+    if names.NATURAL_FREQUENCY in ds:
+        return np.atleast_1d(np.asarray(ds[names.NATURAL_FREQUENCY].values, dtype=float))
+    if names.EIGENVALUE in ds:
+        return np.abs(np.atleast_1d(ds[names.EIGENVALUE].values)) / (2 * np.pi)
+    return np.zeros(0)
+
+
+def _mode_labels(ds: xr.Dataset) -> list:
+    if names.MODE in ds.coords:
+        return list(ds[names.MODE].values.tolist())
+    return list(range(1, _natural_frequencies(ds).size + 1))
+
+
+def _label_levels(fn: np.ndarray, lo: float, hi: float, min_gap: float = 0.035) -> list[int]:
+    """Stagger level (0, 1, 2, ...) of each mode label so that labels closer than ``min_gap``
+    (fraction of the axis width) to one on the same level move down a level."""
+    span = hi - lo if hi > lo else 1.0
+    last: list[float] = []  # last x (axis fraction) used on each level
+    levels = [0] * fn.size
+    for k in np.argsort(fn):
+        x = (fn[k] - lo) / span
+        level = next((i for i, x0 in enumerate(last) if x - x0 >= min_gap), len(last))
+        if level == len(last):
+            last.append(x)
+        last[level] = x
+        levels[k] = level
+    return levels
+
+
+def _mark_modes(
+    ax, fn: np.ndarray, labels: Sequence, text: bool, band: tuple[float, float] | None = None
+) -> None:
+    """Dashed lines at the natural frequencies inside ``band``; with ``text`` their mode labels,
+    staggered downwards from the top of the axes where neighbours would collide."""
+    fn = np.asarray(fn, dtype=float)
+    keep = np.isfinite(fn)
+    if band is not None:
+        keep &= (fn >= band[0]) & (fn <= band[1])
+    fn_in = fn[keep]
+    labels_in = [lab for lab, k in zip(labels, keep, strict=False) if k]
+    lo, hi = band if band is not None else (fn_in.min(initial=0.0), fn_in.max(initial=1.0))
+    levels = _label_levels(fn_in, lo, hi) if text else [0] * fn_in.size
+    for i, (f, lab) in enumerate(zip(fn_in, labels_in, strict=False)):
+        ax.axvline(f, color="tab:red", lw=0.8, ls="--", alpha=0.7)
+        if text:
+            ax.annotate(
+                str(lab),
+                (f, 0.98 - 0.08 * (levels[i] % 4)),
+                xycoords=("data", "axes fraction"),
+                ha="center",
+                va="top",
+                fontsize=7,
+                color="tab:red",
+                bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8},
+            )
+
+
+def _in_band(ds: xr.Dataset, frequency_range: tuple[float, float] | None, figure: str):
+    """``ds`` cut to ``frequency_range`` (Hz), checked to keep at least two lines."""
+    if frequency_range is None:
+        return ds
+    f0, f1 = (float(f) for f in frequency_range)
+    if not f0 < f1:
+        raise AmiXrValueError(f"{figure}: frequency_range must have f0 < f1, got {(f0, f1)!r}")
+    out = ds.sel({names.FREQUENCY: slice(f0, f1)})
+    if out.sizes[names.FREQUENCY] < 2:
+        f = ds[names.FREQUENCY].values
+        raise AmiXrValueError(
+            f"{figure}: frequency_range {(f0, f1)!r} holds fewer than 2 lines "
+            f"(the data span {f[0]:.6g} to {f[-1]:.6g} Hz)"
+        )
+    return out
+
+
+def _units(ds: xr.Dataset, var: str) -> str:
+    return str(ds[var].attrs.get(names.ATTR_UNITS, "")) if var in ds else ""
