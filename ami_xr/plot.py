@@ -49,6 +49,8 @@ from ami_xr.plot_common import (
     _units,
 )
 
+MAX_HEIGHT_IN = 18.0  # tallest figure, inches (x DPI 110 = 1 980 px)
+
 
 # --- Bode --------------------------------------------------------------------------------------
 def plot_bode(
@@ -165,34 +167,90 @@ def plot_nyquist(
     freq = ds[names.FREQUENCY].values
     df = float(np.median(np.diff(freq))) if freq.size > 1 else 1.0
     labels = _mode_labels(ds)
-    fig = _new_figure(2.4 * fn.size + 0.6, 2.3 * len(pts) + 0.4)
-    axes = fig.subplots(len(pts), fn.size, squeeze=False)
+    units = _units(ds, names.FRF)
+    unit_text = f" [{units}]" if units else ""
+    # one point: modes wrapped into rows of at most 6; several: a row per point
+    ncol = min(fn.size, 6) if len(pts) == 1 else fn.size
+    nrow = int(np.ceil(fn.size / ncol)) if len(pts) == 1 else len(pts)
+    panel = min(2.6, (MAX_HEIGHT_IN - 0.4) / nrow)
+    fig = _new_figure(max(panel * ncol + 0.6, 6.0), panel * nrow + 0.4)
+    axes = fig.subplots(nrow, ncol, squeeze=False)
+    for ax in axes.ravel()[len(pts) * fn.size :]:
+        ax.set_visible(False)
     synth = ds[names.FRF_SYNTHESIZED] if names.FRF_SYNTHESIZED in ds else None
     for i, p in enumerate(pts):
         g = ds[names.FRF].sel({names.POINT: p}).values
         s = synth.sel({names.POINT: p}).values if synth is not None else None
         for k in range(fn.size):
-            ax = axes[i, k]
+            ax = axes.ravel()[i * fn.size + k]
             lo, hi = _mode_band(fn[k], zeta[k], df, bandwidths)
             band = (freq >= lo) & (freq <= hi)
-            ax.plot(g[band].real, g[band].imag, ".", color="0.45", ms=3)
+            ax.plot(g[band].real, g[band].imag, ".", color="0.45", ms=3, label="measured")
             if s is not None:
-                ax.plot(s[band].real, s[band].imag, "-", color="tab:blue", lw=1.1)
+                fit = _fit_on_fine_grid(ds, p, freq, s, band)
+                ax.plot(fit.real, fit.imag, "-", color="tab:blue", lw=1.1, label="fit")
             if band.any():
                 j = int(np.argmin(np.abs(freq - fn[k])))
-                ax.plot(g[j].real, g[j].imag, "o", mfc="none", color="tab:red", ms=6)
+                ax.plot(
+                    g[j].real, g[j].imag, "o", mfc="none", color="tab:red", ms=6, label="at f_n"
+                )
             ax.set_aspect("equal", adjustable="datalim")
             ax.tick_params(labelsize=6)
             ax.ticklabel_format(style="sci", scilimits=(-2, 3))
             ax.xaxis.get_offset_text().set_fontsize(6)
             ax.yaxis.get_offset_text().set_fontsize(6)
-            if i == 0:
-                ax.set_title(f"mode {labels[k]}: {fn[k]:.4g} Hz", fontsize=8)
-            if k == 0:
-                ax.set_ylabel(f"point {p}\nImag", fontsize=8)
-            if i == len(pts) - 1:
-                ax.set_xlabel("Real", fontsize=8)
+            title = f"mode {labels[k]}: {fn[k]:.4g} Hz"
+            ax.set_title(title if len(pts) == 1 else f"point {p}, {title}", fontsize=7)
+            ax.set_xlabel(f"Re FRF{unit_text}", fontsize=7)
+            ax.set_ylabel(f"Im FRF{unit_text}", fontsize=7)
+            ax.legend(fontsize=5, loc="best")
     return _finish(fig, path)
+
+
+#: Lines of the fit drawn per measured line in the Nyquist plots.
+FIT_OVERSAMPLING = 10
+
+
+def _fit_on_fine_grid(
+    ds: xr.Dataset, point: Hashable, freq: np.ndarray, synth: np.ndarray, band: np.ndarray
+) -> np.ndarray:
+    """The fitted model over ``band`` on a grid FIT_OVERSAMPLING times finer than the lines.
+
+    The modes (``eigenvalue``, ``residue``, in the basis of the fit) are synthesised on the
+    fine grid; what ``frf_synthesized`` holds beyond them (the smooth residual terms) is
+    interpolated from the measured lines, so the curve passes through ``frf_synthesized`` at
+    every line. Without eigenvalues and residues: ``frf_synthesized`` at the lines.
+    """
+    idx = np.flatnonzero(band)
+    if idx.size < 2 or names.EIGENVALUE not in ds or names.RESIDUE not in ds:
+        return synth[band]
+    from ami_xr.core.model import CONTINUOUS, resolve_model
+    from ami_xr.kernels.modal_basis import mode_contribution
+
+    refined = ds.attrs.get(names.ATTR_REFINE_MODEL)
+    if refined == names.MODEL_CONTINUOUS:
+        model = CONTINUOUS
+    else:
+        model = resolve_model(ds.attrs, "exact" if refined == names.MODEL_DISCRETE else "auto")
+    lam = np.atleast_1d(np.asarray(ds[names.EIGENVALUE].values, dtype=np.complex128))
+    res = np.atleast_1d(
+        np.asarray(ds[names.RESIDUE].sel({names.POINT: point}).values, dtype=np.complex128)
+    )
+
+    def modes(f: np.ndarray) -> np.ndarray:
+        out = np.zeros(f.size, np.complex128)
+        for lk, ak in zip(lam, res, strict=True):
+            if np.isfinite(lk) and np.isfinite(ak):
+                out += mode_contribution(
+                    2 * np.pi * f, complex(lk), complex(ak), model.dt, model.n_samples
+                )
+        return out
+
+    f_line = freq[idx]
+    fine = np.linspace(f_line[0], f_line[-1], FIT_OVERSAMPLING * (idx.size - 1) + 1)
+    rest = synth[idx] - modes(f_line)
+    rest_fine = np.interp(fine, f_line, rest.real) + 1j * np.interp(fine, f_line, rest.imag)
+    return modes(fine) + rest_fine
 
 
 # --- Subtraction residual vs noise floor -------------------------------------------------------
@@ -343,43 +401,53 @@ def plot_mode_vectors(
     xname = _point_coordinate(ds, coord)
     labels = [str(p) for p in vec[names.POINT].values.tolist()]
     nmode = vec.sizes[names.MODE]
-    ncol = 3 if xname is not None else 2
-    fig = _new_figure(3.3 * ncol, 2.0 * max(nmode, 1) + 0.5)
-    axes = fig.subplots(max(nmode, 1), ncol, squeeze=False)
+    npanel = 3 if xname is not None else 2
+    # One block of stacked panels per mode, blocks in a grid: the figure stays at most
+    # MAX_HEIGHT_IN tall whatever the number of modes (22 modes were 4 895 px in one column).
+    block_h = 1.45 * npanel + 0.3
+    rows_max = max(1, int((MAX_HEIGHT_IN - 0.5) // block_h))
+    nblock_col = int(np.ceil(max(nmode, 1) / rows_max))
+    nblock_row = int(np.ceil(max(nmode, 1) / nblock_col))
+    fig = _new_figure(max(7.0, 3.6 * nblock_col), nblock_row * block_h + 0.5)
+    grid = fig.add_gridspec(nblock_row * npanel, nblock_col)
     fn = _natural_frequencies(ds)
     flags = _flags(ds)
     pos = np.arange(len(labels))
+    units = _units(ds, var)
     for k in range(nmode):
+        r, c = divmod(k, nblock_col)
+        ax_m = fig.add_subplot(grid[r * npanel, c])
+        ax_p = fig.add_subplot(grid[r * npanel + 1, c], sharex=ax_m)
         v = vec.isel({names.MODE: k}).values
-        ax_m, ax_p = axes[k, 0], axes[k, 1]
         ax_m.bar(pos, np.abs(v), color="tab:blue")
         ax_p.bar(pos, np.degrees(np.angle(v)), color="tab:orange")
         ax_p.set_ylim(-190, 190)
         ax_p.set_yticks([-180, -90, 0, 90, 180])
         for ax in (ax_m, ax_p):
-            ax.set_xticks(pos, labels, fontsize=7, rotation=90 if len(labels) > 8 else 0)
-            ax.tick_params(axis="y", labelsize=7)
+            ax.set_xticks(pos, labels, fontsize=6, rotation=90 if len(labels) > 8 else 0)
+            ax.tick_params(axis="y", labelsize=6)
         title = f"mode {vec[names.MODE].values[k]}"
         if k < fn.size:
             title += f", {fn[k]:.4g} Hz"
         if k < len(flags) and flags[k]:
             title += f"  [{flags[k]}]"
         ax_m.set_title(title, fontsize=8, loc="left")
-        ax_m.set_ylabel(f"|{var}|", fontsize=8)
-        ax_p.set_ylabel("phase [deg]", fontsize=8)
+        ax_m.set_ylabel(f"|{var}|" + (f" [{units}]" if units else " [-]"), fontsize=7)
+        ax_p.set_ylabel("phase [deg]", fontsize=7)
         if xname is not None:
-            ax_s = axes[k, 2]
+            ax_s = fig.add_subplot(grid[r * npanel + 2, c])
             x = np.asarray(ds[xname].values, dtype=float)
             order = np.argsort(x)
             big = v[np.argmax(np.abs(v))] if v.size and np.any(v != 0) else 1.0
             w = v * np.exp(-1j * np.angle(big))
-            ax_s.plot(x[order], w.real[order], "o-", color="tab:blue", ms=3)
-            ax_s.plot(x[order], w.imag[order], ":", color="0.5")
+            ax_s.plot(x[order], w.real[order], "o-", color="tab:blue", ms=3, label="real")
+            ax_s.plot(x[order], w.imag[order], ":", color="0.5", label="imaginary")
             ax_s.axhline(0, color="0.8", lw=0.6)
-            units = ds[xname].attrs.get(names.ATTR_UNITS, "")
-            ax_s.set_xlabel(f"{xname}" + (f" [{units}]" if units else ""), fontsize=8)
-            ax_s.set_ylabel("shape (real)", fontsize=8)
-            ax_s.tick_params(labelsize=7)
+            x_units = ds[xname].attrs.get(names.ATTR_UNITS, "")
+            ax_s.set_xlabel(f"{xname}" + (f" [{x_units}]" if x_units else ""), fontsize=7)
+            ax_s.set_ylabel("shape [-]", fontsize=7)
+            ax_s.tick_params(labelsize=6)
+            ax_s.legend(fontsize=6, loc="best")
     return _finish(fig, path)
 
 
@@ -399,6 +467,8 @@ def plot_mac(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure
 
     Uses the ``mac`` variable when present, otherwise computes it from ``mode_vector`` (or
     ``residue``). Off-diagonal values near 1 mean two "modes" look alike at the measured points.
+    With a single point (one FRF) every entry is 1: the figure is refused
+    (:class:`~ami_xr.errors.AmiXrValueError`, which the report turns into a note).
 
     Parameters
     ----------
@@ -407,6 +477,11 @@ def plot_mac(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure
     path : str or path-like, optional
         Save the figure there.
     """
+    if ds.sizes.get(names.POINT, 2) < 2:
+        raise AmiXrValueError(
+            "plot_mac: skipped, the MAC needs mode vectors at 2 or more points; "
+            f"with {ds.sizes[names.POINT]} FRF every entry is 1 and says nothing"
+        )
     if names.MAC in ds:
         mac = np.asarray(ds[names.MAC].values, dtype=float)
     else:

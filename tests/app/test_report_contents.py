@@ -17,6 +17,7 @@ import xarray as xr
 import ami_xr
 from ami_xr import names
 from ami_xr.ami import identify
+from ami_xr.errors import AmiXrValueError
 from ami_xr.report import report
 
 pytest.importorskip("matplotlib")
@@ -186,3 +187,96 @@ def test_html_modal_table_lists_std_columns(tmp_path, simulated_result):
     page = index.read_text()
     for header in ("std f [Hz]", "std zeta [%]", "std Re(lambda) [rad/s]"):
         assert f"<th>{header}</th>" in page
+
+
+# --- figures: what is drawn, sizes, legends, units, options --------------------------------------
+def _png_size(path: Path) -> tuple[int, int]:
+    head = path.read_bytes()[:24]
+    assert head[:8] == b"\x89PNG\r\n\x1a\n"
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+
+
+def _assert_legend_where_several_lines(fig):
+    for ax in fig.axes:
+        if ax.get_visible() and len(_data_lines(ax)) > 1:
+            assert ax.get_legend() is not None, ax.get_title()
+
+
+def test_mac_skipped_with_a_note_for_one_frf(tmp_path, hammer_result):
+    index = report(hammer_result, tmp_path / "rep", figures=("mac", "bode"))
+    assert not (index.parent / "mac.png").exists()
+    page = index.read_text()
+    assert "<b>mac</b>" in page and "2 or more points" in page
+
+
+def test_figure_sizes_in_pixels(tmp_path, hammer_result, simulated_result):
+    index = report(hammer_result, tmp_path / "hammer", figures=("bode", "mode_vectors", "nyquist"))
+    width, _ = _png_size(index.parent / "bode.png")
+    assert width >= 1000
+    for stem in ("mode_vectors", "nyquist"):
+        _, height = _png_size(index.parent / f"{stem}.png")
+        assert height <= 2000, stem
+    # many modes: the mode-vector figure grows sideways, not past ~2000 px in height
+    many = simulated_result.isel({names.MODE: [0] * 22, names.MODE_2: [0] * 22})
+    many = many.assign_coords({names.MODE: np.arange(1, 23), names.MODE_2: np.arange(1, 23)})
+    fig = ami_xr.plot_mode_vectors(many)
+    assert fig.get_size_inches()[1] * 110 <= 2000
+    assert len(fig.axes) == 2 * 22
+
+
+def test_bode_mode_labels_do_not_collide(hammer_result):
+    fig = ami_xr.plot_bode(hammer_result)
+    ax = fig.axes[0]
+    fig.canvas.draw()
+    boxes = [t.get_window_extent() for t in ax.texts]
+    assert len(boxes) == hammer_result.sizes[names.MODE]
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1 :]:
+            assert not a.overlaps(b)
+
+
+def test_legend_on_every_panel_with_several_lines(hammer_result, simulated_result):
+    n = simulated_result.sizes[names.POINT]
+    with_x = simulated_result.assign_coords(
+        point_x=(names.POINT, np.linspace(0, 1, n), {"units": "m"})
+    )
+    for fig in (
+        ami_xr.plot_bode(simulated_result),
+        ami_xr.plot_subtraction(simulated_result),
+        ami_xr.plot_nyquist(hammer_result),
+        ami_xr.plot_mode_vectors(with_x),
+    ):
+        _assert_legend_where_several_lines(fig)
+
+
+def test_nyquist_fit_on_a_fine_grid_with_units(hammer_result):
+    from ami_xr.plot import FIT_OVERSAMPLING
+
+    fig = ami_xr.plot_nyquist(hammer_result)
+    ax = fig.axes[0]
+    measured, fit = _data_lines(ax)[:2]
+    n = len(measured.get_xdata())
+    assert len(fit.get_xdata()) == FIT_OVERSAMPLING * (n - 1) + 1
+    # the fine curve passes through frf_synthesized at every measured line
+    synth = hammer_result[names.FRF_SYNTHESIZED].isel({names.POINT: 0}).values
+    at_lines = (fit.get_xdata() + 1j * fit.get_ydata())[::FIT_OVERSAMPLING]
+    gap = np.min(np.abs(at_lines[:, None] - synth[None, :]), axis=1)
+    assert gap.max() < 1e-9 * np.abs(synth).max()
+    assert ax.get_xlabel() == "Re FRF [m/s^2/N]" and ax.get_ylabel() == "Im FRF [m/s^2/N]"
+
+
+def test_frequency_range_and_figure_choice(tmp_path, hammer_result):
+    index = report(
+        hammer_result, tmp_path / "rep", figures=("bode", "coherence"), frequency_range=(100, 500)
+    )
+    assert {p.stem for p in index.parent.glob("*.png")} == {"bode", "coherence"}
+    fig = ami_xr.plot_bode(hammer_result, frequency_range=(100, 500))
+    assert fig.axes[0].get_xlim() == pytest.approx((100, 500))
+    shown = {t.get_text() for t in fig.axes[0].texts}
+    fn = hammer_result[names.NATURAL_FREQUENCY].values
+    inside = hammer_result[names.MODE].values[(fn >= 100) & (fn <= 500)]
+    assert shown == {str(m) for m in inside}
+    with pytest.raises(AmiXrValueError, match="frequency_range"):
+        report(hammer_result, tmp_path / "bad", frequency_range=(500, 100))
+    with pytest.raises(AmiXrValueError, match="unknown figures"):
+        report(hammer_result, tmp_path / "bad", figures=("bode", "nope"))
