@@ -1,4 +1,4 @@
-"""The modal table and the identification report (a folder of PNGs and one index.html).
+"""The modal table and the identification report (one self-contained index.html, PNGs and CSV).
 
 ``modal_table`` and ``format_modal_table`` need no matplotlib (the CLI prints the table with
 them); ``report`` draws the figures of :mod:`ami_xr.plot` and needs the ``plot`` extra.
@@ -6,6 +6,7 @@ them); ``report`` draws the figures of :mod:`ami_xr.plot` and needs the ``plot``
 
 from __future__ import annotations
 
+import base64
 import csv
 import html
 import io
@@ -300,7 +301,11 @@ def report(
     figures: tuple[str, ...] | None = None,
     frequency_range: tuple[float, float] | None = None,
 ) -> Path:
-    """Write the identification report: one PNG per figure, the table as CSV, and index.html.
+    """Write the identification report: index.html, one PNG per figure and the table as CSV.
+
+    ``index.html`` is self-contained: its figures (and the CSV behind its download link) are
+    embedded as base64 data URIs, so the page alone can be mailed or archived; the PNG and
+    CSV files beside it are the same content for other tools.
 
     The page opens with what an engineer checks first when the FRFs were estimated by
     :func:`ami_xr.frf` or :func:`ami_xr.impact_frf`: the estimator and number of averages, the
@@ -370,11 +375,8 @@ def report(
         rows = []
         skipped.append(("modal table", str(err)))
     if rows:
-        csv_rows = modal_table_csv_rows(rows)
         with atomic_open(outdir / "modal_table.csv", "w") as fh:
-            writer = csv.DictWriter(fh, fieldnames=list(csv_rows[0]))
-            writer.writeheader()
-            writer.writerows(csv_rows)
+            fh.write(_csv_text(rows))
     summary = plot_measurement.measurement_summary(ds)
     page = _html(ds, rows, summary, made, skipped, title or f"ami_xr report: {_source_name(ds)}")
     index = outdir / "index.html"
@@ -475,8 +477,24 @@ def _table_html(rows: list[dict[str, Any]]) -> str:
             + ", ".join(e(STD_COLUMNS[k][2]) for k in stds)
             + ") from the Cram&eacute;r-Rao bound of the fit.</p>\n"
         )
-    buf.write("<p><a href='modal_table.csv'>modal_table.csv</a> (one number per column)</p>\n")
+    buf.write(
+        f"<p><a href='{_csv_data_uri(rows)}' download='modal_table.csv'>modal_table.csv</a> "
+        "(one number per column; also written next to this page)</p>\n"
+    )
     return buf.getvalue()
+
+
+def _csv_text(rows: list[dict[str, Any]]) -> str:
+    csv_rows = modal_table_csv_rows(rows)
+    out = io.StringIO()
+    writer = csv.DictWriter(out, fieldnames=list(csv_rows[0]))
+    writer.writeheader()
+    writer.writerows(csv_rows)
+    return out.getvalue()
+
+
+def _csv_data_uri(rows: list[dict[str, Any]]) -> str:
+    return "data:text/csv;base64," + base64.b64encode(_csv_text(rows).encode()).decode("ascii")
 
 
 def _html(ds, rows, summary, made, skipped, title) -> str:
@@ -512,5 +530,6 @@ def _figure_html(stem: str, caption: str, png: bytes) -> str:
     e = html.escape
     return (
         f"<h2>{e(stem.replace('_', ' '))}</h2>\n<p>{e(caption)}</p>\n"
-        f"<img src='{e(stem)}.png' alt='{e(stem)}.png'>\n"
+        f"<img src='data:image/png;base64,{base64.b64encode(png).decode('ascii')}' "
+        f"alt='{e(stem)}.png'>\n"
     )

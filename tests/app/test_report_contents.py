@@ -280,3 +280,21 @@ def test_frequency_range_and_figure_choice(tmp_path, hammer_result):
         report(hammer_result, tmp_path / "bad", frequency_range=(500, 100))
     with pytest.raises(AmiXrValueError, match="unknown figures"):
         report(hammer_result, tmp_path / "bad", figures=("bode", "nope"))
+
+
+def test_html_is_one_self_contained_file(tmp_path, hammer_result):
+    import base64
+    import re
+
+    index = report(hammer_result, tmp_path / "rep")
+    page = index.read_text()
+    sources = re.findall(r"<img src='([^']*)'", page)
+    made = sorted(p.name for p in index.parent.glob("*.png"))
+    assert len(sources) == len(made) >= 5
+    for src in sources:
+        assert src.startswith("data:image/png;base64,")
+        assert base64.b64decode(src.split(",", 1)[1])[:8] == b"\x89PNG\r\n\x1a\n"
+    # nothing refers to a file beside the page: moved alone, it still shows everything
+    assert not re.findall(r"(?:src|href)='(?!data:)", page)
+    link = re.search(r"href='data:text/csv;base64,([^']*)'", page).group(1)
+    assert base64.b64decode(link) == (index.parent / "modal_table.csv").read_bytes()
