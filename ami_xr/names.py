@@ -23,6 +23,7 @@ COHERENCE = "coherence"  # ordinary (or multiple) coherence, dims (point, freque
 
 # --- attributes -------------------------------------------------------------------------------
 ATTR_DRIVE_POINT = "drive_point"  # label of the point where the force acts (the paper's P)
+ATTR_DRIVE_POINT_ASSUMED = "drive_point_assumed"  # why the drive point was assumed (not given)
 ATTR_QUANTITY = "response_quantity"  # "displacement" | "velocity" | "acceleration"
 ATTR_FRF_TYPE = "frf_type"  # "receptance" | "mobility" | "accelerance" (follows the quantity)
 ATTR_UNITS = "units"  # on variables and coordinates
@@ -80,6 +81,10 @@ NATURAL_FREQUENCY = "natural_frequency"  # Hz, |lambda| / (2 pi)
 DAMPING_RATIO = "damping_ratio"  # -Re(lambda) / |lambda|
 RESIDUE = "residue"  # complex A1 + i*A2 of eq. 4, dims (point, mode)
 MODE_VECTOR = "mode_vector"  # complex Phi of eq. 8, dims (point, mode)
+MODE_VECTOR_NORMALISED = "mode_vector_normalised"  # Phi rotated and scaled: largest entry 1
+MPC = "mpc"  # modal phase collinearity (Pappa et al. 1993), 0..1, dims (mode)
+MPD = "mpd"  # mean phase deviation from the best line through 0, degrees, dims (mode)
+COMPLEXITY = "complexity"  # mode complexity 1 - MPC, 0 (real mode) .. 1, dims (mode)
 
 # --- joint refinement (ami_xr.refine) and Cramér-Rao bound (ami_xr.cramer_rao_bound) ---------
 AMI_PREFIX = "ami_"  # refine keeps the AMI values as ami_eigenvalue, ami_residue, ...

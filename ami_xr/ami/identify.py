@@ -12,7 +12,15 @@ from ami_xr.ami.isolate import METHODS as ISOLATE_METHODS
 from ami_xr.ami.isolate import isolate
 from ami_xr.ami.settings import GlobalFitSettings, IsolateSettings, SubtractSettings
 from ami_xr.ami.subtract import power_of_two_scale, subtract
-from ami_xr.core.modal import damping_ratio, mode_vectors, natural_frequency
+from ami_xr.core.modal import (
+    complexity,
+    damping_ratio,
+    mode_vectors,
+    mpc,
+    mpd,
+    natural_frequency,
+    phase_normalised,
+)
 from ami_xr.errors import IdentificationError
 
 METHODS = (*ISOLATE_METHODS, names.METHOD_PAPER)
@@ -59,6 +67,53 @@ def _unscale(result: xr.Dataset, ds: xr.Dataset, scale: float) -> xr.Dataset:
     return result
 
 
+def _with_quality(result: xr.Dataset) -> xr.Dataset:
+    """Add the modal quality indicators of the final mode vectors (MPC, MPD, complexity; on
+    ``mode``) and the mode vectors normalised in phase and magnitude (largest component 1;
+    scale-free, like the indicators); nothing when there are no mode vectors."""
+    if names.MODE_VECTOR not in result or result.sizes.get(names.MODE, 0) == 0:
+        return result
+    mv = result[names.MODE_VECTOR]
+    phi = mv.transpose(names.POINT, names.MODE).values
+    mode = [names.MODE]
+    normalised = xr.DataArray(
+        phase_normalised(phi, unit=True), dims=(names.POINT, names.MODE)
+    ).transpose(*mv.dims)
+    normalised.attrs[names.ATTR_UNITS] = "1"
+    normalised.attrs[names.ATTR_LONG_NAME] = (
+        "mode vector rotated in phase and scaled so that its largest component is 1"
+    )
+    return result.assign(
+        {
+            names.MPC: (
+                mode,
+                mpc(phi),
+                {
+                    names.ATTR_UNITS: "1",
+                    names.ATTR_LONG_NAME: "modal phase collinearity (1: real mode)",
+                },
+            ),
+            names.MPD: (
+                mode,
+                mpd(phi),
+                {
+                    names.ATTR_UNITS: "degree",
+                    names.ATTR_LONG_NAME: "mean phase deviation from the best straight line",
+                },
+            ),
+            names.COMPLEXITY: (
+                mode,
+                complexity(phi),
+                {
+                    names.ATTR_UNITS: "1",
+                    names.ATTR_LONG_NAME: "mode complexity 1 - MPC (0: real mode)",
+                },
+            ),
+            names.MODE_VECTOR_NORMALISED: normalised,
+        }
+    )
+
+
 def identify(
     ds: xr.Dataset,
     *,
@@ -101,6 +156,12 @@ def identify(
         the identified eigenvalues are corrected ``lam = lam_measured + beta`` (the window
         multiplies the impulse response by ``exp(-beta t)``); natural frequency, damping ratio
         and mode vectors follow, and attr ``exponential_window_corrected`` records beta.
+        Quality indicators of the final mode vectors, on ``mode``: ``mpc`` (modal phase
+        collinearity, 1 for a real mode), ``mpd`` (mean phase deviation, degrees), and
+        ``complexity`` (1 - MPC), see :func:`ami_xr.core.modal.mpc`; and
+        ``mode_vector_normalised``, the mode vectors rotated and scaled so that each one's
+        largest component is 1 (real and positive; dimensionless, for display and comparison
+        of shapes); ``mode_vector`` itself keeps the phase and scaling of eq. 8.
 
     Notes
     -----
@@ -156,6 +217,7 @@ def identify(
                 data=phi if result[names.MODE_VECTOR].dims[0] == names.POINT else phi.T
             )
         result.attrs[names.ATTR_EXP_CORRECTED] = beta
+    result = _with_quality(result)
     params = dict(
         method=method,
         refine=fn is not None,

@@ -74,11 +74,14 @@ def modal_std(lam: np.ndarray, cov_theta: np.ndarray) -> tuple[np.ndarray, np.nd
 
 def _finite_columns(phi: np.ndarray) -> np.ndarray:
     """``phi`` as a complex (P, K) array with non-finite entries set to 0 (they then carry no
-    weight in any of the indicators)."""
+    weight in any of the indicators), each column divided by its largest magnitude (the
+    indicators are scale-free; this keeps squares of tiny or huge mode vectors finite)."""
     phi = np.asarray(phi, dtype=np.complex128)
     if phi.ndim == 1:
         phi = phi[:, None]
-    return np.where(np.isfinite(phi), phi, 0.0)
+    phi = np.where(np.isfinite(phi), phi, 0.0)
+    big = np.max(np.abs(phi), axis=0, initial=0.0)
+    return phi / np.where(big > 0, big, 1.0)[None, :]
 
 
 def mpc(phi: np.ndarray) -> np.ndarray:
@@ -136,14 +139,23 @@ def complexity(phi: np.ndarray) -> np.ndarray:
     return 1.0 - mpc(phi)
 
 
-def phase_normalised(phi: np.ndarray) -> np.ndarray:
+def phase_normalised(phi: np.ndarray, *, unit: bool = False) -> np.ndarray:
     """Mode vectors (P, K) rotated in phase, each column so that its largest component is real
-    and positive (magnitudes and relative phases unchanged; NaN entries stay NaN)."""
+    and positive (magnitudes and relative phases unchanged; NaN entries stay NaN). With
+    ``unit``, each column is also divided by that magnitude: its largest component is 1."""
     phi = np.asarray(phi, dtype=np.complex128)
     mag = np.where(np.isfinite(phi), np.abs(phi), -1.0)
     if phi.shape[0] == 0:
         return phi.copy()
-    big = phi[np.argmax(mag, axis=0), np.arange(phi.shape[1])]
+    cols = np.arange(phi.shape[1])
+    jmax = np.argmax(mag, axis=0)
+    big = phi[jmax, cols]
+    ok = np.isfinite(big) & (np.abs(big) > 0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        rot = np.where(np.abs(big) > 0, np.conj(big) / np.abs(big), 1.0)
-    return phi * rot[None, :]
+        rot = np.where(ok, np.conj(big) / np.abs(big), 1.0)
+        if unit:
+            rot = np.where(ok, rot / np.abs(big), 1.0)
+    out = phi * rot[None, :]
+    # the largest component exactly (rounding would leave ~1e-16 imaginary parts)
+    out[jmax[ok], cols[ok]] = 1.0 if unit else np.abs(big[ok])
+    return out

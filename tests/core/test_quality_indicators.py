@@ -76,3 +76,54 @@ def test_phase_normalised_largest_component_real_positive():
     np.testing.assert_allclose(np.abs(out), np.abs(phi))
     np.testing.assert_allclose(out[:, 0].imag, 0.0, atol=1e-15)  # a real mode becomes real
     assert np.isnan(out[4, 1])
+    unit = phase_normalised(phi, unit=True)
+    np.testing.assert_allclose(unit, out / np.abs(phi)[[3, 2], [0, 1]])
+    assert unit[3, 0] == 1.0 and unit[2, 1] == 1.0
+
+
+def test_indicators_are_scale_free_for_tiny_and_huge_vectors():
+    phi = np.array([[1.0, 0.5j, -0.3 + 0.2j], [0.2, 1j, 1.0]]).T
+    for scale in (1e-160, 1e160):
+        np.testing.assert_allclose(mpc(phi * scale), mpc(phi), rtol=1e-12)
+        np.testing.assert_allclose(mpd(phi * scale), mpd(phi), rtol=1e-12)
+
+
+# --- identify adds the indicators (additive: mode_vector itself keeps its phase) ------------
+
+
+def _proportional_frf():
+    from ami_xr.simulate.modal import frf, modal_model
+
+    k = 1.0e4 * np.array([[2.0, -1.0, 0.0], [-1.0, 2.0, -1.0], [0.0, -1.0, 1.0]])
+    m = np.eye(3)
+    model = modal_model(m, 1e-4 * k + 0.2 * m, k, drive_point=0)
+    return frf(model, np.linspace(0.0, 40.0, 801))
+
+
+def test_identify_adds_quality_indicators_with_units():
+    import ami_xr
+    from ami_xr import names
+
+    result = ami_xr.identify(_proportional_frf())
+    phi = result[names.MODE_VECTOR].transpose(names.POINT, names.MODE).values
+    assert result.sizes[names.MODE] == 3
+    for name, units, fn in (
+        (names.MPC, "1", mpc),
+        (names.MPD, "degree", mpd),
+        (names.COMPLEXITY, "1", complexity),
+    ):
+        var = result[name]
+        assert var.dims == (names.MODE,)
+        assert var.attrs[names.ATTR_UNITS] == units
+        assert var.attrs[names.ATTR_LONG_NAME]
+        np.testing.assert_allclose(var.values, fn(phi))
+    # proportional damping: real (normal) modes
+    assert np.all(result[names.MPC].values > 0.999)
+    assert np.all(result[names.MPD].values < 1.0)
+    norm = result[names.MODE_VECTOR_NORMALISED].transpose(names.POINT, names.MODE).values
+    np.testing.assert_allclose(norm, phase_normalised(phi, unit=True))
+    assert result[names.MODE_VECTOR_NORMALISED].attrs[names.ATTR_UNITS] == "1"
+    big = norm[np.argmax(np.abs(norm), axis=0), np.arange(3)]
+    np.testing.assert_array_equal(big, 1.0)  # largest component exactly 1
+    np.testing.assert_allclose(np.abs(norm), np.abs(phi) / np.abs(phi).max(axis=0))
+    np.testing.assert_allclose(norm.imag, 0.0, atol=1e-6)  # a real mode becomes real
