@@ -29,6 +29,7 @@ __all__ = [
     "FIGURES",
     "MEASUREMENT_FIGURES",
     "STD_COLUMNS",
+    "INDICATOR_COLUMNS",
 ]
 
 
@@ -164,8 +165,20 @@ STD_COLUMNS: dict[str, tuple[str, str, str]] = {
 }
 
 
+#: Modal quality indicators the table shows when the Dataset has them: row key -> (variable,
+#: header text).
+INDICATOR_COLUMNS: dict[str, tuple[str, str]] = {
+    "mpc": (names.MPC, "MPC [-]"),
+    "mpd_deg": (names.MPD, "MPD [deg]"),
+    "complexity": (names.COMPLEXITY, "complexity [-]"),
+}
+
+
 def _std_columns(ds: xr.Dataset, n_mode: int) -> dict[str, np.ndarray]:
     out: dict[str, np.ndarray] = {}
+    for key, (var, _) in INDICATOR_COLUMNS.items():
+        if var in ds and ds[var].size == n_mode:
+            out[key] = np.atleast_1d(np.asarray(ds[var].values, dtype=float))
     for key, (var, part, _) in STD_COLUMNS.items():
         if var not in ds:
             continue
@@ -201,6 +214,7 @@ def modal_table_csv_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             "eigenvalue_imag_rad_s": lam.imag,
         }
         row.update({key: r[key] for key in STD_COLUMNS if key in r})
+        row.update({key: r[key] for key in INDICATOR_COLUMNS if key in r})
         row["detected_in"] = r["detected_in"]
         row["flags"] = r["flags"]
         out.append(row)
@@ -450,12 +464,14 @@ def _table_html(rows: list[dict[str, Any]]) -> str:
     if not rows:
         return "<p>No modes identified.</p>\n"
     stds = [k for k in STD_COLUMNS if k in rows[0]]
+    quality = [k for k in INDICATOR_COLUMNS if k in rows[0]]
     buf = io.StringIO()
     buf.write(
         "<table><tr><th>mode</th><th>f [Hz]</th><th>&omega; [rad/s]</th>"
         "<th>&zeta; [%]</th><th>eigenvalue [rad/s]</th>"
     )
     buf.write("".join(f"<th>{e(STD_COLUMNS[k][2])}</th>" for k in stds))
+    buf.write("".join(f"<th>{e(INDICATOR_COLUMNS[k][1])}</th>" for k in quality))
     buf.write("<th>detected in</th><th>flags</th></tr>\n")
     for r in rows:
         lam = r["eigenvalue"]
@@ -465,7 +481,7 @@ def _table_html(rows: list[dict[str, Any]]) -> str:
             f"<td>{r['frequency_rad_s']:.6g}</td><td>{r['damping_percent']:.4g}</td>"
             f"<td>{e(lam_text)}</td>"
         )
-        buf.write("".join(f"<td>{r[k]:.3g}</td>" for k in stds))
+        buf.write("".join(f"<td>{r[k]:.3g}</td>" for k in stds + quality))
         buf.write(
             f"<td class='l'>{e(r['detected_in'])}</td>"
             f"<td class='l flag'>{e(r['flags'])}</td></tr>\n"

@@ -298,3 +298,19 @@ def test_html_is_one_self_contained_file(tmp_path, hammer_result):
     assert not re.findall(r"(?:src|href)='(?!data:)", page)
     link = re.search(r"href='data:text/csv;base64,([^']*)'", page).group(1)
     assert base64.b64decode(link) == (index.parent / "modal_table.csv").read_bytes()
+
+
+def test_modal_table_shows_mpc_mpd_when_present(tmp_path, simulated_result):
+    n = simulated_result.sizes[names.MODE]
+    ds = simulated_result.assign(
+        {
+            names.MPC: ((names.MODE,), np.linspace(0.9, 1.0, n)),
+            names.MPD: ((names.MODE,), np.linspace(1.0, 5.0, n)),
+        }
+    )
+    index = report(ds, tmp_path / "rep", figures=("modal_table",))
+    rows = _read_csv(index.parent / "modal_table.csv")
+    assert [float(r["mpc"]) for r in rows] == list(ds[names.MPC].values)
+    assert [float(r["mpd_deg"]) for r in rows] == list(ds[names.MPD].values)
+    page = index.read_text()
+    assert "<th>MPC [-]</th>" in page and "<th>MPD [deg]</th>" in page
