@@ -8,6 +8,9 @@ latest function, the ami_xr version and the source file are also plain attribute
 (:data:`ami_xr.names.ATTR_FUNCTION`, :data:`~ami_xr.names.ATTR_VERSION`,
 :data:`~ami_xr.names.ATTR_SOURCE_FILE`) so ``ncdump -h`` shows them.
 
+Files also get the CF global attribute ``history``, one line per record (:func:`cf_history`),
+written by :func:`ami_xr.io.netcdf.to_netcdf` (see :mod:`ami_xr.io.cf`).
+
 No machine path is recorded: ``source_file`` (record and attribute) holds the file name only,
 and a string parameter that is an absolute path is stored as its file name, so a file can be
 handed to a colleague without telling where it lay on the author's machine.
@@ -26,7 +29,7 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.names import ATTR_FUNCTION  # kept importable from here, defined in names
 
-__all__ = ["add_history", "history", "file_name", "ATTR_FUNCTION"]
+__all__ = ["add_history", "history", "cf_history", "file_name", "ATTR_FUNCTION"]
 
 
 def file_name(path: str | os.PathLike) -> str:
@@ -65,6 +68,18 @@ def history(ds: xr.Dataset) -> list[dict]:
     except (TypeError, ValueError):
         return []
     return out if isinstance(out, list) else []
+
+
+def cf_history(ds: xr.Dataset) -> list[str]:
+    """The records of ``ds`` as CF ``history`` lines: ``"<UTC time>Z <function> (ami_xr <v>)"``."""
+    lines = []
+    for record in history(ds):
+        if not isinstance(record, dict):
+            continue
+        stamp = str(record.get("time_utc", "")).replace("+00:00", "Z")
+        version = record.get(names.ATTR_VERSION, "?")
+        lines.append(f"{stamp} {record.get('function', '?')} (ami_xr {version})")
+    return lines
 
 
 def add_history(

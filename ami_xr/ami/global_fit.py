@@ -16,6 +16,20 @@ from ami_xr.kernels import noise as kn
 from ami_xr.kernels import residues as kr
 
 RESIDUAL_KIND = {"receptance": 0, "mobility": 1, "accelerance": 2}
+_ONE = {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
+
+
+def residue_units(frf_units: str) -> dict:
+    """``units`` of residues: FRF units times rad/s (empty when the FRF has no units)."""
+    return {names.ATTR_UNITS: f"{frf_units} {names.ANGULAR_UNITS}"} if frf_units else {}
+
+
+def mode_vector_units(frf_units: str, scaled: bool) -> dict:
+    """``units`` of mode vectors: ``sqrt(FRF units)`` when scaled at the drive point (eq. 8,
+    ``Phi_P = sqrt(A_P / lam)``), ``"1"`` when normalised to a unit largest entry."""
+    if not scaled:
+        return dict(_ONE)
+    return {names.ATTR_UNITS: f"sqrt({frf_units})"} if frf_units else {}
 
 
 def _band_mask(omega: np.ndarray, lam: np.ndarray, band) -> np.ndarray:
@@ -190,7 +204,8 @@ def global_fit(
             {
                 names.ATTR_SCALING: "unit largest entry (no drive point)"
                 if drive_index is None
-                else "eq. 8 at the drive point"
+                else "eq. 8 at the drive point",
+                **mode_vector_units(units, drive_index is not None),
             },
         ),
         names.FRF_SYNTHESIZED: synth_da.transpose(*frf.dims).assign_attrs(
@@ -199,8 +214,8 @@ def global_fit(
         names.FRF_RESIDUAL: (frf - synth_da.transpose(*frf.dims)).assign_attrs(
             {names.ATTR_UNITS: units}
         ),
-        names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi)),
-        names.DRIVE_POINT_SNR: ((names.MODE,), snr_drive),
+        names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi), _ONE),
+        names.DRIVE_POINT_SNR: ((names.MODE,), snr_drive, _ONE),
         names.QUALITY_FLAGS: (
             (names.MODE,),
             np.array([names.FLAG_SEPARATOR.join(f) for f in flags], dtype=str),

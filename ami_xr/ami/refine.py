@@ -52,7 +52,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import common as c
-from ami_xr.ami.global_fit import RESIDUAL_KIND
+from ami_xr.ami.global_fit import RESIDUAL_KIND, mode_vector_units, residue_units
 from ami_xr.ami.settings import GlobalFitSettings, RefineSettings, from_attrs, parameters, to_attrs
 from ami_xr.core.modal import damping_ratio, mac_matrix, natural_frequency
 from ami_xr.core.model import resolve_model, resolve_residual_terms
@@ -337,15 +337,17 @@ def _with_results(ds, fields, terms, kind, data_model, decay, drive_index) -> xr
     new[names.DAMPING_RATIO] = damping_ratio(lam).assign_attrs(
         {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
     )
-    new[names.RESIDUE] = r.residue.transpose(P, M)
-    new[names.MODE_VECTOR] = r.mode_vector.transpose(P, M)
+    res_units = residue_units(units_frf or "")
+    phi_units = mode_vector_units(units_frf or "", drive_index is not None)
+    new[names.RESIDUE] = r.residue.transpose(P, M).assign_attrs(res_units)
+    new[names.MODE_VECTOR] = r.mode_vector.transpose(P, M).assign_attrs(phi_units)
     new[names.EIGENVALUE_STD] = r.eig_std.assign_attrs({names.ATTR_UNITS: names.ANGULAR_UNITS})
     new[names.NATURAL_FREQUENCY_STD] = r.fn_std.assign_attrs(hz)
     new[names.DAMPING_RATIO_STD] = r.zeta_std.assign_attrs(
         {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
     )
-    new[names.RESIDUE_STD] = r.residue_std.transpose(P, M)
-    new[names.MODE_VECTOR_STD] = r.mode_vector_std.transpose(P, M)
+    new[names.RESIDUE_STD] = r.residue_std.transpose(P, M).assign_attrs(res_units)
+    new[names.MODE_VECTOR_STD] = r.mode_vector_std.transpose(P, M).assign_attrs(phi_units)
     new[names.FRF_NOISE_STD] = r.noise_std.assign_attrs(
         {names.ATTR_UNITS: units_frf} if units_frf else {}
     )
@@ -414,7 +416,9 @@ def _refresh_global_outputs(
         new[names.FRF_SYNTHESIZED] = xr.Variable((P, F), synth, {names.ATTR_UNITS: units})
         new[names.FRF_RESIDUAL] = xr.Variable((P, F), frf.values - synth, {names.ATTR_UNITS: units})
     if names.MAC in ds and names.MODE_2 in ds.dims:
-        new[names.MAC] = xr.Variable((M, names.MODE_2), mac_matrix(phi))
+        new[names.MAC] = xr.Variable(
+            (M, names.MODE_2), mac_matrix(phi), {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
+        )
     if drive_index is None:
         return None
     peak = contribution_peaks(cols, residue[drive_index])
@@ -423,7 +427,9 @@ def _refresh_global_outputs(
     else:
         sigma = float(noise_std[drive_index])
     snr = peak / sigma if sigma > 0 else np.full(n_mode, np.inf)
-    new[names.DRIVE_POINT_SNR] = xr.Variable((M,), snr)
+    new[names.DRIVE_POINT_SNR] = xr.Variable(
+        (M,), snr, {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
+    )
     return ~(snr >= from_attrs(GlobalFitSettings, ds.attrs).drive_snr_min)
 
 

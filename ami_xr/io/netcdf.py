@@ -19,6 +19,11 @@ On-disk conventions (readable without ami_xr, see the README's "netCDF files" se
   array stored as a scalar).
 * Float variables are written without ``_FillValue`` so every bit pattern (NaN payloads, -0.0)
   comes back unchanged.
+* CF metadata (:mod:`ami_xr.io.cf`): ``Conventions = "CF-1.10"``, a CF ``history`` line per
+  step, ``long_name`` on every variable, ``units`` on every numeric one, and the quality flags
+  also as a CF bit field ``quality_flag_mask`` (``flag_masks``/``flag_meanings``).
+* No machine path: ``source_file`` and the history records hold file names only. In memory,
+  :func:`open_dataset` sets ``source_file`` to the absolute path read.
 """
 
 from __future__ import annotations
@@ -39,6 +44,7 @@ from ami_xr import names
 from ami_xr.coords import uniform_coords
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import DeferredSignals, atomic_path, interrupts_deferred
+from ami_xr.io.cf import annotate, strip
 from ami_xr.provenance import add_history
 
 __all__ = [
@@ -429,7 +435,8 @@ def open_dataset(
     Returns
     -------
     xarray.Dataset
-        With attribute ``source_file`` set to the absolute path read.
+        With attribute ``source_file`` set to the absolute path read (in memory only:
+        :func:`to_netcdf` records the file name, never the folder).
 
     Raises
     ------
@@ -470,6 +477,7 @@ def open_dataset(
         ds = decode(raw)
         if time_axis is not None:
             ds = ds.assign_coords(time_axis)
+        ds = strip(ds)  # the CF metadata to_netcdf added is an on-disk encoding
     except (OSError, RuntimeError, ValueError, KeyError, IndexError, TypeError) as err:
         raise DataFileError(
             f"{path}: cannot read it as a netCDF file (truncated, corrupt or not netCDF?): "
@@ -535,11 +543,13 @@ def to_netcdf(
         raise AmiXrValueError(f"ds: expected an xarray.Dataset, got {type(ds).__name__}")
     path = Path(path).absolute()
     _check_utf8_name(path)
-    recorded = add_history(
-        ds,
-        function or "ami_xr.to_netcdf",
-        parameters,
-        source_file=ds.attrs.get(names.ATTR_SOURCE_FILE),
+    recorded = annotate(
+        add_history(
+            ds,
+            function or "ami_xr.to_netcdf",
+            parameters,
+            source_file=ds.attrs.get(names.ATTR_SOURCE_FILE),
+        )
     )
     encoded = encode(recorded)  # raises on unstorable content before any file exists
     with atomic_path(path) as tmp, interrupts_deferred() as held:

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
+import ami_xr
 from ami_xr import names, provenance
 from ami_xr.io.netcdf import open_dataset, to_netcdf
 
@@ -52,3 +53,126 @@ def test_lvm_and_uff_readers_write_no_machine_path(tmp_path, frf_dataset):
     out = to_netcdf(ds, tmp_path / "g.nc")
     _no_folder_in(out, tmp_path)
     assert np.array_equal(open_dataset(out).frf.values, ds.frf.values)
+
+
+@pytest.fixture(scope="module")
+def identified():
+    """Identified modes (with refinement) of the fixture's FRFs, and the same without a drive
+    point (mode vectors then unscaled)."""
+    import warnings
+
+    from ..conftest import _frf_fixture_modes
+    from ..reference import frf_from_residues
+
+    lam, residue = _frf_fixture_modes()
+    frequency = np.linspace(0.5, 50.0, 200)
+    frf = frf_from_residues(2 * np.pi * frequency, lam, residue)
+    rng = np.random.default_rng(0)
+    frf = frf + 1e-4 * np.abs(frf).max() * (rng.standard_normal(frf.shape) + 0j)
+    ds = ami_xr.make_frf_dataset(frf, frequency, points=[1, 2, 3], drive_point=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scaled = ami_xr.identify(ds)
+        unscaled = ami_xr.identify(_without_drive(ds))
+    return scaled, unscaled
+
+
+def _without_drive(ds):
+    out = ds.copy()
+    out.attrs = {k: v for k, v in ds.attrs.items() if k != names.ATTR_DRIVE_POINT}
+    return out
+
+
+def test_refined_residue_and_mode_vector_carry_units(identified):
+    scaled, unscaled = identified
+    frf_units = scaled[names.FRF].attrs[names.ATTR_UNITS]
+    assert scaled[names.RESIDUE].attrs[names.ATTR_UNITS] == f"{frf_units} rad/s"
+    assert scaled[names.MODE_VECTOR].attrs[names.ATTR_UNITS] == f"sqrt({frf_units})"
+    assert scaled[names.RESIDUE_STD].attrs[names.ATTR_UNITS] == f"{frf_units} rad/s"
+    assert scaled[names.MODE_VECTOR_STD].attrs[names.ATTR_UNITS] == f"sqrt({frf_units})"
+    assert scaled[names.MAC].attrs[names.ATTR_UNITS] == "1"
+    assert unscaled[names.MODE_VECTOR].attrs[names.ATTR_UNITS] == "1"  # unit largest entry
+
+
+def test_written_files_carry_cf_metadata(tmp_path, identified):
+    from ami_xr.io import cf
+
+    path = to_netcdf(identified[0], tmp_path / "m.nc", function="ami_xr.identify")
+    frf_units = identified[0][names.FRF].attrs["units"]
+    with xr.open_dataset(path, engine="netcdf4") as raw:
+        assert raw.attrs["Conventions"] == "CF-1.10"
+        lines = raw.attrs["history"].splitlines()
+        assert len(lines) == len(json.loads(raw.attrs[names.ATTR_HISTORY]))
+        assert lines[-1].endswith(f"ami_xr.identify (ami_xr {ami_xr.__version__})")
+        assert lines[-1][:20].endswith("Z")  # UTC
+        for name, var in raw.variables.items():
+            assert var.attrs.get("long_name"), f"{name} has no long_name"
+            numeric = var.dtype.kind in "iuf" and var.attrs.get("dtype") != "bool"
+            if name == names.RESIDUAL_COEFFICIENT:  # two units along residual_term
+                assert var.attrs["units_lower"] == f"{frf_units} (rad/s)^2"
+                assert var.attrs["units_upper"] == frf_units
+            elif numeric and "flag_masks" not in var.attrs:
+                assert var.attrs.get("units"), f"{name} has no units"
+        mask = raw[cf.QUALITY_FLAG_MASK]
+        meanings = mask.attrs["flag_meanings"].split()
+        assert list(mask.attrs["flag_masks"]) == [1 << k for k in range(len(meanings))]
+        for text, bits in zip(raw[names.QUALITY_FLAGS].values, mask.values, strict=True):
+            on = {m for k, m in enumerate(meanings) if bits & (1 << k)}
+            assert on == set(filter(None, str(text).split(",")))
+
+
+def test_flag_mask_and_conventions_merge():
+    from ami_xr.io import cf
+
+    flags = np.array(["", f"{names.FLAG_SINGLE_FRF},{names.FLAG_LOW_DRIVE_SNR}", "unknown"])
+    assert cf.flag_mask(flags).tolist() == [0, 1 | 8, 0]
+    ds = xr.Dataset({"v": ("x", [1.0])}, attrs={"Conventions": "CF-1.6, ACDD-1.3"})
+    out = cf.annotate(ds)
+    assert out.attrs["Conventions"] == "CF-1.10 ACDD-1.3"
+    assert out.v.attrs == {"long_name": "v"} and ds.v.attrs == {}  # input untouched
+
+
+def test_cf_history_one_line_per_step_after_foreign_history():
+    from ami_xr.io import cf
+
+    ds = provenance.add_history(xr.Dataset(attrs={"history": "made by hand"}), "ami_xr.f")
+    ds = provenance.add_history(ds, "ami_xr.g")
+    assert ds.attrs["history"] == "made by hand"  # in memory: untouched
+    first, second, third = cf.annotate(ds).attrs["history"].splitlines()
+    assert first == "made by hand"
+    assert " ami_xr.f (ami_xr " in second and " ami_xr.g (ami_xr " in third
+
+
+def test_cf_metadata_is_an_on_disk_encoding(tmp_path, identified):
+    """open_dataset removes exactly what to_netcdf added: read back == written, and nothing
+    accumulates over read/write cycles."""
+    from ami_xr.io import cf
+
+    ds = identified[0].copy()
+    ds.attrs["history"] = "made by hand"
+    ds[names.FREQUENCY].attrs["long_name"] = "my frequency"
+    first = open_dataset(to_netcdf(ds, tmp_path / "a.nc"))
+    second = open_dataset(to_netcdf(first, tmp_path / "b.nc"))
+    for back in (first, second):
+        assert cf.QUALITY_FLAG_MASK not in back and cf.ATTR_CF_ADDED not in back.attrs
+        assert back.attrs["history"] == "made by hand" and "Conventions" not in back.attrs
+        assert back[names.FREQUENCY].attrs["long_name"] == "my frequency"
+        assert "long_name" not in back[names.POINT].attrs
+        for name, var in ds.variables.items():
+            assert back.variables[name].attrs == var.attrs, name
+    with xr.open_dataset(tmp_path / "b.nc", engine="netcdf4") as raw:
+        assert raw.attrs["history"].splitlines()[0] == "made by hand"
+        assert len(raw.attrs["history"].splitlines()) == 1 + len(provenance.history(second))
+
+
+def test_complex_layout_reads_with_netcdf4_auto_complex(tmp_path, frf_dataset):
+    netCDF4 = pytest.importorskip("netCDF4")
+    if tuple(int(p) for p in netCDF4.__version__.split(".")[:2]) < (1, 7):
+        pytest.skip("auto_complex needs netCDF4 >= 1.7")
+    path = to_netcdf(frf_dataset, tmp_path / "c.nc")
+    with netCDF4.Dataset(path, auto_complex=True) as nc:
+        values = nc[names.FRF][:]
+    assert values.dtype == np.complex128
+    np.testing.assert_array_equal(values, frf_dataset[names.FRF].values)
+    with xr.open_dataset(path, engine="netcdf4", auto_complex=True) as raw:
+        np.testing.assert_array_equal(raw[names.FRF].values, frf_dataset[names.FRF].values)

@@ -1,0 +1,296 @@
+"""CF metadata of the files ami_xr writes: ``Conventions``, ``long_name``, ``units``, flags.
+
+:func:`annotate` runs on every Dataset :func:`ami_xr.io.netcdf.to_netcdf` writes. It only adds
+what is missing (attributes a function set are kept) and never changes a value:
+
+* the global attribute ``Conventions = "CF-1.10"`` (the CF version whose rules the files follow:
+  ``units`` in UDUNITS spelling, ``long_name``, ``history``, ``flag_masks``/``flag_meanings``;
+  nothing of CF 1.11 is used);
+* ``long_name`` on every variable and coordinate (from :data:`LONG_NAMES`, else built from the
+  name: ``ami_`` values are "AMI estimate before refinement: ...", ``*_std`` "standard
+  deviation of ...", others the name in words);
+* ``units`` on every numeric variable and coordinate (from :data:`UNITS`, from the variable a
+  derived one comes from, from the Dataset's force units, or ``"1"`` for counts and labels);
+  string, boolean and flag variables carry none (CF: units are not for strings or flags);
+  ``residual_coefficient`` holds two quantities of different units along ``residual_term``, so
+  it carries ``units_lower`` and ``units_upper`` instead of ``units``;
+* ``quality_flag_mask`` (int32, dims ``mode``): the comma-joined ``quality_flags`` as a CF bit
+  field with ``flag_masks`` and ``flag_meanings`` (:data:`FLAG_MEANINGS`, one bit each, in that
+  order). ``quality_flags`` stays as it was, for compatibility; a flag CF cannot name (not in
+  :data:`FLAG_MEANINGS`) is only in ``quality_flags``.
+
+* the CF global attribute ``history``: one line per ``ami_xr_history`` record (UTC time,
+  function, ami_xr version; :func:`ami_xr.provenance.cf_history`), after any ``history`` text
+  the Dataset already had (from another tool).
+
+These are an on-disk encoding, like the complex pairs: the global attribute ``ami_xr_cf_added``
+(JSON) lists what :func:`annotate` added, and :func:`strip` (run by
+:func:`ami_xr.open_dataset`) removes exactly that, so a file read back is identical to the
+Dataset written and nothing accumulates over read/write cycles. Plain xarray, netCDF4, ncdump
+and CF tools see the metadata.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.provenance import cf_history
+
+__all__ = [
+    "CONVENTIONS",
+    "ATTR_CONVENTIONS",
+    "QUALITY_FLAG_MASK",
+    "FLAG_MEANINGS",
+    "LONG_NAMES",
+    "UNITS",
+    "annotate",
+    "strip",
+    "ATTR_CF_ADDED",
+    "ATTR_UNITS_LOWER",
+    "ATTR_UNITS_UPPER",
+    "flag_mask",
+]
+
+ATTR_CONVENTIONS = "Conventions"
+ATTR_CF_HISTORY = "history"
+ATTR_CF_ADDED = "ami_xr_cf_added"  # JSON: what annotate added (strip removes it on reading)
+CONVENTIONS = "CF-1.10"
+QUALITY_FLAG_MASK = "quality_flag_mask"  # int32 bit field of quality_flags (CF flag_masks)
+ATTR_FLAG_MASKS = "flag_masks"
+ATTR_FLAG_MEANINGS = "flag_meanings"
+# one bit per flag, in this order (bit k = 2**k); never reorder, only append
+FLAG_MEANINGS = (
+    names.FLAG_LOW_DRIVE_SNR,
+    names.FLAG_UNSCALED,
+    names.FLAG_NOT_CONVERGED,
+    names.FLAG_SINGLE_FRF,
+    names.FLAG_REFINE_NOT_CONVERGED,
+    names.FLAG_REFINE_FALLBACK,
+    names.FLAG_ADDED_BY_REFINE,
+)
+
+_ONE = names.DIMENSIONLESS_UNITS
+UNITS = {
+    names.FREQUENCY: names.FREQUENCY_UNITS,
+    names.TIME: names.TIME_UNITS,
+    names.COHERENCE: _ONE,
+    names.EIGENVALUE: names.ANGULAR_UNITS,
+    names.NATURAL_FREQUENCY: names.FREQUENCY_UNITS,
+    names.DAMPING_RATIO: _ONE,
+    names.MPC: _ONE,
+    names.MPD: "degree",
+    names.COMPLEXITY: _ONE,
+    names.MAC: _ONE,
+    names.DRIVE_POINT_SNR: _ONE,
+    names.POINT_SNR: _ONE,
+    names.POINT_EIGENVALUE: names.ANGULAR_UNITS,
+    names.EIGENVALUE_SPREAD: names.ANGULAR_UNITS,
+    names.SUB_EIGENVALUE: names.ANGULAR_UNITS,
+    names.SUB_BAND_LOW: names.FREQUENCY_UNITS,
+    names.SUB_BAND_HIGH: names.FREQUENCY_UNITS,
+    names.SUB_STOP_STATISTIC: _ONE,
+    names.NATURAL_FREQUENCY_ERROR: _ONE,
+    names.DAMPING_RATIO_ERROR: _ONE,
+    names.MODE_VECTOR_ERROR: _ONE,
+    names.RECORD_START: names.TIME_UNITS,
+}
+
+LONG_NAMES = {
+    names.FRF: "frequency response function",
+    names.COHERENCE: "ordinary coherence",
+    names.RESPONSE: "response time history",
+    names.FORCE: "force time history",
+    names.FREQUENCY: "frequency",
+    names.TIME: "time",
+    names.POINT: "measurement point (response degree of freedom)",
+    names.MODE: "mode number",
+    names.MODE_2: "mode number (second index of the MAC matrix)",
+    names.RECORD: "record (hit) number",
+    names.REFERENCE: "excitation point",
+    names.CANDIDATE: "candidate mode of one FRF (subtraction phase)",
+    names.RESIDUAL_TERM: "residual term (lower or upper)",
+    names.EIGENVALUE: "complex eigenvalue -zeta*wn + i*wd",
+    names.NATURAL_FREQUENCY: "undamped natural frequency",
+    names.DAMPING_RATIO: "viscous damping ratio",
+    names.RESIDUE: "modal residue",
+    names.MODE_VECTOR: "mode vector",
+    names.FRF_NOISE_STD: "noise standard deviation of one FRF line",
+    names.NATURAL_FREQUENCY_ERROR: "Cramer-Rao bound: expected relative error of the frequency",
+    names.DAMPING_RATIO_ERROR: "Cramer-Rao bound: expected relative error of the damping ratio",
+    names.MODE_VECTOR_ERROR: "Cramer-Rao bound: expected relative error of the mode vector",
+    names.SUB_EIGENVALUE: "eigenvalue of a candidate mode (subtraction phase)",
+    names.SUB_RESIDUE: "residue of a candidate mode (subtraction phase)",
+    names.SUB_BAND_LOW: "first frequency of the fit band (subtraction phase)",
+    names.SUB_BAND_HIGH: "last frequency of the fit band (subtraction phase)",
+    names.SUB_STOP_REASON: "why the subtraction phase stopped",
+    names.SUB_N_MODES: "number of candidate modes (subtraction phase)",
+    names.DETECTED: "mode detected in this FRF",
+    names.POINT_EIGENVALUE: "eigenvalue of the mode fitted to this FRF alone",
+    names.ISO_ITERATIONS: "isolation phase sweeps",
+    names.ISO_CONVERGED: "isolation phase converged",
+    names.FRF_SYNTHESIZED: "FRF synthesised from the identified modes",
+    names.FRF_RESIDUAL: "measured minus synthesised FRF",
+    names.RESIDUAL_COEFFICIENT: "coefficient of the residual term",
+    names.MAC: "modal assurance criterion",
+    names.DRIVE_POINT_SNR: "peak contribution of the mode at the drive point over the noise floor",
+    names.QUALITY_FLAGS: "quality flags of the mode, comma-separated (empty: none)",
+    QUALITY_FLAG_MASK: "quality flags of the mode as a bit field",
+    names.FORCE_AUTOSPECTRUM: "force autospectrum (one-sided density)",
+    names.RESPONSE_AUTOSPECTRUM: "response autospectrum (one-sided density)",
+    names.CROSS_SPECTRUM: "force-response cross spectrum",
+    names.HIT_REJECTED: "impact hit left out of the average",
+    names.HIT_REJECT_REASON: "why the hit was left out (empty: used)",
+    names.HIT_PEAK_FORCE: "peak force of the hit",
+    names.RECORD_START: "start time of the record",
+}
+for _axis in "xyz":
+    LONG_NAMES[f"{names.POINT}_{_axis}"] = f"{_axis} coordinate of the measurement point"
+
+
+def flag_mask(flags: np.ndarray) -> np.ndarray:
+    """int32 bit field of comma-joined flag strings (bit k: :data:`FLAG_MEANINGS` [k])."""
+    bits = {name: np.int32(1 << k) for k, name in enumerate(FLAG_MEANINGS)}
+    out = np.zeros(np.shape(flags), np.int32)
+    for index, text in np.ndenumerate(np.asarray(flags, dtype=str)):
+        for flag in filter(None, text.split(names.FLAG_SEPARATOR)):
+            out[index] |= bits.get(flag.strip(), np.int32(0))
+    return out
+
+
+def _base(name: str) -> str | None:
+    """The variable a derived one comes from (``ami_residue``, ``residue_std`` -> ``residue``)."""
+    if name.startswith(names.AMI_PREFIX):
+        return name[len(names.AMI_PREFIX) :]
+    if name.endswith("_std") and name != names.FRF_NOISE_STD:
+        return name[: -len("_std")]
+    if name == names.MODE_VECTOR_NORMALISED:
+        return names.MODE_VECTOR
+    return None
+
+
+def _long_name(name: str) -> str:
+    if name in LONG_NAMES:
+        return LONG_NAMES[name]
+    base = _base(name)
+    if base is not None and name.startswith(names.AMI_PREFIX):
+        return f"AMI estimate before refinement: {_long_name(base)}"
+    if base is not None and name.endswith("_std"):
+        return f"standard deviation of the {_long_name(base)}"
+    return name.replace("_", " ")
+
+
+def _units(name: str, var: xr.Variable, ds: xr.Dataset) -> str | None:
+    if name in UNITS:
+        return UNITS[name]
+    base = _base(name)
+    if base is not None and base in ds.variables:
+        units = ds.variables[base].attrs.get(names.ATTR_UNITS)
+        if units is not None:
+            return units
+        if base in UNITS:
+            return UNITS[base]
+    if name == names.HIT_PEAK_FORCE and names.FORCE in ds.variables:
+        return ds.variables[names.FORCE].attrs.get(names.ATTR_UNITS)
+    if var.dtype.kind in "iu":  # counts, mode numbers, integer point labels
+        return _ONE
+    return None
+
+
+# residual_coefficient: the basis of the lower and upper terms is (i w)^(p - 2) and (i w)^p for
+# an FRF of derivative order p (0 receptance, 1 mobility, 2 accelerance), so the coefficients
+# carry the FRF units times these (one units string cannot hold both: see the module docstring)
+_RESIDUAL_UNITS = {
+    0: ("{u} (rad/s)^2", "{u}"),
+    1: ("{u} rad/s", "{u} s/rad"),
+    2: ("{u}", "{u} (s/rad)^2"),
+}
+ATTR_UNITS_LOWER = "units_lower"
+ATTR_UNITS_UPPER = "units_upper"
+
+
+def _residual_units(ds: xr.Dataset) -> dict:
+    frf_units = ds[names.FRF].attrs.get(names.ATTR_UNITS) if names.FRF in ds else None
+    power = names.QUANTITY_POWER.get(ds.attrs.get(names.ATTR_QUANTITY))
+    if not frf_units or power is None:
+        return {}
+    lower, upper = _RESIDUAL_UNITS[power]
+    return {
+        ATTR_UNITS_LOWER: lower.format(u=frf_units),
+        ATTR_UNITS_UPPER: upper.format(u=frf_units),
+    }
+
+
+def annotate(ds: xr.Dataset) -> xr.Dataset:
+    """``ds`` with CF metadata added where missing (see the module docstring); a shallow copy."""
+    out = ds.copy()
+    out.attrs = {k: v for k, v in ds.attrs.items() if k != ATTR_CF_ADDED}
+    added: dict = {"variables": [], "attrs": {}, "global": {}}
+    if names.QUALITY_FLAGS in ds and ds[names.QUALITY_FLAGS].dtype.kind in "US":
+        if QUALITY_FLAG_MASK not in ds.variables:
+            added["variables"].append(QUALITY_FLAG_MASK)
+        flags = ds[names.QUALITY_FLAGS]
+        out[QUALITY_FLAG_MASK] = xr.Variable(
+            flags.dims,
+            flag_mask(flags.values),
+            {
+                ATTR_FLAG_MASKS: np.array([1 << k for k in range(len(FLAG_MEANINGS))], np.int32),
+                ATTR_FLAG_MEANINGS: " ".join(FLAG_MEANINGS),
+            },
+        )
+    for name in list(out.variables):
+        var = out.variables[name]
+        attrs = dict(var.attrs)
+        new = {names.ATTR_LONG_NAME: _long_name(str(name))}
+        if name == names.RESIDUAL_COEFFICIENT:
+            new.update(_residual_units(out))
+        flag = ATTR_FLAG_MASKS in attrs
+        if var.dtype.kind in "iufc" and names.ATTR_UNITS not in attrs and not flag:
+            units = _units(str(name), var, out)
+            if units is not None:
+                new[names.ATTR_UNITS] = units
+        new = {k: v for k, v in new.items() if k not in attrs}
+        if new and name not in added["variables"]:
+            added["attrs"][str(name)] = sorted(new)
+        var.attrs = {**attrs, **new}
+    previous = out.attrs.get(ATTR_CONVENTIONS)
+    conventions = str(previous or "").replace(",", " ").split()
+    kept = [c for c in conventions if not c.startswith("CF-")]
+    out.attrs[ATTR_CONVENTIONS] = " ".join([CONVENTIONS, *kept])
+    added["global"][ATTR_CONVENTIONS] = previous
+    lines = cf_history(ds)
+    if lines:
+        previous = out.attrs.get(ATTR_CF_HISTORY)
+        text = "\n".join(lines)
+        out.attrs[ATTR_CF_HISTORY] = f"{str(previous).rstrip()}\n{text}" if previous else text
+        added["global"][ATTR_CF_HISTORY] = previous
+    out.attrs[ATTR_CF_ADDED] = json.dumps(added)
+    return out
+
+
+def strip(ds: xr.Dataset) -> xr.Dataset:
+    """Inverse of :func:`annotate` on a Dataset read from a file (no-op without the marker)."""
+    raw = ds.attrs.get(ATTR_CF_ADDED)
+    if raw is None:
+        return ds
+    try:
+        added = json.loads(raw)
+        variables = [v for v in added["variables"] if v in ds.variables]
+        out = ds.drop_vars(variables).copy()  # new Variable objects: ds keeps its attrs
+        for name, keys in added["attrs"].items():
+            if name in out.variables:
+                var = out.variables[name]
+                var.attrs = {k: v for k, v in var.attrs.items() if k not in keys}
+        attrs = {k: v for k, v in out.attrs.items() if k != ATTR_CF_ADDED}
+        for key, previous in added["global"].items():
+            if previous is None:
+                attrs.pop(key, None)
+            else:
+                attrs[key] = previous
+    except (TypeError, ValueError, KeyError, AttributeError):
+        return ds  # a damaged marker: keep everything
+    out.attrs = attrs
+    return out
