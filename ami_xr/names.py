@@ -147,6 +147,11 @@ DRIVE_POINT_SNR = "drive_point_snr"  # (mode) drive-point peak contribution / no
 QUALITY_FLAGS = "quality_flags"  # (mode) str, comma-separated flags ("" when none)
 ATTR_AMI_MODEL = "ami_model"  # "discrete" | "continuous": basis used by the phases
 ATTR_AMI_PHASE = "ami_phase"  # last AMI phase run: subtract | isolate | global_fit | identify
+# the phases of identify, as a progress report names them
+PHASE_SUBTRACT = "subtract"
+PHASE_ISOLATE = "isolate"
+PHASE_GLOBAL_FIT = "global_fit"
+PHASE_REFINE = "refine"
 # Settings of the phases, one attribute per setting (ami_xr.ami.settings writes and reads them)
 ATTR_AMI_DELTA = "ami_delta"  # subtract: fit-band level as a fraction of the peak
 ATTR_AMI_PFA = "ami_false_alarm_probability"  # subtract: false-alarm probability of the stop

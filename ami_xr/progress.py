@@ -3,8 +3,11 @@
 One helper, :class:`Progress`, for both kinds of work:
 
 * counted (``total`` given): a bar advanced by :meth:`Progress.update`, e.g. files of a batch;
-* open-ended (``total=None``): one long call with no progress hook of its own (identification),
-  shown as the elapsed time, refreshed from a daemon thread.
+* open-ended (``total=None``): one long call with no progress hook of its own, shown as the
+  elapsed time, refreshed from a daemon thread;
+* phases of one long call (:func:`phases`, used by ``ami_xr.identify(ds, progress=True)``): a
+  counted bar of the phases done, named by the running one, whose elapsed time keeps moving
+  during a long phase; on the command line it appears only after :data:`DELAY_SECONDS`.
 
 tqdm draws the bar when it is installed, a plain line otherwise. Leaving the ``with`` block,
 also by Ctrl-C or an error, stops the thread (it wakes every :data:`TICK_SECONDS`) and closes the
@@ -16,14 +19,31 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from contextlib import contextmanager
 from typing import Any
 
-__all__ = ["MIN_ITEMS", "Progress", "TICK_SECONDS", "elapsed"]
+from ami_xr.errors import AmiXrValueError
 
+__all__ = [
+    "DELAY_SECONDS",
+    "MIN_ITEMS",
+    "PhaseBar",
+    "Progress",
+    "THREAD_NAME",
+    "TICK_SECONDS",
+    "elapsed",
+    "phases",
+]
+
+
+#: Name of the thread that redraws a live bar.
+THREAD_NAME = "ami_xr-progress"
 #: Seconds between refreshes of an open-ended (elapsed-time) line.
 TICK_SECONDS = 0.25
 #: :func:`elapsed` shows its line from this many items on (small jobs finish in a blink).
 MIN_ITEMS = 8
+#: The command line draws a phase bar only once the work has lasted this long (seconds).
+DELAY_SECONDS = 2.0
 
 
 def _tqdm():
@@ -40,23 +60,37 @@ class _PlainBar:
 
     WIDTH = 30
 
-    def __init__(self, total: int, desc: str):
+    def __init__(self, total: int, desc: str, delay: float = 0.0):
         self.total, self.n, self.desc = total, 0, desc
+        self._start, self._delay, self._shown = time.perf_counter(), delay, False
         self._draw()
 
     def _draw(self) -> None:
+        seconds = time.perf_counter() - self._start
+        if seconds < self._delay:
+            return
+        self._shown = True
         done = int(self.WIDTH * self.n / self.total) if self.total else self.WIDTH
         bar = "#" * done + "." * (self.WIDTH - done)
-        sys.stderr.write(f"\r{self.desc}: [{bar}] {self.n}/{self.total}")
+        sys.stderr.write(f"\r{self.desc}: [{bar}] {self.n}/{self.total} {seconds:.1f} s")
         sys.stderr.flush()
 
     def update(self, n: int = 1) -> None:
         self.n += n
         self._draw()
 
+    def refresh(self) -> None:
+        self._draw()
+
+    def set_description_str(self, desc: str, refresh: bool = True) -> None:
+        self.desc = desc
+        if refresh:
+            self._draw()
+
     def close(self) -> None:
-        sys.stderr.write("\n")
-        sys.stderr.flush()
+        if self._shown:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
 
 
 class Progress:
@@ -72,6 +106,11 @@ class Progress:
         Unit of a counted bar (tqdm only).
     enabled : bool, default True
         False shows nothing (the block still runs); so does ``total=0``.
+    delay : float, default 0
+        Show nothing until the block has run this many seconds.
+    live : bool, default False
+        A counted bar is also redrawn every :data:`TICK_SECONDS`, so its elapsed time moves
+        during a long step.
 
     Examples
     --------
@@ -80,22 +119,42 @@ class Progress:
     ...         bar.update()
     """
 
-    def __init__(self, desc: str, *, total: int | None = None, unit: str = "it", enabled=True):
+    def __init__(
+        self,
+        desc: str,
+        *,
+        total: int | None = None,
+        unit: str = "it",
+        enabled=True,
+        delay: float = 0.0,
+        live: bool = False,
+    ):
         self.desc, self.total, self.unit = desc, total, unit
+        self.delay, self.live = float(delay), bool(live)
         self.enabled = bool(enabled) and total != 0
         self._bar: Any = None
+        self._t0 = time.perf_counter()
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
 
     def __enter__(self) -> Progress:
+        self._t0 = time.perf_counter()
         if not self.enabled:
             return self
         tqdm = _tqdm()
         if self.total is not None:
             if tqdm is None:
-                self._bar = _PlainBar(self.total, self.desc)
+                self._bar = _PlainBar(self.total, self.desc, self.delay)
             else:
-                self._bar = tqdm(total=self.total, desc=self.desc, unit=self.unit, file=sys.stderr)
+                self._bar = tqdm(
+                    total=self.total,
+                    desc=self.desc,
+                    unit=self.unit,
+                    file=sys.stderr,
+                    delay=self.delay,
+                )
+            if self.live:
+                self._start_ticking()
             return self
         if tqdm is not None:
             self._bar = tqdm(
@@ -105,12 +164,19 @@ class Progress:
                 bar_format="{desc}: {elapsed}",
                 leave=False,
             )
-        self._thread = threading.Thread(target=self._tick, args=(time.perf_counter(),), daemon=True)
-        self._thread.start()
+        self._start_ticking()
         return self
+
+    def _start_ticking(self) -> None:
+        self._thread = threading.Thread(
+            target=self._tick, args=(time.perf_counter(),), daemon=True, name=THREAD_NAME
+        )
+        self._thread.start()
 
     def _tick(self, start: float) -> None:
         while not self._stop.wait(TICK_SECONDS):
+            if time.perf_counter() - start < self.delay:
+                continue
             if self._bar is not None:
                 self._bar.refresh()
             else:
@@ -121,6 +187,12 @@ class Progress:
         """Advance a counted bar by ``n`` steps (nothing when disabled or open-ended)."""
         if self._bar is not None and self.total is not None:
             self._bar.update(n)
+
+    def describe(self, text: str) -> None:
+        """Name the running step after the label: ``desc (text)``."""
+        if self._bar is not None:
+            shown = time.perf_counter() - self._t0 >= self.delay
+            self._bar.set_description_str(f"{self.desc} ({text})", refresh=shown)
 
     def __exit__(self, *exc: object) -> bool:
         if self._thread is not None:
@@ -140,3 +212,88 @@ def elapsed(desc: str, n_items: int, *, enabled: bool = True) -> Progress:
     :data:`MIN_ITEMS` items on.
     """
     return Progress(desc, enabled=enabled and sys.stderr.isatty() and n_items >= MIN_ITEMS)
+
+
+class PhaseBar:
+    """A ``(phase, done, total)`` callback that draws the phases of one long call as a bar.
+
+    The bar (a live :class:`Progress`, counted in phases) opens at the first call and closes
+    when ``done`` reaches ``total`` or at :meth:`close`. ``delay`` (seconds) keeps short work
+    silent; ``enabled=False`` draws nothing.
+    """
+
+    def __init__(self, desc: str, *, delay: float = 0.0, enabled: bool = True):
+        self.desc, self.delay, self.enabled = desc, float(delay), bool(enabled)
+        self._bar: Progress | None = None
+
+    def __call__(self, phase: str, done: int, total: int) -> None:
+        if not self.enabled:
+            return
+        if self._bar is None:
+            self._bar = Progress(
+                self.desc, total=total, unit="phase", delay=self.delay, live=True
+            ).__enter__()
+            self._n = 0
+        self._bar.describe(phase)
+        self._bar.update(done - self._n)
+        self._n = done
+        if done >= total:
+            self.close()
+
+    def close(self) -> None:
+        """Close the bar (also when the call stopped early)."""
+        if self._bar is not None:
+            self._bar.__exit__(None, None, None)
+            self._bar = None
+
+
+def on_terminal(enabled: bool = True, desc: str = "") -> PhaseBar | bool:
+    """The ``progress`` argument for work started from the command line: a :class:`PhaseBar`
+    that appears after :data:`DELAY_SECONDS` when stderr is a terminal, else False."""
+    if not (enabled and sys.stderr.isatty()):
+        return False
+    return PhaseBar(desc, delay=DELAY_SECONDS)
+
+
+class _Phases:
+    """Reports the start of each named phase of one call: ``report(phase, done, total)`` with
+    ``done`` the phases finished before it; ``("done", total, total)`` at the end."""
+
+    def __init__(self, report, names: list[str]):
+        self.report, self.names, self.done = report, list(names), 0
+
+    def __call__(self, phase: str) -> None:
+        if self.report is not None:
+            self.done = self.names.index(phase)
+            self.report(phase, self.done, len(self.names))
+
+    def finish(self) -> None:
+        if self.report is not None:
+            self.report("done", len(self.names), len(self.names))
+
+
+@contextmanager
+def phases(progress, desc: str, names: list[str]):
+    """Context for a call with the given phases; yields ``step(phase)`` to call as each starts.
+
+    ``progress``: False or None (nothing), True (a :class:`PhaseBar` labelled ``desc`` on
+    stderr, tqdm when installed), or a callable ``(phase, done, total)``. A callback with a
+    ``close`` method (a :class:`PhaseBar`) is closed on leaving, also on an error; the final
+    ``("done", total, total)`` comes only when the call completes.
+    """
+    if progress is True:
+        progress = PhaseBar(desc)
+    elif progress is False or progress is None:
+        progress = None
+    elif not callable(progress):
+        raise AmiXrValueError(
+            f"progress: expected True, False or a callable (phase, done, total), got {progress!r}"
+        )
+    step = _Phases(progress, names)
+    try:
+        yield step
+        step.finish()
+    finally:
+        close = getattr(progress, "close", None)
+        if close is not None:
+            close()

@@ -22,6 +22,7 @@ from ami_xr.core.modal import (
     phase_normalised,
 )
 from ami_xr.errors import IdentificationError
+from ami_xr.progress import phases
 
 METHODS = (*ISOLATE_METHODS, names.METHOD_PAPER)
 
@@ -127,6 +128,7 @@ def identify(
     pfa: float = SubtractSettings.pfa,
     max_modes: int = SubtractSettings.max_modes,
     zeta_max: float = SubtractSettings.zeta_max,
+    progress=False,
 ) -> xr.Dataset:
     """Identify modes: :func:`subtract`, :func:`isolate`, :func:`global_fit` and, by default,
     the maximum-likelihood refinement :func:`ami_xr.ami.refine.refine`.
@@ -148,6 +150,12 @@ def identify(
         See :func:`ami_xr.isolate`.
     band, residual_terms :
         See :func:`ami_xr.global_fit`.
+    progress : bool or callable, default False
+        True draws a bar of the phases (subtract, isolate, global_fit, refine) on stderr,
+        labelled with the numbers of FRFs and lines, its elapsed time moving during a long phase
+        (tqdm when installed, a plain line otherwise). A callable is called as
+        ``progress(phase, done, total)`` when each phase starts (``done`` phases finished) and
+        ``progress("done", total, total)`` at the end. Never changes the results.
 
     Returns
     -------
@@ -185,21 +193,29 @@ def identify(
     peak = np.abs(ds[names.FRF]).max(skipna=False).values
     scale = float(power_of_two_scale(peak))
     work = ds if scale == 1.0 else ds.assign({names.FRF: ds[names.FRF] * scale})
-    out = subtract(work, delta, pfa=pfa, max_modes=max_modes, model=model, zeta_max=zeta_max)
-    out = isolate(
-        out,
-        tol,
-        max_iter,
-        method=names.METHOD_PER_FRF if paper else method,
-        weighting=names.WEIGHTING_MEAN if paper else IsolateSettings.weighting,
-    )
-    if out.sizes.get(names.MODE, 0) == 0:
-        result = out
-    else:
-        out = global_fit(out, band=band, residual_terms=residual_terms)
-        if fn is not None:
-            out = fn(out)
-        result = out
+    steps = [names.PHASE_SUBTRACT, names.PHASE_ISOLATE, names.PHASE_GLOBAL_FIT]
+    steps += [names.PHASE_REFINE] if fn is not None else []
+    label = f"identify: {ds.sizes.get(names.POINT, 0)} FRFs x {ds.sizes[names.FREQUENCY]} lines"
+    with phases(progress, label, steps) as step:
+        step(names.PHASE_SUBTRACT)
+        out = subtract(work, delta, pfa=pfa, max_modes=max_modes, model=model, zeta_max=zeta_max)
+        step(names.PHASE_ISOLATE)
+        out = isolate(
+            out,
+            tol,
+            max_iter,
+            method=names.METHOD_PER_FRF if paper else method,
+            weighting=names.WEIGHTING_MEAN if paper else IsolateSettings.weighting,
+        )
+        if out.sizes.get(names.MODE, 0) == 0:
+            result = out
+        else:
+            step(names.PHASE_GLOBAL_FIT)
+            out = global_fit(out, band=band, residual_terms=residual_terms)
+            if fn is not None:
+                step(names.PHASE_REFINE)
+                out = fn(out)
+            result = out
     if scale != 1.0:
         result = _unscale(result, ds, scale)
     beta = float(ds.attrs.get(names.ATTR_EXP_DECAY, 0.0) or 0.0)
