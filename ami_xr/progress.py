@@ -278,11 +278,14 @@ def phases(progress, desc: str, names: list[str]):
 
     ``progress``: False or None (nothing), True (a :class:`PhaseBar` labelled ``desc`` on
     stderr, tqdm when installed), or a callable ``(phase, done, total)``. A callback with a
-    ``close`` method (a :class:`PhaseBar`) is closed on leaving, also on an error; the final
+    ``close`` method (a :class:`PhaseBar`) is closed on leaving, also on an error (a
+    :class:`PhaseBar` without a label takes ``desc``); the final
     ``("done", total, total)`` comes only when the call completes.
     """
     if progress is True:
         progress = PhaseBar(desc)
+    elif isinstance(progress, PhaseBar) and not progress.desc:
+        progress.desc = desc  # e.g. on_terminal(): the call knows what it works on
     elif progress is False or progress is None:
         progress = None
     elif not callable(progress):

@@ -127,3 +127,13 @@ def test_live_bar_redraws_during_a_long_step(monkeypatch, capsys):
     # drawn at the start, at each update, and by the ticker in between
     assert err.count("\r") > 3
     assert "1/2" in err and "2/2" in err and " s" in err
+
+
+def test_cli_bar_takes_the_label_of_the_work(frf, capsys, monkeypatch):
+    # what the CLI passes: on_terminal() -> an unlabelled PhaseBar (here without the delay)
+    monkeypatch.setattr(pg, "DELAY_SECONDS", 0.0)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ami_xr.identify(frf, progress=pg.on_terminal(True))
+    assert "identify: 5 FRFs x 400 lines" in capsys.readouterr().err
