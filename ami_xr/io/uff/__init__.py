@@ -9,7 +9,11 @@ What is read
   (time response) a time Dataset; coherence records (function type 6) of an FRF file become the
   ``coherence`` variable.
 * Dataset 55 (complex mode shapes, analysis type 3) becomes a modal Dataset with ``eigenvalue``,
-  ``natural_frequency``, ``damping_ratio`` and ``mode_vector``.
+  ``natural_frequency``, ``damping_ratio`` and ``mode_vector``. When the file also holds FRFs
+  (an exported identification result), the modes are added to the FRF Dataset, so ``ami-xr
+  convert result.uff result.nc`` keeps them; mode shapes without a value at every FRF point
+  are left out with a warning (attribute ``uff_modes_skipped``; read them with
+  ``kind="modes"``).
 * Datasets 15 and 2411 (node coordinates), when present, give the ``point_x``, ``point_y`` and
   ``point_z`` coordinates of every point on a known node.
 
@@ -50,9 +54,19 @@ is used, so ``dt = 1/1024 s`` or ``df = 1/60 Hz`` survive a round trip.
 Units
 -----
 The response quantity comes from the ordinate's specific data type (8 displacement, 11 velocity,
-12 acceleration) and the force from the denominator (13 excitation force, 9 reaction force). Unit
-labels in the file (``"m/s^2"``, ``"g"``, ``"N"``, ...) are used when they are ones ami_xr knows;
-otherwise SI units are assumed (m, m/s, m/s^2, N) and the attribute ``uff_units_assumed`` says so.
+12 acceleration) and the force from the denominator (13 excitation force, 9 reaction force). For
+the response and the force separately:
+
+1. a unit label ami_xr knows (``"m/s^2"``, ``"g"``, ``"N"``, ..., case-insensitive) is used as
+   it is: a file in g gives an FRF in ``g/N``, values unchanged;
+2. otherwise, when the file has a units dataset 164, its length and force factors give the
+   units: the values are converted to SI (SI = file value / factor, as the UFF specification
+   defines the factors) and the attribute ``uff_units_scaled`` says how;
+3. otherwise SI units are assumed (m, m/s, m/s^2, N): a warning says so on the terminal and the
+   attribute ``uff_units_assumed`` records it.
+
+Coherence records (function type 6) are written dimensionless: ordinate label ``"1"``, no
+denominator.
 """
 
 from ami_xr.io.uff.codes import parse_point_label, point_label

@@ -6,6 +6,7 @@ See :mod:`ami_xr.io.uff` for the mapping to ami_xr Datasets.
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -13,7 +14,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from ami_xr import names
+from ami_xr import errors, names
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.uff.codes import (
     FUNC_COHERENCE,
@@ -24,12 +25,19 @@ from ami_xr.io.uff.codes import (
     SI_UNITS,
     SPEC_FORCE,
     SPEC_TO_QUANTITY,
+    dof_map,
     parse_point_label,
     point_label,
     require_pyuff,
 )
 
-__all__ = ["read_uff"]
+__all__ = ["read_uff", "ATTR_UNITS_ASSUMED", "ATTR_UNITS_SCALED", "ATTR_MODES_SKIPPED"]
+
+ATTR_UNITS_ASSUMED = "uff_units_assumed"  # why SI units were assumed (no usable unit labels)
+ATTR_UNITS_SCALED = "uff_units_scaled"  # how values were converted to SI by dataset 164
+ATTR_MODES_SKIPPED = "uff_modes_skipped"  # why dataset-55 modes were not merged with the FRFs
+# the warning class for assumptions (AssumptionWarning where ami_xr.errors has it)
+_ASSUMPTION = getattr(errors, "AssumptionWarning", errors.AmiXrWarning)
 
 
 def _label_of(record: dict, which: str) -> Any:
@@ -46,14 +54,63 @@ def _label_of(record: dict, which: str) -> Any:
 
 # --- units -----------------------------------------------------------------------------------
 def _unit_label(raw: Any, allowed: Sequence[str]) -> str | None:
+    """The known unit a label names (case-insensitive: ``"G"`` is ``"g"``), else None."""
     text = str(raw or "").strip()
     if not text or text.upper() == "NONE":
         return None
     text = KNOWN_UNIT_ALIASES.get(text.lower(), text)
-    return text if text in allowed else None
+    by_lower = {a.lower(): a for a in allowed}
+    return text if text in allowed else by_lower.get(text.lower())
 
 
-def _quantity_and_units(record: dict, path: Path) -> tuple[str, str, str, bool]:
+class _System:
+    """Dataset 164 of a file: factors that convert its length and force units to SI
+    (SI value = file value / factor, as the UFF specification defines them)."""
+
+    def __init__(self, record: dict | None):
+        self.given = record is not None
+        record = record or {}
+        self.length = float(record.get("length", 1.0) or 1.0)
+        self.force = float(record.get("force", 1.0) or 1.0)
+        self.name = str(record.get("units_description", "") or "").strip() or (
+            f"units code {record.get('units_code', '?')}"
+        )
+
+    @property
+    def is_si(self) -> bool:
+        return np.isclose(self.length, 1.0, rtol=1e-6) and np.isclose(self.force, 1.0, rtol=1e-6)
+
+    def scaled(self, length: bool) -> str:
+        factor = self.length if length else self.force
+        what = "length" if length else "force"
+        return f"{what} / {factor:.10g} (dataset 164: {self.name})"
+
+
+def _units_system(sets: list[dict]) -> _System:
+    found = [s for s in sets if s.get("type") == 164]
+    return _System(found[0] if found else None)
+
+
+def _part(raw: Any, allowed, si: str, is_length: bool, system: _System, part: str):
+    """(units, scale to SI, why assumed or "", how scaled or "") of one side of a record."""
+    raw = str(raw or "").strip()
+    label = _unit_label(raw, allowed)
+    if label is not None:
+        return label, 1.0, "", ""
+    if system.given:
+        factor = system.length if is_length else system.force
+        how = "" if system.is_si else f"{part} {system.scaled(is_length)}"
+        return si, 1.0 / factor, "", how
+    shown = f"unknown unit label {raw!r}" if raw and raw.upper() != "NONE" else "no label"
+    return si, 1.0, f"{part} in {si} ({shown})", ""
+
+
+def _quantity_and_units(record: dict, path: Path, system: _System | None = None):
+    """(quantity, response units, force units, why assumed or "", scale to SI of the response
+    and of the force, how they were scaled or "") of a dataset-58 record.
+
+    A known unit label wins; without one, dataset 164 (when present) gives the units and the
+    values are scaled to SI; without both, SI is assumed and the reason is returned."""
     spec = int(record.get("ordinate_spec_data_type", 0))
     if spec not in SPEC_TO_QUANTITY:
         raise DataFileError(
@@ -62,10 +119,44 @@ def _quantity_and_units(record: dict, path: Path) -> tuple[str, str, str, bool]:
             "12 (acceleration)"
         )
     quantity = SPEC_TO_QUANTITY[spec]
-    resp = _unit_label(record.get("ordinate_axis_units_lab"), names.RESPONSE_UNITS[quantity])
-    force = _unit_label(record.get("orddenom_axis_units_lab"), names.FORCE_UNITS)
-    assumed = resp is None or force is None
-    return quantity, resp or SI_UNITS[quantity], force or "N", assumed
+    system = system or _System(None)
+    resp = _part(
+        record.get("ordinate_axis_units_lab"),
+        names.RESPONSE_UNITS[quantity],
+        SI_UNITS[quantity],
+        True,
+        system,
+        "response",
+    )
+    force = _part(
+        record.get("orddenom_axis_units_lab"), names.FORCE_UNITS, "N", False, system, "force"
+    )
+    out = {"response": resp[:2], "force": force[:2]}
+    assumed = [p[2] for p in (resp, force) if p[2]]
+    scaled = [p[3] for p in (resp, force) if p[3]]
+    why = ""
+    if assumed:
+        why = (
+            "the file gives no usable unit label and no units dataset (164); assumed SI: "
+            + ", ".join(assumed)
+        )
+    return (
+        quantity,
+        out["response"][0],
+        out["force"][0],
+        why,
+        out["response"][1],
+        out["force"][1],
+        "; ".join(scaled),
+    )
+
+
+def _tell_assumed(path: Path, why: str) -> None:
+    warnings.warn(
+        f"{path.name}: {why}; check the FRF units (attribute {ATTR_UNITS_ASSUMED})",
+        _ASSUMPTION,
+        stacklevel=4,
+    )
 
 
 def _abscissa(record: dict) -> np.ndarray:
@@ -234,23 +325,29 @@ def _check_same_grid(records: list[dict], grids: list[np.ndarray], path: Path, w
             )
 
 
-def _read_frf(frfs: list[dict], coh: list[dict], coords: dict, path: Path) -> xr.Dataset:
+def _read_frf(
+    frfs: list[dict], coh: list[dict], coords: dict, path: Path, system: _System
+) -> xr.Dataset:
     labels, drive, layout = _single_reference(frfs, path)
     if len(set(labels)) != len(labels):
         raise DataFileError(
             f"{path}: the FRF records repeat a DOF ({labels}); expected one per point"
         )
-    quantities = {_quantity_and_units(r, path)[:3] for r in frfs}
+    units = [_quantity_and_units(r, path, system) for r in frfs]
+    quantities = {u[:3] + u[4:6] for u in units}
     if len(quantities) != 1:
         raise DataFileError(
             f"{path}: the FRFs mix response quantities or units {sorted(quantities)}; expected one"
         )
-    quantity, resp_units, force_units = quantities.pop()
-    assumed = any(_quantity_and_units(r, path)[3] for r in frfs)
+    quantity, resp_units, force_units, resp_scale, force_scale = quantities.pop()
+    assumed = next((u[3] for u in units if u[3]), "")
+    scaled = next((u[6] for u in units if u[6]), "")
     grids = [_abscissa(r) for r in frfs]
     _check_same_grid(frfs, grids, path, "FRF")
     freq = grids[0]
     data = np.stack([np.asarray(r["data"], dtype=np.complex128) for r in frfs])
+    if resp_scale != 1.0 or force_scale != 1.0:
+        data = data * (resp_scale / force_scale)
     label_nodes = {}
     for r, lab in zip(frfs, labels, strict=True):
         key = "ref" if layout.startswith("roving") else "rsp"
@@ -283,7 +380,10 @@ def _read_frf(frfs: list[dict], coh: list[dict], coords: dict, path: Path) -> xr
         },
     )
     if assumed:
-        ds.attrs["uff_units_assumed"] = "the file gives no known unit labels; SI units assumed"
+        ds.attrs[ATTR_UNITS_ASSUMED] = assumed
+        _tell_assumed(path, assumed)
+    if scaled:
+        ds.attrs[ATTR_UNITS_SCALED] = f"values converted to SI: {scaled}"
     if coh:
         coh_labels, _, _ = _single_reference(coh, path)
         coh_labels = _mixed_labels_to_str(coh_labels)
@@ -301,7 +401,7 @@ def _read_frf(frfs: list[dict], coh: list[dict], coords: dict, path: Path) -> xr
     return _attach_coordinates(ds, coords, label_nodes)
 
 
-def _read_time(records: list[dict], coords: dict, path: Path) -> xr.Dataset:
+def _read_time(records: list[dict], coords: dict, path: Path, system: _System) -> xr.Dataset:
     force_recs = [r for r in records if int(r.get("ordinate_spec_data_type", 0)) in SPEC_FORCE]
     resp_recs = [r for r in records if r not in force_recs]
     if not resp_recs:
@@ -311,15 +411,31 @@ def _read_time(records: list[dict], coords: dict, path: Path) -> xr.Dataset:
     time = grids[0]
     cases = sorted({int(r.get("load_case_id", 0)) for r in records})
     labels = list(dict.fromkeys(_label_of(r, "rsp") for r in resp_recs))
-    quantities = {_quantity_and_units(r, path)[:2] for r in resp_recs}
+    quantities = {_quantity_and_units(r, path, system)[:2] for r in resp_recs}
     if len(quantities) != 1:
         raise DataFileError(f"{path}: the responses mix quantities or units {sorted(quantities)}")
     quantity, resp_units = quantities.pop()
-    force_units = (
-        _unit_label(force_recs[0].get("ordinate_axis_units_lab"), names.FORCE_UNITS)
-        if force_recs
-        else None
+    resp_part = _part(
+        resp_recs[0].get("ordinate_axis_units_lab"),
+        names.RESPONSE_UNITS[quantity],
+        SI_UNITS[quantity],
+        True,
+        system,
+        "response",
     )
+    force_part = (
+        _part(
+            force_recs[0].get("ordinate_axis_units_lab"),
+            names.FORCE_UNITS,
+            "N",
+            False,
+            system,
+            "force",
+        )
+        if force_recs
+        else ("N", 1.0, "", "")
+    )
+    force_units = force_part[0]
     resp = np.full((len(cases), len(labels), time.size), np.nan)
     for r in resp_recs:
         resp[cases.index(int(r.get("load_case_id", 0))), labels.index(_label_of(r, "rsp"))] = (
@@ -327,6 +443,8 @@ def _read_time(records: list[dict], coords: dict, path: Path) -> xr.Dataset:
         )
     if np.isnan(resp).any():
         raise DataFileError(f"{path}: not every response DOF has a record for every load case")
+    if resp_part[1] != 1.0:
+        resp = resp * resp_part[1]
     labels_out = _mixed_labels_to_str(labels)
     dims = (names.RECORD, names.POINT, names.TIME)
     ds = xr.Dataset(
@@ -338,7 +456,7 @@ def _read_time(records: list[dict], coords: dict, path: Path) -> xr.Dataset:
         attrs={
             names.ATTR_QUANTITY: quantity,
             names.ATTR_RESPONSE_UNITS: resp_units,
-            names.ATTR_FORCE_UNITS: force_units or "N",
+            names.ATTR_FORCE_UNITS: force_units,
             names.ATTR_SOURCE_FILE: path.name,
         },
     )
@@ -356,19 +474,26 @@ def _read_time(records: list[dict], coords: dict, path: Path) -> xr.Dataset:
             )
         if np.isnan(force).any():
             raise DataFileError(f"{path}: a load case has no force record")
+        if force_part[1] != 1.0:
+            force = force * force_part[1]
         ds[names.FORCE] = (
             (names.RECORD, names.TIME),
             force,
-            {names.ATTR_UNITS: force_units or "N"},
+            {names.ATTR_UNITS: force_units},
         )
         drive = drives.pop()
         ds.attrs[names.ATTR_DRIVE_POINT] = str(drive) if isinstance(labels_out[0], str) else drive
-    if (
-        force_units is None
-        or _unit_label(resp_recs[0].get("ordinate_axis_units_lab"), names.RESPONSE_UNITS[quantity])
-        is None
-    ):
-        ds.attrs["uff_units_assumed"] = "the file gives no known unit labels; SI units assumed"
+    assumed = [p[2] for p in (resp_part, force_part) if p[2]]
+    if assumed:
+        why = (
+            "the file gives no usable unit label and no units dataset (164); assumed SI: "
+            + ", ".join(assumed)
+        )
+        ds.attrs[ATTR_UNITS_ASSUMED] = why
+        _tell_assumed(path, why)
+    scaled = [p[3] for p in (resp_part, force_part) if p[3]]
+    if scaled:
+        ds.attrs[ATTR_UNITS_SCALED] = "values converted to SI: " + "; ".join(scaled)
     if len(cases) == 1:
         ds = ds.isel({names.RECORD: 0}, drop=True)
     label_nodes = {lab: parse_point_label(lab)[0] for lab in labels_out if parse_point_label(lab)}
@@ -417,7 +542,60 @@ def _read_modes(modes: list[dict], coords: dict, path: Path) -> xr.Dataset:
     )
 
 
-def read_uff(path: str | os.PathLike, *, kind: str | None = None) -> xr.Dataset:
+def _modal_variables(modes: list[dict], vectors: np.ndarray) -> dict:
+    eig = np.array([complex(m.get("eig", np.nan)) for m in modes], dtype=np.complex128)
+    wn = np.abs(eig)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        zeta = -eig.real / wn
+    return {
+        names.EIGENVALUE: (names.MODE, eig, {names.ATTR_UNITS: names.ANGULAR_UNITS}),
+        names.NATURAL_FREQUENCY: (
+            names.MODE,
+            wn / (2 * np.pi),
+            {names.ATTR_UNITS: names.FREQUENCY_UNITS},
+        ),
+        names.DAMPING_RATIO: (names.MODE, zeta, {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}),
+        names.MODE_VECTOR: ((names.POINT, names.MODE), vectors),
+    }
+
+
+def _with_modes(ds: xr.Dataset, modes: list[dict], path: Path) -> xr.Dataset:
+    """The FRF Dataset with the dataset-55 modes at its points (the mapping of
+    :func:`ami_xr.io.uff.write_uff`: component ``|direction|`` of the point's node, sign flipped
+    for a negative direction, Z for a scalar DOF). Modes that miss a point are not merged: a
+    warning and the attribute ``uff_modes_skipped`` say so."""
+    labels = ds[names.POINT].values.tolist()
+    dof = dof_map(labels)
+    vectors = np.zeros((len(labels), len(modes)), dtype=np.complex128)
+    missing = []
+    for k, m in enumerate(modes):
+        nodes = [int(n) for n in m["node_nums"]]
+        for i, lab in enumerate(labels):
+            node, direction, _ = dof[lab]
+            axis = abs(direction) if direction != 0 else 3
+            values = m.get(f"r{axis}")
+            if values is None or node not in nodes:
+                missing.append(lab)
+                continue
+            sign = -1.0 if direction < 0 else 1.0
+            vectors[i, k] = sign * np.asarray(values)[nodes.index(node)]
+    if missing:
+        why = (
+            f"{len(modes)} mode shape(s) (dataset 55) not merged with the FRFs: no value at "
+            f"point(s) {sorted(set(map(str, missing)))}; read them with read_uff(path, "
+            "kind='modes')"
+        )
+        warnings.warn(f"{path.name}: {why}", _ASSUMPTION, stacklevel=3)
+        return ds.assign_attrs({ATTR_MODES_SKIPPED: why})
+    mode_labels = [int(m.get("mode_n", k + 1)) for k, m in enumerate(modes)]
+    if len(set(mode_labels)) != len(mode_labels):
+        mode_labels = list(range(1, len(modes) + 1))
+    return ds.assign_coords({names.MODE: mode_labels}).assign(_modal_variables(modes, vectors))
+
+
+def read_uff(
+    path: str | os.PathLike, *, kind: str | None = None, merge_modes: bool = True
+) -> xr.Dataset:
     """Read a UFF file into an ami_xr Dataset.
 
     Parameters
@@ -427,6 +605,12 @@ def read_uff(path: str | os.PathLike, *, kind: str | None = None) -> xr.Dataset:
     kind : {None, "frf", "time", "modes"}
         What to read when the file holds several kinds; by default FRFs if there are any, else
         time histories, else mode shapes.
+    merge_modes : bool
+        When FRFs are read and the file also holds mode shapes (dataset 55, as
+        :func:`write_uff` writes an identification result), add them to the FRF Dataset:
+        ``eigenvalue``, ``natural_frequency``, ``damping_ratio`` (dims ``mode``) and
+        ``mode_vector`` (``point``, ``mode``). Mode shapes without a value at every FRF point
+        are left out with a warning (attribute ``uff_modes_skipped``).
 
     Returns
     -------
@@ -462,10 +646,13 @@ def read_uff(path: str | os.PathLike, *, kind: str | None = None) -> xr.Dataset:
             )
     elif not found[kind]:
         raise DataFileError(f"{path}: the file holds no {kind} dataset")
+    system = _units_system(sets)
     if kind == "frf":
-        ds = _read_frf(frfs, cohs, coords, path)
+        ds = _read_frf(frfs, cohs, coords, path, system)
+        if modes and merge_modes:
+            ds = _with_modes(ds, modes, path)
     elif kind == "time":
-        ds = _read_time(times, coords, path)
+        ds = _read_time(times, coords, path, system)
     else:
         ds = _read_modes(modes, coords, path)
     return _validated(ds)

@@ -113,6 +113,10 @@ def check_writable(ds: xr.Dataset, include: Sequence[str]) -> None:
         raise SchemaError(problems, what="Dataset to write as UFF")
 
 
+# coherence records: dimensionless ordinate (UDUNITS "1"), no denominator
+COHERENCE_UNITS = "1"
+
+
 def _units_lab(text: str) -> str:
     return text if text else "NONE"
 
@@ -127,6 +131,8 @@ def _frf_records(ds: xr.Dataset, binary: bool) -> list[dict]:
     step = np.diff(freq)
     uniform = freq.size > 1 and np.allclose(step, step[0], rtol=1e-9)
     ref_node, ref_dir, ref_tag = dof[drive] if drive is not None else (0, 0, "NONE")
+    response_units = _units_lab(ds.attrs.get(names.ATTR_RESPONSE_UNITS, ""))
+    force_units = _units_lab(ds.attrs.get(names.ATTR_FORCE_UNITS, ""))
     records = []
     variables = [(names.FRF, FUNC_FRF)]
     if names.COHERENCE in ds:
@@ -162,9 +168,9 @@ def _frf_records(ds: xr.Dataset, binary: bool) -> list[dict]:
                     abscissa_spec_data_type=SPEC_FREQUENCY,
                     abscissa_axis_units_lab="Hz",
                     ordinate_spec_data_type=QUANTITY_TO_SPEC[quantity] if func == FUNC_FRF else 0,
-                    ordinate_axis_units_lab=_units_lab(ds.attrs.get(names.ATTR_RESPONSE_UNITS, "")),
+                    ordinate_axis_units_lab=response_units if func == FUNC_FRF else COHERENCE_UNITS,
                     orddenom_spec_data_type=13 if func == FUNC_FRF else 0,
-                    orddenom_axis_units_lab=_units_lab(ds.attrs.get(names.ATTR_FORCE_UNITS, "")),
+                    orddenom_axis_units_lab=force_units if func == FUNC_FRF else "NONE",
                     data=data,
                     x=freq,
                 )
