@@ -478,7 +478,15 @@ def open_dataset(
         if time_axis is not None:
             ds = ds.assign_coords(time_axis)
         ds = strip(ds)  # the CF metadata to_netcdf added is an on-disk encoding
-    except (OSError, RuntimeError, ValueError, KeyError, IndexError, TypeError) as err:
+    except (
+        OSError,
+        RuntimeError,
+        ValueError,
+        KeyError,
+        IndexError,
+        TypeError,
+        AttributeError,
+    ) as err:
         raise DataFileError(
             f"{path}: cannot read it as a netCDF file (truncated, corrupt or not netCDF?): "
             f"{type(err).__name__}: {err}"

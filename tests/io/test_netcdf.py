@@ -616,3 +616,16 @@ def test_failing_lazy_write_never_leaves_workers_writing_to_a_closed_file(tmp_pa
     xr.testing.assert_identical(
         ami_xr.open_dataset(tmp_path / "after.nc")[names.FRF], frf_dataset[names.FRF]
     )
+
+
+def test_corrupt_attribute_is_a_data_file_error_naming_the_file(tmp_path, frf_dataset, monkeypatch):
+    # A flipped byte in an attribute makes netCDF4's ncattrs raise AttributeError ("NetCDF:
+    # Can't open HDF5 attribute", found by scripts/fault_campaign.py): it must name the file.
+    path = to_netcdf(frf_dataset, tmp_path / "frf.nc")
+
+    def corrupt(*args, **kwargs):
+        raise AttributeError("NetCDF: Can't open HDF5 attribute")
+
+    monkeypatch.setattr(xr, "open_dataset", corrupt)
+    with pytest.raises(DataFileError, match=r"frf\.nc: cannot read it as a netCDF file"):
+        open_dataset(path)
