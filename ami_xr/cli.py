@@ -82,10 +82,16 @@ PATHS: dict[str, tuple[tuple[str, ...], tuple[tuple[str, str], ...]]] = {
 
 
 class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
-    """Show defaults (unless the help states its own) and keep the description's line breaks."""
+    """Show defaults (unless the help states its own) and keep the description's line breaks.
+
+    No "(default: None)": a required option has no default, and an option whose default is None
+    (unset: the library or the excitation decides) says in its help what happens.
+    """
 
     def _get_help_string(self, action):
         if "(default:" in (action.help or ""):
+            return action.help
+        if action.required or value(action.default) is None:
             return action.help
         return super()._get_help_string(action)
 
@@ -134,6 +140,8 @@ def check_paths(args: argparse.Namespace) -> None:
 def _add_output(
     p: argparse.ArgumentParser, what: str, required: bool = True, default: Any = None
 ) -> None:
+    if required:  # no default to show: argparse refuses the command without it
+        default = argparse.SUPPRESS
     p.add_argument("-o", "--output", required=required, default=default, metavar="PATH", help=what)
 
 
@@ -193,14 +201,30 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _force_channel(text: str | None) -> int | str | None:
+    """``--force-channel``: a column index when it is a number, else a column title."""
+    return int(text) if text is not None and text.strip().isdigit() else text
+
+
 def _cmd_frf(args: argparse.Namespace) -> int:
     import ami_xr
     from ami_xr import names
-    from ami_xr.batch import estimate_frf
+    from ami_xr.dsp.frf import frf_from_options
+    from ami_xr.dsp.timeseries import excitation_of
     from ami_xr.io.formats import read_any
 
+    reader = {
+        "force_channel": _force_channel(args.force_channel),
+        "points": [p.strip() for p in args.points.split(",")] if args.points else None,
+        "drive_point": args.drive_point,
+    }
+    ts = read_any(args.input, **reader)
     options = frf_options(args)
-    g = estimate_frf(read_any(args.input), options)
+    if "excitation" not in options:  # auto: the rule ami_xr.frf_from_options applies too
+        options["excitation"] = excitation_of(ts)
+        why = "the force is a short pulse" if options["excitation"] == "impact" else "it is not"
+        _say(f"excitation: {options['excitation']} ({why}; --excitation sets it)")
+    g = frf_from_options(ts, options)
     if names.HIT_REJECTED in g:  # impact test: say which hits were left out and why
         rejected = g[names.HIT_REJECTED].values.astype(bool)
         reason = names.HIT_REJECT_REASON
@@ -209,7 +233,8 @@ def _cmd_frf(args: argparse.Namespace) -> int:
         for i in range(rejected.size):
             if rejected[i]:
                 _say(f"  hit {i} rejected: {reasons[i]}")
-    ami_xr.to_netcdf(g, args.output, function="ami_xr.frf", parameters=options)
+    given = {k: v for k, v in reader.items() if v is not None}
+    ami_xr.to_netcdf(g, args.output, function="ami_xr.frf", parameters={**given, **options})
     _say(_wrote_frfs(g, args.output))
     return EXIT_OK
 
@@ -351,7 +376,7 @@ def _add_simulate(add) -> None:
         "--truth-output",
         default=None,
         metavar="PATH",
-        help="also write the exact modal parameters to this netCDF file",
+        help="also write the exact modal parameters to this netCDF file (default: not written)",
     )
     g = p.add_argument_group("beam-absorbers options")
     g.add_argument(
@@ -364,7 +389,8 @@ def _add_simulate(add) -> None:
         "--time-output",
         default=None,
         metavar="PATH",
-        help="also write the impulse responses [m per N s] to this netCDF file",
+        help="also write the impulse responses [m per N s] to this netCDF file (default: not "
+        "written)",
     )
     g = p.add_argument_group("random options")
     g.add_argument(
@@ -404,6 +430,26 @@ def _add_file_commands(add) -> None:
     )
     p.add_argument("input", help="time-history file (.nc, .uff, .lvm)")
     _add_output(p, "FRF netCDF file to write")
+    g = p.add_argument_group("channels (what the file does not say)")
+    g.add_argument(
+        "--force-channel",
+        metavar="INDEX_OR_TITLE",
+        help=".lvm: the force channel, by column index (0 = first) or title (default: the "
+        "channel with a force unit (N, kN, lbf) or 'force' in its title)",
+    )
+    g.add_argument(
+        "--points",
+        metavar="LABELS",
+        help=".lvm: comma-separated labels of the response channels, in file order (default: "
+        "their column titles)",
+    )
+    g.add_argument(
+        "--drive-point",
+        metavar="LABEL",
+        help="label of the response point where the force acts (default: the file's; for .lvm "
+        "the single response channel, reported as an assumption and recorded as "
+        "drive_point_assumed)",
+    )
     add_frf_options(p)
     p.set_defaults(func=_cmd_frf)
 
@@ -418,7 +464,7 @@ def _add_file_commands(add) -> None:
     _add_output(
         p,
         "result file to write (.nc: FRFs + modal results; .uff: FRFs as dataset "
-        "58 and mode shapes as dataset 55); omit to only print the table",
+        "58 and mode shapes as dataset 55) (default: none, only print the table)",
         required=False,
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

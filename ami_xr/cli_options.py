@@ -138,35 +138,41 @@ FRF_OPTIONS = (
         "--window",
         None,
         str,
-        "Welch window for random excitation (hann, boxcar, flattop, ...); default hann",
+        "Welch window for random excitation (hann, boxcar, flattop, ...) (default: hann)",
     ),
     (
         "--nperseg",
         None,
         int,
-        "segment length [samples]; default that of ami_xr.frf (random) or the whole record "
-        "(impact)",
+        "segment length [samples] (default: that of ami_xr.frf (random), the whole record "
+        "(impact))",
     ),
     (
         "--noverlap",
         None,
         int,
-        "segment overlap [samples]; default nperseg // 2 (random), 0 (impact)",
+        "segment overlap [samples] (default: nperseg // 2 (random), 0 (impact))",
     ),
-    ("--nfft", None, int, "FFT length [samples]; default nperseg"),
+    ("--nfft", None, int, "FFT length [samples] (default: nperseg)"),
     (
         "--detrend",
         None,
         ("constant", "linear", "none"),
-        "detrend of each segment; default constant (random), none (impact)",
+        "detrend of each segment (default: constant (random), none (impact))",
     ),
-    ("--average", FRF, ("linear", "exponential"), "averaging over segments or hits"),
+    (
+        "--average",
+        FRF,
+        ("linear", "exponential"),
+        "averaging over segments or hits: linear (plain mean) or exponential (running, time "
+        "constant --n-average); not scipy.signal.csd's average, which means mean or median",
+    ),
     ("--n-average", FRF, int, "time constant of exponential averaging [segments]"),
     (
         "--force-window",
         IMPACT,
         float,
-        "impact: force window width [s]; default from the force pulse",
+        "impact: force window width [s] (default: from the force pulse)",
         "SECONDS",
     ),
     (
@@ -174,7 +180,7 @@ FRF_OPTIONS = (
         IMPACT,
         float,
         "impact: exponential window decay rate [1/s] (its damping is removed again by "
-        "identification); default none",
+        "identification) (default: none)",
         "PER_SECOND",
     ),
     (
@@ -182,7 +188,7 @@ FRF_OPTIONS = (
         IMPACT,
         float,
         "impact: exponential window by its value at the record end [0-1], instead of "
-        "--exponential-decay",
+        "--exponential-decay (default: none)",
         "FRACTION",
     ),
     (
@@ -202,7 +208,7 @@ FRF_OPTIONS = (
         "--min-force",
         IMPACT,
         float,
-        "impact: reject hits whose peak force is below this [force units]",
+        "impact: reject hits whose peak force is below this [force units] (default: no minimum)",
         "NEWTON",
     ),
     (
@@ -268,9 +274,10 @@ def add_frf_options(p: argparse.ArgumentParser) -> None:
         "--excitation",
         default="auto",
         choices=("auto", "random", "impact"),
-        help="impact: every record is a hammer hit (checked, windowed, averaged); "
-        "random: Welch segments; auto: impact when the data have a 'record' "
-        "dim, else random",
+        help="impact: every record is a hammer hit (checked, windowed, averaged; "
+        "ami_xr.impact_frf); random: Welch segments (ami_xr.frf); auto: impact when the force "
+        "is a short pulse, else random (the rule of ami_xr.dsp.timeseries.excitation_of, "
+        "which ami_xr.frf also applies to warn about hammer data)",
     )
     split = [spec[0] for spec in FRF_OPTIONS].index("--double-impact-threshold")
     _add_options(g, FRF_OPTIONS[1:split])

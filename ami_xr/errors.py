@@ -48,3 +48,8 @@ class ConvergenceWarning(AmiXrWarning):
 
 class NoModesWarning(AmiXrWarning):
     """No mode could be identified (for example an FRF that is pure noise)."""
+
+
+class AssumptionWarning(AmiXrWarning):
+    """A reader or estimator assumed something the user did not give (drive point, excitation);
+    the message says what and how to set it."""

@@ -23,6 +23,7 @@ over ``time``: its state, the carried samples and the running sums, crosses chun
 from __future__ import annotations
 
 import inspect
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -45,14 +46,15 @@ from ami_xr.dsp.spectral import (
     check_segments,
     resolve_window,
 )
-from ami_xr.dsp.timeseries import force_and_response, is_lazy
-from ami_xr.errors import AmiXrValueError
+from ami_xr.dsp.timeseries import excitation_of, force_and_response, is_lazy
+from ami_xr.errors import AmiXrValueError, AssumptionWarning
 from ami_xr.kernels import impact as _ki
 from ami_xr.kernels import spectral as _ks
 from ami_xr.kernels import windows as _kw
 from ami_xr.provenance import add_history
 
 EXCITATIONS = ("random", "impact")
+AUTO = "auto"  # excitation decided by ami_xr.dsp.timeseries.excitation_of
 _REF2 = "reference_2"  # private second reference dim of the force cross-spectral matrix
 
 
@@ -76,6 +78,11 @@ class _Setup:
     n_average: int
     chunk_samples: int | None
     workers: int
+
+    @property
+    def nperseg_step(self) -> int:
+        """Samples between segment starts."""
+        return self.nperseg - self.noverlap
 
 
 def _setup(
@@ -228,7 +235,8 @@ def _spectra_to_frf(
         *[d for d in (names.REFERENCE, names.POINT, fdim, names.RECORD) if d in out.dims]
     )
     quantity = ds.attrs.get(names.ATTR_QUANTITY)
-    attrs = {k: ds.attrs[k] for k in (names.ATTR_DRIVE_POINT, names.ATTR_QUANTITY) if k in ds.attrs}
+    kept = (names.ATTR_DRIVE_POINT, names.ATTR_DRIVE_POINT_ASSUMED, names.ATTR_QUANTITY)
+    attrs = {k: ds.attrs[k] for k in kept if k in ds.attrs}
     if quantity in names.QUANTITY_TO_FRF_TYPE:
         attrs[names.ATTR_FRF_TYPE] = names.QUANTITY_TO_FRF_TYPE[quantity]
     if names.ATTR_EXP_DECAY in ds.attrs and names.ATTR_EXP_DECAY not in attrs_extra:
@@ -286,6 +294,15 @@ def frf(
     """Estimate FRFs (H1, H2 or Hv) and coherence from random (continuous) excitation by Welch
     averaging. Hammer tests go through :func:`impact_frf`.
 
+    Data that look like hammer hits (the force is a short pulse:
+    :func:`ami_xr.dsp.timeseries.excitation_of`, the rule the CLI's ``--excitation auto`` uses)
+    give an :class:`~ami_xr.errors.AssumptionWarning` naming the segments averaged and pointing
+    to :func:`impact_frf`: Welch segments of a hit average mostly silence and use overloaded and
+    double hits unchecked. A warning, not an error: Welch over whole hits (``nperseg`` = the
+    record, ``noverlap=0``, ``window="boxcar"``, ``detrend="none"``) is a valid expert choice, and
+    the random estimate stays reachable for every input. :func:`frf_from_options` without an
+    ``excitation`` (and ``ami-xr frf``) picks :func:`impact_frf` for such data by the same rule.
+
     Parameters
     ----------
     ds : xarray.Dataset
@@ -311,7 +328,10 @@ def frf(
         Removed from each segment before windowing (``None`` also means ``"constant"``).
     average : {"linear", "exponential"}
         Linear: plain mean over all segments. Exponential: running average with time constant
-        ``n_average`` segments (linear over the first ``n_average``).
+        ``n_average`` segments (linear over the first ``n_average``). Not the ``average`` of
+        ``scipy.signal.csd``/``welch`` (``"mean"`` or ``"median"`` of the segments): the name
+        follows the averaging types of FFT analysers (linear, exponential); scipy's ``"mean"``
+        is our ``"linear"``, and a median average is not offered.
     n_average : int
         Time constant of exponential averaging, in segments.
     chunk_samples : int, optional
@@ -350,6 +370,15 @@ def frf(
     window = "hann" if window is None else window
     w = resolve_window(window, s.nperseg)
     records = np.arange(s.force.sizes[names.RECORD])
+    if excitation_of(ds if force is None else xr.Dataset({names.FORCE: force})) == "impact":
+        n_seg = records.size * (1 + (s.force.sizes[names.TIME] - s.nperseg) // s.nperseg_step)
+        warnings.warn(
+            f"ds: the force is a short pulse (hammer hits), but ami_xr.frf averages Welch "
+            f"segments of random excitation ({n_seg} segments of {s.nperseg} samples, no hit "
+            "checks); use ami_xr.impact_frf (ami-xr frf --excitation impact)",
+            AssumptionWarning,
+            stacklevel=2,
+        )
     out = _spectra_to_frf(ds, s, (w, w), records, {}, {})
     label = window if isinstance(window, str) else "array"
     return _finish(out, s, "ami_xr.frf", label, {"n_records_used": records.size})
@@ -512,15 +541,19 @@ def impact_frf(
 
 
 def frf_from_options(ds: xr.Dataset, options: Mapping[str, Any]) -> xr.Dataset:
-    """:func:`frf` or :func:`impact_frf` by ``options["excitation"]`` (``"random"``, the default,
-    or ``"impact"``), with the other options as keyword arguments.
+    """:func:`frf` or :func:`impact_frf` by ``options["excitation"]`` (``"random"``,
+    ``"impact"``, or ``"auto"``, the default: :func:`~ami_xr.dsp.timeseries.excitation_of`
+    decides from the force, the rule of ``ami-xr frf``), with the other options as keyword
+    arguments.
 
     For option dictionaries held as data (``ami_xr.batch``'s ``frf_options``, the CLI): an option
     of the other function raises :class:`AmiXrValueError` naming it unless it is None (unset), and
     so does an option of neither.
     """
     options = dict(options)
-    excitation = check_choice(options.pop("excitation", "random"), EXCITATIONS, "excitation")
+    excitation = check_choice(options.pop("excitation", AUTO), (*EXCITATIONS, AUTO), "excitation")
+    if excitation == AUTO:
+        excitation = excitation_of(ds)
     function, other = (impact_frf, frf) if excitation == "impact" else (frf, impact_frf)
     own = set(inspect.signature(function).parameters) - {"ds"}
     foreign = set(inspect.signature(other).parameters) - own - {"ds"}

@@ -23,6 +23,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from ami_xr import names
 from ami_xr.errors import AmiXrValueError, DataFileError
 
 __all__ = [
@@ -156,7 +157,13 @@ def check_output(
     return path
 
 
-def read_any(path: str | os.PathLike):
+def read_any(
+    path: str | os.PathLike,
+    *,
+    force_channel: int | str | None = None,
+    points: list | None = None,
+    drive_point: Any = None,
+):
     """Read a measurement file into a Dataset, choosing the reader by the file's suffix.
 
     Parameters
@@ -164,6 +171,12 @@ def read_any(path: str | os.PathLike):
     path : str or path-like
         A ``.nc`` (:func:`ami_xr.open_dataset`), ``.uff``/``.unv`` (:func:`ami_xr.read_uff`)
         or ``.lvm`` (:func:`ami_xr.read_lvm`) file; the suffix is matched case-insensitively.
+    force_channel, points : optional
+        Passed to :func:`ami_xr.read_lvm`; the other formats name their channels themselves,
+        so giving one for them raises.
+    drive_point : label, optional
+        Passed to :func:`ami_xr.read_lvm`; for the other formats it must be one of the
+        Dataset's points and replaces its ``drive_point`` attribute.
 
     Returns
     -------
@@ -176,19 +189,38 @@ def read_any(path: str | os.PathLike):
     """
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix == NETCDF_SUFFIX:
-        from ami_xr.io.netcdf import open_dataset
-
-        return open_dataset(path)
-    if suffix in UFF_SUFFIXES:
-        from ami_xr.io.uff import read_uff
-
-        return read_uff(path)
     if suffix == LVM_SUFFIX:
         from ami_xr.io.lvm import read_lvm
 
-        return read_lvm(path)
-    raise DataFileError(f"{path}: unknown file type {suffix!r}; expected one of {INPUT_SUFFIXES}")
+        return read_lvm(path, force_channel=force_channel, points=points, drive_point=drive_point)
+    if suffix not in (NETCDF_SUFFIX, *UFF_SUFFIXES):
+        raise DataFileError(
+            f"{path}: unknown file type {suffix!r}; expected one of {INPUT_SUFFIXES}"
+        )
+    for name, given in (("force_channel", force_channel), ("points", points)):
+        if given is not None:
+            raise AmiXrValueError(
+                f"{name}: only for LabVIEW {LVM_SUFFIX} input; {path.name} names its channels"
+            )
+    if suffix == NETCDF_SUFFIX:
+        from ami_xr.io.netcdf import open_dataset
+
+        ds = open_dataset(path)
+    else:
+        from ami_xr.io.uff import read_uff
+
+        ds = read_uff(path)
+    if drive_point is not None:
+        labels = list(ds[names.POINT].values) if names.POINT in ds.coords else []
+        as_text = [label for label in labels if str(label) == str(drive_point)]
+        drive_point = as_text[0] if drive_point not in labels and as_text else drive_point
+        if drive_point not in labels:
+            raise AmiXrValueError(
+                f"drive_point: {drive_point!r} is not one of the points {labels!r} of {path.name}"
+            )
+        ds.attrs[names.ATTR_DRIVE_POINT] = drive_point
+        ds.attrs.pop(names.ATTR_DRIVE_POINT_ASSUMED, None)
+    return ds
 
 
 def write_any(

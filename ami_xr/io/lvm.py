@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import io
 import os
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +24,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.errors import AmiXrValueError, DataFileError
+from ami_xr.errors import AmiXrValueError, AssumptionWarning, DataFileError
 from ami_xr.provenance import add_history
 
 _END = "***End_of_Header***"
@@ -275,7 +276,11 @@ def read_lvm(
     points : list, optional
         Labels of the response channels (default: their column titles).
     drive_point : label, optional
-        Default: the single response point if there is one.
+        Label (one of ``points``) of the response measured where the force acts. Default: the
+        single response point if there is one; that assumption is recorded as the attribute
+        ``drive_point_assumed`` and announced by an :class:`~ami_xr.errors.AssumptionWarning`
+        (``ami-xr frf`` prints it as one line). Given, nothing is assumed or reported. With
+        several responses and none given, the Dataset has no drive point.
     response_quantity : {"displacement", "velocity", "acceleration"}, optional
         Default: from the response unit label (e.g. m/s^2 -> acceleration).
     response_units, force_units : str, optional
@@ -286,7 +291,8 @@ def read_lvm(
     xarray.Dataset
         ``response`` ([record,] point, time), ``force`` ([record,] time) and ``time`` (s, from
         0 at each segment start); with several segments a ``record`` dim with coordinate
-        ``record_start`` (s). Attrs ``source_file``, units, quantity, drive point.
+        ``record_start`` (s). Attrs ``source_file``, units, quantity, drive point (and
+        ``drive_point_assumed`` when it was not given).
 
     Raises
     ------
@@ -339,8 +345,17 @@ def read_lvm(
     labels = list(points) if points is not None else [titles[c] for c in resp]
     if len(labels) != len(resp) or len(set(labels)) != len(labels):
         raise AmiXrValueError(f"points: expected {len(resp)} unique labels, got {labels!r}")
+    assumed = None
     if drive_point is None and len(labels) == 1:
-        drive_point = labels[0]
+        drive_point, assumed = labels[0], "the single response channel"
+        warnings.warn(
+            f"{path.name}: drive point assumed to be {drive_point!r} ({assumed}); give "
+            "drive_point (ami-xr frf --drive-point) to set it",
+            AssumptionWarning,
+            stacklevel=2,
+        )
+    elif drive_point is not None and drive_point not in labels:
+        raise AmiXrValueError(f"drive_point: {drive_point!r} is not one of the points {labels!r}")
     values = np.stack([s["values"] for s in segments])  # (record, time, channel)
     nt = values.shape[1]
     t = np.arange(nt) * dt
@@ -366,6 +381,8 @@ def read_lvm(
     }
     if drive_point is not None:
         attrs[names.ATTR_DRIVE_POINT] = drive_point
+    if assumed is not None:
+        attrs[names.ATTR_DRIVE_POINT_ASSUMED] = assumed
     ds = xr.Dataset(
         {
             names.RESPONSE: (rdims, response, {names.ATTR_UNITS: ru}),
