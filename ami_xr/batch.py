@@ -225,13 +225,13 @@ def _up_to_date(inp: Path, out: Path, params_sha: str) -> bool:
 
 # --- one file ---------------------------------------------------------------------------------
 def estimate_frf(ts, frf_options: dict[str, Any] | None = None):
-    """:func:`ami_xr.frf` on a time Dataset; without an ``excitation`` option, data with a
-    ``record`` dim (repeated hammer hits) are treated as an impact test, others as random."""
+    """FRFs of a time Dataset by :func:`ami_xr.dsp.frf.frf_from_options`; without an
+    ``excitation`` option the one rule of ``ami-xr frf`` decides (``"auto"``:
+    :func:`ami_xr.dsp.timeseries.excitation_of`), so batch and frf treat a file alike."""
     from ami_xr.dsp.frf import frf_from_options
 
     options = dict(frf_options or {})
-    if "excitation" not in options:
-        options["excitation"] = "impact" if names.RECORD in ts.dims else "random"
+    options.setdefault("excitation", "auto")
     return frf_from_options(ts, options)
 
 

@@ -251,7 +251,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     import ami_xr
     from ami_xr import names
     from ami_xr.io.formats import LVM_SUFFIX, read_any, write_any
-    from ami_xr.progress import elapsed
+    from ami_xr.progress import on_terminal
     from ami_xr.report import format_modal_table
 
     if Path(args.input).suffix.lower() == LVM_SUFFIX:  # always time histories: say so unread
@@ -260,12 +260,11 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     if names.FRF not in ds and names.TIME in ds.dims:
         raise AmiXrValueError(_frf_first(args.input))
     options = identify_options(args)
-    n = ds.sizes.get(names.POINT, 0)
-    with elapsed(f"identify: {n} FRFs", n, enabled=not args.quiet):
-        result = ami_xr.identify(ds, **options)
+    # a phase bar on a terminal once the work takes more than a couple of seconds
+    result = ami_xr.identify(ds, progress=on_terminal(not args.quiet), **options)
     _say(format_modal_table(result))
-    if args.output:
-        write_any(result, args.output, function="ami_xr.identify", parameters=options)
+    if args.output:  # identify recorded itself in the history; the write adds its own record
+        write_any(result, args.output)
         _say(f"wrote modes to {args.output}")
     return EXIT_OK
 
@@ -616,9 +615,9 @@ def run() -> None:
     """Console-script entry point: :func:`main` with the process-wide signal handling.
 
     SIGTERM becomes ``SystemExit(143)``, so ``finally`` blocks (rolling back a write in progress)
-    run and one line is printed; after an interrupt, a second Ctrl-C arriving while Python shuts
-    down is ignored instead of ending in a traceback. Kept out of :func:`main`, which tests and
-    scripts call in-process.
+    run and one line is printed; once :func:`main` has returned, SIGINT and SIGTERM are ignored
+    (a signal during interpreter shutdown would turn a finished run into a silent kill). Kept
+    out of :func:`main`, which tests and scripts call in-process.
     """
     signal.signal(signal.SIGTERM, _terminate)
     try:
@@ -628,8 +627,10 @@ def run() -> None:
             raise
         print("ami-xr: terminated", file=sys.stderr)
         code = EXIT_TERMINATED
-    if code in (EXIT_INTERRUPTED, EXIT_TERMINATED):
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # The work is done (or stopped): a signal now could only turn the outcome into a silent
+    # kill during interpreter shutdown.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     sys.exit(code)
 
 

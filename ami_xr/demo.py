@@ -179,7 +179,7 @@ def demo(
     import ami_xr
     from ami_xr import names
     from ami_xr.io.formats import OUTPUT_FOLDER, OUTPUT_NETCDF, check_output
-    from ami_xr.progress import elapsed
+    from ami_xr.progress import on_terminal
     from ami_xr.report import format_modal_table
     from ami_xr.simulate.paper import AMI_EIGENVALUES
 
@@ -199,8 +199,7 @@ def demo(
         f"{g.sizes[names.FREQUENCY]} lines, 0-{float(g[names.FREQUENCY][-1]):.4g} Hz, drive point "
         f"{g.attrs.get(names.ATTR_DRIVE_POINT)}\n"
     )
-    with elapsed(f"identify: {n} FRFs", n, enabled=progress):
-        result = ami_xr.identify(g, **options)
+    result = ami_xr.identify(g, progress=on_terminal(progress), **options)
     _say(format_modal_table(result))
     lam = np.atleast_1d(result[names.EIGENVALUE].values) if names.EIGENVALUE in result else []
     _say("\n" + comparison_table(lam, truth[names.EIGENVALUE].values, AMI_EIGENVALUES))
@@ -209,9 +208,7 @@ def demo(
         "paper AMI = the averages of Tables 1-2 of Ginsberg & Allen (one noise seed)"
     )
     outdir.mkdir(parents=True, exist_ok=True)
-    modes_path = ami_xr.to_netcdf(
-        result, modes_file, function="ami_xr.identify", parameters=options
-    )
+    modes_path = ami_xr.to_netcdf(result, modes_file)  # identify recorded itself already
     _say(f"\nwrote {modes_path}")
     if report:
         if importlib.util.find_spec("matplotlib") is None:
