@@ -29,7 +29,6 @@ On-disk conventions (readable without ami_xr, see the README's "netCDF files" se
 from __future__ import annotations
 
 import contextlib
-import functools
 import json
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -43,7 +42,7 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.coords import uniform_coords
 from ami_xr.errors import AmiXrValueError, DataFileError
-from ami_xr.io.atomic import DeferredSignals, atomic_path, interrupts_deferred
+from ami_xr.io.atomic import atomic_path, interrupts_deferred
 from ami_xr.io.cf import annotate, strip
 from ami_xr.provenance import add_history
 
@@ -560,30 +559,31 @@ def to_netcdf(
         )
     )
     encoded = encode(recorded)  # raises on unstorable content before any file exists
-    with atomic_path(path) as tmp, interrupts_deferred() as held:
-        with _drained_on_error(encoded, held):
+    # Ctrl-C/SIGTERM are held for the whole write, lazy chunks included, and delivered once the
+    # file is closed (the write is then rolled back). Delivering them between dask chunks was
+    # tried: with xarray 2025.4 / netCDF4 1.6.5 it deadlocked the workers on xarray's file lock.
+    with atomic_path(path) as tmp, interrupts_deferred():
+        with _drained_on_error(encoded):
             encoded.to_netcdf(tmp, mode="w", format=FORMAT, engine=ENGINE)
     return path
 
 
-def _draining_threaded_get(dsk, keys, *, held: DeferredSignals | None = None, **kwargs):
+def _draining_threaded_get(dsk, keys, **kwargs):
     """dask's threaded scheduler on a private pool that is drained before an error propagates.
 
     The stock scheduler re-raises the first failing task at once while other worker threads may
     still be writing chunks; xarray then closes the netCDF file under them (and the atomic writer
     removes it), which can crash the process inside HDF5 (a segfault, seen with netCDF4 1.6.5).
-    With ``held``, the signals it holds are delivered after each finished task (in the main
-    thread, which holds no file lock there), so Ctrl-C stops a long lazy write within a chunk.
+
+    One worker thread: netCDF reads and writes are serialised by xarray's HDF5 lock anyway, and
+    with two workers a lazy netCDF-to-netCDF copy interrupted by Ctrl-C deadlocked on xarray's
+    combined file locks (xarray 2025.4 / netCDF4 1.6.5, 1 in ~6 tries); with one it did not in
+    12. The cost: a lazy computation written here runs on one thread.
     """
     import dask.threaded
 
-    if held is not None:
-        from dask.callbacks import Callback
-
-        callbacks = kwargs.pop("callbacks", None)
-        callbacks = list(Callback.active if callbacks is None else callbacks)
-        kwargs["callbacks"] = [*callbacks, (None, None, None, lambda *_: held.deliver(), None)]
-    pool = ThreadPoolExecutor(max_workers=kwargs.pop("num_workers", None) or os.cpu_count() or 1)
+    kwargs.pop("num_workers", None)
+    pool = ThreadPoolExecutor(max_workers=1)
     try:
         return dask.threaded.get(dsk, keys, pool=pool, **kwargs)
     finally:
@@ -591,7 +591,7 @@ def _draining_threaded_get(dsk, keys, *, held: DeferredSignals | None = None, **
 
 
 @contextlib.contextmanager
-def _drained_on_error(ds: xr.Dataset, held: DeferredSignals | None = None):
+def _drained_on_error(ds: xr.Dataset):
     """Write ``ds`` with :func:`_draining_threaded_get` when dask's threaded scheduler is in effect.
 
     A distributed client, the synchronous or the process scheduler are left alone.
@@ -607,5 +607,5 @@ def _drained_on_error(ds: xr.Dataset, held: DeferredSignals | None = None):
     if dask.base.get_scheduler(collections=lazy) is not dask.threaded.get:
         yield
         return
-    with dask.config.set(scheduler=functools.partial(_draining_threaded_get, held=held)):
+    with dask.config.set(scheduler=_draining_threaded_get):
         yield

@@ -136,14 +136,32 @@ def test_sigterm_stops_the_batch_with_cleanup(tmp_path, inputs, delay):
 
 
 def test_sigkill_leftovers_are_removed_by_the_next_batch(tmp_path, inputs):
-    leftovers = []
-    for delay in (0.95, 1.7, 2.1, 2.5, 1.2):  # until a kill lands inside a write
-        out = tmp_path / f"out{delay}"
-        rc, _ = _run_and_signal(tmp_path, inputs, out, [(delay, signal.SIGKILL)])
-        assert rc == -signal.SIGKILL
-        leftovers = list(out.rglob(".*.tmp"))
-        if leftovers:
-            break
+    # Kill the batch the moment a temporary output folder appears (inside a write), rather than
+    # at fixed delays that depend on the machine's speed.
+    out = tmp_path / "out"
+    script = tmp_path / "child.py"
+    script.write_text(CHILD)
+    proc = subprocess.Popen(
+        [sys.executable, str(script), str(inputs), str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=ENV,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while proc.poll() is None and time.monotonic() < deadline:
+            if out.is_dir() and list(out.rglob(".*.tmp")):
+                proc.send_signal(signal.SIGKILL)
+                break
+            time.sleep(0.002)
+        proc.wait(timeout=HANG_SECONDS)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == -signal.SIGKILL, "the batch ended before a write was caught"
+    leftovers = list(out.rglob(".*.tmp"))
     assert leftovers and all(p.is_dir() for p in leftovers), "no kill landed inside a write"
     summary = batch(inputs, out, progress=False)
     assert list(out.rglob(".*.tmp")) == []
