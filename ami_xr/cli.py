@@ -44,8 +44,10 @@ from ami_xr.cli_options import (
     BENCHMARK,
     RANDOM_SYSTEM,
     Default,
+    HelpFormatter,
     add_frf_options,
     add_identify_options,
+    check_paths,
     frf_options,
     identify_options,
     value,
@@ -64,37 +66,6 @@ EXIT_TERMINATED = 143  # 128 + SIGTERM
 EXPECTED_ERRORS = (AmiXrError, ValueError, OSError, ImportError)
 VERBOSE_HINT = "run with -v for the traceback"
 
-#: What each subcommand reads and writes, for :func:`check_paths`: the argument names of its
-#: inputs, and of its outputs with their kind (see :func:`ami_xr.io.formats.check_output`).
-#: Every subcommand is listed (a test checks it), so a new one cannot skip the rule.
-PATHS: dict[str, tuple[tuple[str, ...], tuple[tuple[str, str], ...]]] = {
-    "demo": ((), (("output", "folder"),)),
-    "simulate": (
-        (),
-        (("output", "netcdf"), ("time_output", "netcdf"), ("truth_output", "netcdf")),
-    ),
-    "frf": (("input",), (("output", "netcdf"),)),
-    "identify": (("input",), (("output", "file"),)),
-    "report": (("input",), (("output", "folder"),)),
-    "convert": (("input",), (("output", "file"),)),
-    "batch": (("input",), (("output", "folder"),)),
-}
-
-
-class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
-    """Show defaults (unless the help states its own) and keep the description's line breaks.
-
-    No "(default: None)": a required option has no default, and an option whose default is None
-    (unset: the library or the excitation decides) says in its help what happens.
-    """
-
-    def _get_help_string(self, action):
-        if "(default:" in (action.help or ""):
-            return action.help
-        if action.required or value(action.default) is None:
-            return action.help
-        return super()._get_help_string(action)
-
 
 # --- helpers -------------------------------------------------------------------------------------
 def _one_line(err: BaseException) -> str:
@@ -111,30 +82,6 @@ def _say(*parts: Any) -> None:
     text = " ".join(str(p) for p in parts)
     encoding = getattr(sys.stdout, "encoding", None) or "utf-8"
     print(text.encode(encoding, "backslashreplace").decode(encoding), flush=True)
-
-
-def check_paths(args: argparse.Namespace) -> None:
-    """Apply the output rule (module docstring) to the paths of ``args.command``, before any work.
-
-    Raises
-    ------
-    DataFileError
-        Naming the option, the output and, where it clashes with one, the input.
-    """
-    from ami_xr.io.formats import check_output
-
-    reads, writes = PATHS[args.command]
-    inputs = [value(getattr(args, a)) for a in reads]
-    done: list[str] = []
-    for attr, kind in writes:
-        path = value(getattr(args, attr))
-        if path is None:
-            continue
-        flag = "-o" if attr == "output" else "--" + attr.replace("_", "-")
-        check_output(
-            path, kind, inputs=inputs, outputs=done, name=flag, writer=f"ami-xr {args.command}"
-        )
-        done.append(str(path))
 
 
 def _add_output(
@@ -534,7 +481,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser = argparse.ArgumentParser(
         prog="ami-xr",
-        formatter_class=_Formatter,
+        formatter_class=HelpFormatter,
         description="Experimental modal analysis with the Algorithm of Mode Isolation "
         "(Ginsberg & Allen) on labeled xarray data.\n\n"
         "Start with:  ami-xr demo",
@@ -560,7 +507,7 @@ def build_parser() -> argparse.ArgumentParser:
             name,
             help=help_text,
             description=description,
-            formatter_class=_Formatter,
+            formatter_class=HelpFormatter,
             parents=[common],
         )
         p.set_defaults(subcommand_parser=p)

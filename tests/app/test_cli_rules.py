@@ -20,7 +20,7 @@ import pytest
 import xarray as xr
 
 import ami_xr
-from ami_xr import cli, names
+from ami_xr import cli, cli_options, names
 from ami_xr.cli import (
     EXIT_BATCH_FAILURES,
     EXIT_ERROR,
@@ -238,7 +238,7 @@ def test_the_rule_table_lists_every_subcommand():
 
     parser = cli.build_parser()
     action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    assert set(cli.PATHS) == set(action.choices)
+    assert set(cli_options.PATHS) == set(action.choices)
 
 
 def test_writable_existing_output_is_still_replaced(files, capsys):
