@@ -4,12 +4,12 @@ Each subcommand parses its options, calls one public function (heavy imports hap
 subcommand, so ``ami-xr --help`` is fast and compiles nothing), and maps errors to exit codes.
 One rule holds for every subcommand (:func:`main`):
 
-* Outputs are checked before any work (:func:`check_paths`, table :data:`PATHS`): an output that
-  is one of the inputs (also through a symlink or a hard link) or another output of the same
-  run, whose suffix is not that of the format written (``.nc`` for netCDF; ``.nc``, ``.uff`` or
-  ``.unv`` where the suffix chooses), that exists and is read-only (mode 0444: refused, never
-  replaced), a file where a folder goes, or a missing or read-only folder is refused. An
-  existing writable output is replaced, atomically.
+* Outputs are checked before any work (:func:`ami_xr.cli_options.check_paths`, table
+  :data:`ami_xr.cli_options.PATHS`): an output that is one of the inputs (also through a symlink
+  or a hard link) or another output of the same run, whose suffix is not that of the format
+  written (``.nc`` for netCDF; ``.nc``, ``.uff`` or ``.unv`` where the suffix chooses), that
+  exists and is read-only (mode 0444: refused, never replaced), a file where a folder goes, or a
+  missing or read-only folder is refused. An existing writable output is replaced, atomically.
 * Warnings of ami_xr (e.g. no modes found, iteration cap reached) print as one line each;
   other packages' warnings only with ``-v``.
 * Every error is one line ``ami-xr <command>: error: ...`` on stderr, never a bare traceback
