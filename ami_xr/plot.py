@@ -38,15 +38,15 @@ __all__ = [
 
 from ami_xr.plot_common import (
     POINT_COORDS,
-    _finish,
-    _in_band,
-    _mark_modes,
-    _mode_labels,
-    _natural_frequencies,
-    _new_figure,
-    _require,
-    _select_points,
-    _units,
+    finish,
+    in_band,
+    labels_of_modes,
+    mark_modes,
+    natural_frequencies,
+    new_figure,
+    require,
+    select_points,
+    units_of,
 )
 
 MAX_HEIGHT_IN = 18.0  # tallest figure, inches (x DPI 110 = 1 980 px)
@@ -79,18 +79,18 @@ def plot_bode(
     path : str or path-like, optional
         Save the figure there.
     """
-    _require(ds, names.FRF, figure="plot_bode")
-    pts = _select_points(ds, points, "plot_bode")
-    fn, mode_labels = _natural_frequencies(ds), _mode_labels(ds)
-    ds = _in_band(ds, frequency_range, "plot_bode")
+    require(ds, names.FRF, figure="plot_bode")
+    pts = select_points(ds, points, "plot_bode")
+    fn, mode_labels = natural_frequencies(ds), labels_of_modes(ds)
+    ds = in_band(ds, frequency_range, "plot_bode")
     freq = ds[names.FREQUENCY].values
     band = (float(freq[0]), float(freq[-1]))
     ncol = min(len(pts), 3)
     nrow_pts = int(np.ceil(len(pts) / ncol))
-    fig = _new_figure(max(10.0, 4.0 * ncol), 4.2 * nrow_pts)
+    fig = new_figure(max(10.0, 4.0 * ncol), 4.2 * nrow_pts)
     grid = fig.add_gridspec(2 * nrow_pts, ncol, height_ratios=[2, 1] * nrow_pts)
     synth = ds[names.FRF_SYNTHESIZED] if names.FRF_SYNTHESIZED in ds else None
-    units = _units(ds, names.FRF)
+    units = units_of(ds, names.FRF)
     for i, p in enumerate(pts):
         r, c = divmod(i, ncol)
         ax_mag = fig.add_subplot(grid[2 * r, c])
@@ -102,8 +102,8 @@ def plot_bode(
             s = synth.sel({names.POINT: p}).values
             ax_mag.semilogy(freq, np.abs(s), color="tab:blue", lw=1.2, label="synthesised")
             ax_ph.plot(freq, np.degrees(np.angle(s)), color="tab:blue", lw=1.2, label="synthesised")
-        _mark_modes(ax_mag, fn, mode_labels, text=True, band=band)
-        _mark_modes(ax_ph, fn, mode_labels, text=False, band=band)
+        mark_modes(ax_mag, fn, mode_labels, text=True, band=band)
+        mark_modes(ax_ph, fn, mode_labels, text=False, band=band)
         ax_mag.set_xlim(band)
         drive = " (drive point)" if p == ds.attrs.get(names.ATTR_DRIVE_POINT) else ""
         ax_mag.set_title(f"point {p}{drive}", fontsize=9)
@@ -115,7 +115,7 @@ def plot_bode(
         ax_mag.legend(fontsize=7, loc="lower right")
         if synth is not None:
             ax_ph.legend(fontsize=6, loc="lower right")
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 # --- Nyquist -----------------------------------------------------------------------------------
@@ -149,8 +149,8 @@ def plot_nyquist(
     path : str or path-like, optional
         Save the figure there.
     """
-    _require(ds, names.FRF, figure="plot_nyquist")
-    fn = _natural_frequencies(ds)
+    require(ds, names.FRF, figure="plot_nyquist")
+    fn = natural_frequencies(ds)
     if fn.size == 0:
         raise AmiXrValueError(
             f"plot_nyquist: the Dataset has no {names.NATURAL_FREQUENCY!r} or {names.EIGENVALUE!r} "
@@ -163,17 +163,17 @@ def plot_nyquist(
         if names.DAMPING_RATIO in ds
         else np.full(fn.size, 0.01)
     )
-    pts = _select_points(ds, points, "plot_nyquist")
+    pts = select_points(ds, points, "plot_nyquist")
     freq = ds[names.FREQUENCY].values
     df = float(np.median(np.diff(freq))) if freq.size > 1 else 1.0
-    labels = _mode_labels(ds)
-    units = _units(ds, names.FRF)
+    labels = labels_of_modes(ds)
+    units = units_of(ds, names.FRF)
     unit_text = f" [{units}]" if units else ""
     # one point: modes wrapped into rows of at most 6; several: a row per point
     ncol = min(fn.size, 6) if len(pts) == 1 else fn.size
     nrow = int(np.ceil(fn.size / ncol)) if len(pts) == 1 else len(pts)
     panel = min(2.6, (MAX_HEIGHT_IN - 0.4) / nrow)
-    fig = _new_figure(max(panel * ncol + 0.6, 6.0), panel * nrow + 0.4)
+    fig = new_figure(max(panel * ncol + 0.6, 6.0), panel * nrow + 0.4)
     axes = fig.subplots(nrow, ncol, squeeze=False)
     for ax in axes.ravel()[len(pts) * fn.size :]:
         ax.set_visible(False)
@@ -204,7 +204,7 @@ def plot_nyquist(
             ax.set_xlabel(f"Re FRF{unit_text}", fontsize=7)
             ax.set_ylabel(f"Im FRF{unit_text}", fontsize=7)
             ax.legend(fontsize=5, loc="best")
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 #: Lines of the fit drawn per measured line in the Nyquist plots.
@@ -302,7 +302,7 @@ def plot_subtraction(
     path : str or path-like, optional
         Save the figure there.
     """
-    _require(ds, names.FRF, figure="plot_subtraction")
+    require(ds, names.FRF, figure="plot_subtraction")
     if names.SUB_NOISE_FLOOR not in ds:
         raise AmiXrValueError(
             f"plot_subtraction: the Dataset has no {names.SUB_NOISE_FLOOR!r} "
@@ -312,13 +312,13 @@ def plot_subtraction(
     stop_attrs = ds[names.SUB_STOP_STATISTIC].attrs if names.SUB_STOP_STATISTIC in ds else {}
     if names.ATTR_THRESHOLD in stop_attrs:
         threshold = float(stop_attrs[names.ATTR_THRESHOLD])
-    pts = _select_points(ds, points, "plot_subtraction")
-    ds = _in_band(ds, frequency_range, "plot_subtraction")
+    pts = select_points(ds, points, "plot_subtraction")
+    ds = in_band(ds, frequency_range, "plot_subtraction")
     freq = ds[names.FREQUENCY].values
     band = (float(freq[0]), float(freq[-1]))
     ncol = min(len(pts), 4)
     nrow = int(np.ceil(len(pts) / ncol))
-    fig = _new_figure(3.4 * ncol, 2.8 * nrow)
+    fig = new_figure(3.4 * ncol, 2.8 * nrow)
     axes = fig.subplots(nrow, ncol, squeeze=False)
     for ax in axes.ravel()[len(pts) :]:
         ax.set_visible(False)
@@ -339,7 +339,7 @@ def plot_subtraction(
         if names.SUB_EIGENVALUE in ds:
             lam = np.atleast_1d(ds[names.SUB_EIGENVALUE].sel(sel).values)
             lam = lam[np.isfinite(lam)]
-            _mark_modes(ax, np.abs(lam) / (2 * np.pi), [""] * lam.size, text=False, band=band)
+            mark_modes(ax, np.abs(lam) / (2 * np.pi), [""] * lam.size, text=False, band=band)
         if names.SUB_BAND_LOW in ds and names.SUB_BAND_HIGH in ds:
             lo = np.atleast_1d(ds[names.SUB_BAND_LOW].sel(sel).values)
             hi = np.atleast_1d(ds[names.SUB_BAND_HIGH].sel(sel).values)
@@ -349,10 +349,10 @@ def plot_subtraction(
         drive = " (drive point)" if p == ds.attrs.get(names.ATTR_DRIVE_POINT) else ""
         ax.set_title(f"point {p}{drive}", fontsize=9)
         ax.set_xlabel("frequency [Hz]", fontsize=8)
-        ax.set_ylabel(f"magnitude [{_units(ds, names.FRF)}]", fontsize=8)
+        ax.set_ylabel(f"magnitude [{units_of(ds, names.FRF)}]", fontsize=8)
         ax.set_xlim(band)
         ax.legend(fontsize=6, loc="lower right")
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 # --- mode vectors ------------------------------------------------------------------------------
@@ -408,12 +408,12 @@ def plot_mode_vectors(
     rows_max = max(1, int((MAX_HEIGHT_IN - 0.5) // block_h))
     nblock_col = int(np.ceil(max(nmode, 1) / rows_max))
     nblock_row = int(np.ceil(max(nmode, 1) / nblock_col))
-    fig = _new_figure(max(7.0, 3.6 * nblock_col), nblock_row * block_h + 0.5)
+    fig = new_figure(max(7.0, 3.6 * nblock_col), nblock_row * block_h + 0.5)
     grid = fig.add_gridspec(nblock_row * npanel, nblock_col)
-    fn = _natural_frequencies(ds)
+    fn = natural_frequencies(ds)
     flags = _flags(ds)
     pos = np.arange(len(labels))
-    units = _units(ds, var)
+    units = units_of(ds, var)
     for k in range(nmode):
         r, c = divmod(k, nblock_col)
         ax_m = fig.add_subplot(grid[r * npanel, c])
@@ -448,7 +448,7 @@ def plot_mode_vectors(
             ax_s.set_ylabel("shape [-]", fontsize=7)
             ax_s.tick_params(labelsize=6)
             ax_s.legend(fontsize=6, loc="best")
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 # --- MAC ---------------------------------------------------------------------------------------
@@ -487,9 +487,9 @@ def plot_mac(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure
     else:
         vec, _ = _vectors(ds, "plot_mac")
         mac = mac_matrix(vec.values)
-    labels = _mode_labels(ds) or list(range(1, mac.shape[0] + 1))
+    labels = labels_of_modes(ds) or list(range(1, mac.shape[0] + 1))
     n = mac.shape[0]
-    fig = _new_figure(1.0 + 0.55 * max(n, 3), 0.8 + 0.5 * max(n, 3))
+    fig = new_figure(1.0 + 0.55 * max(n, 3), 0.8 + 0.5 * max(n, 3))
     ax = fig.add_subplot()
     im = ax.imshow(mac, vmin=0, vmax=1, cmap="viridis")
     for i in range(n):
@@ -510,7 +510,7 @@ def plot_mac(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure
     ax.set_ylabel("mode", fontsize=8)
     ax.set_title("MAC", fontsize=9)
     fig.colorbar(im, ax=ax, shrink=0.8)
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 # --- modal table -------------------------------------------------------------------------------
@@ -552,7 +552,7 @@ def plot_modal_table(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -
         ]
         for r in rows
     ]
-    fig = _new_figure(9.0, 0.6 + 0.3 * (len(cells) + 1))
+    fig = new_figure(9.0, 0.6 + 0.3 * (len(cells) + 1))
     ax = fig.add_subplot()
     ax.axis("off")
     if cells:
@@ -562,4 +562,4 @@ def plot_modal_table(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -
         table.auto_set_column_width(list(range(len(header))))
     else:
         ax.text(0.5, 0.5, "no modes identified", ha="center", va="center")
-    return _finish(fig, path)
+    return finish(fig, path)

@@ -27,7 +27,7 @@ POINT_COORDS = tuple(f"{names.POINT}_{axis}" for axis in "xyz")
 _MAX_POINTS = 12  # beyond this, figures show the points with the strongest response
 
 
-def _new_figure(width: float, height: float) -> Figure:
+def new_figure(width: float, height: float) -> Figure:
     try:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
@@ -40,7 +40,7 @@ def _new_figure(width: float, height: float) -> Figure:
     return fig
 
 
-def _finish(fig: Figure, path: str | os.PathLike | None) -> Figure:
+def finish(fig: Figure, path: str | os.PathLike | None) -> Figure:
     if path is not None:
         # Saved atomically; matplotlib cannot see the suffix of a file object, so pass it on.
         suffix = os.path.splitext(os.fspath(path))[1][1:].lower()
@@ -49,7 +49,7 @@ def _finish(fig: Figure, path: str | os.PathLike | None) -> Figure:
     return fig
 
 
-def _require(ds: xr.Dataset, *variables: str, figure: str) -> None:
+def require(ds: xr.Dataset, *variables: str, figure: str) -> None:
     missing = [v for v in variables if v not in ds.variables]
     if missing:
         raise AmiXrValueError(
@@ -58,7 +58,7 @@ def _require(ds: xr.Dataset, *variables: str, figure: str) -> None:
         )
 
 
-def _select_points(ds: xr.Dataset, points: Sequence[Hashable] | None, figure: str) -> list:
+def select_points(ds: xr.Dataset, points: Sequence[Hashable] | None, figure: str) -> list:
     labels = list(ds[names.POINT].values.tolist())
     if points is not None:
         points = list(points)
@@ -74,7 +74,7 @@ def _select_points(ds: xr.Dataset, points: Sequence[Hashable] | None, figure: st
     return [lab for i, lab in enumerate(labels) if i in keep]
 
 
-def _natural_frequencies(ds: xr.Dataset) -> np.ndarray:
+def natural_frequencies(ds: xr.Dataset) -> np.ndarray:
     if names.NATURAL_FREQUENCY in ds:
         return np.atleast_1d(np.asarray(ds[names.NATURAL_FREQUENCY].values, dtype=float))
     if names.EIGENVALUE in ds:
@@ -82,10 +82,10 @@ def _natural_frequencies(ds: xr.Dataset) -> np.ndarray:
     return np.zeros(0)
 
 
-def _mode_labels(ds: xr.Dataset) -> list:
+def labels_of_modes(ds: xr.Dataset) -> list:
     if names.MODE in ds.coords:
         return list(ds[names.MODE].values.tolist())
-    return list(range(1, _natural_frequencies(ds).size + 1))
+    return list(range(1, natural_frequencies(ds).size + 1))
 
 
 def _label_levels(fn: np.ndarray, lo: float, hi: float, min_gap: float = 0.035) -> list[int]:
@@ -104,7 +104,7 @@ def _label_levels(fn: np.ndarray, lo: float, hi: float, min_gap: float = 0.035) 
     return levels
 
 
-def _mark_modes(
+def mark_modes(
     ax, fn: np.ndarray, labels: Sequence, text: bool, band: tuple[float, float] | None = None
 ) -> None:
     """Dashed lines at the natural frequencies inside ``band``; with ``text`` their mode labels,
@@ -132,7 +132,7 @@ def _mark_modes(
             )
 
 
-def _in_band(ds: xr.Dataset, frequency_range: tuple[float, float] | None, figure: str):
+def in_band(ds: xr.Dataset, frequency_range: tuple[float, float] | None, figure: str):
     """``ds`` cut to ``frequency_range`` (Hz), checked to keep at least two lines."""
     if frequency_range is None:
         return ds
@@ -149,5 +149,5 @@ def _in_band(ds: xr.Dataset, frequency_range: tuple[float, float] | None, figure
     return out
 
 
-def _units(ds: xr.Dataset, var: str) -> str:
+def units_of(ds: xr.Dataset, var: str) -> str:
     return str(ds[var].attrs.get(names.ATTR_UNITS, "")) if var in ds else ""

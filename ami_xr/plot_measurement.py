@@ -19,7 +19,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.plot_common import _finish, _new_figure, _require, _select_points, _units
+from ami_xr.plot_common import finish, new_figure, require, select_points, units_of
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -54,11 +54,11 @@ def plot_coherence(
     path : str or path-like, optional
         Save the figure there.
     """
-    _require(ds, names.COHERENCE, figure="plot_coherence")
+    require(ds, names.COHERENCE, figure="plot_coherence")
     ds = _band(ds, frequency_range)
-    pts = _select_points(ds, points, "plot_coherence")
+    pts = select_points(ds, points, "plot_coherence")
     freq = ds[names.FREQUENCY].values
-    fig = _new_figure(10.0, 3.2)
+    fig = new_figure(10.0, 3.2)
     ax = fig.add_subplot()
     coh = ds[names.COHERENCE]
     for p in pts:
@@ -69,7 +69,7 @@ def plot_coherence(
     ax.set_title("Coherence (values well below 1: noise, leakage or nonlinearity)", fontsize=9)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, loc="lower left")
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 def plot_force_spectrum(
@@ -89,15 +89,15 @@ def plot_force_spectrum(
     path : str or path-like, optional
         Save the figure there.
     """
-    _require(ds, names.FORCE_AUTOSPECTRUM, figure="plot_force_spectrum")
+    require(ds, names.FORCE_AUTOSPECTRUM, figure="plot_force_spectrum")
     ds = _band(ds, frequency_range)
     gff = ds[names.FORCE_AUTOSPECTRUM]
     other = [d for d in gff.dims if d != names.FREQUENCY]
     gff = gff.transpose(*other, names.FREQUENCY)
     values = np.asarray(gff.values, dtype=float).reshape(-1, gff.sizes[names.FREQUENCY])
     freq = ds[names.FREQUENCY].values
-    units = _units(ds, names.FORCE_AUTOSPECTRUM) or "force^2/Hz"
-    fig = _new_figure(10.0, 3.2)
+    units = units_of(ds, names.FORCE_AUTOSPECTRUM) or "force^2/Hz"
+    fig = new_figure(10.0, 3.2)
     ax = fig.add_subplot()
     ref_labels = gff[other[0]].values.tolist() if other else [None]
     top = np.nanmax(values) if values.size and np.nanmax(values) > 0 else 1.0
@@ -112,7 +112,7 @@ def plot_force_spectrum(
     ax.set_title("Force autospectrum (the excited band ends where it falls 10-20 dB)", fontsize=9)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, loc="lower left")
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 def _hit_reasons(ds: xr.Dataset) -> list[str]:
@@ -160,7 +160,7 @@ def measurement_summary(ds: xr.Dataset) -> dict[str, object]:
             }
             for i in range(peak.size)
         ]
-        out["force_units"] = _units(ds, names.HIT_PEAK_FORCE)
+        out["force_units"] = units_of(ds, names.HIT_PEAK_FORCE)
     return out
 
 
@@ -175,11 +175,11 @@ def plot_hits(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figur
     path : str or path-like, optional
         Save the figure there.
     """
-    _require(ds, names.HIT_PEAK_FORCE, figure="plot_hits")
+    require(ds, names.HIT_PEAK_FORCE, figure="plot_hits")
     hits = measurement_summary(ds)["hits"]
-    units = _units(ds, names.HIT_PEAK_FORCE) or "force units"
+    units = units_of(ds, names.HIT_PEAK_FORCE) or "force units"
     n = len(hits)
-    fig = _new_figure(10.0, 2.6 + 0.25 * sum(h["rejected"] for h in hits))
+    fig = new_figure(10.0, 2.6 + 0.25 * sum(h["rejected"] for h in hits))
     ax = fig.add_subplot()
     pos = np.arange(n)
     peak = [h["peak_force"] for h in hits]
@@ -200,4 +200,4 @@ def plot_hits(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figur
     ax.set_title(f"Impact hits: {sum(kept)} of {n} averaged", fontsize=9)
     ax.margins(y=0.15)
     ax.legend(fontsize=7, loc="upper right")
-    return _finish(fig, path)
+    return finish(fig, path)

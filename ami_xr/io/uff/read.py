@@ -38,7 +38,7 @@ ATTR_UNITS_ASSUMED = "uff_units_assumed"  # why SI units were assumed (no usable
 ATTR_UNITS_SCALED = "uff_units_scaled"  # how values were converted to SI by dataset 164
 ATTR_MODES_SKIPPED = "uff_modes_skipped"  # why dataset-55 modes were not merged with the FRFs
 # the warning class for assumptions (AssumptionWarning where ami_xr.errors has it)
-_ASSUMPTION = getattr(errors, "AssumptionWarning", errors.AmiXrWarning)
+_ASSUMPTION = errors.AssumptionWarning
 
 
 def _label_of(record: dict, which: str) -> Any:
