@@ -554,8 +554,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_ERROR
 
 
+_TERMINATED: list[int] = []  # SIGTERMs received by this process (see run)
+
+
 def _terminate(signum: int, frame: Any) -> None:
+    _TERMINATED.append(signum)
     raise SystemExit(EXIT_TERMINATED)
+
+
+def _unraisable(hook):
+    """A ``sys.unraisablehook`` that stays silent for the SystemExit/KeyboardInterrupt a signal
+    raised inside a ``__del__`` or callback (Python cannot propagate those: no traceback for the
+    user; :func:`run` still reports the termination)."""
+
+    def quiet(unraisable):
+        if not isinstance(unraisable.exc_value, (SystemExit, KeyboardInterrupt)):
+            hook(unraisable)
+
+    return quiet
 
 
 def run() -> None:
@@ -567,11 +583,15 @@ def run() -> None:
     out of :func:`main`, which tests and scripts call in-process.
     """
     signal.signal(signal.SIGTERM, _terminate)
+    sys.unraisablehook = _unraisable(sys.unraisablehook)
     try:
         code = main()
     except SystemExit as stop:
         if stop.code != EXIT_TERMINATED:
             raise
+        code = EXIT_TERMINATED
+    if _TERMINATED and code in (EXIT_OK, EXIT_TERMINATED):
+        # also when the SystemExit was raised where Python had to drop it (see _unraisable)
         print("ami-xr: terminated", file=sys.stderr)
         code = EXIT_TERMINATED
     # The work is done (or stopped): a signal now could only turn the outcome into a silent

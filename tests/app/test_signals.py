@@ -46,3 +46,21 @@ def test_ctrl_c_is_one_line_and_exit_130():
     assert done.returncode == 130
     assert done.stderr.strip() == "ami-xr identify: interrupted"
     assert "Traceback" not in done.stderr
+
+
+def test_a_signal_dropped_inside_a_destructor_prints_no_traceback():
+    # SIGTERM's SystemExit raised inside a __del__ cannot propagate; Python reports it through
+    # sys.unraisablehook (a traceback on stderr). run() installs a hook that stays silent for it
+    # and passes every other unraisable error on (the fault campaign found the traceback).
+    from types import SimpleNamespace
+
+    from ami_xr.cli import _unraisable
+
+    seen = []
+    hook = _unraisable(seen.append)
+    hook(SimpleNamespace(exc_value=SystemExit(143)))
+    hook(SimpleNamespace(exc_value=KeyboardInterrupt()))
+    assert seen == []
+    other = SimpleNamespace(exc_value=ValueError("a real bug"))
+    hook(other)
+    assert seen == [other]
