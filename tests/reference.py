@@ -256,3 +256,21 @@ def normal_file_mode() -> int:
     umask = os.umask(0)
     os.umask(umask)
     return 0o666 & ~umask
+
+
+def two_point_time_dataset(force, response, fs: float = 256.0, **attrs):
+    """A time Dataset of two displacement responses (points 0 and 1, drive point 0) and a force
+    in N, sampled at ``fs`` Hz: the FRF-estimation tests' input."""
+    import ami_xr
+
+    return ami_xr.make_time_dataset(
+        response,
+        fs=fs,
+        force=force,
+        points=[0, 1],
+        drive_point=0,
+        response_quantity="displacement",
+        response_units="m",
+        force_units="N",
+        **attrs,
+    )

@@ -12,20 +12,13 @@ from ami_xr import names
 from ami_xr.dsp.hits import check_hits
 from ami_xr.errors import AmiXrValueError
 
+from ..reference import two_point_time_dataset
+
 FS = 256.0
 
 
-def _time_ds(force, response):
-    return ami_xr.make_time_dataset(
-        response,
-        fs=FS,
-        force=force,
-        points=[0, 1],
-        drive_point=0,
-        response_quantity="displacement",
-        response_units="m",
-        force_units="N",
-    )
+def _time_ds(force, response, **attrs):
+    return two_point_time_dataset(force, response, FS, **attrs)
 
 
 @pytest.fixture

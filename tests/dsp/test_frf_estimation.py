@@ -15,7 +15,12 @@ from ami_xr import names
 from ami_xr.dsp.frf import frf_from_options
 from ami_xr.errors import AmiXrValueError
 
-from ..reference import esprit_poles, frf_from_residues, sampled_response
+from ..reference import (
+    esprit_poles,
+    frf_from_residues,
+    sampled_response,
+    two_point_time_dataset,
+)
 
 FS = 256.0
 M = np.eye(2)
@@ -35,17 +40,7 @@ def _truth(freq, lam, residue, dt):
 
 
 def _time_ds(force, response, **attrs):
-    return ami_xr.make_time_dataset(
-        response,
-        fs=FS,
-        force=force,
-        points=[0, 1],
-        drive_point=0,
-        response_quantity="displacement",
-        response_units="m",
-        force_units="N",
-        **attrs,
-    )
+    return two_point_time_dataset(force, response, FS, **attrs)
 
 
 @pytest.fixture(scope="module")
