@@ -2,7 +2,8 @@
 
 Importing ami_xr registers the ``ds.ami`` accessor and nothing else: each public name below is
 imported from its module on first use (PEP 562 module ``__getattr__``), so ``import ami_xr``
-loads neither the numerics nor plotting, file formats or dask. Nothing is compiled on import
+loads neither the numerics nor plotting, file formats or dask, and not even xarray: the accessor
+is registered when xarray is first imported (:mod:`ami_xr.import_hook`). Nothing is compiled on import
 either: numba kernels compile on first call and are cached on disk.
 """
 
@@ -95,5 +96,15 @@ class _Package(types.ModuleType):
 
 sys.modules[__name__].__class__ = _Package
 
-# Registers ds.ami; the accessor imports the functions it wraps when a method is first called.
-from ami_xr import accessor as _accessor  # noqa: E402,F401
+
+def _register_accessor() -> None:
+    importlib.import_module(f"{__name__}.accessor")
+
+
+# Registers ds.ami as soon as xarray is imported (at once if it already is): ``import ami_xr``
+# itself loads no xarray, pandas or numpy. The accessor imports the functions it wraps when a
+# method is first called.
+from ami_xr.import_hook import call_when_imported  # noqa: E402
+
+call_when_imported("xarray", _register_accessor)
+del call_when_imported

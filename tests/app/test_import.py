@@ -12,6 +12,9 @@ import ami_xr
 
 # Loaded by a function call, never by ``import ami_xr`` (each costs tenths of a second or more).
 HEAVY = (
+    "xarray",
+    "pandas",
+    "numpy",
     "matplotlib",
     "pyuff",
     "dask",
@@ -41,9 +44,54 @@ def test_import_loads_no_heavy_module():
     assert sorted(m for m in HEAVY if m in loaded) == []
 
 
-def test_accessor_is_registered_on_import():
-    loaded = _modules_after("import ami_xr, xarray as xr\nassert hasattr(xr.Dataset(), 'ami')")
+@pytest.mark.parametrize(
+    "code",
+    [
+        "import ami_xr\nimport xarray as xr",  # xarray after ami_xr: the import hook registers
+        "import xarray as xr\nimport ami_xr",  # xarray first: registered at once
+        "import ami_xr, importlib\nxr = importlib.import_module('xarray')",
+        "import ami_xr\nfrom xarray import Dataset\nimport xarray as xr",
+    ],
+)
+def test_accessor_is_registered_whichever_loads_first(code):
+    check = (
+        "\nimport sys, importlib.resources\nassert hasattr(xr.Dataset(), 'ami')"
+        "\nassert type(xr.Dataset().ami).__name__ == 'AmiAccessor'"
+        # the hook leaves no trace: xarray keeps its own loader, the finder is gone
+        "\nassert type(xr.__spec__.loader).__name__ == 'SourceFileLoader', xr.__spec__.loader"
+        "\nassert xr.__loader__ is xr.__spec__.loader"
+        "\nassert not any('PostImport' in type(f).__name__ for f in sys.meta_path)"
+        "\nassert importlib.resources.files(xr).is_dir()"
+    )
+    loaded = _modules_after(code + check)
     assert "ami_xr.accessor" in loaded
+
+
+def test_import_hook_calls_back_after_the_module_runs_and_reports_a_failure(tmp_path):
+    (tmp_path / "watched_mod.py").write_text("VALUE = 42\n")
+    code = (
+        "import sys, warnings\n"
+        f"sys.path.insert(0, {str(tmp_path)!r})\n"
+        "from ami_xr.import_hook import call_when_imported\n"
+        "seen = []\n"
+        "call_when_imported('watched_mod', lambda: seen.append(sys.modules['watched_mod'].VALUE))\n"
+        "assert seen == []\n"
+        "import watched_mod\n"
+        "assert seen == [42], seen\n"
+        "call_when_imported('watched_mod', lambda: seen.append('again'))\n"  # already loaded
+        "assert seen == [42, 'again'], seen\n"
+        "def fail():\n    raise KeyError('boom')\n"
+        "call_when_imported('json_other_mod', fail)\n"
+        f"open({str(tmp_path / 'json_other_mod.py')!r}, 'w').write('X = 1')\n"
+        "import importlib; importlib.invalidate_caches()\n"
+        "with warnings.catch_warnings(record=True) as w:\n"
+        "    warnings.simplefilter('always')\n"
+        "    import json_other_mod\n"
+        "assert json_other_mod.X == 1\n"
+        "assert any(\"'json_other_mod'\" in str(x.message) and 'boom' in str(x.message)"
+        " for x in w), [str(x.message) for x in w]\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
 
 
 def test_every_public_name_resolves_and_is_listed():
@@ -62,3 +110,17 @@ def test_function_keeps_its_name_when_its_module_loads_first(name):
         f"assert callable(ami_xr.{name}) and ami_xr.{name}.__name__ == {name!r}"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_python_dash_m_is_the_command_and_help_imports_no_heavy_module():
+    code = (
+        "import runpy, sys\nsys.argv = ['ami-xr', '--help']\n"
+        "try:\n    runpy.run_module('ami_xr', run_name='__main__')\n"
+        "except SystemExit as stop:\n    assert stop.code == 0, stop.code\n"
+    )
+    loaded = _modules_after(code)
+    assert sorted(m for m in HEAVY if m in loaded and m != "ami_xr.cli") == []
+    done = subprocess.run(
+        [sys.executable, "-m", "ami_xr", "--help"], capture_output=True, text=True, check=True
+    )
+    assert done.stdout.startswith("usage: ami-xr")
