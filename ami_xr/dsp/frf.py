@@ -93,6 +93,12 @@ def _setup(
     record where that is None or longer."""
     code = _ks.estimator_code(estimator)
     estimator = _ks.ESTIMATORS[code - 1]
+    if average in ("mean", "median"):  # scipy.signal.csd/welch's values of the same name
+        raise AmiXrValueError(
+            f"average: expected one of {AVERAGES} (the averaging types of FFT analysers), got "
+            f"{average!r}, scipy's meaning of 'average'; scipy's 'mean' is 'linear' here, and a "
+            "median average is not offered"
+        )
     average = check_choice(average, AVERAGES, "average")
     if average == "exponential" and (
         isinstance(n_average, bool) or not isinstance(n_average, (int, np.integer)) or n_average < 1

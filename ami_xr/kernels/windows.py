@@ -11,8 +11,8 @@ Windows (canonical names; aliases in brackets):
 * ``"force"`` [``"transient"``]: 1 over the first ``width`` samples (the hammer pulse), then a
   falling half-cosine over ``taper`` samples, then 0.
 
-The cosine windows reproduce ``scipy.signal.get_window`` to rounding, periodic (``sym=False``,
-scipy's default ``fftbins=True``) and symmetric (``sym=True``). The exponential and force windows
+The cosine windows are ``scipy.signal.get_window``'s own (not reimplemented), periodic
+(``sym=False``, scipy's default ``fftbins=True``) or symmetric (``sym=True``). The exponential and force windows
 are one-sided, start at sample 0 and ignore ``sym``; the exponential window equals
 ``scipy.signal.windows.exponential(n, center=0, tau=tau, sym=False)``.
 
@@ -52,28 +52,12 @@ _ALIASES = {
     "force": "force",
     "transient": "force",
 }
-# scipy.signal.windows.flattop coefficients (D'Antona and Ferrero 2006).
-_FLATTOP = np.array([0.21557895, 0.41663158, 0.277263158, 0.083578947, 0.006947368])
-_HANN = np.array([0.5, 0.5])
+# The cosine windows are scipy's (its names); ami_xr adds only what scipy lacks for impact tests
+# (a force window, an exponential window set by decay rate or end value) and the batched product.
+_SCIPY_NAMES = {"hann": "hann", "flattop": "flattop"}
 
 
 # --- private kernels (clean input assumed; never raise) ---------------------------------------
-
-
-@jit
-def _general_cosine(coeffs, m):
-    """Symmetric cosine-sum window of length ``m >= 2``, term by term in scipy's order."""
-    out = np.empty(m, dtype=np.float64)
-    step = (2.0 * np.pi) / (m - 1)  # numpy.linspace(-pi, pi, m): i * step + start, exact ends
-    for i in range(m):
-        fac = i * step - np.pi
-        if i == m - 1:
-            fac = np.pi
-        s = 0.0
-        for k in range(coeffs.shape[0]):
-            s += coeffs[k] * np.cos(k * fac)
-        out[i] = s
-    return out
 
 
 @jit
@@ -281,10 +265,10 @@ def get_window(
         return _force(n, width, taper)
     if n == 1 or canonical == "boxcar":
         return np.ones(n, dtype=np.float64)
-    coeffs = _HANN if canonical == "hann" else _FLATTOP
-    m = n if sym else n + 1
-    w = _general_cosine(coeffs, m)
-    return w if sym else w[:n].copy()
+    from scipy.signal import get_window as scipy_window  # lazy: scipy.signal is slow to import
+
+    w = scipy_window(_SCIPY_NAMES[canonical], n, fftbins=not sym)
+    return np.ascontiguousarray(w, dtype=np.float64)
 
 
 def _reject_unused(canonical: str, **params) -> None:
