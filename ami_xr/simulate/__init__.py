@@ -7,6 +7,8 @@
 * :mod:`~ami_xr.simulate.beam` -- the paper's benchmark, a cantilever beam with three
   suspended spring-mass-dashpot absorbers.
 * :mod:`~ami_xr.simulate.random` -- random lumped-mass chains and grids for tests.
+* :mod:`~ami_xr.simulate.catalogue` -- the fixed benchmark catalogue of random systems and the
+  scoring of identified modes against the truth.
 """
 
 from ami_xr.simulate.beam import (
@@ -22,6 +24,7 @@ from ami_xr.simulate.beam import (
     frf_from_impulse,
     paper_tables,
 )
+from ami_xr.simulate.catalogue import catalogue, score_modes
 from ami_xr.simulate.modal import (
     frf,
     impulse_response,
@@ -37,6 +40,7 @@ __all__ = [
     "BENCHMARK_POINTS",
     "add_noise",
     "beam_absorbers",
+    "catalogue",
     "contrast",
     "benchmark",
     "benchmark_model",
@@ -48,5 +52,6 @@ __all__ = [
     "paper_tables",
     "random_system",
     "residues",
+    "score_modes",
     "state_space_modes",
 ]
