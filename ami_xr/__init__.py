@@ -55,6 +55,8 @@ _PUBLIC: dict[str, str] = {
     "plot_mode_vectors": "ami_xr.plot",
     "plot_mac": "ami_xr.plot",
     "plot_modal_table": "ami_xr.plot",
+    "plot_mode_shapes": "ami_xr.plot_geometry",
+    "animate_mode_shape": "ami_xr.plot_geometry",
     "report": "ami_xr.report",
     "modal_table": "ami_xr.report",
     "format_modal_table": "ami_xr.report",

@@ -99,5 +99,7 @@ class AmiAccessor:
     plot_mode_vectors = _Method()
     plot_mac = _Method()
     plot_modal_table = _Method()
+    plot_mode_shapes = _Method()
+    animate_mode_shape = _Method()
     report = _Method()
     modal_table = _Method()

@@ -20,6 +20,12 @@ FRF = "frf"  # complex FRF, dims (point, frequency)
 RESPONSE = "response"  # response time histories, dims ([record,] point, time)
 FORCE = "force"  # force time histories, dims ([record,] [reference,] time)
 COHERENCE = "coherence"  # ordinary (or multiple) coherence, dims (point, frequency)
+# Optional measurement geometry: non-dimension float coordinates on ``point`` with a units attr
+POINT_X = "point_x"
+POINT_Y = "point_y"
+POINT_Z = "point_z"
+POINT_COORDS = (POINT_X, POINT_Y, POINT_Z)
+COORDINATE_UNITS = "m"  # default units of point_x/y/z (make_frf_dataset(coordinates=...))
 
 # --- attributes -------------------------------------------------------------------------------
 ATTR_DRIVE_POINT = "drive_point"  # label of the point where the force acts (the paper's P)

@@ -11,6 +11,7 @@ import csv
 import html
 import io
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,7 @@ __all__ = [
     "report",
     "FIGURES",
     "MEASUREMENT_FIGURES",
+    "GEOMETRY_FIGURES",
     "STD_COLUMNS",
     "INDICATOR_COLUMNS",
 ]
@@ -76,6 +78,18 @@ MEASUREMENT_FIGURES: dict[str, tuple[str, str, str]] = {
         "plot_hits",
         "Peak force of each impact hit; rejected hits (red) with their reason.",
         names.HIT_PEAK_FORCE,
+    ),
+}
+
+
+#: Figures on the measurement geometry (ami_xr.plot_geometry): stem -> (function, caption).
+#: Drawn by default when the points have coordinates (point_x/y/z), with one animated GIF per
+#: mode (mode_shape_<mode>.gif); without coordinates the mode_vectors bars remain.
+GEOMETRY_FIGURES: dict[str, tuple[str, str]] = {
+    "mode_shapes": (
+        "plot_mode_shapes",
+        "Mode shapes on the measurement geometry: real part of the phase-normalised mode "
+        "vector (largest component 1), undeformed points faint.",
     ),
 }
 
@@ -340,8 +354,9 @@ def report(
     title : str, optional
         Page title; by default "ami_xr report: " and the source file's name (never its folder).
     figures : tuple of str, optional
-        Keys of :data:`FIGURES` and :data:`MEASUREMENT_FIGURES` to draw (default: all of
-        FIGURES, and the measurement figures whose inputs are present).
+        Keys of :data:`FIGURES`, :data:`MEASUREMENT_FIGURES` and :data:`GEOMETRY_FIGURES` to
+        draw (default: all of FIGURES, the measurement figures whose inputs are present, and
+        ``mode_shapes`` with one animated GIF per mode when the points have coordinates).
     frequency_range : (float, float), optional
         Band in Hz for the figures with a frequency axis (Bode, subtraction, coherence, force
         spectrum); default the whole band.
@@ -351,15 +366,17 @@ def report(
     pathlib.Path
         Path of ``index.html``.
     """
-    from ami_xr import plot, plot_measurement
+    from ami_xr import plot, plot_geometry, plot_measurement
+    from ami_xr.io.geometry import has_coordinates
     from ami_xr.plot_common import DPI
 
     outdir = Path(outdir)
     if outdir.exists() and not outdir.is_dir():
         raise DataFileError(f"report: output {str(outdir)!r} exists and is not a folder")
-    known = {**MEASUREMENT_FIGURES, **FIGURES}
+    known = {**MEASUREMENT_FIGURES, **FIGURES, **GEOMETRY_FIGURES}
     if figures is None:
         wanted = tuple(k for k, v in MEASUREMENT_FIGURES.items() if v[2] in ds) + tuple(FIGURES)
+        wanted += tuple(GEOMETRY_FIGURES) if has_coordinates(ds) else ()
     else:
         wanted = tuple(figures)
     unknown = [f for f in wanted if f not in known]
@@ -372,6 +389,7 @@ def report(
     for stem in sorted(wanted, key=list(known).index):
         func_name, caption = known[stem][:2]
         module = plot_measurement if stem in MEASUREMENT_FIGURES else plot
+        module = plot_geometry if stem in GEOMETRY_FIGURES else module
         kwargs = {"frequency_range": frequency_range} if stem in _BANDED and frequency_range else {}
         try:
             fig = getattr(module, func_name)(ds, **kwargs)
@@ -383,6 +401,8 @@ def report(
         with atomic_open(outdir / f"{stem}.png", "wb") as fh:
             fh.write(png.getvalue())
         made.append((stem, caption, png.getvalue()))
+        if stem in GEOMETRY_FIGURES:
+            made += _mode_animations(ds, outdir, skipped)
     try:
         rows = modal_table(ds)
     except AmiXrValueError as err:
@@ -544,8 +564,28 @@ def _html(ds, rows, summary, made, skipped, title) -> str:
 
 def _figure_html(stem: str, caption: str, png: bytes) -> str:
     e = html.escape
+    kind = "gif" if png[:6] == b"GIF89a" else "png"  # mode shape animations are GIFs
     return (
         f"<h2>{e(stem.replace('_', ' '))}</h2>\n<p>{e(caption)}</p>\n"
-        f"<img src='data:image/png;base64,{base64.b64encode(png).decode('ascii')}' "
-        f"alt='{e(stem)}.png'>\n"
+        f"<img src='data:image/{kind};base64,{base64.b64encode(png).decode('ascii')}' "
+        f"alt='{e(stem)}.{kind}'>\n"
     )
+
+
+def _mode_animations(
+    ds: xr.Dataset, outdir: Path, skipped: list[tuple[str, str]]
+) -> list[tuple[str, str, bytes]]:
+    """One animated GIF per mode (mode_shape_<mode>.gif, written atomically) for the page."""
+    from ami_xr.plot_geometry import animate_mode_shape
+
+    out: list[tuple[str, str, bytes]] = []
+    for label in ds[names.MODE].values.tolist():
+        stem = "mode_shape_" + re.sub(r"[^A-Za-z0-9_.-]", "_", str(label))
+        try:
+            gif = animate_mode_shape(ds, label, outdir / f"{stem}.gif")
+        except ImportError as err:  # pragma: no cover - pillow ships with matplotlib
+            skipped.append(("mode shape animations", str(err)))
+            break
+        caption = f"Mode {label} animated: shape x cos(phase) over one cycle on the geometry."
+        out.append((stem, caption, gif))
+    return out

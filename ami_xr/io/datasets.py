@@ -14,6 +14,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, SchemaError
+from ami_xr.io.geometry import coordinate_arrays
 from ami_xr.io.messages import is_positive_number, python_scalar
 from ami_xr.io.schema import find_problems
 
@@ -88,6 +89,8 @@ def make_frf_dataset(
     response_units: str = "m",
     force_units: str = "N",
     frf_source: str = names.SOURCE_MEASURED,
+    coordinates: Any = None,
+    coordinate_units: str = names.COORDINATE_UNITS,
     **attrs: Any,
 ) -> xr.Dataset:
     """Build a valid FRF Dataset from plain arrays (validated; errors name the argument).
@@ -113,6 +116,13 @@ def make_frf_dataset(
         One of ``names.SOURCES``. For ``"impulse_response"`` pass ``sample_interval=dt`` and
         ``record_samples=N`` as keyword attributes; ``frequency`` must then be lines of the
         rfft grid ``k / (N * dt)`` Hz, ``0 <= k <= N // 2`` (all of them or a band).
+    coordinates : array_like of shape (n_point, 2 or 3), or dict, optional
+        Point coordinates (the measurement geometry): columns x, y[, z] (an (n_point,) array
+        is x alone), or a dict ``{"x": ..., "y": ..., "z": ...}`` with any of the keys. Stored
+        as the coordinates ``point_x``, ``point_y``, ``point_z`` on ``point``; used by
+        :func:`ami_xr.plot_geometry.plot_mode_shapes`.
+    coordinate_units : str
+        Units of ``coordinates`` (default ``"m"``), their ``units`` attribute.
     **attrs
         Further Dataset attributes (e.g. ``sample_interval``, ``record_samples``,
         ``exponential_window_decay``, ``title``).
@@ -142,6 +152,11 @@ def make_frf_dataset(
             f"frequency: expected {values.shape[1]} values (frf.shape[-1]), got shape {freq.shape}"
         )
     labels = _labels(points, values.shape[0])
+    geometry = (
+        {}
+        if coordinates is None
+        else coordinate_arrays(coordinates, values.shape[0], coordinate_units)
+    )
     ds_attrs = _std_attrs(drive_point, response_quantity, response_units, force_units)
     frf_type = names.QUANTITY_TO_FRF_TYPE.get(response_quantity)
     if frf_type is not None:
@@ -159,6 +174,7 @@ def make_frf_dataset(
         coords={
             names.POINT: labels,
             names.FREQUENCY: (names.FREQUENCY, freq, {names.ATTR_UNITS: names.FREQUENCY_UNITS}),
+            **geometry,
         },
         attrs=ds_attrs,
     )

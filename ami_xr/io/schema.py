@@ -18,6 +18,7 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.coords import RangeAxis, range_axis
 from ami_xr.errors import AmiXrValueError, SchemaError
+from ami_xr.io.geometry import coordinate_problems
 from ami_xr.io.messages import Namer, is_positive_number, python_scalar, shorten
 
 __all__ = [
@@ -362,6 +363,7 @@ def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool,
             _check_finite(frf, subject, problems)
     _check_axis(ds, names.FREQUENCY, names.FREQUENCY_UNITS, namer, problems, nonnegative=True)
     labels = _check_points(ds, namer, problems)
+    problems += coordinate_problems(ds, namer)
     _check_drive_point(ds, labels, require_drive_point, namer, problems)
     resp_units, force_units = _check_quantity_units(ds, namer, problems, need_frf_type=True)
     if frf is not None and resp_units and force_units:
@@ -447,6 +449,7 @@ def _time_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool
         )
     _check_axis(ds, t, names.TIME_UNITS, namer, problems, uniform=True)
     labels = _check_points(ds, namer, problems)
+    problems += coordinate_problems(ds, namer)
     _check_drive_point(ds, labels, require_drive_point, namer, problems)
     resp_units, force_units = _check_quantity_units(ds, namer, problems, need_frf_type=False)
     for var, units in ((names.RESPONSE, resp_units), (names.FORCE, force_units)):
