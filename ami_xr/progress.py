@@ -8,6 +8,10 @@ One helper, :class:`Progress`, for both kinds of work:
 * phases of one long call (:func:`phases`, used by ``ami_xr.identify(ds, progress=True)``): a
   counted bar of the phases done, named by the running one, whose elapsed time keeps moving
   during a long phase; on the command line it appears only after :data:`DELAY_SECONDS`.
+  Inside a phase the bar also counts what that phase counts (:func:`detail`): FRFs done by
+  the per-FRF kernels (:func:`by_rows`), and the refinement's modes and iterations
+  (:class:`Iterations`); e.g. ``identify: 1 FRFs x 25601 lines (refine: 15 modes,
+  iteration 12): 75%|...| 3/4 [00:05<...]``.
 
 tqdm draws the bar when it is installed, a plain line otherwise. Leaving the ``with`` block,
 also by Ctrl-C or an error, stops the thread (it wakes every :data:`TICK_SECONDS`) and closes the
@@ -20,17 +24,22 @@ import sys
 import threading
 import time
 from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Any
 
 from ami_xr.errors import AmiXrValueError
 
 __all__ = [
     "DELAY_SECONDS",
+    "Iterations",
     "MIN_ITEMS",
     "PhaseBar",
     "Progress",
     "THREAD_NAME",
     "TICK_SECONDS",
+    "active",
+    "by_rows",
+    "detail",
     "elapsed",
     "phases",
 ]
@@ -44,6 +53,66 @@ TICK_SECONDS = 0.25
 MIN_ITEMS = 8
 #: The command line draws a phase bar only once the work has lasted this long (seconds).
 DELAY_SECONDS = 2.0
+#: :func:`by_rows` splits a kernel call into at most this many calls (one count each).
+MAX_CALLS = 50
+
+# Where :func:`detail` sends the running phase's counts: set by :func:`phases` while a bar (or a
+# callback with a ``detail`` method) listens, None otherwise (then nothing is counted or split).
+_DETAIL: ContextVar = ContextVar("ami_xr_progress_detail", default=None)
+
+
+def active() -> bool:
+    """Whether a progress bar listens for counts inside the running phase."""
+    return _DETAIL.get() is not None
+
+
+def detail(text: str) -> None:
+    """Show ``text`` (counts inside the running phase) on the bar; nothing when none listens."""
+    report = _DETAIL.get()
+    if report is not None:
+        report(text)
+
+
+def by_rows(kernel, args: tuple, rowwise: tuple[int, ...], unit: str = "FRFs"):
+    """``kernel(*args)``, a kernel that treats every row (FRF) on its own: with a bar listening,
+    called on blocks of rows (at most :data:`MAX_CALLS` calls), counting the rows done, and its
+    outputs (arrays with one row per input row) joined. The rows are computed by the same code
+    either way, so the results are identical; without a bar it is one call, as before.
+
+    ``rowwise``: positions in ``args`` of the arrays with one row per FRF.
+    """
+    n_rows = args[rowwise[0]].shape[0]
+    if not active() or n_rows < 2:
+        return kernel(*args)
+    import numpy as np  # lazy: the command line imports this module before numpy is needed
+
+    step = -(-n_rows // MAX_CALLS)
+    parts = []
+    detail(f"0/{n_rows} {unit}")
+    for lo in range(0, n_rows, step):
+        block = list(args)
+        for i in rowwise:
+            block[i] = args[i][lo : lo + step]
+        parts.append(kernel(*block))
+        detail(f"{min(lo + step, n_rows)}/{n_rows} {unit}")
+    return tuple(np.concatenate(outs, axis=0) for outs in zip(*parts, strict=True))
+
+
+class Iterations:
+    """Counts iterations of an optimiser into :func:`detail`: pass as the ``trace`` list of
+    :func:`ami_xr.core.varpro.levenberg_marquardt` (its ``append`` is called once per iteration).
+    ``stage`` and ``modes`` name what is being fitted."""
+
+    def __init__(self) -> None:
+        self.n, self.modes, self.stage = 0, 0, ""
+
+    def append(self, _item: object) -> None:
+        self.n += 1
+        self.show()
+
+    def show(self) -> None:
+        stage = f"{self.stage}, " if self.stage else ""
+        detail(f"{stage}{self.modes} modes, iteration {self.n}")
 
 
 def _tqdm():
@@ -188,11 +257,12 @@ class Progress:
         if self._bar is not None and self.total is not None:
             self._bar.update(n)
 
-    def describe(self, text: str) -> None:
-        """Name the running step after the label: ``desc (text)``."""
+    def describe(self, text: str, refresh: bool = True) -> None:
+        """Name the running step after the label: ``desc (text)``; ``refresh=False`` leaves the
+        redraw to the live thread (cheap enough to call at every iteration)."""
         if self._bar is not None:
             shown = time.perf_counter() - self._t0 >= self.delay
-            self._bar.set_description_str(f"{self.desc} ({text})", refresh=shown)
+            self._bar.set_description_str(f"{self.desc} ({text})", refresh=refresh and shown)
 
     def __exit__(self, *exc: object) -> bool:
         if self._thread is not None:
@@ -233,12 +303,22 @@ class PhaseBar:
             self._bar = Progress(
                 self.desc, total=total, unit="phase", delay=self.delay, live=True
             ).__enter__()
-            self._n = 0
+            self._n, self._drawn = 0, time.perf_counter()
+        self._phase = phase
         self._bar.describe(phase)
         self._bar.update(done - self._n)
         self._n = done
         if done >= total:
             self.close()
+
+    def detail(self, text: str) -> None:
+        """Counts inside the running phase: ``desc (phase: text)``; redrawn at most every
+        :data:`TICK_SECONDS` (the live thread redraws in between)."""
+        if self._bar is not None:
+            now = time.perf_counter()
+            refresh = now - self._drawn >= TICK_SECONDS
+            self._drawn = now if refresh else self._drawn
+            self._bar.describe(f"{self._phase}: {text}", refresh=refresh)
 
     def close(self) -> None:
         """Close the bar (also when the call stopped early)."""
@@ -280,7 +360,9 @@ def phases(progress, desc: str, names: list[str]):
     stderr, tqdm when installed), or a callable ``(phase, done, total)``. A callback with a
     ``close`` method (a :class:`PhaseBar`) is closed on leaving, also on an error (a
     :class:`PhaseBar` without a label takes ``desc``); the final
-    ``("done", total, total)`` comes only when the call completes.
+    ``("done", total, total)`` comes only when the call completes. A callback with a
+    ``detail(text)`` method (a :class:`PhaseBar`) also gets the counts inside each phase
+    (:func:`detail`); only then are the per-FRF kernels split (:func:`by_rows`).
     """
     if progress is True:
         progress = PhaseBar(desc)
@@ -293,10 +375,12 @@ def phases(progress, desc: str, names: list[str]):
             f"progress: expected True, False or a callable (phase, done, total), got {progress!r}"
         )
     step = _Phases(progress, names)
+    token = _DETAIL.set(getattr(progress, "detail", None))
     try:
         yield step
         step.finish()
     finally:
+        _DETAIL.reset(token)
         close = getattr(progress, "close", None)
         if close is not None:
             close()

@@ -18,6 +18,7 @@ from ami_xr.kernels import isolate as ki
 from ami_xr.kernels import isolate_simo as kis
 from ami_xr.kernels import modal_basis as kb
 from ami_xr.kernels import noise as kn
+from ami_xr.progress import by_rows
 
 METHODS = (names.METHOD_SIMO, names.METHOD_PER_FRF)
 WEIGHTINGS = (names.WEIGHTING_SNR, names.WEIGHTING_MEAN)
@@ -49,7 +50,7 @@ def _isolate_block(
     m = min(n_c, max_modes)
     lam_in[:, :m] = lam0.reshape(-1, n_c)[:, :m]
     res_in[:, :m] = res0.reshape(-1, n_c)[:, :m]
-    lam, res, n, it, conv = ki.isolate_batch(
+    args = (
         g2,
         omega,
         dt,
@@ -62,6 +63,8 @@ def _isolate_block(
             delta, tol, max_iter, pfa, min_points, zeta_max, merge_tol, max_modes, False
         ),
     )
+    # FRFs counted on a progress bar when one listens (blocks of FRFs; same results)
+    lam, res, n, it, conv = by_rows(ki.isolate_batch, args, rowwise=(0, 4, 5, 6, 7))
     return (
         lam.reshape(shape + (max_modes,)),
         res.reshape(shape + (max_modes,)),

@@ -19,6 +19,7 @@ from ami_xr.core.modal import modal_std, mode_vectors
 from ami_xr.core.model import RESIDUAL_TERMS
 from ami_xr.kernels.modal_basis import model_columns
 from ami_xr.kernels.projection import project_points
+from ami_xr.progress import Iterations, active, detail
 
 # status of each refined mode
 STATUS_OK, STATUS_NOT_CONVERGED, STATUS_FALLBACK = 0, 1, 2
@@ -86,9 +87,12 @@ def _mode_codes(lam: np.ndarray, lam0: np.ndarray, max_shift: float, min_width: 
     return code
 
 
-def _fit_modes(prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width, free=None):
+def _fit_modes(
+    prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width, free=None, trace=None
+):
     """Levenberg-Marquardt from ``mu0`` (data poles); a mode that leaves its region around
     ``ref`` (physical eigenvalues) is frozen at its start and the fit goes on without it.
+    ``trace``: an :class:`ami_xr.progress.Iterations` counting the iterations (or None).
 
     Returns ``(fit, free, n_iter, start_cost)``.
     """
@@ -101,9 +105,17 @@ def _fit_modes(prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width, fr
     start_mu = mu0.copy()
     start_cost = None
     n_iter = 0
+    if trace is not None:
+        trace.modes = n_mode
     while True:
         fit = varpro.levenberg_marquardt(
-            prob, start_mu, max_iter=max(max_iter - n_iter, 1), tol=tol, free=free, check=check
+            prob,
+            start_mu,
+            max_iter=max(max_iter - n_iter, 1),
+            tol=tol,
+            free=free,
+            check=check,
+            trace=trace,
         )
         n_iter += fit.n_iter
         start_cost = fit.start_cost if start_cost is None else start_cost
@@ -224,6 +236,10 @@ def refine_arrays(
     mu0 = lam0 - decay
     min_width = 2.0 * (omega[1] - omega[0]) if omega.size > 1 else 0.0
     opts = dict(decay=decay, max_iter=max_iter, tol=tol, max_shift=max_shift, min_width=min_width)
+    trace = Iterations() if active() else None  # counts on a progress bar, when one listens
+    if trace is not None:
+        opts["trace"] = trace
+        trace.stage = "fit"
     fit, free, n_iter, start_cost = _fit_modes(prob, mu0, lam0, **opts)
     state = _State(fit, free, lam0, res0, np.arange(lam0.size), n_iter)
     # Model-order check by likelihood ratio: a mode AMI missed (e.g. one of a close pair lost in
@@ -238,13 +254,19 @@ def refine_arrays(
     # the smaller model (conservative for dropping) and the kept model is polished at the end.
     trial_opts = dict(opts, max_iter=min(max_iter, TRIAL_ITERATIONS))
     if drop_modes and not exact:
+        if trace is not None:
+            trace.stage = "order test (drop)"
         _drop_insignificant(prob, state, threshold, trial_opts)
     n_ami = state.lam0.size
+    if trace is not None:
+        trace.stage = "order test (add)"
     for _ in range(add_modes if not exact else 0):
         if not _add_missed(prob, state, threshold, decay, trial_opts):
             break
     fit, free, n_iter = state.fit, state.free, state.n_iter
     if state.changed and np.isfinite(fit.cost):  # polish the new model (frozen modes stay frozen)
+        if trace is not None:
+            trace.stage = "polish"
         ref = np.where(free, state.lam0, fit.lam + decay)
         polish = _fit_modes(
             prob, fit.lam, ref, free=free, **dict(opts, max_iter=max(max_iter - n_iter, 5))
@@ -253,6 +275,7 @@ def refine_arrays(
         if polish[0].cost <= fit.cost:
             fit, free = polish[0], free & polish[1]
     state.fit, state.free, state.n_iter = fit, free, n_iter
+    detail(f"standard errors, {fit.lam.size} modes, {n_iter} iterations")
     return _result(prob, state, n_ami, start_cost, drive_index, decay, min_width)
 
 
