@@ -1,4 +1,5 @@
-"""Write UFF files: FRFs and time histories as dataset 58, identified modes as dataset 55.
+"""Write UFF files: FRFs and time histories as dataset 58, identified modes as dataset 55,
+point coordinates as dataset 15.
 
 See :mod:`ami_xr.io.uff` for the mapping from ami_xr Datasets.
 """
@@ -14,7 +15,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.errors import AmiXrValueError, SchemaError
+from ami_xr.errors import AmiXrValueError, AssumptionWarning, SchemaError
 from ami_xr.io.atomic import atomic_path
 from ami_xr.io.uff.codes import (
     FUNC_COHERENCE,
@@ -313,6 +314,63 @@ def _mode_records(ds: xr.Dataset) -> list[dict]:
     return records
 
 
+# Length units of point_x/y/z that dataset 15 (written in metres) can take, as metres per unit.
+_METRES_PER_UNIT = {"m": 1.0, "": 1.0, "mm": 1e-3, "cm": 1e-2, "in": 0.0254}
+
+
+def _node_records(ds: xr.Dataset) -> list[dict]:
+    """One dataset 15 with the coordinates of the points' nodes (in metres), when they have any.
+
+    Dataset 15 stores about 6 significant digits (format E13.5). Coordinates that cannot be
+    written truthfully (unknown length units, two DOFs of one node at different places) are left
+    out with a warning rather than written wrong.
+    """
+    present = [c for c in names.POINT_COORDS if c in ds.coords]
+    if not present:
+        return []
+    labels = list(ds[names.POINT].values.tolist())
+    dof = dof_map(labels)
+    xyz = np.zeros((len(labels), 3))
+    for c in present:
+        units = str(ds[c].attrs.get(names.ATTR_UNITS, "m"))
+        if units not in _METRES_PER_UNIT:
+            warnings.warn(
+                f"write_uff: coordinate {c!r} has units {units!r}, not a length dataset 15 can "
+                f"take ({', '.join(u for u in _METRES_PER_UNIT if u)}); node coordinates not "
+                "written",
+                AssumptionWarning,
+                stacklevel=3,
+            )
+            return []
+        xyz[:, names.POINT_COORDS.index(c)] = (
+            np.asarray(ds[c].values, dtype=np.float64) * _METRES_PER_UNIT[units]
+        )
+    nodes: dict[int, np.ndarray] = {}
+    for i, lab in enumerate(labels):
+        node = dof[lab][0]
+        if node in nodes and not np.allclose(nodes[node], xyz[i], rtol=1e-12, atol=0.0):
+            warnings.warn(
+                f"write_uff: point {lab!r} shares node {node} with another point at other "
+                "coordinates; node coordinates not written",
+                AssumptionWarning,
+                stacklevel=3,
+            )
+            return []
+        nodes[node] = xyz[i]
+    order = sorted(nodes)
+    zeros = np.zeros(len(order), dtype=np.int64)
+    return [
+        {
+            "type": 15,
+            "node_nums": np.asarray(order),
+            "def_cs": zeros,
+            "disp_cs": zeros,
+            "color": zeros,
+            **{axis: np.array([nodes[n][j] for n in order]) for j, axis in enumerate("xyz")},
+        }
+    ]
+
+
 def write_uff(
     ds: xr.Dataset,
     path: str | os.PathLike,
@@ -326,8 +384,9 @@ def write_uff(
     each point, reference = the drive point); time Datasets to dataset 58 function type 1 (one
     record per point and per ``record``, load case = record number, plus the force at the drive
     point); identified modes (``eigenvalue`` and ``mode_vector``) to one dataset 55 per mode
-    (complex eigenvalue, displacement). Reading the file back with :func:`read_uff` gives the same
-    FRFs and mode vectors.
+    (complex eigenvalue, displacement); point coordinates (``point_x/y/z``, if any) to one
+    dataset 15 in metres, first. Reading the file back with :func:`read_uff` gives the same
+    FRFs, mode vectors and coordinates (these to the 6 digits dataset 15 holds).
 
     Parameters
     ----------
@@ -363,10 +422,13 @@ def write_uff(
     check_writable(ds, include)
     records: list[dict] = []
     if "frf" in include and names.FRF in ds:
+        records += _node_records(ds)
         records += _frf_records(ds, binary)
     if "time" in include and names.RESPONSE in ds:
         records += _time_records(ds, binary)
     if "modes" in include and names.MODE_VECTOR in ds and names.EIGENVALUE in ds:
+        if not any(r.get("type") == 15 for r in records):
+            records = _node_records(ds) + records
         records += _mode_records(ds)
     if not records:
         raise AmiXrValueError(
