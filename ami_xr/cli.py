@@ -53,6 +53,7 @@ from ami_xr.cli_options import (
     value,
 )
 from ami_xr.errors import AmiXrError, AmiXrValueError, AmiXrWarning
+from ami_xr.progress import DELAY_SECONDS
 
 EXIT_OK = 0
 EXIT_ERROR = 1
@@ -413,7 +414,14 @@ def _add_file_commands(add) -> None:
         "58 and mode shapes as dataset 55) (default: none, only print the table)",
         required=False,
     )
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        help="no progress bar (otherwise drawn on stderr, on a terminal, once identification "
+        f"has run {DELAY_SECONDS:g} s: phases done, and inside the running phase the FRFs "
+        "done or the refinement's modes and iterations)",
+    )
     add_identify_options(p)
     p.set_defaults(func=_cmd_identify)
 
@@ -469,7 +477,9 @@ def _add_batch(add) -> None:
         "--report", action="store_true", help="also write <stem>.report/ folders (needs matplotlib)"
     )
     p.add_argument("--force", action="store_true", help="redo files whose outputs are up to date")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "-q", "--quiet", action="store_true", help="no progress bar (files done, on stderr)"
+    )
     add_identify_options(p)
     add_frf_options(p)
     p.set_defaults(func=_cmd_batch)
