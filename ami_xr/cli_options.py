@@ -111,6 +111,22 @@ IDENTIFY_OPTIONS = (
     ),
     ("--max-modes", IDENTIFY, int, "subtraction: most modes per FRF"),
     (
+        "--fmin",
+        IDENTIFY,
+        float,
+        "analysis band: lowest frequency [Hz] (default: where the excitation is valid for an "
+        "FRF from ami-xr frf (force within 20 dB of its low-frequency level, coherence >= 0.8), "
+        "else the first line)",
+        "HZ",
+    ),
+    (
+        "--fmax",
+        IDENTIFY,
+        float,
+        "analysis band: highest frequency [Hz] (default: as --fmin, the last line)",
+        "HZ",
+    ),
+    (
         "--tol",
         IDENTIFY,
         float,

@@ -179,6 +179,19 @@ ATTR_AMI_DRIVE_SNR_MIN = "ami_drive_snr_min"  # global_fit: threshold of low_dri
 ATTR_AMI_STOP_REASON = "ami_stop_reason"  # subtract, when no FRF has a candidate: why (below)
 STOP_NO_SIGNIFICANT_PEAK = "no_significant_peak"  # no FRF has a peak above its noise floor
 STOP_NO_ACCEPTED_FIT = "no_accepted_fit"  # peaks above the noise floor, but no fit accepted
+# The analysis band (ami_xr.dsp.band): identify analyses only these lines, reports no mode outside
+ATTR_BAND_FMIN = "analysis_band_fmin"  # Hz, lowest line analysed
+ATTR_BAND_FMAX = "analysis_band_fmax"  # Hz, highest line analysed
+ATTR_BAND_RULE = "analysis_band_rule"  # "excitation" | "whole" | "user"
+ATTR_BAND_USER_GIVEN = "analysis_band_user_given"  # "", "fmin", "fmax" or "fmin,fmax"
+ATTR_BAND_REASON = "analysis_band_reason"  # one sentence: why this band
+ATTR_BAND_FORCE_DROP_DB = "analysis_band_force_drop_db"  # force rule: dB below its low level
+ATTR_BAND_COHERENCE_MIN = "analysis_band_coherence_min"  # coherence rule: level
+ATTR_BAND_COHERENCE_FRACTION = "analysis_band_coherence_fraction"  # ... fraction of lines
+ATTR_BAND_DROPPED = "analysis_band_dropped_modes"  # Hz of modes outside the band, dropped
+# Caps that ended a phase ("subtract:max_modes", "isolate:max_iter", "refine:max_iter", ...)
+ATTR_AMI_CAPPED = "ami_capped"
+MODE_LABEL_UNSORTED = "mode_label_unsorted"  # (mode) label before sorting by frequency
 # Results of ami_xr.refine, as attributes
 ATTR_REFINE_MODEL = "refine_model"  # "discrete" | "continuous"
 ATTR_REFINE_RESIDUAL_TERMS = "refine_residual_terms"  # "", "lower", "upper" or "lower,upper"

@@ -210,3 +210,87 @@ def frf_values(ds: xr.Dataset) -> np.ndarray:
     return np.ascontiguousarray(
         ds[names.FRF].transpose(names.POINT, names.FREQUENCY).values, dtype=np.complex128
     )
+
+
+def select_modes(ds: xr.Dataset, index) -> xr.Dataset:
+    """``ds`` with the modes at positions ``index`` (in that order) on ``mode`` and
+    ``mode_2``."""
+    index = np.asarray(index, dtype=int)
+    sel = {names.MODE: index}
+    if names.MODE_2 in ds.dims:
+        sel[names.MODE_2] = index
+    return ds.isel(sel)
+
+
+def sort_modes(ds: xr.Dataset) -> xr.Dataset:
+    """Modes sorted by natural frequency and labelled 1..n (contiguous); the labels they had
+    before are kept in ``mode_label_unsorted`` (attributes such as ``refine_removed_modes``
+    name modes by those)."""
+    n = ds.sizes.get(names.MODE, 0)
+    if n == 0 or names.NATURAL_FREQUENCY not in ds:
+        return ds
+    fn = np.asarray(ds[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
+    order = np.argsort(np.where(np.isfinite(fn), fn, np.inf), kind="stable")
+    before = np.asarray(ds[names.MODE].values)
+    out = select_modes(ds, order)
+    labels = np.arange(1, n + 1)
+    out = out.assign_coords({names.MODE: labels})
+    if names.MODE_2 in out.dims:
+        out = out.assign_coords({names.MODE_2: labels})
+    out[names.MODE_LABEL_UNSORTED] = xr.DataArray(
+        before[order],
+        dims=(names.MODE,),
+        attrs={names.ATTR_LONG_NAME: "label of the mode before sorting by natural frequency"},
+    )
+    return out
+
+
+def drop_outside_band(ds: xr.Dataset, fmin: float, fmax: float) -> tuple[xr.Dataset, np.ndarray]:
+    """``ds`` without the modes whose natural frequency lies outside ``[fmin, fmax]`` Hz, and
+    the natural frequencies of the dropped ones."""
+    if ds.sizes.get(names.MODE, 0) == 0 or names.NATURAL_FREQUENCY not in ds:
+        return ds, np.zeros(0)
+    fn = np.asarray(ds[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
+    inside = (fn >= fmin) & (fn <= fmax)
+    if np.all(inside):
+        return ds, np.zeros(0)
+    return select_modes(ds, np.flatnonzero(inside)), fn[~inside]
+
+
+# flags about the AMI iteration that the refinement's converged estimate supersedes
+SUPERSEDED_BY_REFINE = (names.FLAG_NOT_CONVERGED,)
+_REFINE_TROUBLE = (names.FLAG_REFINE_FALLBACK, names.FLAG_REFINE_NOT_CONVERGED)
+
+
+def clear_superseded_flags(ds: xr.Dataset, decay: float = 0.0) -> xr.Dataset:
+    """After a refinement, the flags that no longer apply are removed.
+
+    * ``refine_fallback`` says the mode was frozen at its AMI eigenvalue. When the final
+      polish of the refinement falls back, it freezes every mode at the *refined* values of
+      the stage before (measurement.uff: all 8 modes), so a mode whose reported eigenvalue
+      (less the exponential-window ``decay`` identify added) differs from ``ami_eigenvalue``
+      was refined, not frozen at AMI's value: the flag is dropped.
+    * ``not_converged`` (the isolation stopped at its sweep cap) no longer applies to a mode
+      the refinement moved to its converged maximum-likelihood estimate (no ``refine_fallback``
+      or ``refine_not_converged`` left): the reported eigenvalue is not the isolation's.
+    """
+    if names.QUALITY_FLAGS not in ds or ds[names.QUALITY_FLAGS].dims != (names.MODE,):
+        return ds
+    ami = names.AMI_PREFIX + names.EIGENVALUE
+    refined = np.zeros(ds.sizes[names.MODE], bool)
+    if ami in ds and names.EIGENVALUE in ds:
+        lam = np.asarray(ds[names.EIGENVALUE].transpose(names.MODE).values) - decay
+        lam0 = np.asarray(ds[ami].transpose(names.MODE).values)
+        with np.errstate(invalid="ignore"):
+            refined = np.isfinite(lam0) & (np.abs(lam - lam0) > 1e-9 * np.abs(lam0))
+    new = []
+    for k, text in enumerate(np.asarray(ds[names.QUALITY_FLAGS].values).astype(str)):
+        flags = [f for f in text.split(names.FLAG_SEPARATOR) if f]
+        if refined[k]:
+            flags = [f for f in flags if f != names.FLAG_REFINE_FALLBACK]
+        if not any(f in _REFINE_TROUBLE for f in flags):
+            flags = [f for f in flags if f not in SUPERSEDED_BY_REFINE]
+        new.append(names.FLAG_SEPARATOR.join(flags))
+    out = ds.copy(deep=False)
+    out[names.QUALITY_FLAGS] = ds[names.QUALITY_FLAGS].copy(data=np.array(new, dtype=str))
+    return out

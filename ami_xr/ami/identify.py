@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import xarray as xr
 
@@ -11,7 +13,7 @@ from ami_xr.ami.global_fit import global_fit
 from ami_xr.ami.isolate import METHODS as ISOLATE_METHODS
 from ami_xr.ami.isolate import isolate
 from ami_xr.ami.settings import GlobalFitSettings, IsolateSettings, SubtractSettings
-from ami_xr.ami.subtract import power_of_two_scale, subtract
+from ami_xr.ami.subtract import add_capped, band_of, power_of_two_scale, subtract
 from ami_xr.core.modal import (
     complexity,
     damping_ratio,
@@ -21,7 +23,8 @@ from ami_xr.core.modal import (
     natural_frequency,
     phase_normalised,
 )
-from ami_xr.errors import IdentificationError
+from ami_xr.dsp import band as bd
+from ami_xr.errors import ConvergenceWarning, IdentificationError
 from ami_xr.progress import phases
 
 METHODS = (*ISOLATE_METHODS, names.METHOD_PAPER)
@@ -128,6 +131,8 @@ def identify(
     pfa: float = SubtractSettings.pfa,
     max_modes: int = SubtractSettings.max_modes,
     zeta_max: float = SubtractSettings.zeta_max,
+    fmin: float | None = None,
+    fmax: float | None = None,
     progress=False,
 ) -> xr.Dataset:
     """Identify modes: :func:`subtract`, :func:`isolate`, :func:`global_fit` and, by default,
@@ -150,6 +155,14 @@ def identify(
         See :func:`ami_xr.isolate`.
     band, residual_terms :
         See :func:`ami_xr.global_fit`.
+    fmin, fmax : float, optional
+        Analysis band in Hz (each overrides its limit). By default, for an FRF estimated by
+        :func:`ami_xr.frf`/:func:`ami_xr.impact_frf` (``force_autospectrum``, ``coherence``),
+        the band where the excitation is valid (:mod:`ami_xr.dsp.band`: force within 20 dB of
+        its low-frequency level, coherence >= 0.8 on most lines), announced in an
+        ``AssumptionWarning``; otherwise every line. Only the band is analysed (the output
+        holds its lines), no mode outside it is reported (dropped ones: attr
+        ``analysis_band_dropped_modes``), and attrs ``analysis_band_*`` record it.
     progress : bool or callable, default False
         True draws a bar of the phases (subtract, isolate, global_fit, refine) on stderr,
         labelled with the numbers of FRFs and lines, its elapsed time moving during a long phase
@@ -182,6 +195,8 @@ def identify(
     c.check_choice(method, "method", METHODS)
     if refine is not None and not isinstance(refine, bool):
         raise IdentificationError(f"refine: expected True, False or None, got {refine!r}")
+    whole = ds
+    ds = band_of(ds, fmin, fmax, "identify")
     paper = method == names.METHOD_PAPER
     fn = None
     if refine or (refine is None and not paper):
@@ -233,6 +248,7 @@ def identify(
                 data=phi if result[names.MODE_VECTOR].dims[0] == names.POINT else phi.T
             )
         result.attrs[names.ATTR_EXP_CORRECTED] = beta
+    result = _finish_modes(result, whole, refined=fn is not None)
     result = _with_quality(result)
     params = dict(
         method=method,
@@ -245,5 +261,37 @@ def identify(
         pfa=pfa,
         max_modes=max_modes,
         zeta_max=zeta_max,
+        fmin=fmin,
+        fmax=fmax,
     )
     return c.finish(result, "ami_xr.identify", "identify", params)
+
+
+def _finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dataset:
+    """The modes as reported: none outside a restricted analysis band, superseded flags
+    cleared, sorted by frequency with labels 1..n; caps that ended a phase warned about and
+    listed in attr ``ami_capped``."""
+    band = bd.analysis_band(result)
+    if not bd.is_whole(whole, band):
+        result, dropped = c.drop_outside_band(result, band.fmin, band.fmax)
+        result.attrs[names.ATTR_BAND_DROPPED] = ",".join(f"{f:.6g}" for f in dropped)
+    if refined:
+        beta = float(result.attrs.get(names.ATTR_EXP_CORRECTED, 0.0) or 0.0)
+        result = c.clear_superseded_flags(result, beta)
+    result = c.sort_modes(result)
+    caps = []
+    if names.ISO_CONVERGED in result and not bool(np.all(result[names.ISO_CONVERGED].values)):
+        caps.append("isolate:max_iter")  # isolate warned already
+    if refined and names.ATTR_REFINE_CONVERGED in result.attrs:
+        if not int(result.attrs[names.ATTR_REFINE_CONVERGED]):
+            caps.append("refine:max_iter")
+            warnings.warn(
+                "identify: the refinement stopped at its iteration cap before converging "
+                f"({result.attrs.get(names.ATTR_REFINE_ITERATIONS, '?')} iterations in all; "
+                f"attr {names.ATTR_REFINE_CONVERGED}=0; modes still moving carry "
+                f"{names.FLAG_REFINE_NOT_CONVERGED})",
+                ConvergenceWarning,
+                stacklevel=3,
+            )
+    add_capped(result.attrs, caps)
+    return result

@@ -11,7 +11,8 @@ from ami_xr import names
 from ami_xr.ami import common as c
 from ami_xr.ami.settings import SubtractSettings, parameters, to_attrs
 from ami_xr.core.model import resolve_model
-from ami_xr.errors import NoModesWarning
+from ami_xr.dsp import band as bd
+from ami_xr.errors import AssumptionWarning, ConvergenceWarning, NoModesWarning
 from ami_xr.kernels import noise as kn
 from ami_xr.kernels import subtract as ks
 
@@ -73,6 +74,8 @@ def subtract(
     zeta_max: float = SubtractSettings.zeta_max,
     merge_tol: float = SubtractSettings.merge_tol,
     model: str = SubtractSettings.model,
+    fmin: float | None = None,
+    fmax: float | None = None,
 ) -> xr.Dataset:
     """Subtraction Phase: find candidate modes in every FRF, largest peak first (eqs. 6, 10-12).
 
@@ -119,6 +122,11 @@ def subtract(
     model : {"auto", "discrete", "continuous"}
         Basis: "auto" uses the exact discrete basis when ``frf_source == "impulse_response"``
         (see :func:`ami_xr.core.model.resolve_model`).
+    fmin, fmax : float, optional
+        Analysis band (Hz). By default the band where the excitation is valid when ``ds``
+        carries ``force_autospectrum``/``coherence`` (see :mod:`ami_xr.dsp.band`), else every
+        line; a band ``ds`` already records (``analysis_band_fmin``/``_fmax``) is kept. Only the
+        lines of the band are analysed; the output holds them and records the band in attrs.
 
     Returns
     -------
@@ -132,6 +140,11 @@ def subtract(
     -----
     NoModesWarning
         When no FRF has any candidate (e.g. pure noise).
+    AssumptionWarning
+        When the band is chosen from the excitation (says which and why).
+    ConvergenceWarning
+        When a cap (``max_modes``, ``max_rejected_peaks``) ended the phase at some FRF; the
+        point's ``subtraction_stop_reason`` and attr ``ami_capped`` record it.
     """
     c.check_frf(ds, "subtract")
     delta = c.check_fraction(delta, "delta")
@@ -141,6 +154,7 @@ def subtract(
     zeta_max = c.check_positive(zeta_max, "zeta_max")
     merge_tol = c.check_positive(merge_tol, "merge_tol")
     c.check_choice(model, "model", c.MODELS)
+    ds = band_of(ds, fmin, fmax, "subtract")
     data_model = resolve_model(ds.attrs, model)
     dt, n_samples = data_model.dt, data_model.n_samples
     settings = SubtractSettings(
@@ -225,9 +239,52 @@ def subtract(
     )
     out = out.assign_coords({names.CANDIDATE: np.arange(n_keep)})
     to_attrs(settings, out.attrs)
+    _warn_caps(out, max_modes)
     if int(n.sum()) == 0:
         _explain_no_modes(out, frf, sigma, pfa, zeta_max, omega.size)
     return c.finish(out, "ami_xr.subtract", "subtract", parameters(settings))
+
+
+def band_of(ds: xr.Dataset, fmin, fmax, function: str) -> xr.Dataset:
+    """``ds`` restricted to its analysis band (:func:`ami_xr.dsp.band.analysis_band`); a band
+    chosen from the excitation is announced in an :class:`AssumptionWarning`."""
+    recorded = names.ATTR_BAND_FMIN in ds.attrs and fmin is None and fmax is None
+    band = bd.analysis_band(ds, fmin, fmax)
+    if not recorded and band.rule == bd.RULE_EXCITATION:
+        warnings.warn(f"{function}: {bd.band_message(band, ds)}", AssumptionWarning, stacklevel=3)
+    return bd.apply_band(ds, band)
+
+
+def add_capped(attrs, entries) -> None:
+    """Append ``entries`` ("phase:cap") to attr ``ami_capped`` (comma-separated, no repeats)."""
+    old = [e for e in str(attrs.get(names.ATTR_AMI_CAPPED, "")).split(",") if e]
+    attrs[names.ATTR_AMI_CAPPED] = ",".join(old + [e for e in entries if e not in old])
+
+
+def _warn_caps(out: xr.Dataset, max_modes: int) -> None:
+    """A cap that ended the phase at some FRF: a warning and attr ``ami_capped``."""
+    reasons = np.asarray(out[names.SUB_STOP_REASON].values).astype(str)
+    points = np.asarray(out[names.POINT].values)
+    caps = {
+        ks.STOP_REASONS[ks.STOP_MAX_MODES]: f"max_modes={max_modes} candidates",
+        ks.STOP_REASONS[ks.STOP_MAX_ATTEMPTS]: f"{3 * max_modes + 10} examined peaks "
+        "(max_rejected_peaks = 3 max_modes + 10)",
+    }
+    hit = []
+    for reason, what in caps.items():
+        at = points[reasons == reason]
+        if at.size:
+            hit.append(f"subtract:{reason}")
+            warnings.warn(
+                f"subtract: stopped at the cap of {what} at point(s) {c._shorten(at.tolist())}, "
+                "before the remaining peaks fell below the noise floor; modes may be missing "
+                "(raise max_modes, or narrow the band with fmin/fmax); see "
+                f"{names.SUB_STOP_REASON}",
+                ConvergenceWarning,
+                stacklevel=3,
+            )
+    out.attrs[names.ATTR_AMI_CAPPED] = ""
+    add_capped(out.attrs, hit)
 
 
 def _explain_no_modes(out, frf, sigma, pfa, zeta_max, n_lines) -> None:

@@ -1,0 +1,134 @@
+"""Modes sorted by frequency with contiguous labels; superseded flags cleared; no silent cap
+(issue 10, items 2 and 5)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import ami_xr
+from ami_xr import names
+from ami_xr.ami import common as c
+from ami_xr.errors import ConvergenceWarning
+from ami_xr.io.formats import read_any
+
+from ..reference import SHARED_DATA
+
+
+def test_max_modes_cap_warns_and_is_recorded():
+    ds, truth = ami_xr.simulate.random_system(seed=1, n_points=5, n_frequencies=1024)
+    assert truth.sizes[names.MODE] > 2
+    with pytest.warns(ConvergenceWarning, match=r"cap of max_modes=2 candidates"):
+        out = ami_xr.identify(ds, max_modes=2)
+    assert "subtract:max_modes" in out.attrs[names.ATTR_AMI_CAPPED].split(",")
+    assert "max_modes" in set(out[names.SUB_STOP_REASON].values.astype(str))
+
+
+def test_no_cap_no_warning_and_empty_record():
+    ds, _ = ami_xr.simulate.random_system(seed=1, n_points=5, n_frequencies=1024)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConvergenceWarning)
+        s = ami_xr.subtract(ds)
+    assert s.attrs[names.ATTR_AMI_CAPPED] == ""
+
+
+def test_identify_labels_sorted_and_contiguous():
+    """A case whose refinement drops a mode: labels used to keep the gap (1, 2, 3, 4, 6, ...)."""
+    ds, _ = ami_xr.simulate.random_system(
+        seed=3, closely_spaced=True, noise=0.02, n_frequencies=2000
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = ami_xr.identify(ds, method="per_frf")
+    n = out.sizes[names.MODE]
+    np.testing.assert_array_equal(out[names.MODE].values, np.arange(1, n + 1))
+    np.testing.assert_array_equal(out[names.MODE_2].values, np.arange(1, n + 1))
+    assert np.all(np.diff(out[names.NATURAL_FREQUENCY].values) >= 0)
+    before = out[names.MODE_LABEL_UNSORTED].values
+    assert before.size == n and np.any(before != np.arange(1, n + 1))  # the gap was there
+
+
+def _modes(fn, flags):
+    n = len(fn)
+    labels = np.array([1, 2, 4][:n])
+    mac = np.arange(n * n, dtype=float).reshape(n, n)
+    return xr.Dataset(
+        {
+            names.NATURAL_FREQUENCY: ((names.MODE,), np.asarray(fn, float)),
+            names.QUALITY_FLAGS: ((names.MODE,), np.array(flags, dtype=str)),
+            names.MAC: ((names.MODE, names.MODE_2), mac),
+            names.RESIDUE: ((names.POINT, names.MODE), np.ones((2, n)) * np.asarray(fn)),
+        },
+        coords={names.MODE: labels, names.MODE_2: labels, names.POINT: [0, 1]},
+    )
+
+
+def test_sort_modes_reorders_every_mode_variable():
+    ds = _modes([30.0, 10.0, 20.0], ["a", "b", "c"])
+    out = c.sort_modes(ds)
+    np.testing.assert_array_equal(out[names.NATURAL_FREQUENCY].values, [10.0, 20.0, 30.0])
+    np.testing.assert_array_equal(out[names.MODE].values, [1, 2, 3])
+    np.testing.assert_array_equal(out[names.MODE_LABEL_UNSORTED].values, [2, 4, 1])
+    np.testing.assert_array_equal(out[names.QUALITY_FLAGS].values, ["b", "c", "a"])
+    np.testing.assert_array_equal(out[names.RESIDUE].values[0], [10.0, 20.0, 30.0])
+    # MAC rows and columns follow: old (mode 2, mode 4) is new (1, 2)
+    assert out[names.MAC].values[0, 1] == ds[names.MAC].values[1, 2]
+
+
+def test_drop_outside_band():
+    out, dropped = c.drop_outside_band(_modes([30.0, 10.0, 20.0], ["", "", ""]), 15.0, 35.0)
+    np.testing.assert_array_equal(out[names.NATURAL_FREQUENCY].values, [30.0, 20.0])
+    np.testing.assert_array_equal(dropped, [10.0])
+    assert out.sizes[names.MODE_2] == 2
+
+
+def test_refine_supersedes_isolation_not_converged():
+    ds = _modes(
+        [1.0, 2.0, 3.0],
+        [
+            "not_converged,single_frf",
+            "not_converged,refine_fallback",
+            "not_converged,refine_not_converged",
+        ],
+    )
+    out = c.clear_superseded_flags(ds)
+    assert list(out[names.QUALITY_FLAGS].values) == [
+        "single_frf",
+        "not_converged,refine_fallback",
+        "not_converged,refine_not_converged",
+    ]
+
+
+@pytest.mark.skipif(not (SHARED_DATA / "measurement.uff").exists(), reason="no shared data")
+def test_measurement_uff_sorted_contiguous():
+    ds = read_any(SHARED_DATA / "measurement.uff")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = ami_xr.identify(ds)
+    n = out.sizes[names.MODE]
+    np.testing.assert_array_equal(out[names.MODE].values, np.arange(1, n + 1))
+    assert np.all(np.diff(out[names.NATURAL_FREQUENCY].values) > 0)
+    # the subtraction ends on its cap of examined peaks there: recorded, not silent
+    assert "subtract:max_rejected_peaks" in out.attrs[names.ATTR_AMI_CAPPED].split(",")
+
+
+def test_refine_fallback_kept_only_where_the_mode_kept_its_ami_eigenvalue():
+    """refine_fallback means "frozen at the AMI eigenvalue": a mode reported at another
+    (refined) eigenvalue does not carry it (measurement.uff: every mode carried it)."""
+    ds = _modes([1.0, 2.0, 3.0], ["refine_fallback"] * 3)
+    lam0 = np.array([-1 + 10j, -1 + 20j, np.nan + 1j * np.nan])
+    ds = ds.assign(
+        {
+            names.EIGENVALUE: ((names.MODE,), np.array([-1 + 10j, -1.1 + 20.5j, -1 + 30j])),
+            names.AMI_PREFIX + names.EIGENVALUE: ((names.MODE,), lam0),
+        }
+    )
+    out = c.clear_superseded_flags(ds)
+    assert list(out[names.QUALITY_FLAGS].values) == ["refine_fallback", "", "refine_fallback"]
+    # with an exponential window identify adds its decay to the reported eigenvalue only
+    shifted = ds.assign({names.EIGENVALUE: ds[names.EIGENVALUE] + 0.5})
+    out = c.clear_superseded_flags(shifted, 0.5)
+    assert list(out[names.QUALITY_FLAGS].values) == ["refine_fallback", "", "refine_fallback"]
