@@ -47,6 +47,7 @@ from ami_xr.cli_options import (
     HelpFormatter,
     add_frf_options,
     add_identify_options,
+    add_report_options,
     check_paths,
     frf_options,
     identify_options,
@@ -221,7 +222,14 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from ami_xr.io.formats import read_any
     from ami_xr.report import report
 
-    _say(f"wrote report to {report(read_any(args.input), args.output, title=args.title)}")
+    index = report(
+        read_any(args.input),
+        args.output,
+        title=args.title,
+        figures=args.figures,
+        frequency_range=args.frequency_range,
+    )
+    _say(f"wrote report to {index}")
     return EXIT_OK
 
 
@@ -434,6 +442,7 @@ def _add_file_commands(add) -> None:
     p.add_argument("input", help="result file of 'ami-xr identify' (.nc)")
     _add_output(p, "report folder (created)")
     p.add_argument("--title", default=None, help="page title (default: from the source file)")
+    add_report_options(p)
     p.set_defaults(func=_cmd_report)
 
     p = add(

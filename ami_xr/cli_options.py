@@ -19,6 +19,7 @@ __all__ = [
     "Default",
     "RANDOM_SYSTEM",
     "add_frf_options",
+    "add_report_options",
     "add_identify_options",
     "frf_options",
     "identify_options",
@@ -313,6 +314,62 @@ def frf_options(args: argparse.Namespace) -> dict[str, Any]:
     if args.excitation != "auto":
         options["excitation"] = args.excitation
     return options
+
+
+# --- options of ami_xr.report ------------------------------------------------------------------
+class ReportFigures:
+    """The figure names :func:`ami_xr.report` accepts, as argparse ``choices``: looked up (by
+    importing ami_xr.report) only when a help text lists them or a given name is checked, so
+    building the parser imports nothing and the list is never restated here."""
+
+    @cached_property
+    def names(self) -> tuple[str, ...]:
+        from ami_xr.report import FIGURES, MEASUREMENT_FIGURES
+
+        return (*MEASUREMENT_FIGURES, *FIGURES)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.names
+
+    def __iter__(self):
+        return iter(self.names)
+
+
+class FrequencyRange(argparse.Action):
+    """``--frequency-range FMIN FMAX``: two finite frequencies in Hz, 0 <= FMIN < FMAX; else a
+    usage error (exit 2) naming the option."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        import math
+
+        f0, f1 = values
+        if not (math.isfinite(f0) and math.isfinite(f1) and 0 <= f0 < f1):
+            parser.error(
+                f"argument {option_string}: expected 0 <= FMIN < FMAX (finite, Hz), "
+                f"got {f0:g} {f1:g}"
+            )
+        setattr(namespace, self.dest, (f0, f1))
+
+
+def add_report_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("figures (ami_xr.report)")
+    g.add_argument(
+        "--frequency-range",
+        nargs=2,
+        type=float,
+        action=FrequencyRange,
+        metavar=("FMIN", "FMAX"),
+        help="band of the figures with a frequency axis (Bode, subtraction, coherence, force "
+        "spectrum) [Hz] (default: the whole band)",
+    )
+    g.add_argument(
+        "--figures",
+        nargs="+",
+        choices=ReportFigures(),
+        metavar="NAME",
+        help="draw only these figures, from: %(choices)s (default: every figure whose inputs "
+        "are in the file)",
+    )
 
 
 #: What each subcommand reads and writes, for :func:`check_paths`: the argument names of its

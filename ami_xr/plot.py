@@ -37,6 +37,7 @@ __all__ = [
 ]
 
 from ami_xr.plot_common import (
+    MAX_WIDTH_IN,
     POINT_COORDS,
     finish,
     in_band,
@@ -46,10 +47,12 @@ from ami_xr.plot_common import (
     new_figure,
     require,
     select_points,
+    set_title,
     units_of,
 )
 
 MAX_HEIGHT_IN = 18.0  # tallest figure, inches (x DPI 110 = 1 980 px)
+MIN_PANEL_IN = 1.6  # narrowest Nyquist panel: beyond, the figure grows wider than the page
 
 
 # --- Bode --------------------------------------------------------------------------------------
@@ -87,14 +90,22 @@ def plot_bode(
     band = (float(freq[0]), float(freq[-1]))
     ncol = min(len(pts), 3)
     nrow_pts = int(np.ceil(len(pts) / ncol))
-    fig = new_figure(max(10.0, 4.0 * ncol), 4.2 * nrow_pts)
-    grid = fig.add_gridspec(2 * nrow_pts, ncol, height_ratios=[2, 1] * nrow_pts)
+    fig = new_figure(
+        max(10.0, 4.0 * ncol),
+        4.2 * nrow_pts,
+        grid=(nrow_pts, ncol),
+        margins=(0.85, 0.2, 0.5, 0.3),
+        gaps=(0.95, 0.8),
+    )
+    grid = fig.add_gridspec(nrow_pts, ncol)
     synth = ds[names.FRF_SYNTHESIZED] if names.FRF_SYNTHESIZED in ds else None
     units = units_of(ds, names.FRF)
     for i, p in enumerate(pts):
         r, c = divmod(i, ncol)
-        ax_mag = fig.add_subplot(grid[2 * r, c])
-        ax_ph = fig.add_subplot(grid[2 * r + 1, c], sharex=ax_mag)
+        pair = grid[r, c].subgridspec(2, 1, height_ratios=[2, 1], hspace=0.06)
+        ax_mag = fig.add_subplot(pair[0])
+        ax_ph = fig.add_subplot(pair[1], sharex=ax_mag)
+        ax_mag.tick_params(labelbottom=False)  # the phase panel below has the same axis
         g = ds[names.FRF].sel({names.POINT: p}).values
         ax_mag.semilogy(freq, np.abs(g), color="0.55", lw=0.8, label="measured")
         ax_ph.plot(freq, np.degrees(np.angle(g)), color="0.55", lw=0.8, label="measured")
@@ -105,8 +116,9 @@ def plot_bode(
         mark_modes(ax_mag, fn, mode_labels, text=True, band=band)
         mark_modes(ax_ph, fn, mode_labels, text=False, band=band)
         ax_mag.set_xlim(band)
+        ax_mag.minorticks_off()  # unlabelled; 8 a decade were a quarter of the drawing time
         drive = " (drive point)" if p == ds.attrs.get(names.ATTR_DRIVE_POINT) else ""
-        ax_mag.set_title(f"point {p}{drive}", fontsize=9)
+        set_title(ax_mag, f"point {p}{drive}", fontsize=9)
         ax_mag.set_ylabel(f"|FRF| [{units}]" if units else "|FRF|", fontsize=8)
         ax_ph.set_ylabel("phase [deg]", fontsize=8)
         ax_ph.set_xlabel("frequency [Hz]", fontsize=8)
@@ -172,8 +184,15 @@ def plot_nyquist(
     # one point: modes wrapped into rows of at most 6; several: a row per point
     ncol = min(fn.size, 6) if len(pts) == 1 else fn.size
     nrow = int(np.ceil(fn.size / ncol)) if len(pts) == 1 else len(pts)
-    panel = min(2.6, (MAX_HEIGHT_IN - 0.4) / nrow)
-    fig = new_figure(max(panel * ncol + 0.6, 6.0), panel * nrow + 0.4)
+    # at most the page wide (narrowest panel MIN_PANEL_IN) and MAX_HEIGHT_IN tall
+    panel = min(2.6, (MAX_HEIGHT_IN - 0.4) / nrow, max(MIN_PANEL_IN, (MAX_WIDTH_IN - 0.6) / ncol))
+    fig = new_figure(
+        max(panel * ncol + 0.6, 6.0),
+        panel * nrow + 0.4,
+        grid=(nrow, ncol),
+        margins=(0.75, 0.15, 0.45, 0.45),
+        gaps=(0.75, 0.8),
+    )
     axes = fig.subplots(nrow, ncol, squeeze=False)
     for ax in axes.ravel()[len(pts) * fn.size :]:
         ax.set_visible(False)
@@ -196,11 +215,13 @@ def plot_nyquist(
                 )
             ax.set_aspect("equal", adjustable="datalim")
             ax.tick_params(labelsize=6)
+            ax.locator_params(nbins=4)  # what a 2-inch panel can label legibly
             ax.ticklabel_format(style="sci", scilimits=(-2, 3))
             ax.xaxis.get_offset_text().set_fontsize(6)
             ax.yaxis.get_offset_text().set_fontsize(6)
             title = f"mode {labels[k]}: {fn[k]:.4g} Hz"
-            ax.set_title(title if len(pts) == 1 else f"point {p}, {title}", fontsize=7)
+            title = title if len(pts) == 1 else f"point {p}, {title}"
+            set_title(ax, title, above_offset=True, fontsize=7)
             ax.set_xlabel(f"Re FRF{unit_text}", fontsize=7)
             ax.set_ylabel(f"Im FRF{unit_text}", fontsize=7)
             ax.legend(fontsize=5, loc="best")
@@ -318,7 +339,9 @@ def plot_subtraction(
     band = (float(freq[0]), float(freq[-1]))
     ncol = min(len(pts), 4)
     nrow = int(np.ceil(len(pts) / ncol))
-    fig = new_figure(3.4 * ncol, 2.8 * nrow)
+    fig = new_figure(
+        3.4 * ncol, 2.8 * nrow, grid=(nrow, ncol), margins=(0.8, 0.15, 0.5, 0.3), gaps=(0.85, 0.7)
+    )
     axes = fig.subplots(nrow, ncol, squeeze=False)
     for ax in axes.ravel()[len(pts) :]:
         ax.set_visible(False)
@@ -330,6 +353,7 @@ def plot_subtraction(
         residual = _subtraction_residual(ds, p)
         if residual is not None:
             ax.semilogy(freq, np.abs(residual), color="tab:blue", lw=0.7, label="residual")
+        ax.minorticks_off()  # unlabelled; 8 a decade were a third of the drawing time
         sigma = float(np.asarray(ds[names.SUB_NOISE_FLOOR].sel(sel).values).ravel()[0])
         ax.axhline(sigma, color="tab:green", lw=1.2, label="noise floor (std)")
         if threshold is not None:
@@ -347,7 +371,7 @@ def plot_subtraction(
                 if np.isfinite(a) and np.isfinite(b):
                     ax.axvspan(a, b, color="tab:orange", alpha=0.15, lw=0)
         drive = " (drive point)" if p == ds.attrs.get(names.ATTR_DRIVE_POINT) else ""
-        ax.set_title(f"point {p}{drive}", fontsize=9)
+        set_title(ax, f"point {p}{drive}", fontsize=9)
         ax.set_xlabel("frequency [Hz]", fontsize=8)
         ax.set_ylabel(f"magnitude [{units_of(ds, names.FRF)}]", fontsize=8)
         ax.set_xlim(band)
@@ -408,34 +432,46 @@ def plot_mode_vectors(
     rows_max = max(1, int((MAX_HEIGHT_IN - 0.5) // block_h))
     nblock_col = int(np.ceil(max(nmode, 1) / rows_max))
     nblock_row = int(np.ceil(max(nmode, 1) / nblock_col))
-    fig = new_figure(max(7.0, 3.6 * nblock_col), nblock_row * block_h + 0.5)
-    grid = fig.add_gridspec(nblock_row * npanel, nblock_col)
+    # fixed layout: below each panel its point labels (rotated: as tall as the longest label)
+    rotate = len(labels) > 8
+    label_h = 0.12 + (0.06 * max(map(len, labels), default=1) if rotate else 0.1)
+    fig = new_figure(
+        max(7.0, 3.6 * nblock_col),
+        nblock_row * block_h + 0.5,
+        grid=(nblock_row, nblock_col),
+        margins=(0.75, 0.35, 0.15 + label_h, 0.45),
+        gaps=(0.8, 0.35 + label_h),
+    )
+    grid = fig.add_gridspec(nblock_row, nblock_col)
+    panel_h = (block_h - 0.35 - label_h) / npanel
+    inner_space = (label_h + 0.05) / max(panel_h - label_h, 0.1)
     fn = natural_frequencies(ds)
     flags = _flags(ds)
     pos = np.arange(len(labels))
     units = units_of(ds, var)
     for k in range(nmode):
         r, c = divmod(k, nblock_col)
-        ax_m = fig.add_subplot(grid[r * npanel, c])
-        ax_p = fig.add_subplot(grid[r * npanel + 1, c], sharex=ax_m)
+        block = grid[r, c].subgridspec(npanel, 1, hspace=inner_space)
+        ax_m = fig.add_subplot(block[0])
+        ax_p = fig.add_subplot(block[1], sharex=ax_m)
         v = vec.isel({names.MODE: k}).values
         ax_m.bar(pos, np.abs(v), color="tab:blue")
         ax_p.bar(pos, np.degrees(np.angle(v)), color="tab:orange")
         ax_p.set_ylim(-190, 190)
         ax_p.set_yticks([-180, -90, 0, 90, 180])
         for ax in (ax_m, ax_p):
-            ax.set_xticks(pos, labels, fontsize=6, rotation=90 if len(labels) > 8 else 0)
+            ax.set_xticks(pos, labels, fontsize=6, rotation=90 if rotate else 0)
             ax.tick_params(axis="y", labelsize=6)
         title = f"mode {vec[names.MODE].values[k]}"
         if k < fn.size:
             title += f", {fn[k]:.4g} Hz"
         if k < len(flags) and flags[k]:
             title += f"  [{flags[k]}]"
-        ax_m.set_title(title, fontsize=8, loc="left")
+        set_title(ax_m, title, above_offset=True, fontsize=8 if nblock_col < 4 else 7, loc="left")
         ax_m.set_ylabel(f"|{var}|" + (f" [{units}]" if units else " [-]"), fontsize=7)
         ax_p.set_ylabel("phase [deg]", fontsize=7)
         if xname is not None:
-            ax_s = fig.add_subplot(grid[r * npanel + 2, c])
+            ax_s = fig.add_subplot(block[2])
             x = np.asarray(ds[xname].values, dtype=float)
             order = np.argsort(x)
             big = v[np.argmax(np.abs(v))] if v.size and np.any(v != 0) else 1.0
@@ -489,7 +525,13 @@ def plot_mac(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure
         mac = mac_matrix(vec.values)
     labels = labels_of_modes(ds) or list(range(1, mac.shape[0] + 1))
     n = mac.shape[0]
-    fig = new_figure(1.0 + 0.55 * max(n, 3), 0.8 + 0.5 * max(n, 3))
+    fig = new_figure(
+        1.0 + 0.55 * max(n, 3),
+        0.8 + 0.5 * max(n, 3),
+        grid=(1, 1),
+        margins=(0.55, 0.1, 0.5, 0.3),
+        gaps=(0, 0),
+    )
     ax = fig.add_subplot()
     im = ax.imshow(mac, vmin=0, vmax=1, cmap="viridis")
     for i in range(n):
@@ -508,7 +550,7 @@ def plot_mac(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure
     ax.set_yticks(range(n), labels[:n], fontsize=8)
     ax.set_xlabel("mode", fontsize=8)
     ax.set_ylabel("mode", fontsize=8)
-    ax.set_title("MAC", fontsize=9)
+    set_title(ax, "MAC", fontsize=9)
     fig.colorbar(im, ax=ax, shrink=0.8)
     return finish(fig, path)
 
@@ -552,7 +594,9 @@ def plot_modal_table(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -
         ]
         for r in rows
     ]
-    fig = new_figure(9.0, 0.6 + 0.3 * (len(cells) + 1))
+    fig = new_figure(
+        9.0, 0.6 + 0.3 * (len(cells) + 1), grid=(1, 1), margins=(0.1, 0.1, 0.1, 0.1), gaps=(0, 0)
+    )
     ax = fig.add_subplot()
     ax.axis("off")
     if cells:

@@ -19,12 +19,22 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.plot_common import finish, new_figure, require, select_points, units_of
+from ami_xr.plot_common import (
+    finish,
+    new_figure,
+    require,
+    select_points,
+    set_title,
+    units_of,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
 __all__ = ["plot_coherence", "plot_force_spectrum", "plot_hits", "measurement_summary"]
+
+#: Fixed margins (left, right, bottom, top; inches) of these one-panel figures.
+MARGINS = (0.8, 0.2, 0.55, 0.35)
 
 
 def _band(ds: xr.Dataset, frequency_range: tuple[float, float] | None) -> xr.Dataset:
@@ -58,7 +68,7 @@ def plot_coherence(
     ds = _band(ds, frequency_range)
     pts = select_points(ds, points, "plot_coherence")
     freq = ds[names.FREQUENCY].values
-    fig = new_figure(10.0, 3.2)
+    fig = new_figure(10.0, 3.2, grid=(1, 1), margins=MARGINS, gaps=(0, 0))
     ax = fig.add_subplot()
     coh = ds[names.COHERENCE]
     for p in pts:
@@ -66,7 +76,7 @@ def plot_coherence(
     ax.set_ylim(-0.02, 1.05)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("coherence [-]")
-    ax.set_title("Coherence (values well below 1: noise, leakage or nonlinearity)", fontsize=9)
+    set_title(ax, "Coherence (values well below 1: noise, leakage or nonlinearity)", fontsize=9)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, loc="lower left")
     return finish(fig, path)
@@ -97,7 +107,7 @@ def plot_force_spectrum(
     values = np.asarray(gff.values, dtype=float).reshape(-1, gff.sizes[names.FREQUENCY])
     freq = ds[names.FREQUENCY].values
     units = units_of(ds, names.FORCE_AUTOSPECTRUM) or "force^2/Hz"
-    fig = new_figure(10.0, 3.2)
+    fig = new_figure(10.0, 3.2, grid=(1, 1), margins=MARGINS, gaps=(0, 0))
     ax = fig.add_subplot()
     ref_labels = gff[other[0]].values.tolist() if other else [None]
     top = np.nanmax(values) if values.size and np.nanmax(values) > 0 else 1.0
@@ -109,7 +119,7 @@ def plot_force_spectrum(
     ax.axhline(-20, color="tab:red", ls="--", lw=0.8, label="-20 dB")
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"G_ff [dB re max {top:.3g} {units}]")
-    ax.set_title("Force autospectrum (the excited band ends where it falls 10-20 dB)", fontsize=9)
+    set_title(ax, "Force autospectrum (the excited band ends where it falls 10-20 dB)", fontsize=9)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, loc="lower left")
     return finish(fig, path)
@@ -179,7 +189,13 @@ def plot_hits(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figur
     hits = measurement_summary(ds)["hits"]
     units = units_of(ds, names.HIT_PEAK_FORCE) or "force units"
     n = len(hits)
-    fig = new_figure(10.0, 2.6 + 0.25 * sum(h["rejected"] for h in hits))
+    fig = new_figure(
+        10.0,
+        2.6 + 0.25 * sum(h["rejected"] for h in hits),
+        grid=(1, 1),
+        margins=MARGINS,
+        gaps=(0, 0),
+    )
     ax = fig.add_subplot()
     pos = np.arange(n)
     peak = [h["peak_force"] for h in hits]
@@ -197,7 +213,7 @@ def plot_hits(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figur
             )
     ax.set_xticks(pos, [f"hit {h['record']}" for h in hits], fontsize=8)
     ax.set_ylabel(f"peak force [{units}]")
-    ax.set_title(f"Impact hits: {sum(kept)} of {n} averaged", fontsize=9)
+    set_title(ax, f"Impact hits: {sum(kept)} of {n} averaged", fontsize=9)
     ax.margins(y=0.15)
     ax.legend(fontsize=7, loc="upper right")
     return finish(fig, path)
