@@ -166,9 +166,12 @@ def identify(
     progress : bool or callable, default False
         True draws a bar of the phases (subtract, isolate, global_fit, refine) on stderr,
         labelled with the numbers of FRFs and lines, its elapsed time moving during a long phase
-        (tqdm when installed, a plain line otherwise). A callable is called as
-        ``progress(phase, done, total)`` when each phase starts (``done`` phases finished) and
-        ``progress("done", total, total)`` at the end. Never changes the results.
+        (tqdm when installed, a plain line otherwise), and the counts inside the running phase:
+        FRFs done by the subtraction and the per-FRF isolation, the refinement's stage, modes
+        and iterations. A callable is called as ``progress(phase, done, total)`` when each phase
+        starts (``done`` phases finished) and ``progress("done", total, total)`` at the end; one
+        with a ``detail(text)`` method also gets those counts (see :mod:`ami_xr.progress`).
+        Never changes the results.
 
     Returns
     -------
