@@ -174,6 +174,7 @@ WEIGHTING_SNR = "snr"  # per_frf averaging with weights snr^2
 WEIGHTING_MEAN = "mean"  # plain mean (the paper)
 ATTR_AMI_TOL = "ami_tol"  # isolate: relative convergence tolerance
 ATTR_AMI_BAND = "ami_band"  # global_fit: band half-width in half-power bandwidths, or "all"
+ATTR_AMI_BAND_USED = "ami_band_used"  # global_fit: the band it widened to (too few lines)
 ATTR_AMI_RESIDUAL_TERMS = "ami_residual_terms"  # global_fit: 1 with residual terms, else 0
 ATTR_AMI_DRIVE_SNR_MIN = "ami_drive_snr_min"  # global_fit: threshold of low_drive_point_snr
 ATTR_AMI_STOP_REASON = "ami_stop_reason"  # subtract, when no FRF has a candidate: why (below)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import xarray as xr
 
@@ -10,7 +12,7 @@ from ami_xr.ami import common as c
 from ami_xr.ami.settings import GlobalFitSettings, parameters, to_attrs
 from ami_xr.core.modal import mac_matrix, mode_vectors
 from ami_xr.core.model import resolve_model
-from ami_xr.errors import IdentificationError
+from ami_xr.errors import AssumptionWarning, IdentificationError
 from ami_xr.kernels import modal_basis as kb
 from ami_xr.kernels import noise as kn
 from ami_xr.kernels import residues as kr
@@ -42,6 +44,18 @@ def _band_mask(omega: np.ndarray, lam: np.ndarray, band) -> np.ndarray:
     for lk in lam:
         use |= np.abs(omega - lk.imag) <= h * 2.0 * abs(lk.real)
     return use
+
+
+def _widened_band(omega, lam, band, use, n_unknown, kind):
+    """The smallest ``band * 2**k`` (k <= 20) whose lines suffice for the fit, and its mask."""
+    for k in range(1, 21):
+        wider = band * 2.0**k
+        use = _band_mask(omega, lam, wider)
+        if kind in (0, 1):
+            use &= omega > 0
+        if 2 * int(use.sum()) >= n_unknown + 1:
+            return wider, use
+    return band, use
 
 
 def _fit_block(g, use, omega, lam, dt, n_samples, residual_kind):
@@ -135,6 +149,20 @@ def global_fit(
         if kind in (0, 1):
             use &= omega > 0  # the lower residual is singular at 0 Hz
     n_unknown = 2 * n_k + (4 if kind >= 0 else 0)
+    band_used = band
+    if 2 * int(use.sum()) < n_unknown + 1 and not isinstance(band, str):
+        # Modes damped below the line spacing leave too few lines in their bands: widen the band
+        # (doubling) just enough for the fit, and say so, rather than fail.
+        band_used, use = _widened_band(omega, lam, float(band), use, n_unknown, kind)
+        if band_used != band:
+            warnings.warn(
+                f"global_fit: only {int(_band_mask(omega, lam, band).sum())} lines lie within "
+                f"band={band} half-power bandwidths of the {n_k} modes (damping below the line "
+                f"spacing); widened to band={band_used:g} ({int(use.sum())} lines) for the "
+                f"residue fit; see attribute {names.ATTR_AMI_BAND_USED}",
+                AssumptionWarning,
+                stacklevel=2,
+            )
     if 2 * int(use.sum()) < n_unknown + 1:
         raise IdentificationError(
             f"band: {int(use.sum())} lines selected, the residue fit needs at least "
@@ -232,6 +260,10 @@ def global_fit(
         band if isinstance(band, str) else float(band), bool(residual_terms), drive_snr_min
     )
     to_attrs(settings, out.attrs)
+    if band_used != band:
+        out.attrs[names.ATTR_AMI_BAND_USED] = float(band_used)
+    else:
+        out.attrs.pop(names.ATTR_AMI_BAND_USED, None)
     # the history records the band as given (an int stays an int there)
     params = dict(parameters(settings), band=band)
     return c.finish(out, "ami_xr.global_fit", "global_fit", params)
