@@ -53,6 +53,14 @@ from ami_xr.kernels.residues import residues_fixed_kernel
 from ami_xr.kernels.single_mode import FIT_NO_DROP, FIT_OK, fit_single_simo
 from ami_xr.kernels.two_mode import fit_two
 
+STOP_FRACTION = 0.1
+"""A sweep's step of an eigenvalue smaller than this fraction of its standard error counts as
+converged (the change is far below what the data can resolve)."""
+
+CYCLE_RATIO = 0.25
+"""A step back to within this fraction of the step of the eigenvalue two sweeps before is a
+two-state cycle (the mode then takes the mean of the two states and keeps its band)."""
+
 
 class SimoWork(NamedTuple):
     """Arrays of one SIMO isolation, allocated once and reused by every sweep."""
@@ -79,11 +87,18 @@ class SimoWork(NamedTuple):
     ti: np.ndarray
     power: np.ndarray
     """(F,) SNR-weighted power ``sum_j |xn_j|^2`` on the lines last computed."""
+    back: np.ndarray
+    """(max_modes,) each mode's eigenvalue before its last update (two-state cycle test)."""
+    pinned: np.ndarray
+    """(max_modes,) bool: modes kept at their model-order-check fit (not re-fitted)."""
 
 
 @jit
-def _remove_simo(modes, n, k):
+def _remove_simo(modes, n, k, pinned):
     lam, res, fails = modes
+    for i in range(k, n - 1):
+        pinned[i] = pinned[i + 1]
+    pinned[n - 1] = False
     for j in range(res.shape[0]):
         for i in range(k, n - 1):
             res[j, i] = res[j, i + 1]
@@ -192,9 +207,61 @@ def _max_contribution(grid, lam, res, k):
 
 
 @jit
+def _eigenvalue_se(omega, x, lam, res, lo, hi, dt, n_samples):
+    """Standard error (rad/s) of a SIMO single-mode eigenvalue fitted on lines ``lo..hi-1`` of
+    data in noise units, with residues ``res`` (P,): ``1 / sqrt(J)`` with the Fisher information
+    ``J = sum_j c_j^2 sum_i (Re lam)^2 / |i omega_i - lam|^4`` (``c_j`` the mode's peak
+    contribution in FRF ``j``; the residues taken as known, so a slight under-estimate)."""
+    cs = 0.0
+    for j in range(res.shape[0]):
+        cs += contribution_peak(omega, x, lam, res[j], dt, n_samples) ** 2
+    a = lam.real * lam.real
+    g = 0.0
+    for i in range(lo, hi):
+        d = 1j * omega[i] - lam
+        q = d.real * d.real + d.imag * d.imag
+        g += a / (q * q)
+    info = cs * g
+    return 1.0 / np.sqrt(info) if info > 0.0 else np.inf
+
+
+@jit
+def _all_failed(failed, n, it):
+    for k in range(n):
+        if failed[k] < it:
+            return False
+    return True
+
+
+@jit
+def _mark_failed(fails, failed, n, it, max_iter):
+    """A mode whose fit failed in every one of (at least 2) sweeps gets the failure count that
+    the merge-and-prune step drops (the old rule reached it only after ``max_iter / 2`` sweeps,
+    which the statistical stopping rule no longer runs)."""
+    if it < 2:
+        return
+    for k in range(n):
+        if failed[k] >= it:
+            fails[k] = max(fails[k], max_iter // 2 + 1)
+
+
+@jit
 def _simo_sweeps(grid, params, modes, n, work, t1):
-    """Isolation sweeps (SIMO fits) until every eigenvalue's Re and Im change less than ``tol``
-    (relative), or until the early pruning after 3 sweeps finds an insignificant mode.
+    """Isolation sweeps (SIMO fits) until every eigenvalue has settled, two modes collide, or
+    the early pruning after 3 sweeps finds an insignificant mode.
+
+    Stopping rule: a mode has settled in a sweep when its step ``|lam_new - lam_old|`` is below
+    ``STOP_FRACTION`` of its standard error (:func:`_eigenvalue_se`, from the fit's residues and
+    band) or its Re and Im change less than ``tol`` (relative); the sweeps have converged when
+    every mode has settled in the same sweep. The standard error term makes the rule reachable
+    at any noise level: close modes converge only linearly (each isolation sees the other's
+    error), and asking for a relative change of ``tol`` there costs tens of sweeps that move the
+    eigenvalues by a small fraction of their uncertainty.
+    A mode that steps back to where it was two sweeps before (``|lam_new - lam_back| <
+    CYCLE_RATIO |lam_new - lam_old|``) is in a two-state cycle (its fit band switching between
+    two data-defined choices): it takes the mean of the two states and keeps its band, which
+    makes the iteration map continuous so the cycle dies out.
+    Modes flagged in ``work.pinned`` are not re-fitted (their eq.-7 contribution is kept).
     Returns ``(iterations, converged)``."""
     omega, x, dt, n_samples = grid
     lam, res, fails = modes
@@ -209,9 +276,12 @@ def _simo_sweeps(grid, params, modes, n, work, t1):
     band_lo = np.zeros(max_modes, dtype=np.int64)
     band_hi = np.zeros(max_modes, dtype=np.int64)
     frozen = np.zeros(max_modes, dtype=np.bool_)
+    back = work.back
+    failed = np.zeros(max_modes, dtype=np.int64)
     # bases of the current modes (kept up to date after every fit in the sweeps)
     for k in range(n):
         mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
+        back[k] = complex(np.nan, np.nan)
     for it in range(1, params.max_iter + 1):
         if n == 0:
             break
@@ -224,6 +294,8 @@ def _simo_sweeps(grid, params, modes, n, work, t1):
         change = 0.0
         for kk in range(n):
             k = order[kk]
+            if work.pinned[k]:
+                continue
             # isolated data only where the fit can look: +- max(20 |Re lam|, 40 lines)
             wide = max(20.0 * abs(lam[k].real), 40.0 * dw)
             wlo = nearest_line(omega, lam[k].imag - wide)
@@ -251,6 +323,7 @@ def _simo_sweeps(grid, params, modes, n, work, t1):
             band_hi[k] = hi
             if hi - lo < min_points:
                 fails[k] += 1
+                failed[k] += 1
                 continue
             ws = omega[peak] if omega[peak] > 0.0 else dw
             prev = complex(np.nan, np.nan)
@@ -269,16 +342,28 @@ def _simo_sweeps(grid, params, modes, n, work, t1):
             )
             if code != FIT_OK:
                 fails[k] += 1
+                failed[k] += 1
                 continue
             ch = relative_change(new, lam[k])
-            change = max(change, ch)
-            frozen[k] = ch < FREEZE_CHANGE
+            step = abs(new - lam[k])
+            cycle = abs(new - back[k]) < CYCLE_RATIO * step
+            se = _eigenvalue_se(omega, x, new, work.rtmp, lo, hi, dt, n_samples)
+            # settled: a relative change below tol, or a step below a fraction of the
+            # standard error (score < 1)
+            change = max(change, min(ch / params.tol, step / (STOP_FRACTION * se)))
+            frozen[k] = ch < FREEZE_CHANGE or cycle
+            if cycle:
+                new = 0.5 * (new + lam[k])
+            back[k] = lam[k]
             for j in range(n_p):
                 res[j, k] = work.rtmp[j]
             lam[k] = new
             mode_basis(x, new, dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
-        if change < params.tol:
+        if change < 1.0:
             converged = True
+            break
+        if it >= 2 and _all_failed(failed, n, it):
+            # no mode can be fitted any more: a sweep would change nothing
             break
         if it == 3:
             # early pruning: once residues have been fitted, leave the sweeps to drop
@@ -291,11 +376,12 @@ def _simo_sweeps(grid, params, modes, n, work, t1):
                     prune = True
             if prune:
                 break
+    _mark_failed(fails, failed, n, it, params.max_iter)
     return it, converged
 
 
 @jit
-def _simo_merge_prune(grid, params, modes, n, t1):
+def _simo_merge_prune(grid, params, modes, n, t1, pinned):
     """Duplicates keep the mode with the larger total SNR; modes not above the noise floor in any
     FRF, or that failed too often, are removed. Returns ``(n, changed)``."""
     omega, x, dt, n_samples = grid
@@ -316,7 +402,7 @@ def _simo_merge_prune(grid, params, modes, n, t1):
                 pk += contribution_peak(omega, x, lam[k], res[j, k], dt, n_samples) ** 2
                 pm += contribution_peak(omega, x, lam[dup], res[j, dup], dt, n_samples) ** 2
             drop = dup if pm <= pk else k
-            n = _remove_simo(modes, n, drop)
+            n = _remove_simo(modes, n, drop, pinned)
             changed = True
             continue
         k += 1
@@ -324,7 +410,7 @@ def _simo_merge_prune(grid, params, modes, n, t1):
     while k < n:
         best = _max_contribution(grid, lam, res, k)
         if best * best < t1 or fails[k] > params.max_iter // 2:
-            n = _remove_simo(modes, n, k)
+            n = _remove_simo(modes, n, k, pinned)
             changed = True
             continue
         k += 1
@@ -413,7 +499,7 @@ def _simo_split(grid, params, modes, n, ks, work, masked, limits):
 def _simo_order_check(grid, params, modes, n, work, masked, tsum):
     """Model-order check of SIMO isolation (see the per-FRF ``_order_check``): a significant
     SNR-weighted peak of the residual adds a mode, a coherent residual in a mode's band splits
-    it. Returns ``(n, added)``."""
+    it. Returns ``(n, added, ks)``: ``ks`` the mode that was split, -1 for an added mode."""
     omega, x, dt, n_samples = grid
     lam, res, fails = modes
     n_p = res.shape[0]
@@ -436,7 +522,7 @@ def _simo_order_check(grid, params, modes, n, work, masked, tsum):
         ks = split_target(omega, lam, n, peak, masked)
         if ks >= 0:
             if _simo_split(grid, params, modes, n, ks, work, masked, limits):
-                return n + 1, True
+                return n + 1, True, ks
             continue
         lo, hi = band_around(power, peak, params.delta * params.delta * best)
         if hi - lo < params.min_points:
@@ -469,8 +555,8 @@ def _simo_order_check(grid, params, modes, n, work, masked, tsum):
         for j in range(n_p):
             res[j, n] = work.rtmp[j]
         fails[n] = 0
-        return n + 1, True
-    return n, False
+        return n + 1, True, -1
+    return n, False, -1
 
 
 @jit
@@ -478,7 +564,14 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, params):
     """Global SIMO isolation with the model-order check.
 
     ``data`` (P, F); ``lam0`` (max_modes,) starting eigenvalues (first ``n0`` used); ``sigma`` (P)
-    noise floors. Returns ``(lam (max_modes,), res (P, max_modes), n, iterations, converged)``.
+    noise floors. Returns ``(lam (max_modes,), res (P, max_modes), n, iterations, converged)``:
+    ``iterations`` the sweeps of all restarts, ``converged`` that the last sweeps met the stopping
+    rule of :func:`_simo_sweeps` and the model-order check ended (no change pending).
+
+    A restart follows every change of the model (merge, prune, added or split mode). A mode the
+    order check adds and then loses in the merge (the sweeps ran it into a neighbour) is, when the
+    check adds it again, kept at its order-check fit (pinned, not re-fitted) and the order check
+    ends after the next sweeps: otherwise the loop cycles until the restart budget is spent.
     """
     n_p = data.shape[0]
     n_f = data.shape[1]
@@ -511,6 +604,8 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, params):
         np.empty(n_f),
         np.empty(n_f),
         np.zeros(n_f),
+        np.full(max_modes, complex(np.nan, np.nan)),
+        np.zeros(max_modes, dtype=np.bool_),
     )
     masked = np.zeros(n_f, dtype=np.bool_)
     total_it = 0
@@ -523,17 +618,43 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, params):
         for j in range(n_p):
             for k in range(n):
                 res[j, k] = r0[j, k]
+    snap_lam = np.empty(max_modes, dtype=np.complex128)
+    added = -1
+    finished = False
+    last = False
+    lost = complex(np.nan, np.nan)
     for _restart in range(max_modes + 4):
+        snap_lam[:] = lam
         it, converged = _simo_sweeps(grid, params, modes, n, work, t1)
         total_it += it
-        n, changed = _simo_merge_prune(grid, params, modes, n, t1)
+        n, changed = _simo_merge_prune(grid, params, modes, n, t1, work.pinned)
+        if added >= 0 and n <= added:
+            # the mode the order check just added did not survive the sweeps (a weak mode
+            # beside a strong one takes up the strong one's residual and runs into it; the
+            # merge drops one): remember it, so that adding it again keeps it at its fit
+            lost = snap_lam[added]
+        added = -1
         if changed:
             continue
-        if n >= max_modes:
+        if n >= max_modes or last:
+            finished = True
             break
-        n, added = _simo_order_check(grid, params, modes, n, work, masked, tsum)
-        if not added:
+        n_before = n
+        n, grew, ks = _simo_order_check(grid, params, modes, n, work, masked, tsum)
+        if not grew:
+            finished = True
             break
+        if ks < 0:
+            added = n_before
+            if lost == lost and normalized_distance(lam[added], lost) < params.merge_tol:
+                # the same mode again: pinned (not re-fitted), and the order check ends after
+                # the next sweeps (the residual next to a pinned mode holds the error of its
+                # fit, not new modes; the refinement fits all modes jointly)
+                work.pinned[added] = True
+                added = -1
+                last = True
+    # the restart budget ran out with a change pending: the last model was not isolated
+    converged = converged and finished
     # residues back to data units
     for j in range(n_p):
         for k in range(n):
