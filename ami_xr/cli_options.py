@@ -324,9 +324,9 @@ class ReportFigures:
 
     @cached_property
     def names(self) -> tuple[str, ...]:
-        from ami_xr.report import FIGURES, MEASUREMENT_FIGURES
+        from ami_xr.report import FIGURES, GEOMETRY_FIGURES, MEASUREMENT_FIGURES
 
-        return (*MEASUREMENT_FIGURES, *FIGURES)
+        return (*MEASUREMENT_FIGURES, *FIGURES, *GEOMETRY_FIGURES)
 
     def __contains__(self, name: object) -> bool:
         return name in self.names

@@ -120,13 +120,19 @@ def test_frequency_range_outside_the_data_is_refused_before_any_work(
     assert not out.exists()
 
 
-def test_help_lists_every_figure_report_accepts(capsys):
+def test_help_lists_every_figure_report_accepts(capsys, tmp_path, monkeypatch):
     with pytest.raises(SystemExit):
         main(["report", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "--frequency-range FMIN FMAX" in text
-    for stem in (*MEASUREMENT_FIGURES, *FIGURES):
+    from ami_xr.report import GEOMETRY_FIGURES
+
+    for stem in (*MEASUREMENT_FIGURES, *FIGURES, *GEOMETRY_FIGURES):
         assert stem in text
+    monkeypatch.chdir(tmp_path)
+    # a geometry figure name passes the option check (exit 1: the input file is missing)
+    assert main(["report", "in.nc", "-o", "r", "--figures", "mode_shapes"]) == 1
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_building_the_parser_imports_no_report_module():
