@@ -275,14 +275,18 @@ def isolate(
 
     Each sweep brings every mode into focus in order of its contribution, fits it on the
     isolated data over its ``delta`` band and updates it; sweeps repeat until the real and
-    imaginary parts of every eigenvalue change by less than ``tol`` (relative), or ``max_iter``
-    sweeps (then ``isolation_converged`` is False and a ConvergenceWarning is issued; never a
-    hang). Then the paper's model-order check: modes closer than ``merge_tol`` half-power
-    bandwidths merge (the stronger stays); a mode whose peak contribution is not significant
-    (``|c|^2 / sigma^2 < t`` of the Subtraction Phase) is removed; if the subtraction residual
-    of all modes still has a significant peak (the statistic of :func:`subtract`, with the
-    residual that eigenvalue errors of size ``tol`` can leave added to the noise floor) and a
-    physical mode fits there, it is added; isolation restarts after any change.
+    imaginary parts of every eigenvalue change by less than ``tol`` (relative) or, with
+    ``method="simo"``, by less than a tenth of the eigenvalue's own standard error (a change
+    the data cannot resolve; a mode cycling between two states takes their mean and keeps its
+    band), or ``max_iter`` sweeps (then ``isolation_converged`` is False and a
+    ConvergenceWarning is issued; never a hang). Then the paper's model-order check: modes
+    closer than ``merge_tol`` half-power bandwidths merge (the stronger stays); a mode whose
+    peak contribution is not significant (``|c|^2 / sigma^2 < t`` of the Subtraction Phase) is
+    removed; if the subtraction residual of all modes still has a significant peak (the
+    statistic of :func:`subtract`, with the residual that eigenvalue errors of size ``tol`` can
+    leave added to the noise floor) and a physical mode fits there, it is added; isolation
+    restarts after any change. (SIMO: a mode added, lost in the merge and added again is kept at
+    its fit and ends the model-order check, so the restarts cannot cycle.)
 
     Parameters
     ----------

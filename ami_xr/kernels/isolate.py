@@ -61,7 +61,8 @@ class IsolateParams(NamedTuple):
     delta: float
     """Fit band: contiguous lines with ``|Y| >= delta`` times the peak."""
     tol: float
-    """Convergence: relative change of Re and Im of every eigenvalue in a sweep."""
+    """Convergence: relative change of Re and Im of every eigenvalue in a sweep (SIMO: or a step
+    below ``STOP_FRACTION`` of the eigenvalue's standard error, see :mod:`.isolate_simo`)."""
     max_iter: int
     """Most sweeps per restart."""
     pfa: float
