@@ -65,6 +65,16 @@ def check_frf(ds: Any, function: str) -> xr.Dataset:
             f"(complex, dims ({names.POINT}, {names.FREQUENCY}))"
         )
     frf = ds[names.FRF]
+    if names.REFERENCE in frf.dims:
+        refs = np.asarray(ds[names.REFERENCE].values).tolist() if names.REFERENCE in ds else []
+        first = refs[0] if refs else 0
+        raise IdentificationError(
+            f"{names.FRF}: has the {names.REFERENCE!r} dim ({frf.sizes[names.REFERENCE]} "
+            f"references {refs}): multi-reference identification is not supported yet by "
+            f"{function}; select one reference first, e.g. ds.sel({names.REFERENCE}={first!r}) "
+            f"or ami_xr.io.datasets.select_reference(ds, {first!r}) (which also sets "
+            f"{names.ATTR_DRIVE_POINT!r} when the reference is a measured point)"
+        )
     if set(frf.dims) != {names.POINT, names.FREQUENCY}:
         raise IdentificationError(
             f"{names.FRF}: expected dims ({names.POINT}, {names.FREQUENCY}), got {frf.dims}"

@@ -241,7 +241,14 @@ def _spectra_to_frf(
         *[d for d in (names.REFERENCE, names.POINT, fdim, names.RECORD) if d in out.dims]
     )
     quantity = ds.attrs.get(names.ATTR_QUANTITY)
-    kept = (names.ATTR_DRIVE_POINT, names.ATTR_DRIVE_POINT_ASSUMED, names.ATTR_QUANTITY)
+    # Several force channels: the reference labels (the force's ``reference`` coordinate) name
+    # the excitation locations, and those that are point labels are the drive points; the
+    # time Dataset's single ``drive_point`` attribute does not apply.
+    kept = (
+        (names.ATTR_DRIVE_POINT, names.ATTR_DRIVE_POINT_ASSUMED, names.ATTR_QUANTITY)
+        if s.siso
+        else (names.ATTR_QUANTITY,)
+    )
     attrs = {k: ds.attrs[k] for k in kept if k in ds.attrs}
     if quantity in names.QUANTITY_TO_FRF_TYPE:
         attrs[names.ATTR_FRF_TYPE] = names.QUANTITY_TO_FRF_TYPE[quantity]
@@ -352,7 +359,10 @@ def frf(
         frequency; multiple coherence with several force channels), ``force_autospectrum``
         ([reference,] frequency), ``response_autospectrum`` (point, frequency),
         ``cross_spectrum`` ([reference,] point, frequency) (one-sided densities), attrs
-        ``frf_source="estimated"``, ``estimator``, ``n_averages``.
+        ``frf_source="estimated"``, ``estimator``, ``n_averages``. With several force channels
+        the ``reference`` labels are those of the force's ``reference`` coordinate (default
+        0, 1, ...): give the labels of the excitation points, so that a reference on a
+        measured point marks its drive point; the ``drive_point`` attribute is then dropped.
 
     Raises
     ------

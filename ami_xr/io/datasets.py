@@ -18,7 +18,7 @@ from ami_xr.io.geometry import coordinate_arrays
 from ami_xr.io.messages import is_positive_number, python_scalar
 from ami_xr.io.schema import find_problems
 
-__all__ = ["make_frf_dataset", "make_time_dataset"]
+__all__ = ["make_frf_dataset", "make_time_dataset", "select_reference"]
 
 
 def _as_array(value: Any, argument: str) -> Any:
@@ -63,6 +63,7 @@ _ARGUMENTS = {
     names.FREQUENCY: "frequency",
     names.TIME: "time",
     names.POINT: "points",
+    names.REFERENCE: "references",
     names.ATTR_DRIVE_POINT: "drive_point",
     names.ATTR_QUANTITY: "response_quantity",
     names.ATTR_RESPONSE_UNITS: "response_units",
@@ -91,15 +92,17 @@ def make_frf_dataset(
     frf_source: str = names.SOURCE_MEASURED,
     coordinates: Any = None,
     coordinate_units: str = names.COORDINATE_UNITS,
+    references: Any = None,
     **attrs: Any,
 ) -> xr.Dataset:
     """Build a valid FRF Dataset from plain arrays (validated; errors name the argument).
 
     Parameters
     ----------
-    frf : array_like of complex, shape (n_point, n_frequency) or (n_frequency,)
-        FRF values; a 1-D array is one point. Real input is rejected (not cast). A dask array
-        stays lazy.
+    frf : array_like of complex, shape (n_point, n_frequency), (n_frequency,) or 3-D
+        FRF values; a 1-D array is one point, a 3-D array ``(n_reference, n_point, n_frequency)``
+        is multi-reference data (one row of FRFs per excitation location). Real input is
+        rejected (not cast). A dask array stays lazy.
     frequency : array_like of float, shape (n_frequency,)
         Frequencies in Hz, non-negative and strictly increasing.
     points : array_like of int or str, optional
@@ -123,6 +126,10 @@ def make_frf_dataset(
         :func:`ami_xr.plot_geometry.plot_mode_shapes`.
     coordinate_units : str
         Units of ``coordinates`` (default ``"m"``), their ``units`` attribute.
+    references : array_like of int or str, optional
+        Multi-reference only (3-D ``frf``): unique labels of the excitation locations, of the
+        point labels' type; default ``0 .. n_reference - 1``. A reference whose label is a
+        point label is that point's drive point (``drive_point`` must then be None).
     **attrs
         Further Dataset attributes (e.g. ``sample_interval``, ``record_samples``,
         ``exponential_window_decay``, ``title``).
@@ -141,22 +148,32 @@ def make_frf_dataset(
     values = _as_array(frf, "frf")
     if values.ndim == 1:
         values = values[None, :]
-    if values.ndim != 2:
+    if values.ndim not in (2, 3):
         raise AmiXrValueError(
-            f"frf: expected shape (n_point, n_frequency) or (n_frequency,), got {values.shape}"
-            + (" (multi-reference not supported yet)" if values.ndim == 3 else "")
+            "frf: expected shape (n_point, n_frequency), (n_frequency,) or "
+            f"(n_reference, n_point, n_frequency), got {values.shape}"
+        )
+    multi = values.ndim == 3
+    if references is not None and not multi:
+        raise AmiXrValueError(
+            f"references: given, but frf has shape {values.shape}; multi-reference FRFs have "
+            "shape (n_reference, n_point, n_frequency)"
         )
     freq = _as_array(frequency, "frequency")
-    if freq.ndim != 1 or freq.shape[0] != values.shape[1]:
+    if freq.ndim != 1 or freq.shape[0] != values.shape[-1]:
         raise AmiXrValueError(
-            f"frequency: expected {values.shape[1]} values (frf.shape[-1]), got shape {freq.shape}"
+            f"frequency: expected {values.shape[-1]} values (frf.shape[-1]), got shape {freq.shape}"
         )
-    labels = _labels(points, values.shape[0])
+    n_point = values.shape[-2]
+    labels = _labels(points, n_point)
     geometry = (
-        {}
-        if coordinates is None
-        else coordinate_arrays(coordinates, values.shape[0], coordinate_units)
+        {} if coordinates is None else coordinate_arrays(coordinates, n_point, coordinate_units)
     )
+    ref_coord = {}
+    dims: tuple[str, ...] = (names.POINT, names.FREQUENCY)
+    if multi:
+        ref_coord = {names.REFERENCE: _labels(references, values.shape[0], "references")}
+        dims = (names.REFERENCE, *dims)
     ds_attrs = _std_attrs(drive_point, response_quantity, response_units, force_units)
     frf_type = names.QUANTITY_TO_FRF_TYPE.get(response_quantity)
     if frf_type is not None:
@@ -166,12 +183,13 @@ def make_frf_dataset(
     ds = xr.Dataset(
         {
             names.FRF: (
-                (names.POINT, names.FREQUENCY),
+                dims,
                 values,
                 {names.ATTR_UNITS: names.frf_units(str(response_units), str(force_units))},
             )
         },
         coords={
+            **ref_coord,
             names.POINT: labels,
             names.FREQUENCY: (names.FREQUENCY, freq, {names.ATTR_UNITS: names.FREQUENCY_UNITS}),
             **geometry,
@@ -180,6 +198,44 @@ def make_frf_dataset(
     )
     _raise_problems(ds, "frf", drive_point is not None, "make_frf_dataset")
     return ds
+
+
+def select_reference(ds: xr.Dataset, reference: Any) -> xr.Dataset:
+    """The single-reference (SIMO) FRF Dataset of one reference of a multi-reference Dataset.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        FRF Dataset with dims ``(reference, point, frequency)``.
+    reference : int or str
+        Label of the reference to keep.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``ds.sel(reference=reference, drop=True)``; every variable without the ``reference`` dim
+        is kept. When the reference is a point label, ``drive_point`` is set to it; otherwise
+        the attribute is left out (mode vectors then stay unscaled).
+
+    Raises
+    ------
+    AmiXrValueError
+        ``ds`` has no ``reference`` dim, or ``reference`` is not one of its labels.
+    """
+    if not isinstance(ds, xr.Dataset) or names.REFERENCE not in ds.dims:
+        raise AmiXrValueError(
+            f"ds: expected a multi-reference FRF Dataset with a {names.REFERENCE!r} dim"
+        )
+    refs = np.asarray(ds[names.REFERENCE].values).tolist()
+    if python_scalar(reference) not in refs:
+        raise AmiXrValueError(f"reference: {reference!r} is not one of the references {refs}")
+    out = ds.sel({names.REFERENCE: reference}, drop=True)
+    out.attrs = dict(ds.attrs)
+    if python_scalar(reference) in np.asarray(ds[names.POINT].values).tolist():
+        out.attrs[names.ATTR_DRIVE_POINT] = python_scalar(reference)
+    else:
+        out.attrs.pop(names.ATTR_DRIVE_POINT, None)
+    return out
 
 
 def make_time_dataset(

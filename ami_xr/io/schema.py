@@ -30,6 +30,8 @@ __all__ = [
     "UNIFORM_RTOL",
     "IMPULSE_GRID_RTOL",
     "impulse_grid_problem",
+    "drive_points",
+    "MULTI_REFERENCE_DIMS",
 ]
 
 KINDS = ("frf", "time")
@@ -43,6 +45,8 @@ _MULTI_REFERENCE = (
     f"has a leading {names.REFERENCE!r} dim: multi-reference not supported yet "
     f"(select one reference first, e.g. ds.isel({names.REFERENCE}=0))"
 )
+# dims of a multi-reference FRF: one row of FRFs (point, frequency) per excitation location
+MULTI_REFERENCE_DIMS = (names.REFERENCE, names.POINT, names.FREQUENCY)
 
 
 # --- small checks, each appends to ``problems`` -------------------------------------------------
@@ -180,6 +184,87 @@ def _check_points(ds: xr.Dataset, namer: Namer, problems: list[str]) -> np.ndarr
             f"{subject}: expected unique labels, duplicates {shorten(uniq[counts > 1])}"
         )
     return labels
+
+
+def _check_references(
+    ds: xr.Dataset,
+    labels: np.ndarray | None,
+    require: bool,
+    namer: Namer,
+    problems: list[str],
+) -> None:
+    """Check the ``reference`` labels of a multi-reference FRF Dataset.
+
+    References name excitation locations in the same label space as the points: a reference
+    whose label equals a point label is that point's drive point. The ``drive_point``
+    attribute is not used (it would say one drive point where there may be several).
+    """
+    subject = namer.coord(names.REFERENCE)
+    if names.ATTR_DRIVE_POINT in ds.attrs:
+        problems.append(
+            f"{namer.attr(names.ATTR_DRIVE_POINT)}: not used with a {names.REFERENCE!r} dim "
+            f"(got {python_scalar(ds.attrs[names.ATTR_DRIVE_POINT])!r}); the drive points are "
+            "the references whose label is a point label -- remove the attribute"
+        )
+    if names.REFERENCE not in ds.coords:
+        problems.append(
+            f"{subject}: missing (expected unique int or str labels of the excitation "
+            f"locations along dim {names.REFERENCE!r})"
+        )
+        return
+    refs = np.asarray(ds.coords[names.REFERENCE].values)
+    if refs.ndim != 1:
+        problems.append(f"{subject}: expected a 1-D coordinate, got shape {refs.shape}")
+        return
+    is_int = np.issubdtype(refs.dtype, np.integer)
+    is_str = refs.dtype.kind == "U" or (
+        refs.dtype == object and all(isinstance(v, str) for v in refs)
+    )
+    if not (is_int or is_str):
+        problems.append(f"{subject}: expected int or str labels, got dtype {refs.dtype}")
+        return
+    uniq, counts = np.unique(refs.astype(str) if is_str else refs, return_counts=True)
+    if np.any(counts > 1):
+        problems.append(
+            f"{subject}: expected unique labels, duplicates {shorten(uniq[counts > 1])}"
+        )
+    if labels is None:
+        return
+    points_int = np.issubdtype(labels.dtype, np.integer)
+    if points_int != is_int:
+        problems.append(
+            f"{subject}: expected {'int' if points_int else 'str'} labels like the point "
+            f"labels (a reference whose label is a point label is its drive point), got "
+            f"{'int' if is_int else 'str'} labels {shorten(refs)}"
+        )
+        return
+    if require and not np.isin(refs, labels).any():
+        problems.append(
+            f"{subject}: no reference {shorten(refs)} is a point label {shorten(labels)} "
+            "(expected at least one drive point, where the force acts on a measured point; "
+            "pass require_drive_point=False to accept unscaled mode vectors)"
+        )
+
+
+def drive_points(ds: xr.Dataset) -> list:
+    """The drive points of an FRF Dataset: the references that are point labels, in reference
+    order (multi-reference), or ``[drive_point]`` when that attribute names a point (SIMO).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        An FRF Dataset.
+
+    Returns
+    -------
+    list
+        Point labels (Python scalars); empty when no force acts on a measured point.
+    """
+    points = np.asarray(ds[names.POINT].values).tolist() if names.POINT in ds.coords else []
+    if names.REFERENCE in ds.dims and names.REFERENCE in ds.coords:
+        return [r for r in np.asarray(ds[names.REFERENCE].values).tolist() if r in points]
+    dp = ds.attrs.get(names.ATTR_DRIVE_POINT)
+    return [python_scalar(dp)] if dp is not None and python_scalar(dp) in points else []
 
 
 def _check_drive_point(
@@ -337,6 +422,7 @@ def _check_empty(da: xr.DataArray, subject: str, problems: list[str]) -> bool:
 def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool, namer: Namer):
     problems: list[str] = []
     want_dims = (names.POINT, names.FREQUENCY)
+    multi = False
     if names.FRF not in ds.data_vars:
         problems.append(
             f"{namer.var(names.FRF)}: missing (expected complex FRF with dims {want_dims})"
@@ -345,8 +431,13 @@ def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool,
     else:
         frf = ds[names.FRF]
         subject = namer.var(names.FRF)
-        if names.REFERENCE in frf.dims:
-            problems.append(f"{subject}: {_MULTI_REFERENCE}")
+        multi = names.REFERENCE in frf.dims
+        if multi:
+            if frf.dims != MULTI_REFERENCE_DIMS:
+                problems.append(
+                    f"{subject}: expected dims {MULTI_REFERENCE_DIMS} (multi-reference) or "
+                    f"{want_dims}, got {frf.dims}"
+                )
         elif names.COMPLEX in frf.dims:
             problems.append(
                 f"{subject}: has the on-disk dim {names.COMPLEX!r} (real, imag); "
@@ -364,7 +455,10 @@ def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool,
     _check_axis(ds, names.FREQUENCY, names.FREQUENCY_UNITS, namer, problems, nonnegative=True)
     labels = _check_points(ds, namer, problems)
     problems += coordinate_problems(ds, namer)
-    _check_drive_point(ds, labels, require_drive_point, namer, problems)
+    if multi:
+        _check_references(ds, labels, require_drive_point, namer, problems)
+    else:
+        _check_drive_point(ds, labels, require_drive_point, namer, problems)
     resp_units, force_units = _check_quantity_units(ds, namer, problems, need_frf_type=True)
     if frf is not None and resp_units and force_units:
         want = names.frf_units(resp_units, force_units)
@@ -537,14 +631,19 @@ def validate(
     Parameters
     ----------
     ds : xarray.Dataset
-        An FRF Dataset (``frf`` complex, dims ``(point, frequency)``) or a time Dataset
-        (``response`` float, dims ``([record,] point, time)``, plus ``force``).
+        An FRF Dataset (``frf`` complex, dims ``(point, frequency)``, or
+        ``(reference, point, frequency)`` for multi-reference data: one row per excitation
+        location, labelled by the ``reference`` coordinate in the point labels' type; a
+        reference whose label is a point label is that point's drive point, and the
+        ``drive_point`` attribute is then not used) or a time Dataset (``response`` float,
+        dims ``([record,] point, time)``, plus ``force``).
     kind : {None, "frf", "time"}
         Which model to check against. ``None`` detects it: a Dataset with ``frf`` is an FRF
         Dataset, one with ``response`` a time Dataset.
     require_drive_point : bool, default True
-        Require the ``drive_point`` attribute to name one of the points. AMI can run without a
-        measured drive point (mode vectors then stay unscaled): pass False to skip both checks.
+        Require the ``drive_point`` attribute to name one of the points (multi-reference: at
+        least one reference label to be a point label). AMI can run without a measured drive
+        point (mode vectors then stay unscaled): pass False to skip both checks.
     check_values : bool, default True
         Scan ``frf``/``response``/``force`` for NaN and inf. This reads all data (it computes
         lazily opened variables); pass False to check only structure, coordinates and attributes.

@@ -373,6 +373,7 @@ def frf(
     *,
     response_quantity: str = "displacement",
     response_units: str | None = None,
+    references: Sequence[Hashable] | None = None,
 ) -> xr.Dataset:
     """Exact FRFs ``G_jP`` of a modal model on a frequency grid (eq. 4).
 
@@ -389,6 +390,11 @@ def frf(
         Receptance, mobility (times ``i w``) or accelerance (times ``-w^2``).
     response_units : str, optional
         Default "m", "m/s" or "m/s^2".
+    references : sequence of labels, optional
+        Multi-reference FRFs: excitation points (each one of the model's points; the model
+        needs ``mode_vector``). The result then has ``frf`` dims ``(reference, point,
+        frequency)`` with ``G_ij`` the response at point i to a force at reference j (residue
+        ``lam_k Phi_ik Phi_jk``), and no ``drive_point`` attribute (give ``drive_point`` None).
 
     Returns
     -------
@@ -401,6 +407,10 @@ def frf(
             f"got {response_quantity!r}"
         )
     f = _frequency_axis(frequency_hz)
+    if references is not None:
+        return _multi_reference_frf(
+            model, f, references, drive_point, response_quantity, response_units
+        )
     model = _model_residues(model, drive_point)
     omega = xr.DataArray(2 * np.pi * f, dims=[names.FREQUENCY])
     g = xr.apply_ufunc(
@@ -438,6 +448,81 @@ def frf(
         "ami_xr.simulate.frf",
         {
             "drive_point": ds.attrs[names.ATTR_DRIVE_POINT],
+            "response_quantity": response_quantity,
+            "n_frequencies": int(f.size),
+        },
+    )
+
+
+def _multi_reference_frf(
+    model: Any,
+    f: np.ndarray,
+    references: Sequence[Hashable],
+    drive_point: Hashable | None,
+    response_quantity: str,
+    response_units: str | None,
+) -> xr.Dataset:
+    """:func:`frf` for several excitation points: ``frf`` (reference, point, frequency)."""
+    model = _check_model(model)
+    if drive_point is not None:
+        raise AmiXrValueError(
+            "drive_point: not used with references (the drive points are the references)"
+        )
+    if names.MODE_VECTOR not in model:
+        raise AmiXrValueError(
+            f"model: references need the variable {names.MODE_VECTOR!r} (residues of every "
+            "reference)"
+        )
+    points = model[names.POINT].values.tolist()
+    refs = list(np.asarray(references).tolist())
+    if not refs or len(set(refs)) != len(refs) or any(r not in points for r in refs):
+        raise AmiXrValueError(
+            f"references: expected unique labels among the points {points}, got {refs}"
+        )
+    phi = model[names.MODE_VECTOR]
+    lam = model[names.EIGENVALUE]
+    phi_ref = phi.sel({names.POINT: refs}).rename({names.POINT: names.REFERENCE})
+    residue = (lam * phi * phi_ref).transpose(names.REFERENCE, names.POINT, names.MODE)
+    omega = xr.DataArray(2 * np.pi * f, dims=[names.FREQUENCY])
+    g = xr.apply_ufunc(
+        _frf_kernel,
+        residue,
+        lam,
+        omega,
+        kwargs={"power": names.QUANTITY_POWER[response_quantity]},
+        input_core_dims=[[names.MODE], [names.MODE], [names.FREQUENCY]],
+        output_core_dims=[[names.FREQUENCY]],
+        dask="parallelized",
+        output_dtypes=[np.complex128],
+        keep_attrs=False,
+    )
+    force_units = model.attrs.get(names.ATTR_FORCE_UNITS, "N")
+    ru = response_units or names.SI_RESPONSE_UNITS[response_quantity]
+    ds = xr.Dataset(
+        {
+            names.FRF: g.transpose(names.REFERENCE, names.POINT, names.FREQUENCY).drop_vars(
+                [c for c in g.coords if c not in (names.REFERENCE, names.POINT)]
+            )
+        },
+        coords={
+            names.REFERENCE: refs,
+            names.POINT: points,
+            names.FREQUENCY: (names.FREQUENCY, f, {names.ATTR_UNITS: names.FREQUENCY_UNITS}),
+        },
+    )
+    ds[names.FRF].attrs = {names.ATTR_UNITS: names.frf_units(ru, force_units)}
+    ds.attrs = {
+        names.ATTR_QUANTITY: response_quantity,
+        names.ATTR_FRF_TYPE: names.QUANTITY_TO_FRF_TYPE[response_quantity],
+        names.ATTR_RESPONSE_UNITS: ru,
+        names.ATTR_FORCE_UNITS: force_units,
+        names.ATTR_SOURCE: names.SOURCE_ANALYTIC,
+    }
+    return add_history(
+        ds,
+        "ami_xr.simulate.frf",
+        {
+            "references": refs,
             "response_quantity": response_quantity,
             "n_frequencies": int(f.size),
         },

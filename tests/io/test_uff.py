@@ -179,7 +179,8 @@ def test_errors_name_the_file(tmp_path):
     bad.write_text("this is not a universal file\n")
     with pytest.raises(DataFileError, match="bad.uff"):
         read_uff(bad)
-    # Several responses AND several references: multi-reference data is refused clearly.
+    # Several responses AND several references, but not one FRF per (reference, response)
+    # pair: refused clearly (a full grid is read as multi-reference, test_multi_reference.py).
     recs = []
     for rsp, ref in [(1, 1), (2, 2)]:
         recs.append(

@@ -138,9 +138,9 @@ FRF_CASES = {
         lambda ds: ds.transpose(names.FREQUENCY, names.POINT),
         r"variable 'frf': expected dims \('point', 'frequency'\), got \('frequency', 'point'\)",
     ),
-    "reference dim": (
+    "reference dim": (  # multi-reference data: the drive points are the references
         lambda ds: ds.expand_dims({names.REFERENCE: [1]}),
-        r"variable 'frf': has a leading 'reference' dim: multi-reference not supported yet",
+        r"attribute 'drive_point': not used with a 'reference' dim",
     ),
     "on-disk complex dim": (
         lambda ds: ds.assign(
@@ -489,8 +489,8 @@ def test_make_frf_dataset_shape_errors():
         make_frf_dataset(np.ones((2, 3), complex), [0.0, 1.0])
     with pytest.raises(AmiXrValueError, match=r"points: expected 2 labels"):
         make_frf_dataset(np.ones((2, 3), complex), [0.0, 1.0, 2.0], points=[1, 2, 3])
-    with pytest.raises(AmiXrValueError, match=r"frf: expected shape .*multi-reference"):
-        make_frf_dataset(np.ones((2, 2, 3), complex), [0.0, 1.0, 2.0])
+    with pytest.raises(AmiXrValueError, match=r"frf: expected shape .*n_reference"):
+        make_frf_dataset(np.ones((1, 2, 2, 3), complex), [0.0, 1.0, 2.0])
 
 
 def test_make_time_dataset_shapes_and_time_axis():

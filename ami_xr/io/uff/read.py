@@ -266,14 +266,54 @@ def _check_same_grid(records: list[dict], grids: list[np.ndarray], path: Path, w
             )
 
 
+MULTI_REFERENCE_LAYOUT = (
+    "multi-reference: several response and several reference DOFs; points are the response "
+    "DOFs, references the reference DOFs (a reference on a point is its drive point)"
+)
+
+
+def _multi_reference(records: list[dict], path: Path) -> tuple[list, list, list] | None:
+    """Points, references and, per record, its (reference, point) index pair of FRF records
+    with several responses and several references; None for single-reference records.
+
+    Every (reference, response) pair must appear exactly once.
+    """
+    rsp = [_label_of(r, "rsp") for r in records]
+    ref = [_label_of(r, "ref") for r in records]
+    if len(set(rsp)) == 1 or len(set(ref)) == 1:
+        return None
+    both = _mixed_labels_to_str(rsp + ref)  # one label type for points and references
+    rsp, ref = both[: len(rsp)], both[len(rsp) :]
+    points, refs = list(dict.fromkeys(rsp)), list(dict.fromkeys(ref))
+    pairs = list(zip(ref, rsp, strict=True))
+    dup = sorted({p for p in pairs if pairs.count(p) > 1}, key=str)
+    missing = [(a, b) for a in refs for b in points if (a, b) not in set(pairs)]
+    if dup or missing:
+        what = f"repeat (reference, response) pairs {dup[:8]}" if dup else ""
+        if missing:
+            what += (
+                (" and " if what else "")
+                + f"lack the pairs {missing[:8]}"
+                + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+            )
+        raise DataFileError(
+            f"{path}: multi-reference FRFs ({len(refs)} references x {len(points)} responses) "
+            f"{what}; expected one FRF per (reference, response) pair"
+        )
+    index = [(refs.index(a), points.index(b)) for a, b in pairs]
+    return points, refs, index
+
+
 def _read_frf(
     frfs: list[dict], coh: list[dict], coords: dict, path: Path, system: _System
 ) -> xr.Dataset:
-    labels, drive, layout = _single_reference(frfs, path)
-    if len(set(labels)) != len(labels):
-        raise DataFileError(
-            f"{path}: the FRF records repeat a DOF ({labels}); expected one per point"
-        )
+    multi = _multi_reference(frfs, path)
+    if multi is None:
+        labels, drive, layout = _single_reference(frfs, path)
+        if len(set(labels)) != len(labels):
+            raise DataFileError(
+                f"{path}: the FRF records repeat a DOF ({labels}); expected one per point"
+            )
     units = [_quantity_and_units(r, path, system) for r in frfs]
     quantities = {u[:3] + u[4:6] for u in units}
     if len(quantities) != 1:
@@ -289,6 +329,12 @@ def _read_frf(
     data = np.stack([np.asarray(r["data"], dtype=np.complex128) for r in frfs])
     if resp_scale != 1.0 or force_scale != 1.0:
         data = data * (resp_scale / force_scale)
+    if multi is not None:
+        if assumed:
+            _tell_assumed(path, assumed)
+        return _read_multi_reference(
+            frfs, data, multi, freq, (quantity, resp_units, force_units), coh, coords, path
+        ).assign_attrs(_unit_attrs(assumed, scaled))
     label_nodes = {}
     for r, lab in zip(frfs, labels, strict=True):
         key = "ref" if layout.startswith("roving") else "rsp"
@@ -337,6 +383,75 @@ def _read_frf(
                 ds[names.COHERENCE] = (
                     (names.POINT, names.FREQUENCY),
                     values,
+                    {names.ATTR_UNITS: "1"},
+                )
+    return _attach_coordinates(ds, coords, label_nodes)
+
+
+def _unit_attrs(assumed: str, scaled: str) -> dict:
+    """The attributes recording assumed or converted units of an FRF Dataset."""
+    attrs = {}
+    if assumed:
+        attrs[ATTR_UNITS_ASSUMED] = assumed
+    if scaled:
+        attrs[ATTR_UNITS_SCALED] = f"values converted to SI: {scaled}"
+    return attrs
+
+
+def _read_multi_reference(
+    frfs: list[dict],
+    data: np.ndarray,
+    multi: tuple[list, list, list],
+    freq: np.ndarray,
+    units: tuple[str, str, str],
+    coh: list[dict],
+    coords: dict,
+    path: Path,
+) -> xr.Dataset:
+    """FRF Dataset ``frf`` (reference, point, frequency) of multi-reference records."""
+    points, refs, index = multi
+    quantity, resp_units, force_units = units
+    values = np.empty((len(refs), len(points), freq.size), dtype=np.complex128)
+    label_nodes = {}
+    for r, (j, i), row in zip(frfs, index, data, strict=True):
+        values[j, i] = row
+        label_nodes[points[i]] = int(r["rsp_node"])
+    ds = xr.Dataset(
+        {
+            names.FRF: (
+                (names.REFERENCE, names.POINT, names.FREQUENCY),
+                values,
+                {names.ATTR_UNITS: names.frf_units(resp_units, force_units)},
+            )
+        },
+        coords={
+            names.REFERENCE: refs,
+            names.POINT: points,
+            names.FREQUENCY: (names.FREQUENCY, freq, {names.ATTR_UNITS: names.FREQUENCY_UNITS}),
+        },
+        attrs={
+            names.ATTR_QUANTITY: quantity,
+            names.ATTR_FRF_TYPE: names.QUANTITY_TO_FRF_TYPE[quantity],
+            names.ATTR_RESPONSE_UNITS: resp_units,
+            names.ATTR_FORCE_UNITS: force_units,
+            names.ATTR_SOURCE: names.SOURCE_MEASURED,
+            names.ATTR_SOURCE_FILE: path.name,
+            "uff_layout": MULTI_REFERENCE_LAYOUT,
+        },
+    )
+    # coherence records of one reference over the same points: the multiple coherence
+    # (point, frequency) as write_uff writes it; other coherence layouts are not read
+    if coh and len({_label_of(r, "ref") for r in coh}) == 1:
+        coh_labels = _mixed_labels_to_str([_label_of(r, "rsp") for r in coh])
+        if sorted(map(str, coh_labels)) == sorted(map(str, points)):
+            by_label = {
+                str(lab): np.asarray(r["data"]).real for lab, r in zip(coh_labels, coh, strict=True)
+            }
+            coh_values = np.stack([by_label[str(lab)] for lab in points])
+            if coh_values.shape == values.shape[1:]:
+                ds[names.COHERENCE] = (
+                    (names.POINT, names.FREQUENCY),
+                    coh_values,
                     {names.ATTR_UNITS: "1"},
                 )
     return _attach_coordinates(ds, coords, label_nodes)
@@ -556,15 +671,17 @@ def read_uff(
     Returns
     -------
     xarray.Dataset
-        FRF Dataset (``frf`` (point, frequency)), time Dataset (``response``, ``force``) or modal
-        Dataset (``eigenvalue``, ``mode_vector``), following the ami_xr data model. See the
-        module docstring for the mapping of DOFs, references and units.
+        FRF Dataset (``frf`` (point, frequency); ``(reference, point, frequency)`` when the
+        FRFs have several responses and several references), time Dataset (``response``,
+        ``force``) or modal Dataset (``eigenvalue``, ``mode_vector``), following the ami_xr
+        data model. See the module docstring for the mapping of DOFs, references and units.
 
     Raises
     ------
     DataFileError
         Missing or unreadable file, no dataset of the requested kind, several references and
-        responses at once, records on different grids, unknown quantities.
+        several responses without exactly one FRF per (reference, response) pair, records on
+        different grids, unknown quantities.
     """
     path = Path(path)
     if kind not in (None, "frf", "time", "modes"):
@@ -607,5 +724,8 @@ def _validated(ds: xr.Dataset) -> xr.Dataset:
 
     # A drive point that was not measured is allowed: AMI then leaves mode vectors unscaled.
     drive = ds.attrs.get(names.ATTR_DRIVE_POINT)
-    measured = drive is not None and drive in ds[names.POINT].values.tolist()
+    points = ds[names.POINT].values.tolist()
+    measured = drive is not None and drive in points
+    if names.REFERENCE in ds.dims:  # multi-reference: a reference on a measured point
+        measured = any(r in points for r in ds[names.REFERENCE].values.tolist())
     return validate(ds, require_drive_point=measured)

@@ -110,6 +110,13 @@ def check_writable(ds: xr.Dataset, include: Sequence[str]) -> None:
         problems += _axis_problems(ds, names.TIME, names.TIME_UNITS)
     if names.POINT in ds.coords:
         problems += _point_problems(ds)
+    if "frf" in include and names.FRF in ds and names.REFERENCE in ds[names.FRF].dims:
+        refs = [str(v) for v in ds[names.REFERENCE].values.tolist()]
+        dup = sorted({r for r in refs if refs.count(r) > 1})
+        if dup:
+            problems.append(
+                f"coordinate {names.REFERENCE!r}: expected unique labels, duplicates {dup}"
+            )
     if problems:
         raise SchemaError(problems, what="Dataset to write as UFF")
 
@@ -125,13 +132,15 @@ def _units_lab(text: str) -> str:
 def _frf_records(ds: xr.Dataset, binary: bool) -> list[dict]:
     pyuff = require_pyuff()
     labels = list(ds[names.POINT].values.tolist())
-    drive = ds.attrs.get(names.ATTR_DRIVE_POINT)
-    dof = dof_map(labels + ([drive] if drive is not None and drive not in labels else []))
+    multi = names.REFERENCE in ds[names.FRF].dims
+    # multi-reference: every reference's own node/direction; SIMO: the drive point's
+    drive = None if multi else ds.attrs.get(names.ATTR_DRIVE_POINT)
+    refs = list(ds[names.REFERENCE].values.tolist()) if multi else [drive]
+    dof = dof_map(labels + [r for r in dict.fromkeys(refs) if r is not None and r not in labels])
     quantity = ds.attrs.get(names.ATTR_QUANTITY, "displacement")
     freq = np.asarray(ds[names.FREQUENCY].values, dtype=np.float64)
     step = np.diff(freq)
     uniform = freq.size > 1 and np.allclose(step, step[0], rtol=1e-9)
-    ref_node, ref_dir, ref_tag = dof[drive] if drive is not None else (0, 0, "NONE")
     response_units = _units_lab(ds.attrs.get(names.ATTR_RESPONSE_UNITS, ""))
     force_units = _units_lab(ds.attrs.get(names.ATTR_FORCE_UNITS, ""))
     records = []
@@ -139,43 +148,53 @@ def _frf_records(ds: xr.Dataset, binary: bool) -> list[dict]:
     if names.COHERENCE in ds:
         variables.append((names.COHERENCE, FUNC_COHERENCE))
     for var, func in variables:
-        values = ds[var].transpose(names.POINT, names.FREQUENCY).values
-        for i, lab in enumerate(labels):
-            node, direction, tag = dof[lab]
-            data = np.asarray(values[i], dtype=np.complex128 if func == FUNC_FRF else np.float64)
-            records.append(
-                pyuff.prepare_58(
-                    binary=int(binary),
-                    id1=str(ds.attrs.get("title", "ami_xr"))[:80] or "NONE",
-                    id2=tag,
-                    id3=ref_tag,
-                    id4="NONE",
-                    id5="NONE",
-                    func_type=func,
-                    ver_num=0,
-                    load_case_id=0,
-                    rsp_ent_name="ami_xr",
-                    rsp_node=node,
-                    rsp_dir=direction,
-                    ref_ent_name="ami_xr",
-                    ref_node=ref_node,
-                    ref_dir=ref_dir,
-                    ord_data_type=6 if func == FUNC_FRF else 4,
-                    num_pts=freq.size,
-                    abscissa_spacing=int(uniform),
-                    abscissa_min=float(freq[0]),
-                    abscissa_inc=float(step[0]) if uniform else 0.0,
-                    z_axis_value=0.0,
-                    abscissa_spec_data_type=SPEC_FREQUENCY,
-                    abscissa_axis_units_lab="Hz",
-                    ordinate_spec_data_type=QUANTITY_TO_SPEC[quantity] if func == FUNC_FRF else 0,
-                    ordinate_axis_units_lab=response_units if func == FUNC_FRF else COHERENCE_UNITS,
-                    orddenom_spec_data_type=13 if func == FUNC_FRF else 0,
-                    orddenom_axis_units_lab=force_units if func == FUNC_FRF else "NONE",
-                    data=data,
-                    x=freq,
+        if names.REFERENCE in ds[var].dims:
+            values = ds[var].transpose(names.REFERENCE, names.POINT, names.FREQUENCY).values
+            rows = list(zip(refs, values, strict=True))
+        else:  # SIMO, or the multiple coherence (point, frequency) of multi-reference FRFs
+            rows = [(drive, ds[var].transpose(names.POINT, names.FREQUENCY).values)]
+        for ref, ref_values in rows:
+            ref_node, ref_dir, ref_tag = dof[ref] if ref is not None else (0, 0, "NONE")
+            for i, lab in enumerate(labels):
+                node, direction, tag = dof[lab]
+                dtype = np.complex128 if func == FUNC_FRF else np.float64
+                records.append(
+                    pyuff.prepare_58(
+                        binary=int(binary),
+                        id1=str(ds.attrs.get("title", "ami_xr"))[:80] or "NONE",
+                        id2=tag,
+                        id3=ref_tag,
+                        id4="NONE",
+                        id5="NONE",
+                        func_type=func,
+                        ver_num=0,
+                        load_case_id=0,
+                        rsp_ent_name="ami_xr",
+                        rsp_node=node,
+                        rsp_dir=direction,
+                        ref_ent_name="ami_xr",
+                        ref_node=ref_node,
+                        ref_dir=ref_dir,
+                        ord_data_type=6 if func == FUNC_FRF else 4,
+                        num_pts=freq.size,
+                        abscissa_spacing=int(uniform),
+                        abscissa_min=float(freq[0]),
+                        abscissa_inc=float(step[0]) if uniform else 0.0,
+                        z_axis_value=0.0,
+                        abscissa_spec_data_type=SPEC_FREQUENCY,
+                        abscissa_axis_units_lab="Hz",
+                        ordinate_spec_data_type=(
+                            QUANTITY_TO_SPEC[quantity] if func == FUNC_FRF else 0
+                        ),
+                        ordinate_axis_units_lab=(
+                            response_units if func == FUNC_FRF else COHERENCE_UNITS
+                        ),
+                        orddenom_spec_data_type=13 if func == FUNC_FRF else 0,
+                        orddenom_axis_units_lab=force_units if func == FUNC_FRF else "NONE",
+                        data=np.asarray(ref_values[i], dtype=dtype),
+                        x=freq,
+                    )
                 )
-            )
     return records
 
 
@@ -381,12 +400,15 @@ def write_uff(
     """Write a Dataset as UFF, atomically (see :func:`ami_xr.io.atomic.atomic_path`).
 
     FRFs (``frf``, and ``coherence`` if present) go to dataset 58 with function type 4 (response =
-    each point, reference = the drive point); time Datasets to dataset 58 function type 1 (one
-    record per point and per ``record``, load case = record number, plus the force at the drive
-    point); identified modes (``eigenvalue`` and ``mode_vector``) to one dataset 55 per mode
-    (complex eigenvalue, displacement); point coordinates (``point_x/y/z``, if any) to one
-    dataset 15 in metres, first. Reading the file back with :func:`read_uff` gives the same
-    FRFs, mode vectors and coordinates (these to the 6 digits dataset 15 holds).
+    each point, reference = the drive point; multi-reference FRFs, dims ``(reference, point,
+    frequency)``: one record per (reference, point) with that reference's node and direction,
+    and a ``coherence`` without ``reference`` dim with reference node 0); time Datasets to
+    dataset 58 function type 1 (one record per point and per ``record``, load case = record
+    number, plus the force at the drive point); identified modes (``eigenvalue`` and
+    ``mode_vector``) to one dataset 55 per mode (complex eigenvalue, displacement); point
+    coordinates (``point_x/y/z``, if any) to one dataset 15 in metres, first. Reading the file
+    back with :func:`read_uff` gives the same FRFs, mode vectors and coordinates (these to the
+    6 digits dataset 15 holds).
 
     Parameters
     ----------
