@@ -10,7 +10,12 @@ import xarray as xr
 
 import ami_xr
 from ami_xr import names
-from ami_xr.errors import ConvergenceWarning, IdentificationError, NoModesWarning
+from ami_xr.errors import (
+    AssumptionWarning,
+    ConvergenceWarning,
+    IdentificationError,
+    NoModesWarning,
+)
 
 from ..reference import PAPER_DT as DT
 from ..reference import PAPER_FREQUENCY as FREQ
@@ -244,7 +249,11 @@ def test_bad_input_errors():
         with pytest.raises(IdentificationError, match="delta"):
             ami_xr.subtract(ds, delta=bad)
     iso = ami_xr.isolate(ami_xr.subtract(ds))
-    with pytest.raises(IdentificationError, match="band"):
+    for bad in (0.0, -1.0, "some"):
+        with pytest.raises(IdentificationError, match="band"):
+            ami_xr.global_fit(iso, band=bad)
+    # a band too narrow for the fit is widened, with a warning (tests/ami/test_global_fit_band.py)
+    with pytest.warns(AssumptionWarning, match="widened to band="):
         ami_xr.global_fit(iso, band=1e-4)
     with pytest.raises(IdentificationError, match="subtract"):
         ami_xr.isolate(ds)
