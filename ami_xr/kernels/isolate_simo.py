@@ -226,6 +226,15 @@ def _eigenvalue_se(omega, x, lam, res, lo, hi, dt, n_samples):
 
 
 @jit
+def _near(lam, n, target, merge_tol):
+    """Whether one of the first ``n`` modes lies within ``merge_tol`` of ``target``."""
+    for k in range(n):
+        if normalized_distance(lam[k], target) < merge_tol:
+            return True
+    return False
+
+
+@jit
 def _all_failed(failed, n, it):
     for k in range(n):
         if failed[k] < it:
@@ -569,9 +578,10 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, params):
     rule of :func:`_simo_sweeps` and the model-order check ended (no change pending).
 
     A restart follows every change of the model (merge, prune, added or split mode). A mode the
-    order check adds and then loses in the merge (the sweeps ran it into a neighbour) is, when the
-    check adds it again, kept at its order-check fit (pinned, not re-fitted) and the order check
-    ends after the next sweeps: otherwise the loop cycles until the restart budget is spent.
+    order check adds and then loses (merged into a neighbour the sweeps ran it into, or pruned after
+    its fits failed) is, when the check adds it again, kept at its order-check fit (pinned, not
+    re-fitted) and the order check ends after the next sweeps: otherwise the loop cycles until
+    the restart budget is spent.
     """
     n_p = data.shape[0]
     n_f = data.shape[1]
@@ -618,22 +628,14 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, params):
         for j in range(n_p):
             for k in range(n):
                 res[j, k] = r0[j, k]
-    snap_lam = np.empty(max_modes, dtype=np.complex128)
-    added = -1
+    tried = np.empty(max_modes + 4, dtype=np.complex128)
+    n_tried = 0
     finished = False
     last = False
-    lost = complex(np.nan, np.nan)
     for _restart in range(max_modes + 4):
-        snap_lam[:] = lam
         it, converged = _simo_sweeps(grid, params, modes, n, work, t1)
         total_it += it
         n, changed = _simo_merge_prune(grid, params, modes, n, t1, work.pinned)
-        if added >= 0 and n <= added:
-            # the mode the order check just added did not survive the sweeps (a weak mode
-            # beside a strong one takes up the strong one's residual and runs into it; the
-            # merge drops one): remember it, so that adding it again keeps it at its fit
-            lost = snap_lam[added]
-        added = -1
         if changed:
             continue
         if n >= max_modes or last:
@@ -645,14 +647,22 @@ def _isolate_simo(data, omega, dt, n_samples, lam0, n0, sigma, params):
             finished = True
             break
         if ks < 0:
-            added = n_before
-            if lost == lost and normalized_distance(lam[added], lost) < params.merge_tol:
-                # the same mode again: pinned (not re-fitted), and the order check ends after
-                # the next sweeps (the residual next to a pinned mode holds the error of its
-                # fit, not new modes; the refinement fits all modes jointly)
-                work.pinned[added] = True
-                added = -1
-                last = True
+            # a mode the check added before, and lost since (the sweeps ran it into a
+            # neighbour and the merge dropped it, or its fits failed and it was pruned: a
+            # weak mode beside a strong one takes up the strong one's residual), is added
+            # again: it is pinned at its fit (not re-fitted), and the order check ends after
+            # the next sweeps (the residual next to a pinned mode holds the error of its fit,
+            # not new modes; the refinement fits all modes jointly)
+            for t in range(n_tried):
+                if normalized_distance(lam[n_before], tried[t]) < params.merge_tol and not (
+                    _near(lam, n_before, tried[t], params.merge_tol)
+                ):
+                    work.pinned[n_before] = True
+                    last = True
+                    break
+            if n_tried < tried.shape[0]:
+                tried[n_tried] = lam[n_before]
+                n_tried += 1
     # the restart budget ran out with a change pending: the last model was not isolated
     converged = converged and finished
     # residues back to data units
