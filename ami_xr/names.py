@@ -201,6 +201,10 @@ ATTR_REFINE_CONVERGED = "refine_converged"  # 1 | 0
 ATTR_REFINE_COST_START = "refine_cost_start"  # objective sum_j (n/2) log |r_j|^2 at the start
 ATTR_REFINE_COST = "refine_cost"  # ... and at the optimum
 ATTR_REFINE_REMOVED_MODES = "refine_removed_modes"  # comma-separated labels of dropped modes
+# split duplicates merged by the close-pair order test: "F_dropped Hz into F_kept Hz, ..."
+ATTR_REFINE_MERGED_MODES = "refine_merged_modes"
+# modes of close pairs the order test kept (the data support both): "F Hz, ..."
+ATTR_REFINE_CLOSE_PAIRS_SUPPORTED = "refine_close_pairs_supported"
 # Core dims of intermediate results (never in a returned Dataset)
 SLOT = "slot"  # per-FRF mode slots of the per_frf isolation
 FREQUENCY_OUT = "frequency_out"  # frequency as an output core dim (apply_ufunc needs a new name)

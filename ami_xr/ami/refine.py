@@ -34,6 +34,14 @@ Model order: a mode AMI missed (typically one of a close pair lost in the noise)
 coherent residual. Peaks of the noise-normalised residual power are tried as extra modes and
 kept when the likelihood-ratio statistic is significant (``add_modes``, ``add_pfa``); they are
 flagged ``added_by_refine``. An AMI mode that fails the same test is dropped (``drop_modes``).
+Two modes closer than the larger of their half-power bandwidths (a split duplicate from the
+isolation, or a second pole the addition put next to a mode) go through one more order test
+(with ``drop_modes``): the weaker pole is removed and the rest refitted; the pair stays only when,
+against noise plus a model error proportional to the response (both estimated from the residual,
+see :func:`ami_xr.core.refine._merge_split_pairs`), the single pole leaves a significant excess,
+the second pole removes a significant part of it, and it does so at two points or more. Merged
+duplicates are listed in the attribute ``refine_merged_modes`` ("F_dropped Hz into F_kept Hz"),
+the modes of supported pairs in ``refine_close_pairs_supported``.
 The global-fit outputs that depend on the residues
 (``frf_synthesized``, ``frf_residual``, ``mac``, ``drive_point_snr`` and its
 ``low_drive_point_snr`` flag) are recomputed from the refined model.
@@ -87,6 +95,8 @@ _OUTPUTS = {
     "n_iter": ([], np.int64),
     "cost_start": ([], float),
     "cost": ([], float),
+    "pair_supported": ([M], bool),
+    "merged_fn": ([M], float),
 }
 
 
@@ -373,6 +383,7 @@ def _with_results(ds, fields, terms, kind, data_model, decay, drive_index) -> xr
     attrs[names.ATTR_REFINE_CONVERGED] = int(bool(np.all(r.status.values != STATUS_NOT_CONVERGED)))
     attrs[names.ATTR_REFINE_COST_START] = float(r.cost_start)
     attrs[names.ATTR_REFINE_COST] = float(r.cost)
+    attrs.update(_pair_attrs(natural_frequency(lam).values, r.pair_supported.values, r.merged_fn))
     # one assignment: the results share the input's point and mode coordinates
     if terms:
         ds = ds.assign_coords({names.RESIDUAL_TERM: _LOWER_UPPER})
@@ -380,6 +391,21 @@ def _with_results(ds, fields, terms, kind, data_model, decay, drive_index) -> xr
     out.attrs = {**ds.attrs, **attrs}
     if added.any():
         out = _relabel_added(out, ds.sizes[M] - int(added.sum()), ds[M].values)
+    return out
+
+
+def _pair_attrs(fn: np.ndarray, supported: np.ndarray, merged_fn: xr.DataArray) -> dict:
+    """Attributes of the close-pair order test, by natural frequency (labels change later):
+    ``refine_merged_modes`` (each split duplicate and the mode it was merged into) and
+    ``refine_close_pairs_supported`` (modes of close pairs the data support)."""
+    out = {}
+    merged = np.asarray(merged_fn.values, float)
+    done = [f"{m:.4f} Hz into {f:.4f} Hz" for f, m in zip(fn, merged, strict=True) if m == m]
+    if done:
+        out[names.ATTR_REFINE_MERGED_MODES] = ", ".join(done)
+    kept = [f"{f:.4f} Hz" for f, ok in zip(fn, supported, strict=True) if ok]
+    if kept:
+        out[names.ATTR_REFINE_CLOSE_PAIRS_SUPPORTED] = ", ".join(kept)
     return out
 
 

@@ -24,6 +24,7 @@ from ami_xr.progress import Iterations, active, detail
 # status of each refined mode
 STATUS_OK, STATUS_NOT_CONVERGED, STATUS_FALLBACK = 0, 1, 2
 TRIAL_ITERATIONS = 10  # cap of the trial fits of the model-order tests
+FALLBACK_MESSAGE = "fallback: nothing could be fitted"  # FitResult.message of a fit given up
 
 
 @dataclass
@@ -48,6 +49,8 @@ class RefineResult:
     n_iter: np.int64  # Levenberg-Marquardt iterations in all
     cost_start: np.float64  # objective at the start
     cost: np.float64  # objective at the optimum
+    pair_supported: np.ndarray  # (K',) bool: one of a close pair the order test kept
+    merged_fn: np.ndarray  # (K',) Hz of a split duplicate merged into the mode, NaN if none
 
 
 @dataclass
@@ -61,6 +64,8 @@ class _State:
     origin: np.ndarray  # (K_ami,) AMI index of each AMI mode kept
     n_iter: int
     changed: bool = False
+    supported: np.ndarray | None = None  # (K,) bool: kept by the close-pair test
+    merged_fn: np.ndarray | None = None  # (K,) Hz of a duplicate merged into the mode
 
 
 def _mode_codes(lam: np.ndarray, lam0: np.ndarray, max_shift: float, min_width: float):
@@ -119,11 +124,19 @@ def _fit_modes(
         )
         n_iter += fit.n_iter
         start_cost = fit.start_cost if start_cost is None else start_cost
-        if not np.isfinite(fit.cost) or fit.cost > start_cost:
-            # nothing to fit, or worse than the start: fall back to it
+        if not np.isfinite(fit.cost):
+            # nothing to fit: every mode stays at its start
             free[:] = False
             fit = varpro.levenberg_marquardt(prob, mu0, max_iter=0, free=free)
+            fit.message = FALLBACK_MESSAGE
             break
+        if fit.cost > start_cost:
+            # Freezing a mode at its start made the others' fit worse than the start: refit
+            # them from their starts with only the frozen modes held (a descent from the start
+            # is never worse than it). The other modes keep their freedom: only the modes that
+            # really left their region fall back (formerly every mode was frozen here).
+            start_mu = mu0.copy()
+            continue
         if fit.bad is None:  # the optimum must lie inside every free mode's region too
             final = np.where(free, _mode_codes(fit.lam + decay, ref, max_shift, min_width), 0)
             if not final.any():
@@ -257,12 +270,16 @@ def refine_arrays(
         if trace is not None:
             trace.stage = "order test (drop)"
         _drop_insignificant(prob, state, threshold, trial_opts)
-    n_ami = state.lam0.size
     if trace is not None:
         trace.stage = "order test (add)"
     for _ in range(add_modes if not exact else 0):
         if not _add_missed(prob, state, threshold, decay, trial_opts):
             break
+    if not exact and drop_modes:
+        if trace is not None:
+            trace.stage = "order test (close pairs)"
+        _merge_split_pairs(prob, state, add_pfa, decay, trial_opts, min_width)
+    n_ami = state.origin.size  # AMI modes kept (the added ones follow them)
     fit, free, n_iter = state.fit, state.free, state.n_iter
     if state.changed and np.isfinite(fit.cost):  # polish the new model (frozen modes stay frozen)
         if trace is not None:
@@ -328,6 +345,154 @@ def _add_missed(prob, state: _State, threshold: float, decay: float, trial_opts:
     return True
 
 
+def _complex_rows(z: np.ndarray) -> np.ndarray:
+    """Complex (P, L) from real-stacked rows (P, 2L)."""
+    n_line = z.shape[1] // 2
+    return z[:, :n_line] + 1j * z[:, n_line:]
+
+
+def _peak_strength(proj, k: int) -> float:
+    """Size of mode ``k``'s resonance: sum over points of ``|A_jk| / |Re lam_k|``."""
+    a = proj.coef[:, 2 * k] + 1j * proj.coef[:, 2 * k + 1]
+    return float(np.sum(np.abs(a)) / max(abs(proj.lam[k].real), 1e-300))
+
+
+def _error_variance(prob, proj, width: np.ndarray, skip: np.ndarray):
+    """Variance ``E|e|^2`` (P, L) of noise and model error on each line, from the residual.
+
+    ``s_j^2 + eps^2 |H_j(w)|^2``: a noise level per FRF from the median of ``|r_j|^2`` (for
+    complex Gaussian noise ``|e|^2`` is exponential, its median ``ln 2 E|e|^2``: robust to the
+    model error at the peaks) plus a model error proportional to the model ``H`` (mass loading,
+    slight nonlinearity, leakage grow with the response). The model error of mode ``k`` is
+    ``rho_k``, the residual power in excess of the noise (beyond three standard deviations of
+    its sum, so that pure noise gives ~0) over the model power within three half-power
+    bandwidths ``width[k]`` of it; ``eps^2`` is the median of ``rho_k`` over the modes not in
+    ``skip`` (the typical model error of a peak; robust to one peak with a missed mode). The
+    nominal noise floor is not used; with white noise and an exact model ``eps^2`` is ~0.
+
+    Returns ``(variance (P, L), rho (K,), largest rho over the modes not in skip)``.
+    """
+    resid = _complex_rows(_residual_rows(prob, proj))
+    model = _complex_rows(prob.y) - resid
+    r2 = np.abs(resid) ** 2
+    m2 = np.abs(model) ** 2
+    s2 = np.maximum(np.median(r2, axis=1), 1e-300) / np.log(2.0)
+    rho = np.zeros(proj.lam.size)
+    for k in range(proj.lam.size):
+        band = np.abs(prob.omega - proj.lam[k].imag) <= 3.0 * width[k]
+        if band.any():
+            # excess over the noise beyond its own spread (|e|^2 exponential: std = mean),
+            # three standard deviations: pure noise gives rho ~ 0
+            spread = np.sqrt(band.sum() * np.sum(s2**2))
+            excess = np.sum(r2[:, band] - s2[:, None]) - 3.0 * spread
+            rho[k] = max(excess, 0.0) / max(np.sum(m2[:, band]), 1e-300)
+    others = rho[~skip]
+    eps2 = float(np.median(others)) if others.size else 0.0
+    return s2[:, None] + eps2 * m2, rho, float(np.max(others)) if others.size else 0.0
+
+
+def _close_pairs(lam: np.ndarray, width: np.ndarray) -> list[tuple[int, int]]:
+    """Pairs of modes closer than the larger of their half-power bandwidths, closest first."""
+    pairs = []
+    for i in range(lam.size):
+        for j in range(i + 1, lam.size):
+            sep = abs(lam[i].imag - lam[j].imag)
+            if sep < max(width[i], width[j]):
+                pairs.append((sep / max(width[i], width[j]), i, j))
+    return [(i, j) for _, i, j in sorted(pairs)]
+
+
+def _merge_split_pairs(prob, state: _State, pfa: float, decay: float, trial_opts, min_width):
+    """Model-order test of every close pair (separation below the larger half-power bandwidth):
+    a split duplicate of one mode is merged, a pair the data support stays resolved.
+
+    For a pair, the weaker pole (smaller ``sum_j |A_j| / |Re lam|``) is removed and the rest
+    refitted (the one-pole model). The pair is supported when all three hold:
+
+    * the one-pole model's error at the pair is not typical of the data: its model error
+      ``rho`` (the residual power beyond the noise over the model power, near the pair) is at
+      least that of every other peak, each fitted by one pole. The model error differs from
+      peak to peak (on measurement.uff by a factor 10) and a peak that one pole fits no worse
+      than the worst single-pole peak gives no evidence of a second mode (distribution-free:
+      among ``n + 1`` exchangeable peaks one exceeds all the others with probability
+      ``1 / (n + 1)``). Without model error (all ``rho`` ~ 0) this test passes;
+    * the second pole explains significantly more than noise and model error: on the lines
+      within three bandwidths of the pair, with the variance ``v`` estimated from the one-pole
+      model's residual (:func:`_error_variance`, the pair's own peak left out of the
+      model-error estimate), ``2 sum (|r_1|^2 - |r_2|^2) / v`` exceeds the chi-square quantile
+      with ``2 + 2P`` degrees of freedom (the second eigenvalue and its residues) at false-alarm
+      probability ``pfa``;
+    * its shape is consistent across points: that gain is significant (chi-square, 4 degrees of
+      freedom, ``pfa``) at two points or more (at the one point of a single FRF).
+
+    Otherwise the pair is merged into the one-pole fit. Records ``state.supported`` and
+    ``state.merged_fn`` per mode.
+    """
+    from scipy.stats import chi2  # lazy: scipy.stats is slow to import
+
+    n_point = prob.n_points
+    n_mode = state.fit.lam.size
+    state.supported = np.zeros(n_mode, bool)
+    state.merged_fn = np.full(n_mode, np.nan)
+    tested = set()
+    while state.fit.proj.ok and np.isfinite(state.fit.cost) and state.fit.lam.size > 1:
+        fit = state.fit
+        lam = fit.lam
+        width = np.maximum(2.0 * np.abs(lam.real), min_width)
+        pairs = [p for p in _close_pairs(lam, width) if _pair_key(lam, p) not in tested]
+        if not pairs:
+            return
+        i, j = pairs[0]
+        tested.add(_pair_key(lam, (i, j)))
+        weak = j if _peak_strength(fit.proj, j) < _peak_strength(fit.proj, i) else i
+        strong = i + j - weak
+        kept = strong - (strong > weak)
+        # the merged pole's region: around the stronger pole's present value
+        ref = np.delete(state.lam0, weak)
+        ref[kept] = lam[strong] + decay
+        trial = _fit_modes(prob, np.delete(lam, weak), ref, **trial_opts)
+        state.n_iter += trial[2]
+        one = trial[0]
+        if not (one.proj.ok and np.isfinite(one.cost)):
+            continue
+        centre = 0.5 * (lam[i].imag + lam[j].imag)
+        half = 0.5 * abs(lam[i].imag - lam[j].imag) + 3.0 * max(width[i], width[j])
+        band = np.abs(prob.omega - centre) <= half
+        skip = np.abs(one.lam.imag - centre) <= half
+        var, rho, rho_max = _error_variance(prob, one.proj, np.delete(width, weak), skip)
+        var = var[:, band]
+        r1 = np.abs(_complex_rows(_residual_rows(prob, one.proj))[:, band]) ** 2 / var
+        r2 = np.abs(_complex_rows(_residual_rows(prob, fit.proj))[:, band]) ** 2 / var
+        # the one-pole fit is no better there than at the worst single-pole peak
+        excess = rho[kept] >= rho_max
+        gain_j = 2.0 * (r1.sum(axis=1) - r2.sum(axis=1))
+        gain = gain_j.sum() > chi2.isf(pfa, 2 + 2 * n_point)
+        consistent = np.sum(gain_j > chi2.isf(pfa, 4)) >= min(2, n_point)
+        if excess and gain and consistent:
+            state.supported[[i, j]] = True
+            continue
+        # a split duplicate: merge it into the stronger pole
+        fn_weak = abs(lam[weak] + decay) / (2.0 * np.pi)
+        merged = np.delete(state.merged_fn, weak)
+        merged[strong - (strong > weak)] = fn_weak
+        state.fit = one
+        state.free = np.delete(state.free, weak) & trial[1]
+        state.free[kept] = trial[1][kept]  # the merged mode was refitted: frozen only if now
+        state.lam0 = np.delete(state.lam0, weak)
+        state.lam0[kept] = one.lam[kept] + decay  # the merged mode's region: its merged value
+        state.supported = np.delete(state.supported, weak)
+        state.merged_fn = merged
+        if weak < state.origin.size:  # an AMI mode
+            state.origin = np.delete(state.origin, weak)
+            state.res0 = np.delete(state.res0, weak, 1)
+        state.changed = True
+
+
+def _pair_key(lam: np.ndarray, pair: tuple[int, int]) -> tuple[float, float]:
+    """A pair identified by its eigenvalues (indices shift when a mode is merged)."""
+    return tuple(sorted(round(abs(lam[k]), 6) for k in pair))
+
+
 def _result(
     prob, state: _State, n_ami: int, start_cost, drive_index, decay, min_width
 ) -> RefineResult:
@@ -339,6 +504,8 @@ def _result(
     n_mode = lam0.size
     res0 = np.concatenate([state.res0, np.full((n_point, n_mode - n_ami), np.nan + 0j)], axis=1)
     origin = np.concatenate([state.origin, np.full(n_mode - n_ami, -1)])
+    supported = state.supported if state.supported is not None else np.zeros(n_mode, bool)
+    merged_fn = state.merged_fn if state.merged_fn is not None else np.full(n_mode, np.nan)
     status = np.full(n_mode, STATUS_OK, dtype=np.int8)
     added = np.arange(n_mode) >= n_ami
     if not fit.converged:
@@ -384,8 +551,9 @@ def _result(
     if np.all(np.isfinite(lam)):
         width = np.maximum(2.0 * np.abs(lam0.real), min_width)
         order = np.argsort(match_by_distance(lam, lam0, width))
-        lam, eig_std, fn_std, zeta_std, status, added, origin = (
-            a[order] for a in (lam, eig_std, fn_std, zeta_std, status, added, origin)
+        lam, eig_std, fn_std, zeta_std, status, added, origin, supported, merged_fn = (
+            a[order]
+            for a in (lam, eig_std, fn_std, zeta_std, status, added, origin, supported, merged_fn)
         )
         residue, res_std, mode_vector, mv_std = (
             a[:, order] for a in (residue, res_std, mode_vector, mv_std)
@@ -406,6 +574,8 @@ def _result(
         n_iter=np.int64(state.n_iter),
         cost_start=np.float64(start_cost),
         cost=np.float64(fit.cost),
+        pair_supported=supported,
+        merged_fn=merged_fn,
     )
 
 

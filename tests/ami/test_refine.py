@@ -122,7 +122,9 @@ def test_not_converged_is_flagged_and_keeps_flags():
     _, g, truth = benchmark(noise=0.15, seed=2)
     start = _start(g, truth, 0.004, 1.5)
     start["quality_flags"] = (names.MODE, np.array(["low_drive_point_snr", "", "", ""]))
-    out = refine(start, max_iter=1)
+    # no mode added: a mode added after one iteration sits next to one of the close pair, the
+    # close-pair test merges it and the polish of the new model then converges
+    out = refine(start, max_iter=1, add_modes=0)
     flags = list(out["quality_flags"].values)
     assert flags[0].split(",") == ["low_drive_point_snr", names.FLAG_REFINE_NOT_CONVERGED]
     assert all(names.FLAG_REFINE_NOT_CONVERGED in f for f in flags)
