@@ -223,3 +223,4 @@ SCALING_REFERENCE = "scaling_reference"  # (mode) the reference whose drive poin
 FLAG_REPEATED_ROOT = "repeated_root_suspected"  # residue matrix of a mode not rank one
 ATTR_RANK_ONE_RATIO_MAX = "rank_one_ratio_max"  # threshold of FLAG_REPEATED_ROOT on s2/s1
 ATTR_MULTI_REFERENCE = "multi_reference"  # identify: how several references were combined
+FLAG_REPEATED_ROOT_SEPARATED = "repeated_root_separated"  # one of two modes at one eigenvalue

@@ -9,7 +9,10 @@ rank-one approximation (SVD) gives the mode vector direction and the participati
 ``s2 / s1`` says how far from rank one it is (``rank_one_ratio``; a second mode at the same
 pole makes it rank two), and eq. 8 at every drive point (a reference on a measured point)
 gives a scale of the mode vector: their spread is ``drive_point_consistency`` (a reciprocity
-check), the scale of the drive point with the largest SNR is used.
+check), the scale of the drive point with the largest SNR is used. A mode whose residue
+matrix is rank two (``rank_one_ratio`` above ``RANK_ONE_RATIO_MAX`` and the residues' noise) is
+a repeated root: with two drive points that see both modes it is separated into two modes at
+the one eigenvalue (:func:`ami_xr.core.mimo.split_repeated`), otherwise flagged.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.ami import common as c
 from ami_xr.ami.settings import GlobalFitSettings, from_attrs
 from ami_xr.core import mimo as cm
 from ami_xr.core.modal import mac_matrix
@@ -140,6 +144,17 @@ def _unstack(result: xr.Dataset, ds: xr.Dataset, R: int, P: int) -> xr.Dataset:
     return out.assign_coords(coords)
 
 
+def _drive_snr(a: np.ndarray, lam: np.ndarray, pairs: list, sigma) -> np.ndarray:
+    """(K, D) drive-point SNR: the mode's peak ``|A_pr| / |Re lam|`` over the FRF's noise
+    floor (the peak alone when the floor is unknown or 0)."""
+    peaks = np.abs(a) / np.abs(lam.real)[:, None, None]
+    snr = np.full((a.shape[0], len(pairs)), np.nan)
+    for d, (p, r) in enumerate(pairs):
+        floor = float(sigma[p, r]) if sigma is not None else np.nan
+        snr[:, d] = peaks[:, p, r] / floor if floor > 0 else peaks[:, p, r]
+    return snr
+
+
 def _add_flag(text: str, flag: str, on: bool) -> str:
     flags = [f for f in text.split(names.FLAG_SEPARATOR) if f and f != flag]
     return names.FLAG_SEPARATOR.join(flags + ([flag] if on else []))
@@ -170,7 +185,11 @@ def identify_multi_reference(ds: xr.Dataset, **kwargs: Any) -> xr.Dataset:
         point, NaN with none), ``drive_point_snr``, ``mac`` and the quality indicators;
         ``quality_flags`` gain ``repeated_root_suspected`` (``rank_one_ratio`` above the
         attribute ``rank_one_ratio_max`` and above the residues' noise) and
-        ``low_drive_point_snr`` is decided at the drive point used.
+        ``low_drive_point_snr`` is decided at the drive point used. A flagged mode that two
+        drive points separate becomes two modes at its eigenvalue, flagged
+        ``repeated_root_separated`` instead (their ``drive_point_consistency`` is the
+        reciprocity misfit of the pair's factorisation; an AssumptionWarning says that the
+        pair's basis in its plane is a choice).
     """
     from ami_xr.ami.identify import _with_quality, identify
 
@@ -199,29 +218,24 @@ def identify_multi_reference(ds: xr.Dataset, **kwargs: Any) -> xr.Dataset:
     lam = np.asarray(out[names.EIGENVALUE].transpose(names.MODE).values, dtype=np.complex128)
     a = out[names.RESIDUE].transpose(names.MODE, names.POINT, names.REFERENCE).values
     u, s1, w, ratio = cm.rank_one(a)
-    # drive-point SNR: the mode's peak |A_pr| / |Re lam| over the FRF's noise floor
-    peaks = np.abs(a) / np.abs(lam.real)[:, None, None]
     sigma = None
     if names.SUB_NOISE_FLOOR in out:
         sigma = out[names.SUB_NOISE_FLOOR].transpose(names.POINT, names.REFERENCE).values
-    snr = np.full((n_k, len(pairs)), np.nan)
-    for d, (p, r) in enumerate(pairs):
-        floor = float(sigma[p, r]) if sigma is not None else np.nan
-        snr[:, d] = peaks[:, p, r] / floor if floor > 0 else peaks[:, p, r]
+    snr = _drive_snr(a, lam, pairs, sigma)
     if pairs:
         scales = cm.drive_point_scales(u, s1, w, lam, pairs)
         best = np.argmax(np.where(np.isfinite(snr), snr, -np.inf), axis=1)
-        c = scales[np.arange(n_k), best]
+        scale = scales[np.arange(n_k), best]
         spread = cm.aligned_spread(scales, best)
         best_snr = snr[np.arange(n_k), best]
         scaling_ref = np.array([str(refs[pairs[b][1]]) for b in best])
     else:
-        c = cm.unit_scales(u)
+        scale = cm.unit_scales(u)
         spread = np.full(n_k, np.nan)
         best_snr = np.full(n_k, np.nan)
         scaling_ref = np.array([""] * n_k)
-    phi = u * c[:, None]  # (K, P)
-    part = cm.participation(s1, w, lam, c)  # (K, R)
+    phi = u * scale[:, None]  # (K, P)
+    part = cm.participation(s1, w, lam, scale)  # (K, R)
     noisy = np.zeros(n_k, bool)  # s2 within the residues' noise (known from the refinement)
     if names.RESIDUE_STD in out:
         std = out[names.RESIDUE_STD].transpose(names.MODE, names.POINT, names.REFERENCE).values
@@ -230,6 +244,47 @@ def identify_multi_reference(ds: xr.Dataset, **kwargs: Any) -> xr.Dataset:
             noisy = np.isfinite(noise) & ~(ratio * s1 > NOISE_FACTOR * noise)
     with np.errstate(invalid="ignore"):
         repeated = (ratio > RANK_ONE_RATIO_MAX) & ~noisy
+    split = {}
+    if len(pairs) >= 2:
+        for k in np.flatnonzero(repeated):
+            got = cm.split_repeated(a[k], lam[k], pairs)
+            if got is not None:
+                split[int(k)] = got
+    separated = np.zeros(n_k, bool)
+    if split:  # each separable repeated root becomes two modes at its eigenvalue
+        src = [k for k in range(n_k) for _ in range(2 if k in split else 1)]
+        phi, part, a, lam = phi[src], part[src], a[src], lam[src]
+        spread, best_snr, ratio = spread[src], best_snr[src], ratio[src]
+        scaling_ref, repeated, separated = scaling_ref[src], repeated[src], separated[src]
+        both = ",".join(str(refs[r]) for _, r in pairs)
+        for k, (phi2, part2, asym) in split.items():
+            j = src.index(k)
+            for m in (0, 1):
+                phi[j + m], part[j + m] = phi2[:, m], part2[:, m]
+                a[j + m] = lam[j + m] * np.outer(phi2[:, m], part2[:, m])
+                spread[j + m], scaling_ref[j + m] = asym, both
+                separated[j + m], repeated[j + m] = True, False
+                best_snr[j + m] = np.nanmax(_drive_snr(a[j + m][None], lam[[j]], pairs, sigma))
+        out = c.select_modes(out, src)
+        labels = np.arange(1, len(src) + 1)
+        out = out.assign_coords({names.MODE: labels})
+        if names.MODE_2 in out.dims:
+            out = out.assign_coords({names.MODE_2: labels})
+        residue = out[names.RESIDUE]
+        out[names.RESIDUE] = residue.copy(
+            data=xr.DataArray(a, dims=(names.MODE, names.POINT, names.REFERENCE))
+            .transpose(*residue.dims)
+            .values
+        )
+        n_k = len(src)
+        warnings.warn(
+            f"identify: {len(split)} repeated root(s) separated into two modes at one eigenvalue "
+            f"by the drive points {both} (flag {names.FLAG_REPEATED_ROOT_SEPARATED}); the "
+            "pair's two mode vectors are one basis of its plane, fixed by the factorisation of "
+            "the drive-point residues (at an exactly repeated root any rotation fits the data)",
+            AssumptionWarning,
+            stacklevel=3,
+        )
     frf_units = str(ds[names.FRF].attrs.get(names.ATTR_UNITS, ""))
     from ami_xr.ami.global_fit import mode_vector_units
 
@@ -281,6 +336,7 @@ def identify_multi_reference(ds: xr.Dataset, **kwargs: Any) -> xr.Dataset:
         new = []
         for k, text in enumerate(texts):
             t = _add_flag(text, names.FLAG_REPEATED_ROOT, bool(repeated[k]))
+            t = _add_flag(t, names.FLAG_REPEATED_ROOT_SEPARATED, bool(separated[k]))
             if pairs:
                 t = _add_flag(t, names.FLAG_LOW_DRIVE_SNR, not best_snr[k] >= smin)
             new.append(t)

@@ -98,3 +98,74 @@ def unit_scales(u: np.ndarray) -> np.ndarray:
     """``c`` with ``c u`` having its largest entry 1 (no drive point: unscaled vectors)."""
     jmax = np.argmax(np.abs(u), axis=1)
     return 1.0 / u[np.arange(u.shape[0]), jmax]
+
+
+def sqrt_2x2(m: np.ndarray) -> np.ndarray | None:
+    """A symmetric square root ``R`` (``R @ R = m``) of a 2x2 complex matrix (closed form
+    ``(m + s I) / sqrt(tr m + 2 s)``, ``s = +-sqrt(det m)`` whichever keeps the denominator
+    away from 0); None for a singular ``m``."""
+    s = np.sqrt(complex(np.linalg.det(m)))
+    if s == 0:
+        return None
+    tr = complex(np.trace(m))
+    if abs(tr - 2 * s) > abs(tr + 2 * s):
+        s = -s
+    t = np.sqrt(tr + 2 * s)
+    return (m + s * np.eye(2)) / t
+
+
+def split_repeated(
+    residue: np.ndarray, lam: complex, pairs: list[tuple[int, int]], max_cond: float = 1e6
+) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """Two modes at one eigenvalue from a rank-two residue matrix (a repeated root).
+
+    ``A = lam Phi L^T`` with ``Phi`` (P, 2) and ``L`` (R, 2), and reciprocity at the drive
+    points (``L_r = Phi_p``). With ``A2`` the best rank-two approximation (SVD) and two drive
+    points ``(p1, r1), (p2, r2)``, ``Phi_D = Phi[[p1, p2]]`` satisfies
+    ``Phi_D Phi_D^T = A2[[p1, p2]][:, [r1, r2]] / lam = H``; at an exactly repeated root no data
+    fix the pair's rotation in its plane, so ``Phi_D`` is taken as the symmetric square root of
+    ``H`` (real shapes stay real: ``H`` is then a real matrix times one complex constant), then
+    ``Phi = A2[:, [r1, r2]] Phi_D^-T / lam`` and ``L^T = Phi^+ A2 / lam``. The two drive points
+    used are those with the best-conditioned ``H``.
+
+    Parameters
+    ----------
+    residue : ndarray (P, R)
+        The mode's residue matrix.
+    lam : complex
+        Its eigenvalue.
+    pairs : list of (point index, reference index)
+        The drive points; at least two.
+    max_cond : float
+        Largest condition number of ``H`` accepted.
+
+    Returns
+    -------
+    (phi, participation, misfit) or None
+        ``phi`` (P, 2), ``participation`` (R, 2) and the reciprocity misfit: the largest
+        ``|L_r - Phi_p|`` over the drive points relative to the largest ``|Phi|`` (each mode);
+        None when no two drive points separate the pair.
+    """
+    if len(pairs) < 2 or min(residue.shape) < 2:
+        return None
+    u, s, vh = np.linalg.svd(np.asarray(residue, dtype=np.complex128), full_matrices=False)
+    a2 = (u[:, :2] * s[:2]) @ vh[:2]
+    best, best_cond = None, max_cond
+    for i in range(len(pairs)):
+        for j in range(i + 1, len(pairs)):
+            (p1, r1), (p2, r2) = pairs[i], pairs[j]
+            h = a2[np.ix_([p1, p2], [r1, r2])] / lam
+            cond = np.linalg.cond(h)
+            if cond < best_cond:
+                best, best_cond = (p1, p2, r1, r2, h), cond
+    if best is None:
+        return None
+    p1, p2, r1, r2, h = best
+    root = sqrt_2x2((h + h.T) / 2)
+    if root is None or not np.linalg.cond(root) < max_cond:
+        return None
+    phi = a2[:, [r1, r2]] @ np.linalg.inv(root).T / lam
+    part = (np.linalg.pinv(phi) @ a2 / lam).T
+    scale = np.abs(phi).max(axis=0)
+    misfit = max(float(np.max(np.abs(part[r] - phi[p]) / scale)) for p, r in pairs)
+    return phi, part, misfit

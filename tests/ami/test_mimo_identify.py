@@ -161,17 +161,69 @@ def _ring(split: float = 0.0) -> xr.Dataset:
     )
 
 
-def test_repeated_pair_is_flagged_with_two_references():
+def _pair_products(ds):
+    """``Phi Phi^T`` of all modes (P, P): invariant under any rotation of a repeated pair."""
+    phi = _phi(ds)
+    return phi @ phi.T
+
+
+def test_repeated_pair_is_separated_by_two_drive_points():
+    truth = _ring()
+    ds = modal.frf(truth, np.linspace(0.0, 80.0, 1000), references=[1, 2])
+    with pytest.warns(AssumptionWarning, match="separated into two modes"):
+        out = ami_xr.identify(ds)
+    np.testing.assert_allclose(
+        out[names.EIGENVALUE].values, truth[names.EIGENVALUE].values, rtol=1e-9
+    )
+    flags = out[names.QUALITY_FLAGS].values.astype(str)
+    assert [names.FLAG_REPEATED_ROOT_SEPARATED in f for f in flags] == [0, 1, 1, 0]
+    assert not any(names.FLAG_REPEATED_ROOT in f.split(",") for f in flags)
+    want = _pair_products(truth)
+    np.testing.assert_allclose(_pair_products(out), want, atol=1e-9 * np.abs(want).max())
+    np.testing.assert_allclose(out[names.MPC].values, 1.0)  # real shapes stay real
+    assert out[names.MAC].values[1, 2] < 1e-9
+    assert np.all(out[names.DRIVE_POINT_CONSISTENCY].values < 1e-9)
+    assert out[names.RANK_ONE_RATIO].values[1] == pytest.approx(1.0, rel=1e-6)
+    # the residues of the pair add up to the one pole's residue matrix
+    res = out[names.RESIDUE].values
+    lam = truth[names.EIGENVALUE].values
+    phi = _phi(truth)
+    pair = sum(lam[k] * np.outer(phi[[0, 1], k], phi[:, k]) for k in (1, 2))
+    np.testing.assert_allclose(res[:, :, 1] + res[:, :, 2], pair, atol=1e-12)
+
+
+def test_repeated_pair_separated_at_one_percent_noise():
+    truth = _ring()
+    ds = _noisy(modal.frf(truth, np.linspace(0.0, 80.0, 1000), references=[1, 2]), 0.01, 1)
+    out = _identify(ds)
+    flags = out[names.QUALITY_FLAGS].values.astype(str)
+    assert [names.FLAG_REPEATED_ROOT_SEPARATED in f for f in flags] == [0, 1, 1, 0]
+    np.testing.assert_allclose(
+        out[names.NATURAL_FREQUENCY].values, [15.9155, 42.1084, 42.1084, 57.3841], rtol=1e-3
+    )
+    want = _pair_products(truth)
+    assert np.abs(_pair_products(out) - want).max() < 0.05 * np.abs(want).max()
+
+
+def test_repeated_pair_with_one_drive_point_is_flagged_not_split():
     ds = modal.frf(_ring(), np.linspace(0.0, 80.0, 1000), references=[1, 2])
-    with pytest.warns(AssumptionWarning, match="repeated_root_suspected"):
+    ds = ds.assign_coords({names.REFERENCE: [1, 99]})  # the second force not on a point
+    with pytest.warns(AssumptionWarning, match=names.FLAG_REPEATED_ROOT):
         out = ami_xr.identify(ds)
     fn = out[names.NATURAL_FREQUENCY].values
-    pair = int(np.argmin(np.abs(fn - 42.1084)))
+    assert fn.size == 3
     flags = out[names.QUALITY_FLAGS].values.astype(str)
-    assert names.FLAG_REPEATED_ROOT in flags[pair]
-    assert out[names.RANK_ONE_RATIO].values[pair] == pytest.approx(1.0, rel=1e-6)
-    others = [k for k in range(fn.size) if k != pair]
-    assert not any(names.FLAG_REPEATED_ROOT in flags[k] for k in others)
+    assert [names.FLAG_REPEATED_ROOT in f.split(",") for f in flags] == [0, 1, 0]
+    assert out[names.RANK_ONE_RATIO].values[1] == pytest.approx(1.0, rel=1e-6)
+
+
+def test_references_on_a_nodal_line_of_the_pair_see_one_mode():
+    """Forces at 1 and 3 excite only the cosine wave of the pair (the sine has nodes there):
+    the residue matrix is rank one, nothing to flag or separate."""
+    ds = modal.frf(_ring(), np.linspace(0.0, 80.0, 1000), references=[1, 3])
+    out = _identify(ds)
+    assert out.sizes[names.MODE] == 3
+    assert np.all(out[names.RANK_ONE_RATIO].values < 1e-9)
 
 
 def test_one_reference_cannot_tell_the_rank():
@@ -223,6 +275,14 @@ def test_phases_alone_point_at_identify(chain):
     _, ds, _ = chain
     with pytest.raises(ami_xr.errors.IdentificationError, match="ami_xr.identify does"):
         ami_xr.subtract(ds)
+
+
+def test_sqrt_2x2_is_a_symmetric_square_root():
+    m = np.array([[2.0 + 1j, 0.3], [0.3, 1.0 - 0.5j]])
+    r = cm.sqrt_2x2(m)
+    np.testing.assert_allclose(r @ r, m, atol=1e-14)
+    np.testing.assert_allclose(r, r.T)
+    assert cm.sqrt_2x2(np.zeros((2, 2))) is None
 
 
 def test_rank_one_helpers_against_a_constructed_matrix():
