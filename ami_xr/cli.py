@@ -31,6 +31,7 @@ subcommands); options left at their default are not passed on, so the library ap
 from __future__ import annotations
 
 import argparse
+import logging
 import re
 import signal
 import sys
@@ -84,6 +85,24 @@ def _say(*parts: Any) -> None:
     text = " ".join(str(p) for p in parts)
     encoding = getattr(sys.stdout, "encoding", None) or "utf-8"
     print(text.encode(encoding, "backslashreplace").decode(encoding), flush=True)
+
+
+class _CompileNotice(logging.Handler):
+    """Prints the kernels' once-per-process first-compilation notice (logger
+    ``names.COMPILE_LOGGER``, INFO) on the stderr of the moment."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        print(record.getMessage(), file=sys.stderr, flush=True)
+
+
+def _show_compile_notice() -> None:
+    from ami_xr.names import COMPILE_LOGGER
+
+    logger = logging.getLogger(COMPILE_LOGGER)
+    if not any(isinstance(h, _CompileNotice) for h in logger.handlers):
+        logger.addHandler(_CompileNotice(logging.INFO))
+        logger.setLevel(logging.INFO)
+        logger.propagate = False
 
 
 def _add_output(
@@ -555,6 +574,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             )
 
     prefix = f"ami-xr {args.command}"
+    _show_compile_notice()  # a first run that compiles says so, once
     try:
         with warnings.catch_warnings():
             warnings.showwarning = show_warning

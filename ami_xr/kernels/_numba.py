@@ -39,6 +39,9 @@ from collections.abc import Callable
 from typing import Any
 
 import numba
+import numba.core.registry
+import numba.core.sigutils
+import numba.core.types
 
 CACHE = os.environ.get("AMI_XR_NUMBA_CACHE", "1").strip().lower() not in ("0", "false", "no", "off")
 
@@ -46,15 +49,89 @@ CACHE = os.environ.get("AMI_XR_NUMBA_CACHE", "1").strip().lower() not in ("0", "
 _POLICY_FUNCTIONS: weakref.WeakSet = weakref.WeakSet()
 
 
+# The first-compilation notice goes to logging.getLogger(names.COMPILE_LOGGER) at INFO: the CLI
+# prints it on stderr; the Python API leaves it to the caller's logging set-up (silent by default).
+#: What a cold start compiles, in seconds on a 2-core machine (``scripts/bench_first_run.py``).
+FIRST_RUN_SECONDS = 60
+_NOTICE_GIVEN: list[bool] = []
+
+
+def _cache_location(dispatcher: Any) -> str | None:
+    """The cache folder: ``NUMBA_CACHE_DIR`` when set, else where this kernel is cached."""
+    if numba.config.CACHE_DIR:
+        return str(numba.config.CACHE_DIR)
+    path = getattr(getattr(dispatcher, "_cache", None), "_cache_path", None)
+    return path if isinstance(path, str) else None
+
+
+def first_run_notice(location: str | None = None) -> str:
+    """The text of the first-compilation notice (``location``: the cache folder, if any)."""
+    where = f"cached in {location}" if CACHE and location else "on-disk cache off"
+    return (
+        "ami-xr: first run on this machine: compiling numeric kernels "
+        f"(about {FIRST_RUN_SECONDS} s, once; {where})"
+    )
+
+
+def _notice(dispatcher: Any) -> None:
+    """Log :func:`first_run_notice` once per process, just before the first kernel compiles."""
+    if _NOTICE_GIVEN:
+        return
+    _NOTICE_GIVEN.append(True)
+    import logging
+
+    from ami_xr.names import COMPILE_LOGGER
+
+    logging.getLogger(COMPILE_LOGGER).info(first_run_notice(_cache_location(dispatcher)))
+
+
+class _Dispatcher(numba.core.registry.CPUDispatcher):
+    """numba's CPU dispatcher with two changes, neither of which touches the generated code:
+
+    * a call from another kernel is typed with its arguments' plain types (``int64``, not
+      ``Literal[int](0)``), so a kernel called with a constant and with a variable compiles
+      once, not once per constant (numba specialises jitted-to-jitted calls on literal values);
+    * the first compilation of the process (a cache miss) is announced, see :func:`_notice`.
+    """
+
+    def get_call_template(self, args, kws):
+        unlit = numba.core.types.unliteral
+        args = tuple(unlit(a) for a in args)
+        kws = {k: unlit(v) for k, v in kws.items()}
+        return super().get_call_template(args, kws)
+
+    def compile(self, sig):
+        if not _NOTICE_GIVEN and self._can_compile:
+            args, _ = numba.core.sigutils.normalize_signature(sig)
+            if self.overloads.get(tuple(args)) is None:
+                load = self._cache.load_overload
+                self._cache.load_overload = lambda s, ctx: _missed(self, load(s, ctx))
+                try:
+                    return super().compile(sig)
+                finally:
+                    del self._cache.load_overload
+        return super().compile(sig)
+
+
+def _missed(dispatcher: Any, loaded: Any) -> Any:
+    if loaded is None:
+        _notice(dispatcher)
+    return loaded
+
+
 def jit(func=None, *, parallel: bool = False, **options):
-    """``numba.njit`` with the project's policy (lazy, cached, no fastmath)."""
+    """``numba.njit`` with the project's policy (lazy, cached, no fastmath, one specialisation
+    per argument types: see :class:`_Dispatcher`)."""
     options.setdefault("cache", CACHE)
     options.setdefault("fastmath", False)
     options.setdefault("nogil", True)
 
     def decorate(f):
         _POLICY_FUNCTIONS.add(f)
-        return numba.njit(parallel=parallel, **options)(f)
+        disp = numba.njit(parallel=parallel, **options)(f)
+        if type(disp) is numba.core.registry.CPUDispatcher:  # not under NUMBA_DISABLE_JIT
+            disp.__class__ = _Dispatcher
+        return disp
 
     return decorate if func is None else decorate(func)
 

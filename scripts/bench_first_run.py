@@ -1,0 +1,146 @@
+"""First-run cost of ``ami-xr demo``: cold (empty numba cache) and warm, and what compiles.
+
+Each run is a subprocess with its own temporary numba cache (``NUMBA_CACHE_DIR``) and output
+folder, so the machine's own cache is neither used nor touched:
+
+1. cold: ``python -m ami_xr demo`` with the empty cache - wall and CPU time (what a new user
+   waits for after ``pip install``);
+2. warm: the same command again on the cache the first run filled;
+3. a probe: the demo run in-process (again with an empty cache), with numba's dispatcher
+   ``compile`` timed (CPU time of the compiling thread), then every numba dispatcher of ``ami_xr.kernels.*`` listed with its
+   number of compiled specialisations and the seconds spent compiling it (its callees'
+   compilation excluded) - the top ``--top`` are printed.
+
+Wall and CPU time are printed (on a shared, busy machine the CPU time is the steadier figure).
+Target (issue 11 item 1): cold demo <= 20 s.
+
+    python scripts/bench_first_run.py [--top 15] [--no-report] [--probe-only]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+TARGET_COLD_S = 20.0
+
+
+def _child_times() -> float:
+    t = os.times()
+    return t.children_user + t.children_system
+
+
+def _run_demo(cache: str, out: str, report: bool) -> tuple[float, float, str]:
+    """Wall and CPU seconds of one ``python -m ami_xr demo`` and its stderr."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache, AMI_XR_NUMBA_CACHE="1")
+    cmd = [sys.executable, "-m", "ami_xr", "demo", "-o", out]
+    if not report:
+        cmd.append("--no-report")
+    cpu0, t0 = _child_times(), time.perf_counter()
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
+    wall, cpu = time.perf_counter() - t0, _child_times() - cpu0
+    if done.returncode:
+        sys.exit(f"demo failed ({done.returncode}):\n{done.stderr[-3000:]}")
+    return wall, cpu, done.stderr
+
+
+def _probe(report: bool) -> dict:
+    """Run the demo in this process with ``Dispatcher.compile`` timed (call with an empty
+    ``NUMBA_CACHE_DIR``). Returns per-dispatcher rows."""
+    from numba.core import dispatcher as nd
+
+    own: dict[int, float] = {}
+    stack: list[float] = []  # callees' time, per open compile
+    original = nd.Dispatcher.compile
+
+    def timed(self, sig):
+        stack.append(0.0)
+        t0 = time.thread_time()  # CPU time of this thread: steady on a busy machine
+        try:
+            return original(self, sig)
+        finally:
+            total = time.thread_time() - t0
+            inner = stack.pop()
+            own[id(self)] = own.get(id(self), 0.0) + total - inner
+            if stack:
+                stack[-1] += total
+
+    nd.Dispatcher.compile = timed
+    import ami_xr.demo
+
+    with tempfile.TemporaryDirectory() as out:
+        t0, cpu0 = time.perf_counter(), time.process_time()
+        ami_xr.demo.demo(out, report=report, progress=False)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
+    rows = []
+    for name, module in sorted(sys.modules.items()):
+        if not name.startswith("ami_xr.kernels") or module is None:
+            continue
+        for attr, obj in vars(module).items():
+            if isinstance(obj, nd.Dispatcher) and getattr(obj.py_func, "__module__", "") == name:
+                if obj.signatures or id(obj) in own:
+                    rows.append(
+                        {
+                            "kernel": f"{name.removeprefix('ami_xr.kernels.')}.{attr}",
+                            "signatures": [str(s) for s in obj.signatures],
+                            "parallel": bool(obj.targetoptions.get("parallel")),
+                            "seconds": own.get(id(obj), 0.0),
+                        }
+                    )
+    return {"wall": wall, "cpu": cpu, "rows": rows}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--top", type=int, default=15, help="kernels listed (default 15)")
+    parser.add_argument("--no-report", action="store_true", help="demo without the report")
+    parser.add_argument("--probe-only", action="store_true", help="only the per-kernel table")
+    parser.add_argument("--_probe", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    report = not args.no_report
+    if args._probe:
+        print(json.dumps(_probe(report)))
+        return 0
+    with tempfile.TemporaryDirectory() as tmp:
+        if not args.probe_only:
+            cache, out = str(Path(tmp, "cache")), str(Path(tmp, "out"))
+            wall, cpu, err = _run_demo(cache, out, report)
+            print(f"demo cold (empty numba cache): {wall:6.1f} s wall, {cpu:6.1f} s CPU")
+            message = [line for line in err.splitlines() if "compiling" in line]
+            print(f"  first-run message: {message[0] if message else '(none)'}")
+            wall, cpu, err = _run_demo(cache, out, report)
+            print(f"demo warm (cache filled):      {wall:6.1f} s wall, {cpu:6.1f} s CPU")
+            message = [line for line in err.splitlines() if "compiling" in line]
+            print(f"  first-run message: {message[0] if message else '(none)'}")
+            print(f"target: cold <= {TARGET_COLD_S:.0f} s")
+        env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(tmp, "probe")), AMI_XR_NUMBA_CACHE="1")
+        cmd = [sys.executable, __file__, "--_probe"] + (["--no-report"] if not report else [])
+        done = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
+        if done.returncode:
+            sys.exit(f"probe failed:\n{done.stderr[-3000:]}")
+        probe = json.loads(done.stdout.strip().splitlines()[-1])
+    rows = sorted(probe["rows"], key=lambda r: -r["seconds"])
+    total = sum(r["seconds"] for r in rows)
+    n_sig = sum(len(r["signatures"]) for r in rows)
+    print(
+        f"\nin-process demo, empty cache: {probe['wall']:.1f} s wall, {probe['cpu']:.1f} s CPU; "
+        f"{len(rows)} kernels, {n_sig} specialisations, {total:.1f} s CPU compiling"
+    )
+    print(f"{'CPU s':>8}  {'sigs':>4}  kernel (its callees' compilation excluded)")
+    for r in rows[: args.top]:
+        flag = "  (parallel)" if r["parallel"] else ""
+        print(f"{r['seconds']:8.2f}  {len(r['signatures']):4d}  {r['kernel']}{flag}")
+    multi = [r for r in rows if len(r["signatures"]) > 1]
+    for r in multi:
+        print(f"  {r['kernel']}: " + " | ".join(r["signatures"]))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,142 @@
+"""A first run compiles each kernel once, and says so once (issue 11 item 1).
+
+* A kernel called from another kernel with constants (numba types them ``Literal[int](0)``) and
+  with variables compiles one specialisation, not one per constant.
+* After an identification every kernel dispatcher holds at most one specialisation, and a
+  checked wrapper given another layout or dtype adds none.
+* A process that must compile (numba cache miss) logs one notice at INFO on
+  ``names.COMPILE_LOGGER``; the CLI prints it on stderr, the Python API prints nothing, and a
+  warm run (cache hit) says nothing. Run in fresh processes with a throw-away cache folder.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ami_xr.kernels import _numba
+
+pytestmark = pytest.mark.skipif(
+    not isinstance(_numba.jit(lambda x: x), _numba._Dispatcher), reason="NUMBA_DISABLE_JIT"
+)
+
+KERNELS = """
+from ami_xr.kernels._numba import jit
+
+
+@jit
+def g(x, k):
+    return x * k
+
+
+@jit
+def f(x):
+    return g(x, 0) + g(x, 1) + g(x, -1) + g(x, int(x))
+"""
+
+RUN = """
+import json, sys
+{setup}
+from kpkg.kern import f, g
+value = f(3.0)
+print(json.dumps({{"value": value, "g": len(g.signatures), "f": len(f.signatures)}}))
+"""
+
+CLI_SETUP = "from ami_xr.cli import _show_compile_notice; _show_compile_notice()"
+
+
+def _run(tmp_path: Path, setup: str = "", cache: str = "cache") -> tuple[dict, str]:
+    pkg = tmp_path / "kpkg"
+    if not pkg.is_dir():
+        pkg.mkdir()
+        (pkg / "__init__.py").write_text("")
+        (pkg / "kern.py").write_text(KERNELS)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / cache), AMI_XR_NUMBA_CACHE="1")
+    env["PYTHONPATH"] = os.pathsep.join([str(tmp_path), env.get("PYTHONPATH", "")])
+    env.pop("NUMBA_DISABLE_JIT", None)
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(RUN.format(setup=setup))],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=tmp_path,
+    )
+    return json.loads(done.stdout.strip().splitlines()[-1]), done.stderr
+
+
+def test_literal_arguments_compile_one_specialisation(tmp_path):
+    out, _ = _run(tmp_path)
+    assert out["value"] == 3.0 * (0 + 1 - 1 + 3)
+    assert out["g"] == 1  # without the unliteral typing: 4 (three constants and int64)
+    assert out["f"] == 1
+
+
+def test_cli_says_once_that_a_first_run_compiles(tmp_path):
+    out, err = _run(tmp_path, CLI_SETUP)
+    notices = [line for line in err.splitlines() if "compiling numeric kernels" in line]
+    assert len(notices) == 1, err  # two kernels compile, one notice
+    assert notices[0].startswith("ami-xr: first run on this machine: compiling numeric kernels")
+    assert str(tmp_path / "cache") in notices[0]  # where the compiled kernels go
+    # warm: the cache filled by the first run is used and nothing is said
+    out, err = _run(tmp_path, CLI_SETUP)
+    assert "compiling" not in err, err
+
+
+def test_python_api_prints_nothing_and_logs_at_info(tmp_path):
+    _, err = _run(tmp_path, cache="api")
+    assert err.strip() == ""
+    setup = "import logging; logging.basicConfig(level=logging.INFO, format='%(name)s %(message)s')"
+    _, err = _run(tmp_path, setup, cache="api_logged")
+    assert err.count("ami_xr.compile ami-xr: first run on this machine") == 1, err
+
+
+def test_notice_text_names_the_cache():
+    text = _numba.first_run_notice("/some/where")
+    assert "compiling numeric kernels" in text and "once" in text
+    assert ("cached in /some/where" in text) == _numba.CACHE
+
+
+IDENTIFY = """
+import json, sys
+import ami_xr
+from numba.core.dispatcher import Dispatcher
+_, g, _ = ami_xr.simulate.benchmark(noise=0.02, seed=3)
+ami_xr.identify(g.isel(frequency=slice(0, 1025)))
+many = {}
+for name, module in list(sys.modules.items()):
+    if name.startswith("ami_xr.kernels") and module is not None:
+        for attr, obj in vars(module).items():
+            if isinstance(obj, Dispatcher) and len(obj.signatures) > 1:
+                many[f"{name}.{attr}"] = [str(s) for s in obj.signatures]
+print(json.dumps(many))
+"""
+
+
+def test_identify_compiles_each_kernel_once():
+    """Every kernel an identification uses holds one specialisation (the project's cache, so
+    mostly loaded; a kernel compiled twice or loaded for two argument types shows here)."""
+    done = subprocess.run(
+        [sys.executable, "-c", IDENTIFY], capture_output=True, text=True, check=True
+    )
+    many = json.loads(done.stdout.strip().splitlines()[-1])
+    assert many == {}
+
+
+def test_public_wrappers_take_any_layout():
+    """The checked wrappers hand the kernels C-contiguous float64 arrays: a Fortran-ordered,
+    strided or integer input adds no specialisation."""
+    from ami_xr.kernels import modal_basis
+
+    omega = np.linspace(0.0, 60.0, 33)
+    variants = (omega, np.asfortranarray(omega), np.repeat(omega, 2)[::2], np.arange(33))
+    for w in variants:
+        modal_basis.pole_basis(w, -1.0 + 20j)
+        assert len(modal_basis._pole_basis.signatures) == 1
