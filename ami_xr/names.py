@@ -215,5 +215,14 @@ ATTR_EXP_CORRECTED = "exponential_window_corrected"  # 1/s added to Re(lambda), 
 ATTR_THRESHOLD = "threshold"  # on SUB_STOP_STATISTIC: the stop level t of the statistic
 ATTR_SCALING = "scaling"  # on MODE_VECTOR: how the mode vectors are scaled
 ATTR_CRB_MODEL = "crb_model"  # cramer_rao_bound: "discrete" | "continuous"
+# Multi-reference identification (ami_xr.ami.mimo)
+PARTICIPATION = "participation"  # (mode, reference) modal participation factor L, A = lam phi L^T
+RANK_ONE_RATIO = "rank_one_ratio"  # (mode) s2/s1 of the residue matrix (point x reference)
+DRIVE_POINT_CONSISTENCY = "drive_point_consistency"  # (mode) spread of drive-point scalings
+SCALING_REFERENCE = "scaling_reference"  # (mode) the reference whose drive point scaled phi
+FLAG_REPEATED_ROOT = "repeated_root_suspected"  # residue matrix of a mode not rank one
+ATTR_RANK_ONE_RATIO_MAX = "rank_one_ratio_max"  # threshold of FLAG_REPEATED_ROOT on s2/s1
+ATTR_MULTI_REFERENCE = "multi_reference"  # identify: how several references were combined
+FLAG_REPEATED_ROOT_SEPARATED = "repeated_root_separated"  # one of two modes at one eigenvalue
 # Logger of the once-per-process "compiling numeric kernels" notice (INFO; the CLI shows it)
 COMPILE_LOGGER = "ami_xr.compile"

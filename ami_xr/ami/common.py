@@ -70,8 +70,10 @@ def check_frf(ds: Any, function: str) -> xr.Dataset:
         first = refs[0] if refs else 0
         raise IdentificationError(
             f"{names.FRF}: has the {names.REFERENCE!r} dim ({frf.sizes[names.REFERENCE]} "
-            f"references {refs}): multi-reference identification is not supported yet by "
-            f"{function}; select one reference first, e.g. ds.sel({names.REFERENCE}={first!r}) "
+            f"references {refs}): {function} does not take multi-reference data on its own: "
+            f"ami_xr.identify does (one set of poles for all references, mode vectors from "
+            f"every drive point); or select one reference first, e.g. "
+            f"ds.sel({names.REFERENCE}={first!r}) "
             f"or ami_xr.io.datasets.select_reference(ds, {first!r}) (which also sets "
             f"{names.ATTR_DRIVE_POINT!r} when the reference is a measured point)"
         )

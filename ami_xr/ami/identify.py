@@ -30,6 +30,10 @@ from ami_xr.progress import phases
 METHODS = (*ISOLATE_METHODS, names.METHOD_PAPER)
 
 
+def _is_multi_reference(ds) -> bool:
+    return isinstance(ds, xr.Dataset) and names.FRF in ds and names.REFERENCE in ds[names.FRF].dims
+
+
 def _refine_function():
     try:
         from ami_xr.ami.refine import refine as fn
@@ -194,6 +198,25 @@ def identify(
     on the FRF scaled by a power of two and the results are scaled back, exactly, so they equal
     those of the FRF in ordinary units times the scale. Within that range nothing is scaled.
     """
+    if _is_multi_reference(ds):  # dims (reference, point, frequency): ami_xr.ami.mimo
+        from ami_xr.ami.mimo import identify_multi_reference
+
+        return identify_multi_reference(
+            ds,
+            method=method,
+            refine=refine,
+            delta=delta,
+            tol=tol,
+            max_iter=max_iter,
+            band=band,
+            residual_terms=residual_terms,
+            pfa=pfa,
+            max_modes=max_modes,
+            zeta_max=zeta_max,
+            fmin=fmin,
+            fmax=fmax,
+            progress=progress,
+        )
     c.check_frf(ds, "identify")
     c.check_choice(method, "method", METHODS)
     if refine is not None and not isinstance(refine, bool):

@@ -296,16 +296,16 @@ def test_frf_with_two_force_channels_validates_and_equals_the_simulator():
     assert np.all(err <= tol), f"max error / bound = {np.max(err / tol):.3g}"
 
 
-# --- the AMI phases refuse multi-reference data --------------------------------------------------
+# --- the AMI phases on their own refuse multi-reference data (identify takes it) ----------------
 
 
-@pytest.mark.parametrize("phase", ["identify", "subtract", "isolate", "global_fit"])
+@pytest.mark.parametrize("phase", ["subtract", "isolate", "global_fit"])
 def test_ami_phases_refuse_multi_reference_with_a_clear_message(phase):
     ds = _mimo()
     with pytest.raises(IdentificationError) as info:
         getattr(ami_xr, phase)(ds)
     msg = str(info.value)
     assert "'reference' dim" in msg
-    assert "multi-reference identification is not supported yet" in msg
+    assert "does not take multi-reference data on its own: ami_xr.identify does" in msg
     assert "ds.sel(reference='a')" in msg
     assert isinstance(info.value, ValueError)

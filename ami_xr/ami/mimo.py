@@ -1,0 +1,353 @@
+"""Multi-reference identification: one set of poles for all references (issue 13).
+
+The FRFs of every (reference, point) pair share the poles, so :func:`identify_multi_reference`
+runs the SIMO machinery (subtract -> isolate -> global_fit -> refine, unchanged) on them
+stacked as one ``point`` dim: each FRF of each reference is one more FRF of the same system.
+The stacked fit gives the poles and a residue per (reference, point, mode). For each mode the
+residue matrix ``A`` (point x reference) is rank one in theory, ``A = lam phi L^T``; its best
+rank-one approximation (SVD) gives the mode vector direction and the participation factors,
+``s2 / s1`` says how far from rank one it is (``rank_one_ratio``; a second mode at the same
+pole makes it rank two), and eq. 8 at every drive point (a reference on a measured point)
+gives a scale of the mode vector: their spread is ``drive_point_consistency`` (a reciprocity
+check), the scale of the drive point with the largest SNR is used. A mode whose residue
+matrix is rank two (``rank_one_ratio`` above ``RANK_ONE_RATIO_MAX`` and the residues' noise) is
+a repeated root: with two drive points that see both modes it is separated into two modes at
+the one eigenvalue (:func:`ami_xr.core.mimo.split_repeated`), otherwise flagged.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.ami import common as c
+from ami_xr.ami.settings import GlobalFitSettings, from_attrs
+from ami_xr.core import mimo as cm
+from ami_xr.core.modal import mac_matrix
+from ami_xr.errors import AssumptionWarning, IdentificationError
+
+# s2/s1 above this flags a repeated root. Noise alone gives s2 of the order of the residues'
+# standard errors (s2 <= ||dA||_F), far below 5 % of s1 for any mode worth reporting (1 % FRF
+# noise gives s2/s1 ~ 1e-3 on the test systems); non-proportional damping keeps A rank one
+# (complex phi). A second mode sharing the pole whose residues are at least 5 % of the first
+# one's is flagged; when residue standard errors are known, s2 must also exceed 3 ||dA||_F.
+RANK_ONE_RATIO_MAX = 0.05
+NOISE_FACTOR = 3.0
+
+_SEP = "@"  # stacked FRF label "reference@point"
+
+# SIMO outputs whose meaning the stacking changes: recomputed here from the residue matrices
+_RECOMPUTED = (
+    names.MODE_VECTOR,
+    names.MODE_VECTOR_STD,
+    names.AMI_PREFIX + names.MODE_VECTOR,
+    names.MODE_VECTOR_NORMALISED,
+    names.MPC,
+    names.MPD,
+    names.COMPLEXITY,
+    names.MAC,
+    names.DRIVE_POINT_SNR,
+)
+
+
+def is_multi_reference(ds: Any) -> bool:
+    """True for a Dataset whose ``frf`` has the ``reference`` dim."""
+    return (
+        isinstance(ds, xr.Dataset)
+        and names.FRF in ds.data_vars
+        and names.REFERENCE in ds[names.FRF].dims
+    )
+
+
+def _check(ds: xr.Dataset) -> tuple[list, list]:
+    frf = ds[names.FRF]
+    if set(frf.dims) != {names.REFERENCE, names.POINT, names.FREQUENCY}:
+        raise IdentificationError(
+            f"{names.FRF}: expected dims ({names.REFERENCE}, {names.POINT}, {names.FREQUENCY}), "
+            f"got {frf.dims}"
+        )
+    for dim in (names.REFERENCE, names.POINT):
+        if dim not in ds.coords:
+            raise IdentificationError(f"coordinate {dim!r}: missing (labels are needed)")
+    refs = np.asarray(ds[names.REFERENCE].values).tolist()
+    points = np.asarray(ds[names.POINT].values).tolist()
+    if len(set(map(str, refs))) != len(refs):
+        raise IdentificationError(
+            f"coordinate {names.REFERENCE!r}: expected unique labels, got {refs}"
+        )
+    return refs, points
+
+
+def _stacked(ds: xr.Dataset, refs: list, points: list) -> xr.Dataset:
+    """The SIMO Dataset of all FRFs: ``point`` = (reference, point) pairs, reference-major,
+    labelled ``"reference@point"``. Per-point variables on (frequency) (e.g. coherence) are
+    repeated for each reference; per-reference ones without ``point`` (force autospectra) are
+    combined by the minimum over references (the band is valid for every force)."""
+    R, P = len(refs), len(points)
+    labels = [f"{r}{_SEP}{p}" for r in refs for p in points]
+    out = xr.Dataset(coords={names.FREQUENCY: ds[names.FREQUENCY]})
+    for name, da in ds.data_vars.items():
+        dims = set(da.dims)
+        if not dims <= {names.REFERENCE, names.POINT, names.FREQUENCY}:
+            continue
+        if names.POINT in dims:
+            full = da.broadcast_like(ds[names.FRF]) if names.REFERENCE not in dims else da
+            rest = [d for d in full.dims if d not in (names.REFERENCE, names.POINT)]
+            vals = full.transpose(names.REFERENCE, names.POINT, *rest).values
+            out[name] = xr.DataArray(
+                vals.reshape(R * P, *vals.shape[2:]), dims=(names.POINT, *rest), attrs=da.attrs
+            )
+        elif names.REFERENCE in dims:
+            out[name] = da.min(names.REFERENCE, keep_attrs=True).drop_vars(
+                names.REFERENCE, errors="ignore"
+            )
+        else:
+            out[name] = da
+    out = out.assign_coords({names.POINT: labels})
+    out.attrs = {k: v for k, v in ds.attrs.items() if k != names.ATTR_DRIVE_POINT}
+    drives = [i * P + points.index(r) for i, r in enumerate(refs) if r in points]
+    if drives:  # the SIMO phases' own drive point (flags, provisional scaling): the first one
+        out.attrs[names.ATTR_DRIVE_POINT] = labels[drives[0]]
+    return out
+
+
+def _unstack(result: xr.Dataset, ds: xr.Dataset, R: int, P: int) -> xr.Dataset:
+    """Every variable on the stacked ``point`` dim back on (reference, point); ``detected``
+    (point, mode) is "detected for some reference"."""
+    out = xr.Dataset(attrs=dict(result.attrs))
+    for name, da in result.data_vars.items():
+        if name in _RECOMPUTED:
+            continue
+        if name == names.FRF:
+            out[name] = ds[names.FRF]
+            continue
+        if names.POINT not in da.dims:
+            out[name] = da.drop_vars(names.POINT, errors="ignore")
+            continue
+        rest = [d for d in da.dims if d != names.POINT]
+        vals = da.transpose(names.POINT, *rest).values
+        new = xr.DataArray(
+            vals.reshape(R, P, *vals.shape[1:]),
+            dims=(names.REFERENCE, names.POINT, *rest),
+            coords={d: result[d] for d in rest if d in result.coords},
+            attrs=da.attrs,
+        )
+        if name == names.DETECTED:
+            new = new.any(names.REFERENCE).assign_attrs(da.attrs)
+        out[name] = new
+    coords = {names.REFERENCE: ds[names.REFERENCE], names.POINT: ds[names.POINT]}
+    coords.update({k: v for k, v in ds.coords.items() if set(v.dims) <= {names.POINT}})
+    return out.assign_coords(coords)
+
+
+def _drive_snr(a: np.ndarray, lam: np.ndarray, pairs: list, sigma) -> np.ndarray:
+    """(K, D) drive-point SNR: the mode's peak ``|A_pr| / |Re lam|`` over the FRF's noise
+    floor (the peak alone when the floor is unknown or 0)."""
+    peaks = np.abs(a) / np.abs(lam.real)[:, None, None]
+    snr = np.full((a.shape[0], len(pairs)), np.nan)
+    for d, (p, r) in enumerate(pairs):
+        floor = float(sigma[p, r]) if sigma is not None else np.nan
+        snr[:, d] = peaks[:, p, r] / floor if floor > 0 else peaks[:, p, r]
+    return snr
+
+
+def _add_flag(text: str, flag: str, on: bool) -> str:
+    flags = [f for f in text.split(names.FLAG_SEPARATOR) if f and f != flag]
+    return names.FLAG_SEPARATOR.join(flags + ([flag] if on else []))
+
+
+def identify_multi_reference(ds: xr.Dataset, **kwargs: Any) -> xr.Dataset:
+    """:func:`ami_xr.identify` on FRFs with dims (reference, point, frequency).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Multi-reference FRF Dataset (``reference`` labels in the point labels' type; a
+        reference whose label is a point label is that point's drive point).
+    **kwargs
+        The arguments of :func:`ami_xr.identify`, used unchanged by its SIMO phases on the
+        stacked FRFs.
+
+    Returns
+    -------
+    xarray.Dataset
+        The SIMO outputs with every per-FRF variable on (reference, point, ...) -- ``residue``
+        (reference, point, mode), ``frf_synthesized``, ``point_eigenvalue``, ... -- and, per
+        mode, ``mode_vector`` (point, mode) from the rank-one residue matrices scaled by eq. 8
+        at the drive point of largest SNR (``scaling_reference``; unit largest entry when no
+        reference is a point), ``participation`` (mode, reference) with ``A = lam phi L^T``,
+        ``rank_one_ratio`` (s2/s1; NaN with one reference), ``drive_point_consistency``
+        (largest relative deviation of the other drive points' scales; 0 with one drive
+        point, NaN with none), ``drive_point_snr``, ``mac`` and the quality indicators;
+        ``quality_flags`` gain ``repeated_root_suspected`` (``rank_one_ratio`` above the
+        attribute ``rank_one_ratio_max`` and above the residues' noise) and
+        ``low_drive_point_snr`` is decided at the drive point used. A flagged mode that two
+        drive points separate becomes two modes at its eigenvalue, flagged
+        ``repeated_root_separated`` instead (their ``drive_point_consistency`` is the
+        reciprocity misfit of the pair's factorisation; an AssumptionWarning says that the
+        pair's basis in its plane is a choice).
+    """
+    from ami_xr.ami.identify import _with_quality, identify
+
+    refs, points = _check(ds)
+    R, P = len(refs), len(points)
+    stacked = _stacked(ds, refs, points)
+    result = identify(stacked, **kwargs)
+    out = _unstack(result, ds, R, P)
+    n_k = out.sizes.get(names.MODE, 0)
+    pairs = [(points.index(r), i) for i, r in enumerate(refs) if r in points]
+    out.attrs.pop(names.ATTR_DRIVE_POINT, None)
+    out.attrs[names.ATTR_MULTI_REFERENCE] = (
+        f"{R} references stacked as {R * P} FRFs sharing the poles; mode vectors from the "
+        "rank-one residue matrices, scaled by eq. 8 at the drive point of largest SNR"
+    )
+    out.attrs[names.ATTR_RANK_ONE_RATIO_MAX] = RANK_ONE_RATIO_MAX
+    if not pairs:
+        warnings.warn(
+            f"identify: no reference {refs} is a measured point; mode vectors are normalised "
+            "to a unit largest entry (not scaled) and participation factors are relative",
+            AssumptionWarning,
+            stacklevel=3,
+        )
+    if n_k == 0 or names.RESIDUE not in out:
+        return out
+    lam = np.asarray(out[names.EIGENVALUE].transpose(names.MODE).values, dtype=np.complex128)
+    a = out[names.RESIDUE].transpose(names.MODE, names.POINT, names.REFERENCE).values
+    u, s1, w, ratio = cm.rank_one(a)
+    sigma = None
+    if names.SUB_NOISE_FLOOR in out:
+        sigma = out[names.SUB_NOISE_FLOOR].transpose(names.POINT, names.REFERENCE).values
+    snr = _drive_snr(a, lam, pairs, sigma)
+    if pairs:
+        scales = cm.drive_point_scales(u, s1, w, lam, pairs)
+        best = np.argmax(np.where(np.isfinite(snr), snr, -np.inf), axis=1)
+        scale = scales[np.arange(n_k), best]
+        spread = cm.aligned_spread(scales, best)
+        best_snr = snr[np.arange(n_k), best]
+        scaling_ref = np.array([str(refs[pairs[b][1]]) for b in best])
+    else:
+        scale = cm.unit_scales(u)
+        spread = np.full(n_k, np.nan)
+        best_snr = np.full(n_k, np.nan)
+        scaling_ref = np.array([""] * n_k)
+    phi = u * scale[:, None]  # (K, P)
+    part = cm.participation(s1, w, lam, scale)  # (K, R)
+    noisy = np.zeros(n_k, bool)  # s2 within the residues' noise (known from the refinement)
+    if names.RESIDUE_STD in out:
+        std = out[names.RESIDUE_STD].transpose(names.MODE, names.POINT, names.REFERENCE).values
+        noise = np.sqrt(np.sum(np.abs(std) ** 2, axis=(1, 2)))
+        with np.errstate(invalid="ignore"):
+            noisy = np.isfinite(noise) & ~(ratio * s1 > NOISE_FACTOR * noise)
+    with np.errstate(invalid="ignore"):
+        repeated = (ratio > RANK_ONE_RATIO_MAX) & ~noisy
+    split = {}
+    if len(pairs) >= 2:
+        for k in np.flatnonzero(repeated):
+            got = cm.split_repeated(a[k], lam[k], pairs)
+            if got is not None:
+                split[int(k)] = got
+    separated = np.zeros(n_k, bool)
+    if split:  # each separable repeated root becomes two modes at its eigenvalue
+        src = [k for k in range(n_k) for _ in range(2 if k in split else 1)]
+        phi, part, a, lam = phi[src], part[src], a[src], lam[src]
+        spread, best_snr, ratio = spread[src], best_snr[src], ratio[src]
+        scaling_ref, repeated, separated = scaling_ref[src], repeated[src], separated[src]
+        both = ",".join(str(refs[r]) for _, r in pairs)
+        for k, (phi2, part2, asym) in split.items():
+            j = src.index(k)
+            for m in (0, 1):
+                phi[j + m], part[j + m] = phi2[:, m], part2[:, m]
+                a[j + m] = lam[j + m] * np.outer(phi2[:, m], part2[:, m])
+                spread[j + m], scaling_ref[j + m] = asym, both
+                separated[j + m], repeated[j + m] = True, False
+                best_snr[j + m] = np.nanmax(_drive_snr(a[j + m][None], lam[[j]], pairs, sigma))
+        out = c.select_modes(out, src)
+        labels = np.arange(1, len(src) + 1)
+        out = out.assign_coords({names.MODE: labels})
+        if names.MODE_2 in out.dims:
+            out = out.assign_coords({names.MODE_2: labels})
+        residue = out[names.RESIDUE]
+        out[names.RESIDUE] = residue.copy(
+            data=xr.DataArray(a, dims=(names.MODE, names.POINT, names.REFERENCE))
+            .transpose(*residue.dims)
+            .values
+        )
+        n_k = len(src)
+        warnings.warn(
+            f"identify: {len(split)} repeated root(s) separated into two modes at one eigenvalue "
+            f"by the drive points {both} (flag {names.FLAG_REPEATED_ROOT_SEPARATED}); the "
+            "pair's two mode vectors are one basis of its plane, fixed by the factorisation of "
+            "the drive-point residues (at an exactly repeated root any rotation fits the data)",
+            AssumptionWarning,
+            stacklevel=3,
+        )
+    frf_units = str(ds[names.FRF].attrs.get(names.ATTR_UNITS, ""))
+    from ami_xr.ami.global_fit import mode_vector_units
+
+    one = {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
+    mv_attrs = {
+        names.ATTR_SCALING: "eq. 8 at the drive point of largest SNR (rank-one residues)"
+        if pairs
+        else "unit largest entry (no drive point)",
+        **mode_vector_units(frf_units, bool(pairs)),
+    }
+    out = out.assign(
+        {
+            names.MODE_VECTOR: ((names.POINT, names.MODE), phi.T, mv_attrs),
+            names.PARTICIPATION: (
+                (names.MODE, names.REFERENCE),
+                part,
+                {
+                    **mode_vector_units(frf_units, bool(pairs)),
+                    names.ATTR_LONG_NAME: "modal participation factor L (A = lam phi L^T)",
+                },
+            ),
+            names.RANK_ONE_RATIO: (
+                (names.MODE,),
+                ratio,
+                {
+                    **one,
+                    names.ATTR_LONG_NAME: "s2/s1 of the residue matrix (point x reference)",
+                },
+            ),
+            names.DRIVE_POINT_CONSISTENCY: (
+                (names.MODE,),
+                spread,
+                {
+                    **one,
+                    names.ATTR_LONG_NAME: "largest relative deviation of the mode-vector "
+                    "scale from the other drive points",
+                },
+            ),
+            names.SCALING_REFERENCE: ((names.MODE,), scaling_ref),
+            names.DRIVE_POINT_SNR: ((names.MODE,), best_snr, one),
+            names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi.T), one),
+        }
+    )
+    if names.MODE_2 not in out.coords:
+        out = out.assign_coords({names.MODE_2: out[names.MODE].values})
+    if names.QUALITY_FLAGS in out:
+        smin = from_attrs(GlobalFitSettings, out.attrs).drive_snr_min
+        texts = np.asarray(out[names.QUALITY_FLAGS].values).astype(str)
+        new = []
+        for k, text in enumerate(texts):
+            t = _add_flag(text, names.FLAG_REPEATED_ROOT, bool(repeated[k]))
+            t = _add_flag(t, names.FLAG_REPEATED_ROOT_SEPARATED, bool(separated[k]))
+            if pairs:
+                t = _add_flag(t, names.FLAG_LOW_DRIVE_SNR, not best_snr[k] >= smin)
+            new.append(t)
+        out[names.QUALITY_FLAGS] = out[names.QUALITY_FLAGS].copy(data=np.array(new, dtype=str))
+    if np.any(repeated):
+        warnings.warn(
+            "identify: the residue matrix of mode(s) "
+            f"{np.asarray(out[names.MODE].values)[repeated].tolist()} is not rank one "
+            f"(s2/s1 > {RANK_ONE_RATIO_MAX}): two modes at the same frequency suspected "
+            f"(flag {names.FLAG_REPEATED_ROOT})",
+            AssumptionWarning,
+            stacklevel=3,
+        )
+    return _with_quality(out)
