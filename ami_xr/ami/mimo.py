@@ -117,31 +117,26 @@ def _stacked(ds: xr.Dataset, refs: list, points: list) -> xr.Dataset:
 
 def _unstack(result: xr.Dataset, ds: xr.Dataset, R: int, P: int) -> xr.Dataset:
     """Every variable on the stacked ``point`` dim back on (reference, point); ``detected``
-    (point, mode) is "detected for some reference"."""
-    out = xr.Dataset(attrs=dict(result.attrs))
+    (point, mode) is "detected for some reference". Built in one go from plain variables
+    (assigning them one by one would align every time)."""
+    variables = {}
     for name, da in result.data_vars.items():
         if name in _RECOMPUTED:
             continue
-        if name == names.FRF:
-            out[name] = ds[names.FRF]
-            continue
-        if names.POINT not in da.dims:
-            out[name] = da.drop_vars(names.POINT, errors="ignore")
-            continue
-        rest = [d for d in da.dims if d != names.POINT]
-        vals = da.transpose(names.POINT, *rest).values
-        new = xr.DataArray(
-            vals.reshape(R, P, *vals.shape[1:]),
-            dims=(names.REFERENCE, names.POINT, *rest),
-            coords={d: result[d] for d in rest if d in result.coords},
-            attrs=da.attrs,
-        )
-        if name == names.DETECTED:
-            new = new.any(names.REFERENCE).assign_attrs(da.attrs)
-        out[name] = new
-    coords = {names.REFERENCE: ds[names.REFERENCE], names.POINT: ds[names.POINT]}
-    coords.update({k: v for k, v in ds.coords.items() if set(v.dims) <= {names.POINT}})
-    return out.assign_coords(coords)
+        var = da.variable  # frf too: the analysis band's lines, as the SIMO output holds
+        if names.POINT in var.dims:
+            rest = [d for d in var.dims if d != names.POINT]
+            vals = var.transpose(names.POINT, *rest).values
+            vals = vals.reshape(R, P, *vals.shape[1:])
+            dims = (names.REFERENCE, names.POINT, *rest)
+            if name == names.DETECTED:
+                vals, dims = vals.any(axis=0), dims[1:]
+            var = xr.Variable(dims, vals, attrs=var.attrs)
+        variables[name] = var
+    coords = {k: v.variable for k, v in result.coords.items() if names.POINT not in v.dims}
+    coords[names.REFERENCE] = ds[names.REFERENCE].variable
+    coords.update({k: v.variable for k, v in ds.coords.items() if set(v.dims) <= {names.POINT}})
+    return xr.Dataset(variables, coords=coords, attrs=dict(result.attrs))
 
 
 def _drive_snr(a: np.ndarray, lam: np.ndarray, pairs: list, sigma) -> np.ndarray:
