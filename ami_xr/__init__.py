@@ -47,6 +47,7 @@ _PUBLIC: dict[str, str] = {
     "frf": "ami_xr.dsp.frf",
     "impact_frf": "ami_xr.dsp.frf",
     "convert_quantity": "ami_xr.dsp.quantity",
+    "estimate_frf_noise": "ami_xr.dsp.noise_model",
     # campaigns, figures and reports
     "batch": "ami_xr.batch",
     "plot_bode": "ami_xr.plot",

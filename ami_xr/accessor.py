@@ -84,6 +84,7 @@ class AmiAccessor:
     frf = _Method()
     impact_frf = _Method()
     convert_quantity = _Method()
+    estimate_frf_noise = _Method()
     apply_window = _Method()
     impulse_to_frf = _Method()
     # the AMI phases (these take ``path=`` to write their result)

@@ -32,6 +32,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.core import frf_noise as _fn
 from ami_xr.dsp.blocks import (
     check_live_channels,
     feed_all,
@@ -56,6 +57,7 @@ from ami_xr.provenance import add_history
 EXCITATIONS = ("random", "impact")
 AUTO = "auto"  # excitation decided by ami_xr.dsp.timeseries.excitation_of
 _REF2 = "reference_2"  # private second reference dim of the force cross-spectral matrix
+_NOISE_LONG_NAME = "standard deviation of the FRF estimate per line"
 
 
 # --- the estimator -------------------------------------------------------------------------------
@@ -162,6 +164,27 @@ def _frf_kernel(gff, gfy, gyy, estimator):
     return _ks.frf_from_spectra(gff, gfy, gyy, estimator)
 
 
+def _noise_std(h, coh, gff, gyy, acc, s: _Setup, window) -> tuple[np.ndarray | None, str]:
+    """``frf_noise_std`` (ref, point, f) of the estimate: Bendat & Piersol's random error from
+    the coherence and the effective number of averages (:mod:`ami_xr.core.frf_noise`); with
+    too few averages for that (one hit, one segment) the roughness between adjacent lines;
+    None where there are too few lines for that as well."""
+    n_eff = _fn.effective_averages(window, s.nperseg_step, acc.count, s.average, s.n_average)
+    q = gff.shape[0]
+    if n_eff >= q + 1:
+        std = _fn.coherence_noise_std(h, coh, gff, gyy, n_eff, s.estimator)
+        model = _fn.coherence_model(s.estimator, q, n_eff, acc.count)
+    elif h.shape[-1] <= _fn.ROUGHNESS_ORDER:
+        return None, ""
+    else:
+        std = _fn.roughness_noise_std(h)
+        model = _fn.roughness_model(
+            reason=f"{acc.count} average(s) with {q} force channel(s): the coherence formula "
+            "needs n_d > q"
+        )
+    return std, model
+
+
 def _spectra_to_frf(
     ds: xr.Dataset,
     s: _Setup,
@@ -215,12 +238,21 @@ def _spectra_to_frf(
     )
     ru = ds.attrs.get(names.ATTR_RESPONSE_UNITS, y_da.attrs.get(names.ATTR_UNITS, ""))
     fu = ds.attrs.get(names.ATTR_FORCE_UNITS, f_da.attrs.get(names.ATTR_UNITS, ""))
+    std, noise_model = _noise_std(H.values, coh.values, gff, gyy, acc, s, windows[1])
+    noise = xr.DataArray(np.zeros(H.shape) if std is None else std, dims=H.dims).assign_attrs(
+        {
+            names.ATTR_UNITS: names.frf_units(ru, fu),
+            names.ATTR_LONG_NAME: _NOISE_LONG_NAME,
+            names.ATTR_NOISE_MODEL: noise_model,
+        }
+    )
     gff_diag = xr.DataArray(np.real(np.einsum("iik->ik", gff)), dims=[names.REFERENCE, fdim])
     if s.siso:
-        H, Gfy, gff_diag = (
+        H, Gfy, gff_diag, noise = (
             H.isel({names.REFERENCE: 0}),
             Gfy.isel({names.REFERENCE: 0}),
             gff_diag.isel({names.REFERENCE: 0}),
+            noise.isel({names.REFERENCE: 0}),
         )
     out = xr.Dataset(
         {
@@ -230,7 +262,8 @@ def _spectra_to_frf(
             names.RESPONSE_AUTOSPECTRUM: Gyy.assign_attrs({names.ATTR_UNITS: f"({ru})^2/Hz"}),
             names.CROSS_SPECTRUM: Gfy.assign_attrs({names.ATTR_UNITS: f"{fu}*{ru}/Hz"}),
             **extra,
-        },
+        }
+        | ({} if std is None else {names.FRF_NOISE_STD: noise}),
         coords={
             names.POINT: _point_labels(y_da),
             fdim: (fdim, acc.frequency, {names.ATTR_UNITS: names.FREQUENCY_UNITS}),
@@ -358,11 +391,17 @@ def frf(
         FRF Dataset: ``frf`` ([reference,] point, frequency) complex, ``coherence`` (point,
         frequency; multiple coherence with several force channels), ``force_autospectrum``
         ([reference,] frequency), ``response_autospectrum`` (point, frequency),
-        ``cross_spectrum`` ([reference,] point, frequency) (one-sided densities), attrs
-        ``frf_source="estimated"``, ``estimator``, ``n_averages``. With several force channels
-        the ``reference`` labels are those of the force's ``reference`` coordinate (default
-        0, 1, ...): give the labels of the excitation points, so that a reference on a
-        measured point marks its drive point; the ``drive_point`` attribute is then dropped.
+        ``cross_spectrum`` ([reference,] point, frequency) (one-sided densities),
+        ``frf_noise_std`` (dims of ``frf``, units of ``frf``: the standard deviation of the
+        complex estimate per line from the coherence and the effective number of averages
+        ``n_d``, ``sqrt((1 - coh) |H|^2 / (coh (n_d - q)))`` for ``q`` force channels, Bendat &
+        Piersol's random error; with ``n_d < q + 1`` the roughness estimate of
+        :func:`ami_xr.estimate_frf_noise`, left out below 5 lines; attr ``noise_model`` says
+        which), attrs ``frf_source="estimated"``, ``estimator``, ``n_averages``. With several
+        force channels the ``reference`` labels are those of the force's ``reference``
+        coordinate (default 0, 1, ...): give the labels of the excitation points, so that a
+        reference on a measured point marks its drive point; the ``drive_point`` attribute is
+        then dropped.
 
     Raises
     ------

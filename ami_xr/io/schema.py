@@ -416,6 +416,27 @@ def _check_empty(da: xr.DataArray, subject: str, problems: list[str]) -> bool:
     return False
 
 
+def _check_noise_std(
+    std: xr.DataArray, frf: xr.DataArray, check_values: bool, namer: Namer, problems: list[str]
+) -> None:
+    """``frf_noise_std`` beside ``frf``: its dims, real values, finite and >= 0. Without a
+    ``frequency`` dim it is the one level per FRF of ``ami_xr.refine``'s output: not checked."""
+    subject = namer.var(names.FRF_NOISE_STD)
+    if names.FREQUENCY not in std.dims:
+        return
+    if std.dims != frf.dims:
+        problems.append(f"{subject}: expected the dims of {names.FRF!r} {frf.dims}, got {std.dims}")
+        return
+    if not np.issubdtype(std.dtype, np.floating):
+        problems.append(f"{subject}: expected real float values, got dtype {std.dtype}")
+        return
+    if check_values and std.size:
+        _check_finite(std, subject, problems)
+        n_neg = int((std < 0).sum())
+        if n_neg:
+            problems.append(f"{subject}: expected standard deviations >= 0, found {n_neg} < 0")
+
+
 # --- the two kinds of Dataset -------------------------------------------------------------------
 
 
@@ -452,6 +473,8 @@ def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool,
         empty = _check_empty(frf, subject, problems)
         if check_values and not empty:
             _check_finite(frf, subject, problems)
+        if names.FRF_NOISE_STD in ds.data_vars:
+            _check_noise_std(ds[names.FRF_NOISE_STD], frf, check_values, namer, problems)
     _check_axis(ds, names.FREQUENCY, names.FREQUENCY_UNITS, namer, problems, nonnegative=True)
     labels = _check_points(ds, namer, problems)
     problems += coordinate_problems(ds, namer)

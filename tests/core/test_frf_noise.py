@@ -1,0 +1,150 @@
+"""The roughness estimate of the FRF noise per line (ami_xr.core.frf_noise, estimate_frf_noise),
+the effective number of averages, and frf_noise_std in validate, netCDF and UFF."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import ami_xr
+from ami_xr import names
+from ami_xr.core.frf_noise import effective_averages, roughness_noise_std
+from ami_xr.errors import AmiXrValueError, SchemaError
+
+
+def _noise(shape, std, rng):
+    """Complex white noise with E|e|^2 = std^2 (std broadcast along the last axis)."""
+    return std * (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)) / np.sqrt(2)
+
+
+def _system(noise=0.0, seed=0):
+    """A simulated 6-point chain, 4096 lines to 50 Hz (noise-free FRF and its truth)."""
+    frf, truth = ami_xr.simulate.random_system(6, noise=0.0, seed=seed)
+    return frf
+
+
+def test_recovers_white_noise_where_the_frf_is_smooth():
+    frf = _system()
+    h = frf[names.FRF]
+    rng = np.random.default_rng(0)
+    sigma = 1e-3 * float(np.abs(h).max())
+    noisy = frf.assign({names.FRF: h + _noise(h.shape, sigma, rng)})
+    est = ami_xr.estimate_frf_noise(noisy)
+    std = est[names.FRF_NOISE_STD]
+    assert std.dims == h.dims and std.attrs[names.ATTR_UNITS] == h.attrs[names.ATTR_UNITS]
+    assert std.attrs[names.ATTR_NOISE_MODEL].startswith("roughness")
+    ratio = std.values / sigma
+    # the median over lines: ~1 % scatter; per line ~14 % (median of 65 correlated differences)
+    assert np.median(ratio) == pytest.approx(1.0, rel=0.05)
+    assert np.mean(np.abs(ratio - 1) < 0.3) > 0.9
+    # the accessor is the same function
+    xr.testing.assert_identical(noisy.ami.estimate_frf_noise(), est)
+
+
+def test_follows_noise_that_changes_100x_across_the_band():
+    frf = _system(seed=1)
+    h = frf[names.FRF]
+    rng = np.random.default_rng(1)
+    x = np.linspace(0.0, 1.0, h.sizes[names.FREQUENCY])
+    sigma = 1e-3 * float(np.abs(h).max()) * 10.0 ** (-2 * x)  # 100x down across the band
+    noisy = frf.assign({names.FRF: h + _noise(h.shape, sigma, rng)})
+    std = ami_xr.estimate_frf_noise(noisy)[names.FRF_NOISE_STD].values
+    ratio = std / sigma
+    for part in np.array_split(np.arange(x.size), 8):  # each eighth of the band
+        assert np.median(ratio[:, part]) == pytest.approx(1.0, rel=0.1)
+    # a single level per FRF is off by 10x at the ends
+    assert np.median(np.abs(np.log10(ratio))) < 0.1
+
+
+def test_not_fooled_by_a_sharp_resonance():
+    f = np.linspace(0.0, 100.0, 2001)  # 0.05 Hz lines
+    fn, zeta = 50.0, 5e-4  # half-power bandwidth 0.05 Hz: one line
+    w, wn = 2 * np.pi * f, 2 * np.pi * fn
+    h = 1.0 / (wn**2 - w**2 + 2j * zeta * wn * w)
+    sigma = 1e-4 * np.abs(h).max()  # peak-to-noise ratio 1e4
+    rng = np.random.default_rng(2)
+    noisy = h + _noise(h.shape, sigma, rng)
+    std = roughness_noise_std(noisy[None])[0]
+    near = np.abs(f - fn) < 2.0  # 40 lines either side of the peak
+    # a plain std of the 4th difference would be 100x too large at the peak
+    plain = np.abs(np.diff(noisy, 4)).max() / np.sqrt(70) / sigma
+    assert plain > 100
+    assert np.all(std[near] / sigma < 2.0) and np.median(std[near] / sigma) < 1.3
+    assert np.median(std / sigma) == pytest.approx(1.0, rel=0.1)
+
+
+def test_effective_averages():
+    hann = np.hanning(258)[1:-1]
+    assert effective_averages(np.ones(64), 64, 10) == pytest.approx(10.0)
+    # 50 % Hann overlap: Welch's 1 / (1 + 2 rho^2), rho = 1/6 for the periodic Hann window
+    assert effective_averages(hann, 128, 1000) == pytest.approx(1000 / (1 + 2 / 36), rel=2e-3)
+    # exponential averaging with time constant N: 2N - 1 independent averages in the limit
+    assert effective_averages(np.ones(64), 64, 10000, "exponential", 8) == pytest.approx(15.0)
+    assert effective_averages(np.ones(64), 64, 5, "exponential", 8) == pytest.approx(5.0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"method": "residual"}, "method"),
+        ({"order": 3}, "order"),
+        ({"order": 1}, "order"),
+        ({"window": 64}, "window"),
+        ({"window": 0}, "window"),
+    ],
+)
+def test_bad_arguments_raise(kwargs, match):
+    frf = _system()
+    with pytest.raises(AmiXrValueError, match=match):
+        ami_xr.estimate_frf_noise(frf, **kwargs)
+
+
+def test_too_few_or_uneven_lines_raise():
+    frf = _system()
+    with pytest.raises(AmiXrValueError, match="frf: expected more than order=4"):
+        ami_xr.estimate_frf_noise(frf.isel({names.FREQUENCY: slice(1, 5)}))
+    uneven = frf.isel({names.FREQUENCY: [1, 2, 3, 5, 8, 9, 10, 11, 12]})
+    with pytest.raises(AmiXrValueError, match="uniformly spaced"):
+        ami_xr.estimate_frf_noise(uneven)
+
+
+def test_multi_reference_frf():
+    model = ami_xr.simulate.random_system(5, seed=3)[1]
+    frf = ami_xr.simulate.frf(model, np.linspace(1.0, 50.0, 1024), references=[0, 1])
+    est = ami_xr.estimate_frf_noise(frf)
+    assert est[names.FRF_NOISE_STD].dims == (names.REFERENCE, names.POINT, names.FREQUENCY)
+    ami_xr.validate(est)
+
+
+def test_validate_netcdf_and_uff_with_noise_std(tmp_path):
+    frf = _system()
+    est = ami_xr.estimate_frf_noise(frf)
+    ami_xr.validate(est)
+    path = tmp_path / "h.nc"
+    ami_xr.to_netcdf(est, path)
+    back = ami_xr.open_dataset(path)
+    xr.testing.assert_allclose(back[names.FRF_NOISE_STD], est[names.FRF_NOISE_STD])
+    assert (
+        back[names.FRF_NOISE_STD].attrs[names.ATTR_NOISE_MODEL]
+        == (est[names.FRF_NOISE_STD].attrs[names.ATTR_NOISE_MODEL])
+    )
+    uff = tmp_path / "h.uff"
+    ami_xr.write_uff(est, uff)  # the noise std is not an FRF: not written
+    read = ami_xr.read_uff(uff)
+    assert names.FRF_NOISE_STD not in read
+    bad = est.copy()
+    bad[names.FRF_NOISE_STD] = -bad[names.FRF_NOISE_STD]
+    with pytest.raises(SchemaError, match="frf_noise_std.*>= 0"):
+        ami_xr.validate(bad)
+    bad[names.FRF_NOISE_STD] = bad[names.FRF_NOISE_STD].isel({names.POINT: 0})
+    with pytest.raises(SchemaError, match="frf_noise_std.*dims"):
+        ami_xr.validate(bad)
+    # refine's one level per FRF (dims point) keeps its own meaning: not checked
+    ami_xr.validate(
+        est.assign({names.FRF_NOISE_STD: est[names.FRF_NOISE_STD].max(names.FREQUENCY)})
+    )
+    nan = est.copy()
+    nan[names.FRF_NOISE_STD][0, 0] = np.nan
+    with pytest.raises(SchemaError, match="frf_noise_std.*NaN"):
+        ami_xr.validate(nan)
