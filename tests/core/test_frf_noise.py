@@ -148,3 +148,16 @@ def test_validate_netcdf_and_uff_with_noise_std(tmp_path):
     nan[names.FRF_NOISE_STD][0, 0] = np.nan
     with pytest.raises(SchemaError, match="frf_noise_std.*NaN"):
         ami_xr.validate(nan)
+
+
+def test_noise_std_of_prefers_the_stored_per_line_noise():
+    from ami_xr.dsp.noise_model import noise_std_of
+
+    frf = _system()
+    est = ami_xr.estimate_frf_noise(frf)
+    stored = est.assign({names.FRF_NOISE_STD: 2.0 * est[names.FRF_NOISE_STD]})
+    xr.testing.assert_identical(noise_std_of(stored), stored[names.FRF_NOISE_STD])
+    xr.testing.assert_identical(noise_std_of(frf), est[names.FRF_NOISE_STD])
+    # refine's one level per FRF (dims point) is not a per-line noise: estimated instead
+    level = est.assign({names.FRF_NOISE_STD: est[names.FRF_NOISE_STD].max(names.FREQUENCY)})
+    xr.testing.assert_identical(noise_std_of(level), est[names.FRF_NOISE_STD])
