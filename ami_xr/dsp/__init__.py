@@ -5,6 +5,8 @@
 * :mod:`~ami_xr.dsp.frf` -- ``frf`` (random excitation, Welch) and ``impact_frf`` (hammer hits),
   one shared estimator; ``frf_from_options`` picks one by an ``excitation`` option.
 * :mod:`~ami_xr.dsp.hits` -- ``check_hits``: overload, double impact and weak force per hit.
+* :mod:`~ami_xr.dsp.noise_model` -- ``estimate_frf_noise``: ``frf_noise_std`` per line of a bare
+  FRF (roughness between adjacent lines); ``noise_std_of`` for the identification phases.
 * :mod:`~ami_xr.dsp.spectral` -- the streaming Welch engine and array-level ``csd``, ``welch``,
   ``coherence`` (scipy.signal's parameters).
 * :mod:`~ami_xr.dsp.timeseries` -- checks of the time Datasets FRF estimation reads.
