@@ -374,6 +374,14 @@ def report(
     outdir = Path(outdir)
     if outdir.exists() and not outdir.is_dir():
         raise DataFileError(f"report: output {str(outdir)!r} exists and is not a folder")
+    if names.REFERENCE in ds.dims:
+        # the figures draw one FRF per point; multi-reference pages are not built yet (issue 13)
+        refs = ds[names.REFERENCE].values.tolist()
+        raise AmiXrValueError(
+            f"ds: report draws one reference at a time, and this result has the {names.REFERENCE!r} "
+            f"dim ({refs}); select one first, e.g. ds.sel({names.REFERENCE}={refs[0]!r}) (the "
+            "modal table of all references prints with ami_xr.format_modal_table)"
+        )
     known = {**MEASUREMENT_FIGURES, **FIGURES, **GEOMETRY_FIGURES}
     if figures is None:
         wanted = tuple(k for k, v in MEASUREMENT_FIGURES.items() if v[2] in ds) + tuple(FIGURES)

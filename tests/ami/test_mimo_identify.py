@@ -317,3 +317,11 @@ def test_rank_one_helpers_against_a_constructed_matrix():
     assert np.allclose(got, phi) or np.allclose(got, -phi)
     part = cm.participation(s1, w, lam, scales[:, 0])
     np.testing.assert_allclose(part, got[:, [0, 2]], rtol=1e-12)
+
+
+def test_report_refuses_a_multi_reference_result_before_writing(chain, tmp_path):
+    pytest.importorskip("matplotlib")
+    _, _, out = chain
+    with pytest.raises(ValueError, match=r"report draws one reference at a time.*ds.sel\(reference="):
+        ami_xr.report(out, tmp_path / "rep")
+    assert not (tmp_path / "rep").exists()
