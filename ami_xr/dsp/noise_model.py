@@ -98,7 +98,9 @@ def estimate_frf_noise(
         input_core_dims=[[names.FREQUENCY]],
         output_core_dims=[[names.FREQUENCY]],
         dask="parallelized",
-        output_dtypes=[np.float64],
+        # the differences need every line at once; the float64 output is given as a real meta
+        # (output_dtypes would cast dask's complex meta of the input, with a ComplexWarning)
+        dask_gufunc_kwargs={"allow_rechunk": True, "meta": np.empty((0,) * h.ndim)},
         keep_attrs=False,
     ).transpose(*h.dims)
     attrs = {

@@ -161,3 +161,13 @@ def test_noise_std_of_prefers_the_stored_per_line_noise():
     # refine's one level per FRF (dims point) is not a per-line noise: estimated instead
     level = est.assign({names.FRF_NOISE_STD: est[names.FRF_NOISE_STD].max(names.FREQUENCY)})
     xr.testing.assert_identical(noise_std_of(level), est[names.FRF_NOISE_STD])
+
+
+def test_dask_backed_frf_gives_the_same_estimate():
+    pytest.importorskip("dask")
+    frf, _ = ami_xr.simulate.random_system(6, seed=0, noise=0.01)
+    want = ami_xr.estimate_frf_noise(frf)[names.FRF_NOISE_STD]
+    for chunks in ({names.POINT: 2}, {names.FREQUENCY: 1000}):
+        got = ami_xr.estimate_frf_noise(frf.chunk(chunks))[names.FRF_NOISE_STD]
+        assert got.chunks is not None
+        xr.testing.assert_allclose(got.compute(), want)
