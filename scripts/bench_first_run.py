@@ -7,9 +7,9 @@ folder, so the machine's own cache is neither used nor touched:
    waits for after ``pip install``);
 2. warm: the same command again on the cache the first run filled;
 3. a probe: the demo run in-process (again with an empty cache), with numba's dispatcher
-   ``compile`` timed (CPU time of the compiling thread), then every numba dispatcher of ``ami_xr.kernels.*`` listed with its
-   number of compiled specialisations and the seconds spent compiling it (its callees'
-   compilation excluded) - the top ``--top`` are printed.
+   ``compile`` timed (CPU time of the compiling thread), then every numba dispatcher of
+   ``ami_xr.kernels.*`` listed with its number of compiled specialisations and the CPU seconds
+   spent compiling it (its callees' compilation excluded) - the top ``--top`` are printed.
 
 Wall and CPU time are printed (on a shared, busy machine the CPU time is the steadier figure).
 Target (issue 11 item 1): cold demo <= 20 s.

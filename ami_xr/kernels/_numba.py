@@ -51,8 +51,9 @@ _POLICY_FUNCTIONS: weakref.WeakSet = weakref.WeakSet()
 
 # The first-compilation notice goes to logging.getLogger(names.COMPILE_LOGGER) at INFO: the CLI
 # prints it on stderr; the Python API leaves it to the caller's logging set-up (silent by default).
-#: What a cold start compiles, in seconds on a 2-core machine (``scripts/bench_first_run.py``).
-FIRST_RUN_SECONDS = 60
+#: What a cold ``ami-xr demo`` spends compiling, in CPU seconds on a 2-core machine (measured
+#: with ``scripts/bench_first_run.py``: 45-48 s CPU for the whole cold demo, 28 s compiling).
+FIRST_RUN_SECONDS = 45
 _NOTICE_GIVEN: list[bool] = []
 
 
