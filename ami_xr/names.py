@@ -99,10 +99,12 @@ NATURAL_FREQUENCY_STD = "natural_frequency_std"  # Hz
 DAMPING_RATIO_STD = "damping_ratio_std"  # absolute (not %)
 RESIDUE_STD = "residue_std"  # sqrt(E|dA|^2), dims (point, mode)
 MODE_VECTOR_STD = "mode_vector_std"  # sqrt(E|dPhi|^2), dims (point, mode)
-# sqrt(E|noise|^2) of one FRF line: dims (point) in refine's output; beside frf in an FRF
-# Dataset, dims ([reference,] point, frequency) with attr ATTR_NOISE_MODEL (ami_xr.dsp.noise_model)
+# sqrt(E|noise|^2) of one FRF line, one level per FRF: dims (point), refine's output
 FRF_NOISE_STD = "frf_noise_std"
-ATTR_NOISE_MODEL = "noise_model"  # on frf_noise_std: how it was estimated (formula, n_d, window)
+# the same per line, beside frf in an FRF Dataset: dims ([reference,] point, frequency), attr
+# ATTR_NOISE_MODEL (ami_xr.frf / impact_frf from coherence, or ami_xr.dsp.noise_model)
+FRF_LINE_NOISE_STD = "frf_line_noise_std"
+ATTR_NOISE_MODEL = "noise_model"  # on frf_line_noise_std: how it was estimated (formula, n_d, window)
 NATURAL_FREQUENCY_ERROR = "natural_frequency_error"  # CRB: expected |error| / f_n
 DAMPING_RATIO_ERROR = "damping_ratio_error"  # CRB: expected |error| / zeta
 MODE_VECTOR_ERROR = "mode_vector_error"  # CRB: expected |dPhi_k| / |Phi_k| (Euclidean norms)

@@ -165,7 +165,7 @@ def _frf_kernel(gff, gfy, gyy, estimator):
 
 
 def _noise_std(h, coh, gff, gyy, acc, s: _Setup, window) -> tuple[np.ndarray | None, str]:
-    """``frf_noise_std`` (ref, point, f) of the estimate: Bendat & Piersol's random error from
+    """``frf_line_noise_std`` (ref, point, f) of the estimate: Bendat & Piersol's random error from
     the coherence and the effective number of averages (:mod:`ami_xr.core.frf_noise`); with
     too few averages for that (one hit, one segment) the roughness between adjacent lines;
     None where there are too few lines for that as well."""
@@ -263,7 +263,7 @@ def _spectra_to_frf(
             names.CROSS_SPECTRUM: Gfy.assign_attrs({names.ATTR_UNITS: f"{fu}*{ru}/Hz"}),
             **extra,
         }
-        | ({} if std is None else {names.FRF_NOISE_STD: noise}),
+        | ({} if std is None else {names.FRF_LINE_NOISE_STD: noise}),
         coords={
             names.POINT: _point_labels(y_da),
             fdim: (fdim, acc.frequency, {names.ATTR_UNITS: names.FREQUENCY_UNITS}),
@@ -392,7 +392,7 @@ def frf(
         frequency; multiple coherence with several force channels), ``force_autospectrum``
         ([reference,] frequency), ``response_autospectrum`` (point, frequency),
         ``cross_spectrum`` ([reference,] point, frequency) (one-sided densities),
-        ``frf_noise_std`` (dims of ``frf``, units of ``frf``: the standard deviation of the
+        ``frf_line_noise_std`` (dims of ``frf``, units of ``frf``: the standard deviation of the
         complex estimate per line from the coherence and the effective number of averages
         ``n_d``, ``sqrt((1 - coh) |H|^2 / (coh (n_d - q)))`` for ``q`` force channels, Bendat &
         Piersol's random error; with ``n_d < q + 1`` the roughness estimate of

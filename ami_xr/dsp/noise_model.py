@@ -1,4 +1,4 @@
-"""The noise of an FRF per line: ``frf_noise_std`` beside ``frf``.
+"""The noise of an FRF per line: ``frf_line_noise_std`` beside ``frf``.
 
 ``ami_xr.frf`` and ``ami_xr.impact_frf`` store it from the coherence and the number of averages
 (:func:`ami_xr.core.frf_noise.coherence_noise_std`). A bare FRF (read from a UFF file, simulated,
@@ -7,7 +7,7 @@ data, from the roughness between adjacent lines (:func:`ami_xr.core.frf_noise.ro
 :func:`noise_std_of` is what the identification phases call: the stored variable where there is
 one, the estimate otherwise.
 
-``frf_noise_std`` has the dims of ``frf`` (``[reference,] point, frequency``), float, in the FRF's
+``frf_line_noise_std`` has the dims of ``frf`` (``[reference,] point, frequency``), float, in the FRF's
 units: ``sqrt(E|H_est - H|^2)`` at each line (each of the real and imaginary parts carries half
 the variance); its ``noise_model`` attribute says how it was obtained.
 """
@@ -51,7 +51,7 @@ def estimate_frf_noise(
     order: int = _fn.ROUGHNESS_ORDER,
     window: int = _fn.ROUGHNESS_WINDOW,
 ) -> xr.Dataset:
-    """Estimate the noise of each FRF line from the data; ``ds`` with ``frf_noise_std`` added.
+    """Estimate the noise of each FRF line from the data; ``ds`` with ``frf_line_noise_std`` added.
 
     ``method="roughness"``: the difference of order ``order`` along frequency annihilates the
     modal part where it is smooth on the scale of ``order`` lines and multiplies white noise by
@@ -64,7 +64,7 @@ def estimate_frf_noise(
     ``window=65``: the per-line scatter of the estimate is ~14 % (median of 65 correlated
     differences), and noise that changes by 100x across 1000 lines changes by 35 % over a window.
 
-    An existing ``frf_noise_std`` (from the coherence of ``ami_xr.frf``) is replaced.
+    An existing ``frf_line_noise_std`` (from the coherence of ``ami_xr.frf``) is replaced.
 
     Parameters
     ----------
@@ -79,7 +79,7 @@ def estimate_frf_noise(
     Returns
     -------
     xarray.Dataset
-        A copy of ``ds`` with ``frf_noise_std`` (dims of ``frf``, float, units of ``frf``; attrs
+        A copy of ``ds`` with ``frf_line_noise_std`` (dims of ``frf``, float, units of ``frf``; attrs
         ``noise_model``, ``long_name``, ``units``).
 
     Raises
@@ -110,14 +110,14 @@ def estimate_frf_noise(
     if names.ATTR_UNITS in h.attrs:
         attrs[names.ATTR_UNITS] = h.attrs[names.ATTR_UNITS]
     # the Variable only: apply_ufunc's coordinates have lost their attributes (units)
-    return ds.assign({names.FRF_NOISE_STD: xr.Variable(h.dims, std.data, attrs)})
+    return ds.assign({names.FRF_LINE_NOISE_STD: xr.Variable(h.dims, std.data, attrs)})
 
 
 def noise_std_of(ds: xr.Dataset) -> xr.DataArray:
-    """The noise std per FRF line the identification phases use: ``ds.frf_noise_std`` where it
+    """The noise std per FRF line the identification phases use: ``ds.frf_line_noise_std`` where it
     is stored per line (from ``ami_xr.frf``'s coherence or an earlier estimate), else
     :func:`estimate_frf_noise`'s roughness estimate. Dims of ``frf``."""
     h = _check_frf(ds)
-    if names.FRF_NOISE_STD in ds and ds[names.FRF_NOISE_STD].dims == h.dims:
-        return ds[names.FRF_NOISE_STD]
-    return estimate_frf_noise(ds)[names.FRF_NOISE_STD]
+    if names.FRF_LINE_NOISE_STD in ds and ds[names.FRF_LINE_NOISE_STD].dims == h.dims:
+        return ds[names.FRF_LINE_NOISE_STD]
+    return estimate_frf_noise(ds)[names.FRF_LINE_NOISE_STD]

@@ -119,6 +119,7 @@ LONG_NAMES = {
     names.RESIDUE: "modal residue",
     names.MODE_VECTOR: "mode vector",
     names.FRF_NOISE_STD: "noise standard deviation of one FRF line",
+    names.FRF_LINE_NOISE_STD: "noise standard deviation of the FRF estimate at each line",
     names.NATURAL_FREQUENCY_ERROR: "Cramer-Rao bound: expected relative error of the frequency",
     names.DAMPING_RATIO_ERROR: "Cramer-Rao bound: expected relative error of the damping ratio",
     names.MODE_VECTOR_ERROR: "Cramer-Rao bound: expected relative error of the mode vector",
@@ -165,7 +166,7 @@ def _base(name: str) -> str | None:
     """The variable a derived one comes from (``ami_residue``, ``residue_std`` -> ``residue``)."""
     if name.startswith(names.AMI_PREFIX):
         return name[len(names.AMI_PREFIX) :]
-    if name.endswith("_std") and name != names.FRF_NOISE_STD:
+    if name.endswith("_std") and name not in (names.FRF_NOISE_STD, names.FRF_LINE_NOISE_STD):
         return name[: -len("_std")]
     if name == names.MODE_VECTOR_NORMALISED:
         return names.MODE_VECTOR

@@ -419,11 +419,8 @@ def _check_empty(da: xr.DataArray, subject: str, problems: list[str]) -> bool:
 def _check_noise_std(
     std: xr.DataArray, frf: xr.DataArray, check_values: bool, namer: Namer, problems: list[str]
 ) -> None:
-    """``frf_noise_std`` beside ``frf``: its dims, real values, finite and >= 0. Without a
-    ``frequency`` dim it is the one level per FRF of ``ami_xr.refine``'s output: not checked."""
-    subject = namer.var(names.FRF_NOISE_STD)
-    if names.FREQUENCY not in std.dims:
-        return
+    """``frf_line_noise_std`` beside ``frf``: its dims, real values, finite and >= 0."""
+    subject = namer.var(names.FRF_LINE_NOISE_STD)
     if std.dims != frf.dims:
         problems.append(f"{subject}: expected the dims of {names.FRF!r} {frf.dims}, got {std.dims}")
         return
@@ -473,8 +470,8 @@ def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool,
         empty = _check_empty(frf, subject, problems)
         if check_values and not empty:
             _check_finite(frf, subject, problems)
-        if names.FRF_NOISE_STD in ds.data_vars:
-            _check_noise_std(ds[names.FRF_NOISE_STD], frf, check_values, namer, problems)
+        if names.FRF_LINE_NOISE_STD in ds.data_vars:
+            _check_noise_std(ds[names.FRF_LINE_NOISE_STD], frf, check_values, namer, problems)
     _check_axis(ds, names.FREQUENCY, names.FREQUENCY_UNITS, namer, problems, nonnegative=True)
     labels = _check_points(ds, namer, problems)
     problems += coordinate_problems(ds, namer)

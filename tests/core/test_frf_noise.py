@@ -1,5 +1,5 @@
 """The roughness estimate of the FRF noise per line (ami_xr.core.frf_noise, estimate_frf_noise),
-the effective number of averages, and frf_noise_std in validate, netCDF and UFF."""
+the effective number of averages, and frf_line_noise_std in validate, netCDF and UFF."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ def test_recovers_white_noise_where_the_frf_is_smooth():
     sigma = 1e-3 * float(np.abs(h).max())
     noisy = frf.assign({names.FRF: h + _noise(h.shape, sigma, rng)})
     est = ami_xr.estimate_frf_noise(noisy)
-    std = est[names.FRF_NOISE_STD]
+    std = est[names.FRF_LINE_NOISE_STD]
     assert std.dims == h.dims and std.attrs[names.ATTR_UNITS] == h.attrs[names.ATTR_UNITS]
     assert std.attrs[names.ATTR_NOISE_MODEL].startswith("roughness")
     ratio = std.values / sigma
@@ -49,7 +49,7 @@ def test_follows_noise_that_changes_100x_across_the_band():
     x = np.linspace(0.0, 1.0, h.sizes[names.FREQUENCY])
     sigma = 1e-3 * float(np.abs(h).max()) * 10.0 ** (-2 * x)  # 100x down across the band
     noisy = frf.assign({names.FRF: h + _noise(h.shape, sigma, rng)})
-    std = ami_xr.estimate_frf_noise(noisy)[names.FRF_NOISE_STD].values
+    std = ami_xr.estimate_frf_noise(noisy)[names.FRF_LINE_NOISE_STD].values
     ratio = std / sigma
     for part in np.array_split(np.arange(x.size), 8):  # each eighth of the band
         assert np.median(ratio[:, part]) == pytest.approx(1.0, rel=0.1)
@@ -113,7 +113,7 @@ def test_multi_reference_frf():
     model = ami_xr.simulate.random_system(5, seed=3)[1]
     frf = ami_xr.simulate.frf(model, np.linspace(1.0, 50.0, 1024), references=[0, 1])
     est = ami_xr.estimate_frf_noise(frf)
-    assert est[names.FRF_NOISE_STD].dims == (names.REFERENCE, names.POINT, names.FREQUENCY)
+    assert est[names.FRF_LINE_NOISE_STD].dims == (names.REFERENCE, names.POINT, names.FREQUENCY)
     ami_xr.validate(est)
 
 
@@ -124,29 +124,29 @@ def test_validate_netcdf_and_uff_with_noise_std(tmp_path):
     path = tmp_path / "h.nc"
     ami_xr.to_netcdf(est, path)
     back = ami_xr.open_dataset(path)
-    xr.testing.assert_allclose(back[names.FRF_NOISE_STD], est[names.FRF_NOISE_STD])
+    xr.testing.assert_allclose(back[names.FRF_LINE_NOISE_STD], est[names.FRF_LINE_NOISE_STD])
     assert (
-        back[names.FRF_NOISE_STD].attrs[names.ATTR_NOISE_MODEL]
-        == (est[names.FRF_NOISE_STD].attrs[names.ATTR_NOISE_MODEL])
+        back[names.FRF_LINE_NOISE_STD].attrs[names.ATTR_NOISE_MODEL]
+        == (est[names.FRF_LINE_NOISE_STD].attrs[names.ATTR_NOISE_MODEL])
     )
     uff = tmp_path / "h.uff"
     ami_xr.write_uff(est, uff)  # the noise std is not an FRF: not written
     read = ami_xr.read_uff(uff)
-    assert names.FRF_NOISE_STD not in read
+    assert names.FRF_LINE_NOISE_STD not in read
     bad = est.copy()
-    bad[names.FRF_NOISE_STD] = -bad[names.FRF_NOISE_STD]
-    with pytest.raises(SchemaError, match="frf_noise_std.*>= 0"):
+    bad[names.FRF_LINE_NOISE_STD] = -bad[names.FRF_LINE_NOISE_STD]
+    with pytest.raises(SchemaError, match="frf_line_noise_std.*>= 0"):
         ami_xr.validate(bad)
-    bad[names.FRF_NOISE_STD] = bad[names.FRF_NOISE_STD].isel({names.POINT: 0})
-    with pytest.raises(SchemaError, match="frf_noise_std.*dims"):
+    bad[names.FRF_LINE_NOISE_STD] = bad[names.FRF_LINE_NOISE_STD].isel({names.POINT: 0})
+    with pytest.raises(SchemaError, match="frf_line_noise_std.*dims"):
         ami_xr.validate(bad)
-    # refine's one level per FRF (dims point) keeps its own meaning: not checked
-    ami_xr.validate(
-        est.assign({names.FRF_NOISE_STD: est[names.FRF_NOISE_STD].max(names.FREQUENCY)})
-    )
+    # refine's one level per FRF (dims point) has its own name: both can sit in one Dataset
+    both = est.assign({names.FRF_NOISE_STD: est[names.FRF_LINE_NOISE_STD].max(names.FREQUENCY)})
+    ami_xr.validate(both)
+    assert names.FRF_LINE_NOISE_STD != names.FRF_NOISE_STD
     nan = est.copy()
-    nan[names.FRF_NOISE_STD][0, 0] = np.nan
-    with pytest.raises(SchemaError, match="frf_noise_std.*NaN"):
+    nan[names.FRF_LINE_NOISE_STD][0, 0] = np.nan
+    with pytest.raises(SchemaError, match="frf_line_noise_std.*NaN"):
         ami_xr.validate(nan)
 
 
@@ -155,19 +155,19 @@ def test_noise_std_of_prefers_the_stored_per_line_noise():
 
     frf = _system()
     est = ami_xr.estimate_frf_noise(frf)
-    stored = est.assign({names.FRF_NOISE_STD: 2.0 * est[names.FRF_NOISE_STD]})
-    xr.testing.assert_identical(noise_std_of(stored), stored[names.FRF_NOISE_STD])
-    xr.testing.assert_identical(noise_std_of(frf), est[names.FRF_NOISE_STD])
+    stored = est.assign({names.FRF_LINE_NOISE_STD: 2.0 * est[names.FRF_LINE_NOISE_STD]})
+    xr.testing.assert_identical(noise_std_of(stored), stored[names.FRF_LINE_NOISE_STD])
+    xr.testing.assert_identical(noise_std_of(frf), est[names.FRF_LINE_NOISE_STD])
     # refine's one level per FRF (dims point) is not a per-line noise: estimated instead
-    level = est.assign({names.FRF_NOISE_STD: est[names.FRF_NOISE_STD].max(names.FREQUENCY)})
-    xr.testing.assert_identical(noise_std_of(level), est[names.FRF_NOISE_STD])
+    level = est.assign({names.FRF_LINE_NOISE_STD: est[names.FRF_LINE_NOISE_STD].max(names.FREQUENCY)})
+    xr.testing.assert_identical(noise_std_of(level), est[names.FRF_LINE_NOISE_STD])
 
 
 def test_dask_backed_frf_gives_the_same_estimate():
     pytest.importorskip("dask")
     frf, _ = ami_xr.simulate.random_system(6, seed=0, noise=0.01)
-    want = ami_xr.estimate_frf_noise(frf)[names.FRF_NOISE_STD]
+    want = ami_xr.estimate_frf_noise(frf)[names.FRF_LINE_NOISE_STD]
     for chunks in ({names.POINT: 2}, {names.FREQUENCY: 1000}):
-        got = ami_xr.estimate_frf_noise(frf.chunk(chunks))[names.FRF_NOISE_STD]
+        got = ami_xr.estimate_frf_noise(frf.chunk(chunks))[names.FRF_LINE_NOISE_STD]
         assert got.chunks is not None
         xr.testing.assert_allclose(got.compute(), want)

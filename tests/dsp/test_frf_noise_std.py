@@ -1,4 +1,4 @@
-"""``frf_noise_std`` of ami_xr.frf / ami_xr.impact_frf against Monte Carlo.
+"""``frf_line_noise_std`` of ami_xr.frf / ami_xr.impact_frf against Monte Carlo.
 
 Each test simulates one force and many noisy copies of the same response (one "point" per
 realisation, independent output noise), so one call estimates hundreds of FRFs at once: given the
@@ -55,7 +55,7 @@ def _ratio(est: xr.Dataset, clean: xr.Dataset | None = None):
     h = est[names.FRF].values  # (..., point, frequency)
     dev = h - h.mean(axis=-2, keepdims=True)
     emp = (np.abs(dev) ** 2).sum(axis=-2) / (h.shape[-2] - 1)
-    pred = (est[names.FRF_NOISE_STD].values ** 2).mean(axis=-2)
+    pred = (est[names.FRF_LINE_NOISE_STD].values ** 2).mean(axis=-2)
     use = np.isfinite(pred) & (pred > 0) & (est[names.FREQUENCY].values > 1.0)
     if clean is not None:  # lines where leakage (coherence loss without noise) is negligible
         loss_clean = 1 - clean[names.COHERENCE].values[..., 0, :]
@@ -76,7 +76,7 @@ def test_random_h1_noise_std_matches_monte_carlo(noverlap):
     kw = {"nperseg": 256, "noverlap": noverlap}
     est = ami_xr.frf(_time_ds(f, ys), **kw)
     clean = ami_xr.frf(_time_ds(f, y[None]), **kw)
-    std = est[names.FRF_NOISE_STD]
+    std = est[names.FRF_LINE_NOISE_STD]
     assert std.dims == est[names.FRF].dims and std.dtype == np.float64
     assert std.attrs[names.ATTR_UNITS] == est[names.FRF].attrs[names.ATTR_UNITS]
     model = std.attrs[names.ATTR_NOISE_MODEL]
@@ -110,7 +110,7 @@ def test_impact_noise_std_matches_monte_carlo_with_three_hits():
     sigma = 0.05 * np.abs(y).max()
     ys = y[:, None, :] + sigma * rng.standard_normal((3, R, n))
     est = ami_xr.impact_frf(_time_ds(f, ys), hit_checks=False)
-    model = est[names.FRF_NOISE_STD].attrs[names.ATTR_NOISE_MODEL]
+    model = est[names.FRF_LINE_NOISE_STD].attrs[names.ATTR_NOISE_MODEL]
     assert "n_d=3 " in model and "q=1" in model
     ratio, use = _ratio(est)
     assert use.sum() > 300
@@ -134,7 +134,7 @@ def test_multi_reference_noise_std_matches_monte_carlo():
     kw = {"nperseg": 256, "noverlap": 0}
     est = ami_xr.frf(ds, force=force, **kw)
     clean = ami_xr.frf(_time_ds(f[0], y[None]), force=force, **kw)
-    std = est[names.FRF_NOISE_STD]
+    std = est[names.FRF_LINE_NOISE_STD]
     assert std.dims == (names.REFERENCE, names.POINT, names.FREQUENCY)
     assert "q=2" in std.attrs[names.ATTR_NOISE_MODEL]
     ratio, use = _ratio(est, clean)
@@ -153,7 +153,7 @@ def test_one_hit_falls_back_to_roughness():
     y = sampled_response(f[0], lam, res, 1 / FS)
     sigma = 1e-3 * np.abs(y).max()
     est = ami_xr.impact_frf(_time_ds(f, (y + sigma * rng.standard_normal(y.shape))[None]))
-    std = est[names.FRF_NOISE_STD]
+    std = est[names.FRF_LINE_NOISE_STD]
     model = std.attrs[names.ATTR_NOISE_MODEL]
     assert model.startswith("roughness") and "1 average(s)" in model
     # the FRF's noise: sigma * sqrt(n) / |F| per line (dt * DFT, force spectrum ~ flat)
@@ -174,8 +174,8 @@ def test_noise_std_round_trips_netcdf_and_validates(tmp_path):
     path = tmp_path / "h.nc"
     ami_xr.to_netcdf(est, path)
     back = ami_xr.open_dataset(path)
-    xr.testing.assert_allclose(back[names.FRF_NOISE_STD], est[names.FRF_NOISE_STD])
+    xr.testing.assert_allclose(back[names.FRF_LINE_NOISE_STD], est[names.FRF_LINE_NOISE_STD])
     assert (
-        back[names.FRF_NOISE_STD].attrs[names.ATTR_NOISE_MODEL]
-        == (est[names.FRF_NOISE_STD].attrs[names.ATTR_NOISE_MODEL])
+        back[names.FRF_LINE_NOISE_STD].attrs[names.ATTR_NOISE_MODEL]
+        == (est[names.FRF_LINE_NOISE_STD].attrs[names.ATTR_NOISE_MODEL])
     )
