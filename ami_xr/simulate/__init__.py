@@ -7,6 +7,8 @@
 * :mod:`~ami_xr.simulate.beam` -- the paper's benchmark, a cantilever beam with three
   suspended spring-mass-dashpot absorbers.
 * :mod:`~ami_xr.simulate.random` -- random lumped-mass chains and grids for tests.
+* :mod:`~ami_xr.simulate.symmetric` -- a grounded ring of equal masses with repeated pairs of
+  modes, one pair split by a chosen relative amount (multi-reference benchmarks).
 * :mod:`~ami_xr.simulate.catalogue` -- the fixed benchmark catalogue of random systems and the
   scoring of identified modes against the truth.
 """
@@ -34,6 +36,7 @@ from ami_xr.simulate.modal import (
 )
 from ami_xr.simulate.noise import add_noise
 from ami_xr.simulate.random import contrast, mode_peaks, random_system
+from ami_xr.simulate.symmetric import symmetric_structure
 
 __all__ = [
     "BENCHMARK_DRIVE_POINT",
@@ -54,4 +57,5 @@ __all__ = [
     "residues",
     "score_modes",
     "state_space_modes",
+    "symmetric_structure",
 ]

@@ -156,6 +156,7 @@ def state_space_modes(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> tuple[np.n
     order = np.lexsort((lam.imag, np.abs(lam)))
     lam = lam[order]
     phi = phi[:, order]
+    phi = _orthogonalise_repeated(M, C, lam, phi)
     a = np.einsum("ik,ij,jk->k", phi, M, phi) * (2 * lam) + np.einsum("ik,ij,jk->k", phi, C, phi)
     phi = phi / np.sqrt(lam * a)
     # Deterministic sign: Re(lam Phi) > 0 at the largest entry.
@@ -163,6 +164,62 @@ def state_space_modes(M: np.ndarray, C: np.ndarray, K: np.ndarray) -> tuple[np.n
     flip = (lam * phi[big, np.arange(n)]).real < 0
     phi[:, flip] *= -1
     return lam, phi
+
+
+# Eigenvalues closer than this (relative) are one repeated root (see _orthogonalise_repeated).
+REPEATED_RTOL = 1e-8
+
+
+def _orthogonalise_repeated(
+    M: np.ndarray, C: np.ndarray, lam: np.ndarray, phi: np.ndarray, rtol: float = REPEATED_RTOL
+) -> np.ndarray:
+    """Make the mode vectors of each repeated eigenvalue orthogonal (``phi_i^T B phi_j = 0``).
+
+    Eigenvectors of distinct eigenvalues satisfy ``phi_i^T (C + (lam_i + lam_j) M) phi_j = 0``
+    (state-space orthogonality), which eqs. 4-5 need. For an exactly repeated eigenvalue the
+    eigensolver returns an arbitrary basis of its eigenspace, not orthogonal in that sense, and
+    the residues ``lam phi_j phi_P`` of the pair would then not sum to the true FRF. Within
+    every group of eigenvalues (sorted, consecutive) closer than ``rtol * |lam|`` the vectors
+    are made orthogonal with respect to ``B = 2 lam_mean M + C`` by a complex-symmetric
+    Gram-Schmidt with pivoting (the vector of largest ``|phi^T B phi|`` first; a pair of
+    nearly isotropic vectors, ``phi^T B phi ~ 0``, is first replaced by their sum). Columns of
+    groups of one are returned unchanged; ``phi`` is modified in place and returned.
+    """
+    n = lam.size
+    k = 0
+    while k < n:
+        end = k + 1
+        while end < n and abs(lam[end] - lam[k]) <= rtol * abs(lam[k]):
+            end += 1
+        if end - k > 1:
+            b_mat = 2 * lam[k:end].mean() * M + C
+            phi[:, k:end] = _b_orthogonal(phi[:, k:end], b_mat)
+        k = end
+    return phi
+
+
+def _b_orthogonal(v: np.ndarray, b_mat: np.ndarray) -> np.ndarray:
+    """Columns of ``v`` spanning the same space with ``v_i^T B v_j = 0`` for ``i != j``."""
+    rest = [v[:, j] / np.linalg.norm(v[:, j]) for j in range(v.shape[1])]
+    tiny = 1e-6 * np.linalg.norm(b_mat, 2)
+    out = []
+    while rest:
+        g = np.array([abs(u @ b_mat @ u) for u in rest])
+        j = int(np.argmax(g))
+        if g[j] < tiny and len(rest) > 1:  # all nearly isotropic: mix the most coupled two
+            cross = np.abs(np.array([[x @ b_mat @ y for y in rest] for x in rest]))
+            np.fill_diagonal(cross, -1.0)
+            a, b = np.unravel_index(int(np.argmax(cross)), cross.shape)
+            w = rest[a] + rest[b]
+            rest[a] = w / np.linalg.norm(w)
+            j = int(a)
+        p = rest.pop(j)
+        d = p @ b_mat @ p
+        for i, u in enumerate(rest):
+            u = u - (p @ b_mat @ u) / d * p
+            rest[i] = u / np.linalg.norm(u)
+        out.append(p)
+    return np.stack(out, axis=1)
 
 
 def _polish(M, C, K, lam, phi, sweeps: int = 4):
