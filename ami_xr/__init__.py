@@ -24,6 +24,7 @@ _PUBLIC: dict[str, str] = {
     "identify": "ami_xr.ami",
     "refine": "ami_xr.ami.refine",
     "cramer_rao_bound": "ami_xr.ami.crb",
+    "stability": "ami_xr.ami.stability",
     # errors and warnings
     "AmiXrError": "ami_xr.errors",
     "AmiXrValueError": "ami_xr.errors",
@@ -56,6 +57,7 @@ _PUBLIC: dict[str, str] = {
     "plot_mode_vectors": "ami_xr.plot",
     "plot_mac": "ami_xr.plot",
     "plot_modal_table": "ami_xr.plot",
+    "plot_stability": "ami_xr.plot_stability",
     "plot_mode_shapes": "ami_xr.plot_geometry",
     "animate_mode_shape": "ami_xr.plot_geometry",
     "report": "ami_xr.report",

@@ -93,6 +93,7 @@ class AmiAccessor:
     global_fit = _Method(writes=True)
     identify = _Method(writes=True)
     refine = _Method(writes=True)
+    stability = _Method()  # no path=: it takes **identify_kwargs
     # plots and reports
     plot_bode = _Method()
     plot_nyquist = _Method()
@@ -100,6 +101,7 @@ class AmiAccessor:
     plot_mode_vectors = _Method()
     plot_mac = _Method()
     plot_modal_table = _Method()
+    plot_stability = _Method()
     plot_mode_shapes = _Method()
     animate_mode_shape = _Method()
     report = _Method()

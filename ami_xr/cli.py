@@ -49,9 +49,11 @@ from ami_xr.cli_options import (
     add_frf_options,
     add_identify_options,
     add_report_options,
+    add_stability_option,
     check_paths,
     frf_options,
     identify_options,
+    stability_table,
     value,
 )
 from ami_xr.errors import AmiXrError, AmiXrValueError, AmiXrWarning
@@ -231,6 +233,11 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     # a phase bar on a terminal once the work takes more than a couple of seconds
     result = ami_xr.identify(ds, progress=on_terminal(not args.quiet), **options)
     _say(format_modal_table(result))
+    if args.stability:  # the variants take their own pfa and band; the other options stay
+        others = {k: v for k, v in options.items() if k != "pfa"}
+        show = not args.quiet and sys.stderr.isatty()
+        result = ami_xr.stability(ds, result, progress=show, **others)
+        _say(stability_table(result))
     if args.output:  # identify recorded itself in the history; the write adds its own record
         write_any(result, args.output)
         _say(f"wrote modes to {args.output}")
@@ -441,6 +448,7 @@ def _add_file_commands(add) -> None:
         "58 and mode shapes as dataset 55) (default: none, only print the table)",
         required=False,
     )
+    add_stability_option(p)
     p.add_argument(
         "-q",
         "--quiet",

@@ -21,8 +21,10 @@ __all__ = [
     "add_frf_options",
     "add_report_options",
     "add_identify_options",
+    "add_stability_option",
     "frf_options",
     "identify_options",
+    "stability_table",
     "non_default",
     "value",
 ]
@@ -276,6 +278,34 @@ def add_identify_options(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="global fit: add lower and upper residual terms for out-of-band modes (measured FRFs)",
     )
+
+
+def add_stability_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--stability",
+        action="store_true",
+        help="after identifying, re-run identify for pfa 1e-2..1e-5 on the band and on the band "
+        "trimmed by 10%% at each end, and record how each mode holds (ami_xr.stability: "
+        "stability_fraction, 1 = found in every variant; a figure in the report)",
+    )
+
+
+def stability_table(result) -> str:
+    """Per mode: frequency, stability fraction and spread of the matched frequencies."""
+    from ami_xr import names
+
+    lines = ["mode  f [Hz]      stability  spread [Hz]  variants found/in band"]
+    found = result[names.STABILITY_FOUND].transpose(names.MODE, ...).values
+    in_band = result[names.STABILITY_IN_BAND].transpose(names.MODE, ...).values
+    for k, mode in enumerate(result[names.MODE].values.tolist()):
+        fn = float(result[names.NATURAL_FREQUENCY].values[k])
+        frac = float(result[names.STABILITY_FRACTION].values[k])
+        spread = float(result[names.STABILITY_FREQUENCY_SPREAD].values[k])
+        lines.append(
+            f"{mode!s:<5} {fn:<11.6g} {frac:<10.3g} {spread:<12.3g} "
+            f"{int(found[k].sum())}/{int(in_band[k].sum())}"
+        )
+    return "\n".join(lines)
 
 
 def identify_options(args: argparse.Namespace) -> dict[str, Any]:

@@ -231,3 +231,16 @@ ATTR_MULTI_REFERENCE = "multi_reference"  # identify: how several references wer
 FLAG_REPEATED_ROOT_SEPARATED = "repeated_root_separated"  # one of two modes at one eigenvalue
 # Logger of the once-per-process "compiling numeric kernels" notice (INFO; the CLI shows it)
 COMPILE_LOGGER = "ami_xr.compile"
+# Mode stability diagnostic (ami_xr.ami.stability): identify re-run over detection thresholds
+# (pfa) and analysis bands, each reference mode matched to the modes of every variant
+STABILITY_VARIANT = "stability_variant"  # dim: one identify variant, labelled "pfa=1e-3, ..."
+STABILITY_PFA = "stability_pfa"  # (stability_variant) false-alarm probability of the variant
+STABILITY_FMIN = "stability_band_fmin"  # (stability_variant) Hz, variant's analysis band
+STABILITY_FMAX = "stability_band_fmax"  # (stability_variant) Hz
+STABILITY_FOUND = "stability_found"  # (mode, stability_variant) bool: matched in that variant
+STABILITY_IN_BAND = "stability_in_band"  # (mode, stability_variant) bool: inside its band
+STABILITY_FREQUENCY = "stability_frequency"  # (mode, stability_variant) Hz of the match, NaN
+STABILITY_FRACTION = "stability_fraction"  # (mode) found / in-band variants, 0..1
+STABILITY_FREQUENCY_SPREAD = "stability_frequency_spread"  # (mode) Hz, std of matches
+ATTR_STABILITY_RULE = "stability_rule"  # one sentence: variants, match radius, fraction
+ATTR_STABILITY_TOLERANCE = "stability_match_tolerance"  # match radius in units of |Re lam|

@@ -9,6 +9,7 @@ from __future__ import annotations
 import base64
 import csv
 import html
+import importlib
 import io
 import os
 import re
@@ -31,6 +32,7 @@ __all__ = [
     "FIGURES",
     "MEASUREMENT_FIGURES",
     "GEOMETRY_FIGURES",
+    "STABILITY_FIGURES",
     "STD_COLUMNS",
     "INDICATOR_COLUMNS",
 ]
@@ -79,6 +81,19 @@ MEASUREMENT_FIGURES: dict[str, tuple[str, str, str]] = {
         "plot_hits",
         "Peak force of each impact hit; rejected hits (red) with their reason.",
         names.HIT_PEAK_FORCE,
+    ),
+}
+
+
+#: Figures of ami_xr.stability (ami_xr.plot_stability): stem -> (function, caption, the variable
+#: they need). By default drawn only when that variable is present.
+STABILITY_FIGURES: dict[str, tuple[str, str, str]] = {
+    "stability": (
+        "plot_stability",
+        "Mode stability: identify re-run over detection thresholds (pfa) and analysis bands, one "
+        "row per variant; filled: the mode found again, open: missed inside the band. Above "
+        "each mode its label and the fraction of variants finding it (1: solid).",
+        names.STABILITY_FOUND,
     ),
 }
 
@@ -186,6 +201,7 @@ INDICATOR_COLUMNS: dict[str, tuple[str, str]] = {
     "mpc": (names.MPC, "MPC [-]"),
     "mpd_deg": (names.MPD, "MPD [deg]"),
     "complexity": (names.COMPLEXITY, "complexity [-]"),
+    "stability_fraction": (names.STABILITY_FRACTION, "stability [-]"),
 }
 
 
@@ -355,8 +371,9 @@ def report(
     title : str, optional
         Page title; by default "ami_xr report: " and the source file's name (never its folder).
     figures : tuple of str, optional
-        Keys of :data:`FIGURES`, :data:`MEASUREMENT_FIGURES` and :data:`GEOMETRY_FIGURES` to
-        draw (default: all of FIGURES, the measurement figures whose inputs are present, and
+        Keys of :data:`FIGURES`, :data:`MEASUREMENT_FIGURES`, :data:`STABILITY_FIGURES` and
+        :data:`GEOMETRY_FIGURES` to draw (default: all of FIGURES, the measurement figures
+        whose inputs are present, ``stability`` after :func:`ami_xr.stability`, and
         ``mode_shapes`` with one animated GIF per mode when the points have coordinates).
     frequency_range : (float, float), optional
         Band in Hz for the figures with a frequency axis (Bode, subtraction, coherence, force
@@ -382,9 +399,10 @@ def report(
             f"dim ({refs}); select one first, e.g. ds.sel({names.REFERENCE}={refs[0]!r}) (the "
             "modal table of all references prints with ami_xr.format_modal_table)"
         )
-    known = {**MEASUREMENT_FIGURES, **FIGURES, **GEOMETRY_FIGURES}
+    known = {**MEASUREMENT_FIGURES, **FIGURES, **STABILITY_FIGURES, **GEOMETRY_FIGURES}
     if figures is None:
         wanted = tuple(k for k, v in MEASUREMENT_FIGURES.items() if v[2] in ds) + tuple(FIGURES)
+        wanted += tuple(k for k, v in STABILITY_FIGURES.items() if v[2] in ds)
         wanted += tuple(GEOMETRY_FIGURES) if has_coordinates(ds) else ()
     else:
         wanted = tuple(figures)
@@ -399,6 +417,8 @@ def report(
         func_name, caption = known[stem][:2]
         module = plot_measurement if stem in MEASUREMENT_FIGURES else plot
         module = plot_geometry if stem in GEOMETRY_FIGURES else module
+        if stem in STABILITY_FIGURES:  # ami_xr.plot_stability is the function: import the module
+            module = importlib.import_module(f"ami_xr.{func_name}")
         kwargs = {"frequency_range": frequency_range} if stem in _BANDED and frequency_range else {}
         try:
             with gc_paused():  # a third of the drawing time otherwise (plot_common.gc_paused)
