@@ -11,7 +11,7 @@ POINT = "point"  # response point (measurement degree of freedom)
 FREQUENCY = "frequency"  # frequency in Hz
 TIME = "time"  # time in seconds
 RECORD = "record"  # repeated hits or blocks of a time record
-REFERENCE = "reference"  # excitation point (reserved for multi-reference data)
+REFERENCE = "reference"  # excitation location of multi-reference FRFs (one on a point = its drive point)
 MODE = "mode"  # identified or exact system mode
 COMPLEX = "complex"  # on-disk only: trailing dim of length 2 holding (real, imag)
 
