@@ -3,7 +3,8 @@
 Importing ami_xr registers the ``ds.ami`` accessor and nothing else: each public name below is
 imported from its module on first use (PEP 562 module ``__getattr__``), so ``import ami_xr``
 loads neither the numerics nor plotting, file formats or dask, and not even xarray: the accessor
-is registered when xarray is first imported (:mod:`ami_xr.import_hook`). Nothing is compiled on import
+is registered when xarray is first imported (:mod:`ami_xr.import_hook`). Nothing is compiled on
+import
 either: numba kernels compile on first call and are cached on disk.
 """
 

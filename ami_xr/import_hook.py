@@ -87,7 +87,7 @@ class _CallbackLoader:
         return self._loader.create_module(spec)
 
     def exec_module(self, module: Any) -> None:
-        # The module sees its own loader (importlib.resources, reload): this wrapper leaves no trace.
+        # The module sees its own loader (importlib.resources, reload): no trace of this wrapper.
         module.__loader__ = self._loader
         if getattr(module, "__spec__", None) is not None:
             module.__spec__.loader = self._loader

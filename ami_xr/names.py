@@ -11,7 +11,8 @@ POINT = "point"  # response point (measurement degree of freedom)
 FREQUENCY = "frequency"  # frequency in Hz
 TIME = "time"  # time in seconds
 RECORD = "record"  # repeated hits or blocks of a time record
-REFERENCE = "reference"  # excitation location of multi-reference FRFs (one on a point = its drive point)
+# excitation location of multi-reference FRFs (a reference on a point is its drive point)
+REFERENCE = "reference"
 MODE = "mode"  # identified or exact system mode
 COMPLEX = "complex"  # on-disk only: trailing dim of length 2 holding (real, imag)
 
@@ -104,7 +105,8 @@ FRF_NOISE_STD = "frf_noise_std"
 # the same per line, beside frf in an FRF Dataset: dims ([reference,] point, frequency), attr
 # ATTR_NOISE_MODEL (ami_xr.frf / impact_frf from coherence, or ami_xr.dsp.noise_model)
 FRF_LINE_NOISE_STD = "frf_line_noise_std"
-ATTR_NOISE_MODEL = "noise_model"  # on frf_line_noise_std: how it was estimated (formula, n_d, window)
+# on frf_line_noise_std: how it was estimated (formula, n_d, window)
+ATTR_NOISE_MODEL = "noise_model"
 NATURAL_FREQUENCY_ERROR = "natural_frequency_error"  # CRB: expected |error| / f_n
 DAMPING_RATIO_ERROR = "damping_ratio_error"  # CRB: expected |error| / zeta
 MODE_VECTOR_ERROR = "mode_vector_error"  # CRB: expected |dPhi_k| / |Phi_k| (Euclidean norms)

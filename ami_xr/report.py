@@ -395,9 +395,10 @@ def report(
         # the figures draw one FRF per point; multi-reference pages are not built yet (issue 13)
         refs = ds[names.REFERENCE].values.tolist()
         raise AmiXrValueError(
-            f"ds: report draws one reference at a time, and this result has the {names.REFERENCE!r} "
-            f"dim ({refs}); select one first, e.g. ds.sel({names.REFERENCE}={refs[0]!r}) (the "
-            "modal table of all references prints with ami_xr.format_modal_table)"
+            f"ds: report draws one reference at a time, and this result has the "
+            f"{names.REFERENCE!r} dim ({refs}); select one first, e.g. "
+            f"ds.sel({names.REFERENCE}={refs[0]!r}) (the modal table of all references prints "
+            "with ami_xr.format_modal_table)"
         )
     known = {**MEASUREMENT_FIGURES, **FIGURES, **STABILITY_FIGURES, **GEOMETRY_FIGURES}
     if figures is None:

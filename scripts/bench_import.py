@@ -50,8 +50,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"median of {args.repeat} fresh interpreters, Python {sys.version.split()[0]}")
     for name, times in rows.items():
         print(f"  {name:32s} {statistics.median(times):7.3f} s   (min {min(times):.3f} s)")
-    ours = max(statistics.median(rows["import ami_xr"]),
-               statistics.median(rows["python -m ami_xr --help (wall)"]))
+    ours = max(
+        statistics.median(rows["import ami_xr"]),
+        statistics.median(rows["python -m ami_xr --help (wall)"]),
+    )
     print(f"target <= 0.3 s: {'met' if ours <= 0.3 else 'NOT met'} ({ours:.3f} s)")
     return 0
 

@@ -7,7 +7,8 @@ data, from the roughness between adjacent lines (:func:`ami_xr.core.frf_noise.ro
 :func:`noise_std_of` is what the identification phases call: the stored variable where there is
 one, the estimate otherwise.
 
-``frf_line_noise_std`` has the dims of ``frf`` (``[reference,] point, frequency``), float, in the FRF's
+``frf_line_noise_std`` has the dims of ``frf`` (``[reference,] point, frequency``), float, in the
+FRF's
 units: ``sqrt(E|H_est - H|^2)`` at each line (each of the real and imaginary parts carries half
 the variance); its ``noise_model`` attribute says how it was obtained.
 """
@@ -79,7 +80,8 @@ def estimate_frf_noise(
     Returns
     -------
     xarray.Dataset
-        A copy of ``ds`` with ``frf_line_noise_std`` (dims of ``frf``, float, units of ``frf``; attrs
+        A copy of ``ds`` with ``frf_line_noise_std`` (dims of ``frf``, float, units of ``frf``;
+        attrs
         ``noise_model``, ``long_name``, ``units``).
 
     Raises

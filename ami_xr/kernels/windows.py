@@ -12,8 +12,8 @@ Windows (canonical names; aliases in brackets):
   falling half-cosine over ``taper`` samples, then 0.
 
 The cosine windows are ``scipy.signal.get_window``'s own (not reimplemented), periodic
-(``sym=False``, scipy's default ``fftbins=True``) or symmetric (``sym=True``). The exponential and force windows
-are one-sided, start at sample 0 and ignore ``sym``; the exponential window equals
+(``sym=False``, scipy's default ``fftbins=True``) or symmetric (``sym=True``). The exponential
+and force windows are one-sided, start at sample 0 and ignore ``sym``; the exponential window equals
 ``scipy.signal.windows.exponential(n, center=0, tau=tau, sym=False)``.
 
 Exponential windows and damping

@@ -158,8 +158,9 @@ def test_noise_std_of_prefers_the_stored_per_line_noise():
     stored = est.assign({names.FRF_LINE_NOISE_STD: 2.0 * est[names.FRF_LINE_NOISE_STD]})
     xr.testing.assert_identical(noise_std_of(stored), stored[names.FRF_LINE_NOISE_STD])
     xr.testing.assert_identical(noise_std_of(frf), est[names.FRF_LINE_NOISE_STD])
-    # refine's one level per FRF (dims point) is not a per-line noise: estimated instead
-    level = est.assign({names.FRF_LINE_NOISE_STD: est[names.FRF_LINE_NOISE_STD].max(names.FREQUENCY)})
+    # one level per FRF (dims point) is not a per-line noise: estimated instead
+    per_frf = est[names.FRF_LINE_NOISE_STD].max(names.FREQUENCY)
+    level = est.assign({names.FRF_LINE_NOISE_STD: per_frf})
     xr.testing.assert_identical(noise_std_of(level), est[names.FRF_LINE_NOISE_STD])
 
 
