@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Hashable
 from typing import Any
 
 import numpy as np
@@ -200,6 +201,22 @@ def drop_results(ds: xr.Dataset, groups) -> xr.Dataset:
         if dim in out.coords and not any(dim in out[v].dims for v in out.data_vars):
             out = out.drop_vars(dim)
     return out
+
+
+def coordinate_attrs(ds: xr.Dataset) -> dict[Hashable, dict]:
+    """A copy of the attrs of ``ds``'s non-index coordinates (e.g. ``point_x`` units), taken
+    before ``apply_ufunc``: xarray < 2025.6 clears them there, on the variables it was given."""
+    return {n: dict(ds[n].attrs) for n in ds.coords if n not in ds.indexes}
+
+
+def restore_coordinate_attrs(out: xr.Dataset, attrs: dict[Hashable, dict]) -> xr.Dataset:
+    """``out`` with the coordinate attrs ``attrs`` (from :func:`coordinate_attrs`) put back."""
+    lost = [n for n, a in attrs.items() if n in out.coords and out[n].attrs != a]
+    if not lost:
+        return out
+    # dropped first: assign_coords of old xarray keeps an existing coordinate's attrs
+    fixed = {n: xr.Variable(out[n].dims, out[n].values, dict(attrs[n])) for n in lost}
+    return out.drop_vars(lost).assign_coords(fixed)
 
 
 def finish(out: xr.Dataset, function: str, phase: str, parameters: dict) -> xr.Dataset:

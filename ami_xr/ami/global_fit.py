@@ -130,6 +130,8 @@ def global_fit(
         ``residual_terms``.
     """
     c.check_frf(ds, "global_fit")
+    coord_attrs = c.coordinate_attrs(ds)
+    ds = ds.copy()  # own variables: old xarray clears coordinate attrs in apply_ufunc
     if names.EIGENVALUE not in ds:
         raise IdentificationError(
             f"ds: global_fit needs {names.EIGENVALUE!r}; run ami_xr.isolate first"
@@ -218,6 +220,7 @@ def global_fit(
                 flags[m].append(names.FLAG_NOT_CONVERGED)
             if det[:, m].sum() == 1:
                 flags[m].append(names.FLAG_SINGLE_FRF)
+    residual = frf - synth_da.transpose(*frf.dims)
     out = c.drop_results(ds, (c.GLOBAL_VARS,))
     out = out.assign_coords({names.MODE_2: out[names.MODE].values})
     new = {
@@ -239,9 +242,7 @@ def global_fit(
         names.FRF_SYNTHESIZED: synth_da.transpose(*frf.dims).assign_attrs(
             {names.ATTR_UNITS: units}
         ),
-        names.FRF_RESIDUAL: (frf - synth_da.transpose(*frf.dims)).assign_attrs(
-            {names.ATTR_UNITS: units}
-        ),
+        names.FRF_RESIDUAL: residual.assign_attrs({names.ATTR_UNITS: units}),
         names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi), _ONE),
         names.DRIVE_POINT_SNR: ((names.MODE,), snr_drive, _ONE),
         names.QUALITY_FLAGS: (
@@ -259,6 +260,7 @@ def global_fit(
     settings = GlobalFitSettings(
         band if isinstance(band, str) else float(band), bool(residual_terms), drive_snr_min
     )
+    out = c.restore_coordinate_attrs(out, coord_attrs)
     to_attrs(settings, out.attrs)
     if band_used != band:
         out.attrs[names.ATTR_AMI_BAND_USED] = float(band_used)

@@ -240,6 +240,8 @@ def refine(
         Missing ``frf`` or ``eigenvalue``, bad parameters, or too few lines in ``band``.
     """
     _check_inputs(ds, max_iter, tol, band, residual_terms, max_shift)
+    coord_attrs = c.coordinate_attrs(ds)
+    ds = ds.copy()  # own variables: old xarray clears coordinate attrs in apply_ufunc
     if isinstance(add_modes, bool) or not isinstance(add_modes, (int, np.integer)) or add_modes < 0:
         raise IdentificationError(f"add_modes: expected an integer >= 0, got {add_modes!r}")
     if not (isinstance(add_pfa, (int, float, np.floating)) and 0 < add_pfa < 1):
@@ -309,6 +311,7 @@ def refine(
         out = _with_results(ds, fields, terms, kind, data_model, decay, drive_index)
     out.attrs[names.ATTR_REFINE_MODEL] = data_model.name
     to_attrs(settings, out.attrs)
+    out = c.restore_coordinate_attrs(out, coord_attrs)
     return add_history(out, "ami_xr.refine", parameters(settings))
 
 

@@ -141,6 +141,9 @@ def test_coordinates_survive_the_phases(beam_frf):
     fit = ami_xr.global_fit(iso)
     _assert_coords_kept(fit, beam_frf)
     _assert_coords_kept(ami_xr.refine(fit), beam_frf)
+    # the inputs keep theirs too (xarray < 2025.6 cleared them inside apply_ufunc)
+    for phase_input in (beam_frf, iso, fit):
+        assert phase_input[names.POINT_X].attrs == {names.ATTR_UNITS: "m"}
 
 
 def test_coordinates_survive_identify_and_netcdf(tmp_path, beam_frf):
