@@ -422,7 +422,8 @@ def speed(repeats: int = 5) -> None:
         _, r_cold = first_call_seconds(cache, _REFINE_SNIPPET)
         _, r_warm = first_call_seconds(cache, _REFINE_SNIPPET)
     print(
-        f"  import ami_xr {imp:.2f} s; first identification in a fresh process: "
+        f"  import ami_xr and ami_xr.ami (xarray, numba) {imp:.2f} s; first identification "
+        "in a fresh process: "
         f"{cold:.2f} s with an empty numba cache (compilation), {warm:.2f} s with the cache "
         "filled by the previous process"
     )
