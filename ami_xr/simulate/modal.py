@@ -423,6 +423,23 @@ def _frf_kernel(residue: np.ndarray, lam: np.ndarray, omega: np.ndarray, power: 
     return g * iw**power if power else g
 
 
+def _modal_frf(residue: xr.DataArray, lam: xr.DataArray, f: np.ndarray, quantity: str):
+    """The modal sum of ``residue`` (..., mode) and ``lam`` (mode) at ``f`` Hz: (..., frequency)."""
+    omega = xr.DataArray(2 * np.pi * f, dims=[names.FREQUENCY])
+    return xr.apply_ufunc(
+        _frf_kernel,
+        residue,
+        lam,
+        omega,
+        kwargs={"power": names.QUANTITY_POWER[quantity]},
+        input_core_dims=[[names.MODE], [names.MODE], [names.FREQUENCY]],
+        output_core_dims=[[names.FREQUENCY]],
+        dask="parallelized",
+        output_dtypes=[np.complex128],
+        keep_attrs=False,
+    )
+
+
 def frf(
     model: xr.Dataset,
     frequency_hz: Any,
@@ -469,19 +486,7 @@ def frf(
             model, f, references, drive_point, response_quantity, response_units
         )
     model = _model_residues(model, drive_point)
-    omega = xr.DataArray(2 * np.pi * f, dims=[names.FREQUENCY])
-    g = xr.apply_ufunc(
-        _frf_kernel,
-        model[names.RESIDUE],
-        model[names.EIGENVALUE],
-        omega,
-        kwargs={"power": names.QUANTITY_POWER[response_quantity]},
-        input_core_dims=[[names.MODE], [names.MODE], [names.FREQUENCY]],
-        output_core_dims=[[names.FREQUENCY]],
-        dask="parallelized",
-        output_dtypes=[np.complex128],
-        keep_attrs=False,
-    )
+    g = _modal_frf(model[names.RESIDUE], model[names.EIGENVALUE], f, response_quantity)
     force_units = model.attrs.get(names.ATTR_FORCE_UNITS, "N")
     ru = response_units or names.SI_RESPONSE_UNITS[response_quantity]
     ds = xr.Dataset(
@@ -540,19 +545,7 @@ def _multi_reference_frf(
     lam = model[names.EIGENVALUE]
     phi_ref = phi.sel({names.POINT: refs}).rename({names.POINT: names.REFERENCE})
     residue = (lam * phi * phi_ref).transpose(names.REFERENCE, names.POINT, names.MODE)
-    omega = xr.DataArray(2 * np.pi * f, dims=[names.FREQUENCY])
-    g = xr.apply_ufunc(
-        _frf_kernel,
-        residue,
-        lam,
-        omega,
-        kwargs={"power": names.QUANTITY_POWER[response_quantity]},
-        input_core_dims=[[names.MODE], [names.MODE], [names.FREQUENCY]],
-        output_core_dims=[[names.FREQUENCY]],
-        dask="parallelized",
-        output_dtypes=[np.complex128],
-        keep_attrs=False,
-    )
+    g = _modal_frf(residue, lam, f, response_quantity)
     force_units = model.attrs.get(names.ATTR_FORCE_UNITS, "N")
     ru = response_units or names.SI_RESPONSE_UNITS[response_quantity]
     ds = xr.Dataset(
