@@ -2,29 +2,43 @@
 
 An FRF estimated from force and response histories (:func:`ami_xr.frf`,
 :func:`ami_xr.impact_frf`) carries the force autospectrum ``force_autospectrum`` and the
-coherence ``coherence``. Where the force has fallen far below its low-frequency level (a hammer
+coherence ``coherence``. Where the force has fallen far below its level in the band (a hammer
 tip excites nothing above its first spectral notch) the FRF is noise divided by almost nothing:
 peaks there are not modes. :func:`analysis_band` picks the band by default as follows.
 
-* **Force rule.** The low-frequency level of the force is the median of ``force_autospectrum``
-  over the lowest ``low_fraction`` (10 %) of the lines above 0 Hz. A line passes when the force,
-  smoothed by a running median over ``window`` lines, lies within ``force_drop_db`` (20 dB) of
-  that level (several references: every one must pass).
+* **Smoothing window.** Both rules look at each line through a window of constant relative
+  width: the lines within ``+-RELATIVE_WINDOW / 2`` (1/32) of the line's frequency, at least
+  ``2 MIN_HALF_WIDTH + 1`` (5) lines, cut off at the ends of the data (no padding). A window
+  that depends on the line's own frequency, not on how many lines the Dataset holds, is what
+  makes the rule independent of where the data were cut; it also follows the width of
+  resonances and antiresonances, which grows with frequency at a given damping. On the hammer
+  test of ``shared/data`` (1 Hz lines) it spans 5 lines at 50 Hz, 103 at 1650 Hz and 305 at
+  4.9 kHz. The 0 Hz line is never part of a window.
+* **Force rule.** The force's reference level is the MAXIMUM over the lines above 0 Hz of the
+  force autospectrum smoothed by a running median over the window above. A line passes when
+  its smoothed force lies within ``force_drop_db`` (20 dB) of that level (several references:
+  every one must pass). Removing lines from either end of the data can only lower the maximum,
+  so every line that passes on the whole record passes on any cut of it (the reference of the
+  earlier rule, the median of the lowest 10 % of lines, moved when the data were cut: sliced to
+  20-4885 Hz the hammer test's band shrank to 20-1614 Hz, issue 20).
 * **Coherence rule.** Coherence dips at every antiresonance (little response, the same noise),
   so a single line of low coherence must not cut the band. A line passes when at least
-  ``coherence_fraction`` (half) of the ``window`` lines around it have coherence
-  ``>= coherence_min`` (0.8; several points: the median over points). The level is set on the
-  hammer test of ``shared/data``: below 6 kHz its coherence is above 0.99 except at
-  antiresonances, where it falls to 0.55-0.9 for up to 100 lines (1.61-1.72 kHz) while the
-  force is within 3 dB of its low-frequency level, so 0.9 would end the band at 1.6 kHz; above
-  the force's band it is 0.5-0.85 on most lines, which 0.8 rejects. The random error of
-  ``|H1|`` from ``n`` averages is ``sqrt((1 - coh) / (2 coh n))``: 16 % at 0.8 for ``n = 1``.
-* The band is the contiguous run of lines that pass both rules, from the lowest line above
-  0 Hz that passes up to the last line before the first one that fails.
+  ``coherence_fraction`` (half) of the lines of its window have coherence ``>= coherence_min``
+  (0.8; several points: the median over points). The level is set on the hammer test: below
+  6 kHz its coherence is above 0.99 except at antiresonances, where it falls to 0.55-0.9 for up
+  to 100 lines (1.61-1.72 kHz) while the force is within 3 dB of its low-frequency level, so
+  0.9 would end the band at 1.6 kHz; above the force's band it is 0.5-0.85 on most lines, which
+  0.8 rejects. The random error of ``|H1|`` from ``n`` averages is
+  ``sqrt((1 - coh) / (2 coh n))``: 16 % at 0.8 for ``n = 1``.
+* The band is the longest contiguous run of lines that pass both rules (the lowest one on a
+  tie). On the hammer test it is 12-4867 Hz: below 12 Hz the coherence is 0.02-0.8, at 4867 Hz
+  the smoothed force is 20 dB below its maximum.
 
-``window`` is ``max(5, n_lines // 256)`` lines, made odd (101 lines of 1 Hz for a 25.6 kHz
-hammer test). A Dataset without ``force_autospectrum`` and ``coherence`` (a bare FRF, simulated
-data) is analysed over the whole band. ``fmin``/``fmax`` override either limit.
+A Dataset without ``force_autospectrum`` and ``coherence`` (a bare FRF, simulated data) is
+analysed over the whole band. ``fmin``/``fmax`` override either limit. When ``[a, b]`` lies
+inside the band chosen on the whole data, ``ds.sel(frequency=slice(a, b))`` passes every line
+(up to the windows cut off at the new ends), so its band is the whole cut: the same lines as
+``fmin=a, fmax=b``.
 """
 
 from __future__ import annotations
@@ -40,7 +54,8 @@ from ami_xr.errors import AmiXrValueError
 FORCE_DROP_DB = 20.0
 COHERENCE_MIN = 0.8
 COHERENCE_FRACTION = 0.5
-LOW_FRACTION = 0.1
+RELATIVE_WINDOW = 1.0 / 16.0  # window width over frequency (+-1/32 around each line)
+MIN_HALF_WIDTH = 2  # lines on each side at least
 
 RULE_EXCITATION = "excitation"  # picked from force autospectrum and coherence
 RULE_WHOLE = "whole"  # no excitation information: every line
@@ -70,20 +85,28 @@ class Band:
         }
 
 
-def _window(n: int) -> int:
-    w = max(5, n // 256)
-    return w + 1 - w % 2
+def _windows(f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end (exclusive) of each line's window (module docstring); ``f`` increasing."""
+    half = 0.5 * RELATIVE_WINDOW * f
+    i = np.arange(f.size)
+    lo = np.minimum(np.searchsorted(f, f - half, side="left"), i - MIN_HALF_WIDTH)
+    hi = np.maximum(np.searchsorted(f, f + half, side="right"), i + MIN_HALF_WIDTH + 1)
+    return np.clip(lo, 0, None), np.minimum(hi, f.size)
 
 
-def _running_median(x: np.ndarray, w: int) -> np.ndarray:
-    pad = np.pad(x, w // 2, mode="edge")
-    return np.median(np.lib.stride_tricks.sliding_window_view(pad, w), axis=-1)
+def _running_median(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Median of ``x[lo[i]:hi[i]]`` for every ``i``, windows of one length at a time."""
+    out = np.empty(x.size)
+    length = hi - lo
+    for n in np.unique(length):
+        at = np.flatnonzero(length == n)
+        out[at] = np.median(x[lo[at, None] + np.arange(n)], axis=1)
+    return out
 
 
-def _running_mean(x: np.ndarray, w: int) -> np.ndarray:
-    pad = np.pad(x.astype(float), w // 2, mode="edge")
-    c = np.concatenate([[0.0], np.cumsum(pad)])
-    return (c[w:] - c[:-w]) / w
+def _running_mean(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    c = np.concatenate([[0.0], np.cumsum(x, dtype=float)])
+    return (c[hi] - c[lo]) / (hi - lo)
 
 
 def valid_lines(
@@ -93,36 +116,47 @@ def valid_lines(
 ) -> tuple[np.ndarray, str]:
     """Boolean mask of the lines passing the force and coherence rules (module docstring), and a
     description of the rules applied. ``force_autospectrum`` is ``(..., frequency)``,
-    ``coherence`` ``(point, frequency)``; either may be None (rule not applied)."""
+    ``coherence`` ``(point, frequency)``; either may be None (rule not applied). Lines at 0 Hz
+    never pass and are no part of any window."""
     f = np.asarray(frequency, dtype=float)
     n = f.size
-    w = _window(n)
-    ok = f > 0
+    pos = np.flatnonzero(f > 0)
+    lo, hi = _windows(f[pos])
+    ok = np.zeros(n, bool)
+    ok_pos = np.ones(pos.size, bool)
     rules = []
     if force_autospectrum is not None:
-        g = np.asarray(force_autospectrum, dtype=float).reshape(-1, n)
-        above = np.flatnonzero(f > 0)
-        low = above[: max(1, int(round(LOW_FRACTION * above.size)))]
+        g = np.asarray(force_autospectrum, dtype=float).reshape(-1, n)[:, pos]
         for row in g:
-            level = np.median(row[low])
-            smooth = _running_median(row, w)
+            smooth = _running_median(row, lo, hi) if pos.size else row
+            level = np.max(smooth) if pos.size else 0.0
             with np.errstate(divide="ignore", invalid="ignore"):
-                ok &= (level > 0) & (smooth >= level * 10 ** (-FORCE_DROP_DB / 10))
+                ok_pos &= (level > 0) & (smooth >= level * 10 ** (-FORCE_DROP_DB / 10))
         rules.append(
-            f"force autospectrum (running median of {w} lines) within {FORCE_DROP_DB:g} dB of "
-            f"its low-frequency level (median of the lowest {LOW_FRACTION:.0%} of lines above "
-            "0 Hz)"
+            f"force autospectrum (running median over +-{RELATIVE_WINDOW / 2:.3g} of each "
+            f"line's frequency) within {FORCE_DROP_DB:g} dB of its maximum"
         )
     if coherence is not None:
-        coh = np.asarray(coherence, dtype=float).reshape(-1, n)
+        coh = np.asarray(coherence, dtype=float).reshape(-1, n)[:, pos]
         med = np.nanmedian(coh, axis=0) if coh.shape[0] > 1 else coh[0]
-        frac = _running_mean(np.nan_to_num(med) >= COHERENCE_MIN, w)
-        ok &= frac >= COHERENCE_FRACTION
+        frac = _running_mean(np.nan_to_num(med) >= COHERENCE_MIN, lo, hi)
+        ok_pos &= frac >= COHERENCE_FRACTION
         rules.append(
-            f"coherence >= {COHERENCE_MIN:g} on at least {COHERENCE_FRACTION:.0%} of the {w} "
-            "lines around each line"
+            f"coherence >= {COHERENCE_MIN:g} on at least {COHERENCE_FRACTION:.0%} of the lines "
+            f"within +-{RELATIVE_WINDOW / 2:.3g} of each line's frequency"
         )
+    ok[pos] = ok_pos
     return ok, " and ".join(rules)
+
+
+def longest_run(ok: np.ndarray) -> tuple[int, int] | None:
+    """First and last index of the longest run of True in ``ok`` (the lowest on a tie)."""
+    edges = np.diff(np.concatenate([[0], np.asarray(ok, dtype=np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    if starts.size == 0:
+        return None
+    k = int(np.argmax(ends - starts))
+    return int(starts[k]), int(ends[k]) - 1
 
 
 def _excitation_band(ds: xr.Dataset) -> Band | None:
@@ -137,8 +171,8 @@ def _excitation_band(ds: xr.Dataset) -> Band | None:
     if gff is None and coh is None:
         return None
     ok, rule = valid_lines(f, gff, coh)
-    lines = np.flatnonzero(ok)
-    if lines.size == 0:
+    run = longest_run(ok)
+    if run is None:
         return Band(
             float(f[0]),
             float(f[-1]),
@@ -146,9 +180,7 @@ def _excitation_band(ds: xr.Dataset) -> Band | None:
             "",
             f"no line passes the excitation rule ({rule}); whole band used",
         )
-    lo = int(lines[0])
-    fail = np.flatnonzero(~ok[lo:])
-    hi = lo + int(fail[0]) - 1 if fail.size else f.size - 1
+    lo, hi = run
     why = f"excitation valid: {rule}"
     return Band(float(f[lo]), float(f[hi]), RULE_EXCITATION, "", why)
 
