@@ -11,8 +11,6 @@ either: numba kernels compile on first call and are cached on disk.
 from __future__ import annotations
 
 import importlib
-import sys
-import types
 
 __version__ = "0.1.0"
 
@@ -51,19 +49,19 @@ _PUBLIC: dict[str, str] = {
     "convert_quantity": "ami_xr.dsp.quantity",
     "estimate_frf_noise": "ami_xr.dsp.noise_model",
     # campaigns, figures and reports
-    "batch": "ami_xr.batch",
-    "plot_bode": "ami_xr.plot",
-    "plot_nyquist": "ami_xr.plot",
-    "plot_subtraction": "ami_xr.plot",
-    "plot_mode_vectors": "ami_xr.plot",
-    "plot_mac": "ami_xr.plot",
-    "plot_modal_table": "ami_xr.plot",
-    "plot_stability": "ami_xr.plot_stability",
-    "plot_mode_shapes": "ami_xr.plot_geometry",
-    "animate_mode_shape": "ami_xr.plot_geometry",
-    "report": "ami_xr.report",
-    "modal_table": "ami_xr.report",
-    "format_modal_table": "ami_xr.report",
+    "batch": "ami_xr.app.batch",
+    "plot_bode": "ami_xr.plot.modal",
+    "plot_nyquist": "ami_xr.plot.modal",
+    "plot_subtraction": "ami_xr.plot.modal",
+    "plot_mode_vectors": "ami_xr.plot.modal",
+    "plot_mac": "ami_xr.plot.modal",
+    "plot_modal_table": "ami_xr.plot.modal",
+    "plot_stability": "ami_xr.plot.stability",
+    "plot_mode_shapes": "ami_xr.plot.geometry",
+    "animate_mode_shape": "ami_xr.plot.geometry",
+    "report": "ami_xr.app.report",
+    "modal_table": "ami_xr.tables",
+    "format_modal_table": "ami_xr.tables",
 }
 # Public submodules, also imported on first use.
 _SUBMODULES = ("names", "simulate")
@@ -84,23 +82,6 @@ def __getattr__(name: str):
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
-
-
-# ``ami_xr.batch`` and ``ami_xr.report`` are functions that share their module's name. The import
-# system binds a submodule to its package's attribute when it first loads it (``from
-# ami_xr.report import modal_table`` anywhere would make ``ami_xr.report`` the module); the
-# function keeps the name, as it did when this file imported everything eagerly.
-_FUNCTION_OVER_MODULE = frozenset(n for n, m in _PUBLIC.items() if m == f"{__name__}.{n}")
-
-
-class _Package(types.ModuleType):
-    def __setattr__(self, name: str, value) -> None:
-        if name in _FUNCTION_OVER_MODULE and isinstance(value, types.ModuleType):
-            return
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package
 
 
 def _register_accessor() -> None:

@@ -72,11 +72,11 @@ def _probe(report: bool) -> dict:
                 stack[-1] += total
 
     nd.Dispatcher.compile = timed
-    import ami_xr.demo
+    import ami_xr.app.demo
 
     with tempfile.TemporaryDirectory() as out:
         t0, cpu0 = time.perf_counter(), time.process_time()
-        ami_xr.demo.demo(out, report=report, progress=False)
+        ami_xr.app.demo.demo(out, report=report, progress=False)
         wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     rows = []
     for name, module in sorted(sys.modules.items()):

@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.repeat < 1:
         parser.error(f"--repeat must be >= 1, got {args.repeat}")
-    from ami_xr.report import FIGURES, MEASUREMENT_FIGURES, report
+    from ami_xr.app.report import FIGURES, MEASUREMENT_FIGURES, report
 
     ds = _demo_dataset()
     with tempfile.TemporaryDirectory() as tmp:

@@ -33,11 +33,11 @@ Every outcome is classified as
 
 CLI cases run as real processes: ``truncate``/``flip``/``dataset`` cases in a child forked from
 a worker that has already imported ``ami_xr`` (so a case costs the command's work, not the
-interpreter start-up; the child runs ``ami_xr.cli.main`` exactly as the console script does and
+interpreter start-up; the child runs ``ami_xr.app.cli.main`` exactly as the console script does and
 is killed at the timeout), ``signal``/``batch``/``concurrent`` cases as ``ami-xr`` subprocesses.
 Exits 1 when any case ends as "anything else" or any file was lost or left partial.
 
-Written against the public API (``ami_xr.cli.main``, ``ami_xr.open_dataset``,
+Written against the public API (``ami_xr.app.cli.main``, ``ami_xr.open_dataset``,
 ``ami_xr.read_uff``, ``ami_xr.validate``, ``ami_xr.identify``, ``ami_xr.write_uff``,
 ``ami_xr.make_frf_dataset``, ``ami_xr.make_time_dataset``). ``tests/test_faults.py`` runs a
 small seeded subset of the same generators.
@@ -96,7 +96,7 @@ NAMED_THINGS = (
     "--",
 )
 TEMP_GLOB = ".*.tmp"  # temporary folders of ami_xr's atomic writer (hidden, .tmp suffix)
-AMI_XR = [sys.executable, "-c", "import sys; from ami_xr.cli import main; sys.exit(main())"]
+AMI_XR = [sys.executable, "-c", "import sys; from ami_xr.app.cli import main; sys.exit(main())"]
 
 
 class Result(NamedTuple):
@@ -202,7 +202,7 @@ def commands_for(name: str) -> list[list[str]]:
 
 
 def _child_cli(argv: list[str]) -> int:
-    from ami_xr.cli import main
+    from ami_xr.app.cli import main
 
     try:
         return int(main(argv) or 0)
@@ -846,7 +846,7 @@ def _init_worker(work: str, inputs: dict[str, str]) -> None:
     """Import what the children need once, so each forked case skips the start-up."""
     import xarray  # noqa: F401
 
-    import ami_xr.cli  # noqa: F401
+    import ami_xr.app.cli  # noqa: F401
     import ami_xr.io.formats  # noqa: F401
     import ami_xr.io.lvm  # noqa: F401
     import ami_xr.io.netcdf  # noqa: F401

@@ -47,7 +47,7 @@ def _cases(kind: str, cases: list[tuple]) -> list:
 @pytest.fixture(scope="module")
 def work(tmp_path_factory) -> Path:
     # Imported once here so that each forked case does only the command's work.
-    import ami_xr.cli  # noqa: F401
+    import ami_xr.app.cli  # noqa: F401
 
     return tmp_path_factory.mktemp("faults")
 

@@ -123,7 +123,7 @@ def make_frf_dataset(
         Point coordinates (the measurement geometry): columns x, y[, z] (an (n_point,) array
         is x alone), or a dict ``{"x": ..., "y": ..., "z": ...}`` with any of the keys. Stored
         as the coordinates ``point_x``, ``point_y``, ``point_z`` on ``point``; used by
-        :func:`ami_xr.plot_geometry.plot_mode_shapes`.
+        :func:`ami_xr.plot.geometry.plot_mode_shapes`.
     coordinate_units : str
         Units of ``coordinates`` (default ``"m"``), their ``units`` attribute.
     references : array_like of int or str, optional

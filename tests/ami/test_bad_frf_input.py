@@ -114,7 +114,7 @@ def test_all_nan_point_is_named_too(frf_dataset):
 
 
 def test_cli_identify_of_nan_frf_is_one_line_exit_1(tmp_path, frf_dataset, capsys):
-    from ami_xr.cli import main
+    from ami_xr.app.cli import main
 
     path = tmp_path / "nan.nc"
     ami_xr.to_netcdf(_with_nan(frf_dataset, [(0, 5)]), path)
@@ -177,7 +177,7 @@ def test_write_uff_reports_every_problem_at_once(tmp_path, frf_dataset):
 
 def test_convert_of_nan_frf_to_uff_exits_1_and_writes_nothing(tmp_path, frf_dataset, capsys):
     pytest.importorskip("pyuff")
-    from ami_xr.cli import main
+    from ami_xr.app.cli import main
 
     src = tmp_path / "nan.nc"
     ami_xr.to_netcdf(_with_nan(frf_dataset, [(2, 7)]), src)

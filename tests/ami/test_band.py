@@ -10,7 +10,7 @@ import pytest
 
 import ami_xr
 from ami_xr import names
-from ami_xr.cli import main
+from ami_xr.app.cli import main
 from ami_xr.dsp import band as bd
 from ami_xr.errors import AmiXrValueError, AssumptionWarning
 

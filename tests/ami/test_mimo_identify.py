@@ -15,7 +15,7 @@ from ami_xr.core import mimo as cm
 from ami_xr.core.modal import mac_matrix
 from ami_xr.errors import AssumptionWarning
 from ami_xr.io.datasets import select_reference
-from ami_xr.report import format_modal_table
+from ami_xr.tables import format_modal_table
 from ami_xr.simulate import modal
 
 POINTS = [1, 2, 3, 4, 5]

@@ -15,8 +15,8 @@ import pytest
 
 import ami_xr
 from ami_xr import names
-from ami_xr.batch import SUMMARY_NAME, batch, find_inputs
-from ami_xr.cli import EXIT_BATCH_FAILURES, EXIT_OK, main
+from ami_xr.app.batch import SUMMARY_NAME, batch, find_inputs
+from ami_xr.app.cli import EXIT_BATCH_FAILURES, EXIT_OK, main
 from ami_xr.errors import AmiXrValueError, DataFileError
 
 from ..reference import REPO, SUBPROCESS_ENV
@@ -165,7 +165,7 @@ def test_ctrl_c_leaves_no_partial_files_and_resumes(tmp_path, workers):
         [
             sys.executable,
             "-m",
-            "ami_xr.cli",
+            "ami_xr.app.cli",
             "batch",
             str(root),
             "-o",

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 import ami_xr
-from ami_xr.batch import SUMMARY_NAME, batch
+from ami_xr.app.batch import SUMMARY_NAME, batch
 
 pytestmark = pytest.mark.skipif(os.name != "posix", reason="POSIX signals and file names")
 
@@ -34,14 +34,14 @@ ENV = {
 HANG_SECONDS = 30
 N_FILES = 4
 
-# The child runs the console-script entry point (ami_xr.cli.run: its SIGTERM handling from the
+# The child runs the console-script entry point (ami_xr.app.cli.run: its SIGTERM handling from the
 # start) and says "ready" from inside main(), once the CLI's own signal handling is in place -
 # a signal before that would test the interpreter's start-up, not ami-xr.
 CHILD = """
 import sys
 import numpy as np, xarray as xr
 import ami_xr.ami
-import ami_xr.cli as cli
+import ami_xr.app.cli as cli
 
 
 def quick_identify(ds, **options):
@@ -198,7 +198,7 @@ def test_cli_batch_with_a_non_utf8_file_name_prints_the_table(tmp_path):
     root = _non_utf8_campaign(tmp_path)
     out = tmp_path / "out"
     proc = subprocess.run(
-        [sys.executable, "-m", "ami_xr.cli", "batch", str(root), "-o", str(out), "-q"],
+        [sys.executable, "-m", "ami_xr.app.cli", "batch", str(root), "-o", str(out), "-q"],
         capture_output=True,
         text=True,
         timeout=600,

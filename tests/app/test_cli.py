@@ -1,4 +1,4 @@
-"""The ami-xr command line (ami_xr.cli): help texts, exit codes, one-line errors, commands."""
+"""The ami-xr command line (ami_xr.app.cli): help texts, exit codes, one-line errors, commands."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import xarray as xr
 
 import ami_xr
 from ami_xr import names
-from ami_xr.cli import EXIT_ERROR, EXIT_OK, EXIT_USAGE, build_parser, main
+from ami_xr.app.cli import EXIT_ERROR, EXIT_OK, EXIT_USAGE, build_parser, main
 
 from ..reference import HAMMER_LVM, REPO, SUBPROCESS_ENV
 
@@ -21,7 +21,7 @@ COMMANDS = ("demo", "simulate", "frf", "identify", "report", "convert", "batch")
 
 def _run(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "ami_xr.cli", *args],
+        [sys.executable, "-m", "ami_xr.app.cli", *args],
         capture_output=True,
         text=True,
         timeout=timeout,
@@ -65,7 +65,7 @@ def test_help_compiles_nothing_and_imports_no_extras():
     code = (
         "import sys\n"
         "from numba.core.dispatcher import Dispatcher\n"
-        "from ami_xr.cli import main\n"
+        "from ami_xr.app.cli import main\n"
         "for cmd in ('identify', 'batch', 'demo'):\n"
         "    try:\n"
         "        main([cmd, '--help'])\n"
@@ -302,7 +302,7 @@ def test_building_the_parser_imports_no_library_module():
     # option defaults come from the functions' signatures, looked up only when shown
     code = (
         "import sys\n"
-        "from ami_xr.cli import build_parser\n"
+        "from ami_xr.app.cli import build_parser\n"
         "build_parser()\n"
         "mods = ('ami_xr.ami.identify', 'ami_xr.dsp.frf', 'ami_xr.simulate', 'ami_xr.demo')\n"
         "print('LOADED', [m for m in mods if m in sys.modules])\n"
@@ -338,7 +338,7 @@ def test_option_defaults_are_the_functions_defaults(command, dest, function, par
 
 
 def test_options_left_at_or_set_to_their_default_are_not_passed_on():
-    from ami_xr.cli_options import frf_options, identify_options
+    from ami_xr.app.options import frf_options, identify_options
 
     parser = build_parser()
     delta = str(_subparsers()["identify"].get_default("delta"))
@@ -376,7 +376,7 @@ def test_formats_choose_by_suffix_and_name_the_file(tmp_path):
 
 
 def test_demo_finds_the_sample_and_tables_the_paper(monkeypatch):
-    from ami_xr.demo import comparison_table, find_sample_frf
+    from ami_xr.app.demo import comparison_table, find_sample_frf
     from ami_xr.simulate.paper import AMI_EIGENVALUES, ANALYTICAL_EIGENVALUES
 
     monkeypatch.chdir(REPO)

@@ -11,7 +11,7 @@ import xarray as xr
 
 import ami_xr
 from ami_xr import names
-from ami_xr.cli import EXIT_OK, main
+from ami_xr.app.cli import EXIT_OK, main
 from ami_xr.dsp.frf import frf_from_options
 
 from ..io.test_lvm import _write

@@ -20,8 +20,10 @@ import pytest
 import xarray as xr
 
 import ami_xr
-from ami_xr import cli, cli_options, names
-from ami_xr.cli import (
+from ami_xr import names
+from ami_xr.app import cli
+from ami_xr.app import options as cli_options
+from ami_xr.app.cli import (
     EXIT_BATCH_FAILURES,
     EXIT_ERROR,
     EXIT_INTERRUPTED,
@@ -332,11 +334,11 @@ def test_exit_codes_are_defined_once_and_documented():
 
 
 def test_the_installed_entry_point_shows_no_traceback(files, frf_dataset):
-    """Through ``python -m ami_xr.cli``: the KeyError of issue 9 as one line, exit 1."""
+    """Through ``python -m ami_xr.app.cli``: the KeyError of issue 9 as one line, exit 1."""
     src = _write(frf_dataset.rename({names.POINT: "pt"}), files / "bad.nc")
     before = _snapshot(files)
     proc = subprocess.run(
-        [sys.executable, "-m", "ami_xr.cli", "convert", str(src), "-o", str(files / "bad.uff")],
+        [sys.executable, "-m", "ami_xr.app.cli", "convert", str(src), "-o", str(files / "bad.uff")],
         capture_output=True,
         text=True,
         timeout=300,

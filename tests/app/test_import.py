@@ -22,12 +22,18 @@ HEAVY = (
     "scipy.signal",
     "numba",
     "ami_xr.plot",
-    "ami_xr.report",
-    "ami_xr.batch",
+    "ami_xr.plot.modal",
+    "ami_xr.app",
+    "ami_xr.app.report",
+    "ami_xr.app.batch",
     "ami_xr.ami",
     "ami_xr.kernels",
-    "ami_xr.cli",
+    "ami_xr.app.cli",
 )
+
+
+# ``python -m ami_xr --help`` loads the command line itself, and nothing heavier.
+CLI_ITSELF = ("ami_xr.app", "ami_xr.app.cli")
 
 
 def _modules_after(code: str) -> set[str]:
@@ -104,12 +110,31 @@ def test_every_public_name_resolves_and_is_listed():
 
 @pytest.mark.parametrize("name", ["batch", "report"])
 def test_function_keeps_its_name_when_its_module_loads_first(name):
-    """``ami_xr.batch`` and ``ami_xr.report`` are the functions, whichever loads first."""
+    """``ami_xr.batch`` and ``ami_xr.report`` are the functions, whichever loads first: their
+    modules live in ``ami_xr.app``, so loading them binds nothing on the package itself."""
     code = (
-        f"import importlib, ami_xr\nimportlib.import_module('ami_xr.{name}')\n"
-        f"assert callable(ami_xr.{name}) and ami_xr.{name}.__name__ == {name!r}"
+        f"import importlib, types, ami_xr\nimportlib.import_module('ami_xr.app.{name}')\n"
+        f"assert callable(ami_xr.{name}) and ami_xr.{name}.__name__ == {name!r}\n"
+        "assert type(ami_xr) is types.ModuleType"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+@pytest.mark.parametrize(
+    "module",
+    [
+        "ami_xr.plot.modal",
+        "ami_xr.plot.measurement",
+        "ami_xr.plot.geometry",
+        "ami_xr.plot.stability",
+        "ami_xr.tables",
+    ],
+)
+def test_figures_and_tables_load_nothing_of_the_application_layer(module):
+    """Layers only downward: the figure modules and the modal table never load ``ami_xr.app``
+    (the report draws the figures, never the reverse) nor matplotlib on import."""
+    loaded = _modules_after(f"import {module}")
+    assert sorted(m for m in loaded if m.startswith("ami_xr.app") or m == "matplotlib") == []
 
 
 def test_python_dash_m_is_the_command_and_help_imports_no_heavy_module():
@@ -119,7 +144,7 @@ def test_python_dash_m_is_the_command_and_help_imports_no_heavy_module():
         "except SystemExit as stop:\n    assert stop.code == 0, stop.code\n"
     )
     loaded = _modules_after(code)
-    assert sorted(m for m in HEAVY if m in loaded and m != "ami_xr.cli") == []
+    assert sorted(m for m in HEAVY if m in loaded and m not in CLI_ITSELF) == []
     done = subprocess.run(
         [sys.executable, "-m", "ami_xr", "--help"], capture_output=True, text=True, check=True
     )

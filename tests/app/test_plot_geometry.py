@@ -1,4 +1,4 @@
-"""Mode shapes on the measurement geometry (ami_xr.plot_geometry) and their place in the report
+"""Mode shapes on the measurement geometry (ami_xr.plot.geometry) and their place in the report
 (issue 12 item 5): what is drawn (panels, titles, axis labels with units, deformed = coordinate
 + scale * shape), the animated GIF (frames, size) and the error without coordinates."""
 
@@ -14,8 +14,8 @@ import ami_xr
 from ami_xr import names
 from ami_xr.core.modal import phase_normalised
 from ami_xr.errors import AmiXrValueError
-from ami_xr.plot_geometry import animate_mode_shape, plot_mode_shapes
-from ami_xr.report import report
+from ami_xr.plot.geometry import animate_mode_shape, plot_mode_shapes
+from ami_xr.app.report import report
 
 pytest.importorskip("matplotlib")
 Image = pytest.importorskip("PIL.Image")

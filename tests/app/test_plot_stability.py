@@ -12,7 +12,7 @@ pytest.importorskip("matplotlib")
 
 import ami_xr  # noqa: E402
 from ami_xr import names  # noqa: E402
-from ami_xr.cli import EXIT_OK, main  # noqa: E402
+from ami_xr.app.cli import EXIT_OK, main  # noqa: E402
 from ami_xr.errors import AmiXrValueError  # noqa: E402
 from ami_xr.simulate import random_system  # noqa: E402
 

@@ -12,7 +12,7 @@ import xarray as xr
 import ami_xr
 from ami_xr import names
 from ami_xr import progress as pg
-from ami_xr.cli import EXIT_OK, main
+from ami_xr.app.cli import EXIT_OK, main
 from ami_xr.kernels import isolate as ki
 from ami_xr.kernels import subtract as ks
 

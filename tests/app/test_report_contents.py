@@ -17,8 +17,8 @@ import xarray as xr
 import ami_xr
 from ami_xr import names
 from ami_xr.ami import identify
+from ami_xr.app.report import report
 from ami_xr.errors import AmiXrValueError
-from ami_xr.report import report
 
 pytest.importorskip("matplotlib")
 
@@ -144,7 +144,7 @@ def test_measurement_figures_by_default_only_when_their_inputs_exist(
 
 
 def test_coherence_figure_labels_and_legend(hammer_result):
-    from ami_xr import plot_measurement
+    from ami_xr.plot import measurement as plot_measurement
 
     fig = plot_measurement.plot_coherence(hammer_result)
     (ax,) = fig.axes
@@ -154,7 +154,7 @@ def test_coherence_figure_labels_and_legend(hammer_result):
 
 
 def test_force_spectrum_figure_in_db_with_units(hammer_result):
-    from ami_xr import plot_measurement
+    from ami_xr.plot import measurement as plot_measurement
 
     fig = plot_measurement.plot_force_spectrum(hammer_result, frequency_range=(0, 500))
     (ax,) = fig.axes
@@ -167,7 +167,7 @@ def test_force_spectrum_figure_in_db_with_units(hammer_result):
 
 
 def test_hits_figure_marks_rejected_hits_with_reason(hammer_result):
-    from ami_xr import plot_measurement
+    from ami_xr.plot import measurement as plot_measurement
 
     fig = plot_measurement.plot_hits(hammer_result)
     (ax,) = fig.axes
@@ -250,7 +250,7 @@ def test_legend_on_every_panel_with_several_lines(hammer_result, simulated_resul
 
 
 def test_nyquist_fit_on_a_fine_grid_with_units(hammer_result):
-    from ami_xr.plot import FIT_OVERSAMPLING
+    from ami_xr.plot.modal import FIT_OVERSAMPLING
 
     fig = ami_xr.plot_nyquist(hammer_result)
     ax = fig.axes[0]

@@ -18,9 +18,9 @@ import xarray as xr
 import ami_xr
 from ami_xr import names
 from ami_xr.ami import identify
-from ami_xr.cli import EXIT_ERROR, EXIT_OK, EXIT_USAGE, main
+from ami_xr.app.cli import EXIT_ERROR, EXIT_OK, EXIT_USAGE, main
+from ami_xr.app.report import FIGURES, MEASUREMENT_FIGURES, report
 from ami_xr.errors import AmiXrValueError
-from ami_xr.report import FIGURES, MEASUREMENT_FIGURES, report
 
 from ..reference import REPO
 
@@ -59,7 +59,7 @@ def test_figures_option_draws_only_the_figures_asked_for(tmp_path, result_file, 
 
 
 def test_frequency_range_option_limits_the_bode_axes(tmp_path, result_file, monkeypatch):
-    from ami_xr import plot
+    from ami_xr.plot import modal as plot
 
     drawn = []
     real = plot.plot_bode
@@ -125,7 +125,7 @@ def test_help_lists_every_figure_report_accepts(capsys, tmp_path, monkeypatch):
         main(["report", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "--frequency-range FMIN FMAX" in text
-    from ami_xr.report import GEOMETRY_FIGURES
+    from ami_xr.app.report import GEOMETRY_FIGURES
 
     for stem in (*MEASUREMENT_FIGURES, *FIGURES, *GEOMETRY_FIGURES):
         assert stem in text
@@ -139,7 +139,7 @@ def test_building_the_parser_imports_no_report_module():
     import subprocess
 
     code = (
-        "import sys; from ami_xr.cli import build_parser; build_parser(); "
+        "import sys; from ami_xr.app.cli import build_parser; build_parser(); "
         "print('ami_xr.report' in sys.modules, 'xarray' in sys.modules)"
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -148,7 +148,7 @@ def test_building_the_parser_imports_no_report_module():
 
 # --- figures at the size shown, fixed layout, fast drawing ----------------------------------------
 def test_figures_are_drawn_no_wider_than_the_page_shows_them(tmp_path, result):
-    from ami_xr.plot_common import PAGE_WIDTH_PX
+    from ami_xr.plot.common import PAGE_WIDTH_PX
 
     many = result.isel({names.MODE: [0] * 8, names.MODE_2: [0] * 8})
     many = many.assign_coords({names.MODE: np.arange(1, 9), names.MODE_2: np.arange(1, 9)})
@@ -162,8 +162,9 @@ def test_figures_are_drawn_no_wider_than_the_page_shows_them(tmp_path, result):
 
 
 def test_figures_have_a_fixed_layout_drawn_once(result):
-    from ami_xr import plot, plot_measurement
-    from ami_xr.plot_common import png_bytes
+    from ami_xr.plot import measurement as plot_measurement
+    from ami_xr.plot import modal as plot
+    from ami_xr.plot.common import png_bytes
 
     n = result.sizes[names.POINT]
     with_x = result.assign_coords(point_x=(names.POINT, np.linspace(0, 1, n), {"units": "m"}))
@@ -183,7 +184,7 @@ def test_figures_have_a_fixed_layout_drawn_once(result):
 
 
 def test_log_magnitude_axes_have_no_minor_ticks(result):
-    from ami_xr import plot
+    from ami_xr.plot import modal as plot
 
     for fig in (plot.plot_bode(result), plot.plot_subtraction(result)):
         ax = fig.axes[0]
@@ -192,7 +193,7 @@ def test_log_magnitude_axes_have_no_minor_ticks(result):
 
 
 def test_gc_paused_restores_the_collector_state():
-    from ami_xr.plot_common import gc_paused
+    from ami_xr.plot.common import gc_paused
 
     assert gc.isenabled()
     with gc_paused():
@@ -211,8 +212,8 @@ def test_gc_paused_restores_the_collector_state():
 
 
 def test_saved_png_is_fast_to_encode_and_carries_no_software_tag(tmp_path, result):
-    from ami_xr import plot
-    from ami_xr.plot_common import PNG_OPTIONS, png_bytes
+    from ami_xr.plot import modal as plot
+    from ami_xr.plot.common import PNG_OPTIONS, png_bytes
 
     assert PNG_OPTIONS["pil_kwargs"]["compress_level"] == 1
     data = png_bytes(plot.plot_mac(result))

@@ -1,4 +1,4 @@
-"""Process-level signals of the ``ami-xr`` entry point (``ami_xr.cli.run``)."""
+"""Process-level signals of the ``ami-xr`` entry point (``ami_xr.app.cli.run``)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 # is replaced by a sleep, so the test does not depend on how fast identification runs.
 CHILD = """
 import sys, time
-import ami_xr.cli as cli
+import ami_xr.app.cli as cli
 cli.check_paths = lambda args: (print("busy", flush=True), time.sleep(60))
 sys.argv = ["ami-xr", "identify", "x.nc"]
 cli.run()
@@ -54,7 +54,7 @@ def test_a_signal_dropped_inside_a_destructor_prints_no_traceback():
     # and passes every other unraisable error on (the fault campaign found the traceback).
     from types import SimpleNamespace
 
-    from ami_xr.cli import _unraisable
+    from ami_xr.app.cli import _unraisable
 
     seen = []
     hook = _unraisable(seen.append)

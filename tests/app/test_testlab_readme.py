@@ -10,7 +10,7 @@ import shutil
 
 import pytest
 
-from ami_xr.cli import main
+from ami_xr.app.cli import main
 from tests.reference import REPO, SHARED_DATA
 
 HAMMER = SHARED_DATA / "impact_hammer.lvm"

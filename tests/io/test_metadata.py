@@ -23,7 +23,7 @@ def test_written_files_hold_file_names_not_machine_paths(tmp_path, frf_dataset):
     first = to_netcdf(frf_dataset, tmp_path / "p.nc", parameters={"input": str(tmp_path / "a")})
     back = open_dataset(first)
     assert back.attrs[names.ATTR_SOURCE_FILE] == str(first)  # in memory: where it was read
-    second = to_netcdf(back, tmp_path / "q.nc", function="ami_xr.cli.convert")
+    second = to_netcdf(back, tmp_path / "q.nc", function="ami_xr.app.cli.convert")
     for path in (first, second):
         _no_folder_in(path, tmp_path)
     again = open_dataset(second)

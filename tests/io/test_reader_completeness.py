@@ -138,7 +138,7 @@ def test_uff_cut_says_how_many_datasets_are_complete(tmp_path, uff_bytes):
 
 
 def test_uff_cut_through_the_cli_exits_1(tmp_path, uff_bytes, capsys):
-    from ami_xr.cli import main
+    from ami_xr.app.cli import main
 
     path = tmp_path / "half.uff"
     path.write_bytes(uff_bytes[: len(uff_bytes) // 2])

@@ -248,7 +248,7 @@ def test_measurement_maps_roving_hammer_by_reciprocity():
 
 @needs_data
 def test_measurement_converts_and_identifies_without_options(tmp_path):
-    from ami_xr.cli import main
+    from ami_xr.app.cli import main
 
     nc = tmp_path / "measurement.nc"
     assert main(["convert", str(MEASUREMENT), "-o", str(nc)]) == 0

@@ -45,7 +45,7 @@ def _result() -> xr.Dataset:
 
 
 def test_convert_of_a_uff_export_keeps_the_mode_shapes(tmp_path):
-    from ami_xr.cli import main
+    from ami_xr.app.cli import main
 
     result = _result()
     uff = write_uff(result, tmp_path / "result.uff")

@@ -49,7 +49,7 @@ value = f(3.0)
 print(json.dumps({{"value": value, "g": len(g.signatures), "f": len(f.signatures)}}))
 """
 
-CLI_SETUP = "from ami_xr.cli import _show_compile_notice; _show_compile_notice()"
+CLI_SETUP = "from ami_xr.app.cli import _show_compile_notice; _show_compile_notice()"
 
 
 def _run(tmp_path: Path, setup: str = "", cache: str = "cache") -> tuple[dict, str]:

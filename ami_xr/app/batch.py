@@ -291,7 +291,7 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
             )
             out.parent.mkdir(parents=True, exist_ok=True)
             if job["report"]:
-                from ami_xr.report import report
+                from ami_xr.app.report import report
 
                 # Report first: the netCDF output appearing marks the whole file as done.
                 report(result, out.with_name(out.name[: -len(OUTPUT_SUFFIX)] + ".report"))

@@ -34,7 +34,7 @@ from ami_xr import names
 from ami_xr.errors import AmiXrValueError
 from ami_xr.io.atomic import atomic_open
 from ami_xr.io.geometry import point_coordinates
-from ami_xr.plot_common import finish, natural_frequencies, new_figure
+from ami_xr.plot.common import finish, natural_frequencies, new_figure
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure

@@ -15,7 +15,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.plot_common import (
+from ami_xr.plot.common import (
     _label_levels,
     finish,
     labels_of_modes,

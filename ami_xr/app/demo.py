@@ -180,8 +180,8 @@ def demo(
     from ami_xr import names
     from ami_xr.io.formats import OUTPUT_FOLDER, OUTPUT_NETCDF, check_output
     from ami_xr.progress import on_terminal
-    from ami_xr.report import format_modal_table
     from ami_xr.simulate.paper import AMI_EIGENVALUES
+    from ami_xr.tables import format_modal_table
 
     options = dict(identify_options or {})
     # Every output is checked before the identification, which is the slow part.
@@ -215,7 +215,7 @@ def demo(
             # the report is the one optional part of the demo: say how to get it, do not fail
             _say("no report: it needs matplotlib (pip install 'ami_xr[plot]')")
         else:
-            from ami_xr.report import report as write_report
+            from ami_xr.app.report import report as write_report
 
             title = "ami_xr demo: paper benchmark"
             _say(f"wrote {write_report(result, outdir / 'report', title=title)}")

@@ -8,7 +8,7 @@ module imports no matplotlib, selects no backend and changes no global state, so
 scripts, servers, tests and notebooks alike (a notebook shows a returned Figure as usual).
 
 A figure whose inputs are missing raises :class:`ami_xr.errors.AmiXrValueError` naming the missing
-variable; :func:`ami_xr.report.report` turns that into a "not produced" note.
+variable; :func:`ami_xr.app.report.report` turns that into a "not produced" note.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.core.modal import mac_matrix
 from ami_xr.errors import AmiXrValueError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -33,10 +34,9 @@ __all__ = [
     "plot_mode_vectors",
     "plot_mac",
     "plot_modal_table",
-    "mac_matrix",
 ]
 
-from ami_xr.plot_common import (
+from ami_xr.plot.common import (
     MAX_WIDTH_IN,
     POINT_COORDS,
     finish,
@@ -50,6 +50,7 @@ from ami_xr.plot_common import (
     set_title,
     units_of,
 )
+from ami_xr.tables import modal_table
 
 MAX_HEIGHT_IN = 18.0  # tallest figure, inches (x DPI 110 = 1 980 px)
 MIN_PANEL_IN = 1.6  # narrowest Nyquist panel: beyond, the figure grows wider than the page
@@ -488,16 +489,6 @@ def plot_mode_vectors(
 
 
 # --- MAC ---------------------------------------------------------------------------------------
-def mac_matrix(vectors: np.ndarray) -> np.ndarray:
-    """Modal Assurance Criterion between the columns of ``vectors`` (points x modes), in [0, 1]."""
-    v = np.asarray(vectors, dtype=np.complex128)
-    num = np.abs(v.conj().T @ v) ** 2
-    norm = np.real(np.sum(v.conj() * v, axis=0))
-    den = np.outer(norm, norm)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(den > 0, num / den, np.nan)
-
-
 def plot_mac(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure:
     """The MAC matrix of the identified mode vectors, values printed in each cell.
 
@@ -579,8 +570,6 @@ def plot_modal_table(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -
     path : str or path-like, optional
         Save the figure there.
     """
-    from ami_xr.report import modal_table
-
     rows = modal_table(ds)
     header = ["mode", "f [Hz]", "w [rad/s]", "zeta [%]", "detected in", "flags"]
     cells = [

@@ -1,4 +1,4 @@
-"""Helpers shared by the figure modules (:mod:`ami_xr.plot`, :mod:`ami_xr.plot_measurement`):
+"""Helpers shared by the figure modules (:mod:`ami_xr.plot`, :mod:`ami_xr.plot.measurement`):
 a Figure on its own Agg canvas, atomic saving, input checks, point and band selection, mode
 marks. No matplotlib is imported until a figure is made.
 """

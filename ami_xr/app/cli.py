@@ -4,8 +4,8 @@ Each subcommand parses its options, calls one public function (heavy imports hap
 subcommand, so ``ami-xr --help`` is fast and compiles nothing), and maps errors to exit codes.
 One rule holds for every subcommand (:func:`main`):
 
-* Outputs are checked before any work (:func:`ami_xr.cli_options.check_paths`, table
-  :data:`ami_xr.cli_options.PATHS`): an output that is one of the inputs (also through a symlink
+* Outputs are checked before any work (:func:`ami_xr.app.options.check_paths`, table
+  :data:`ami_xr.app.options.PATHS`): an output that is one of the inputs (also through a symlink
   or a hard link) or another output of the same run, whose suffix is not that of the format
   written (``.nc`` for netCDF; ``.nc``, ``.uff`` or ``.unv`` where the suffix chooses), that
   exists and is read-only (mode 0444: refused, never replaced), a file where a folder goes, or a
@@ -24,7 +24,7 @@ One rule holds for every subcommand (:func:`main`):
   rolled back first).
 
 Option defaults are read from the signatures of the functions they feed, only when a help text
-shows them (:mod:`ami_xr.cli_options`, which also declares the options shared by several
+shows them (:mod:`ami_xr.app.options`, which also declares the options shared by several
 subcommands); options left at their default are not passed on, so the library applies its own.
 """
 
@@ -41,7 +41,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ami_xr.cli_options import (
+from ami_xr.app.options import (
     BENCHMARK,
     RANDOM_SYSTEM,
     Default,
@@ -124,7 +124,7 @@ def _wrote_frfs(g, path) -> str:
 
 # --- subcommands ---------------------------------------------------------------------------------
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from ami_xr.demo import demo
+    from ami_xr.app.demo import demo
 
     demo(
         value(args.output),
@@ -222,7 +222,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from ami_xr import names
     from ami_xr.io.formats import LVM_SUFFIX, read_any, write_any
     from ami_xr.progress import on_terminal
-    from ami_xr.report import format_modal_table
+    from ami_xr.tables import format_modal_table
 
     if Path(args.input).suffix.lower() == LVM_SUFFIX:  # always time histories: say so unread
         raise AmiXrValueError(_frf_first(args.input))
@@ -245,8 +245,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    from ami_xr.app.report import report
     from ami_xr.io.formats import read_any
-    from ami_xr.report import report
 
     index = report(
         read_any(args.input),
@@ -268,7 +268,7 @@ def _cmd_convert(args: argparse.Namespace) -> int:
         ds,
         args.output,
         binary=args.binary,
-        function="ami_xr.cli.convert",
+        function="ami_xr.app.cli.convert",
         parameters={"input": str(src)},
     )
     _say(f"converted {src} -> {out}")
@@ -276,7 +276,7 @@ def _cmd_convert(args: argparse.Namespace) -> int:
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:
-    from ami_xr.batch import batch
+    from ami_xr.app.batch import batch
 
     summary = batch(
         args.input,
@@ -308,7 +308,7 @@ def _add_demo(add) -> None:
         "simulator's exact values, and write modes.nc and a report/ folder.",
     )
     _add_output(
-        p, "output folder", required=False, default=Default("ami_xr.demo:demo", "output_dir")
+        p, "output folder", required=False, default=Default("ami_xr.app.demo:demo", "output_dir")
     )
     p.add_argument(
         "--simulate",
@@ -506,7 +506,7 @@ def _add_batch(add) -> None:
     p.add_argument(
         "--workers",
         type=int,
-        default=Default("ami_xr.batch:batch", "workers"),
+        default=Default("ami_xr.app.batch:batch", "workers"),
         help="files processed in parallel (processes)",
     )
     p.add_argument(

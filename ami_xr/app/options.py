@@ -354,7 +354,7 @@ class ReportFigures:
 
     @cached_property
     def names(self) -> tuple[str, ...]:
-        from ami_xr.report import FIGURES, GEOMETRY_FIGURES, MEASUREMENT_FIGURES
+        from ami_xr.app.report import FIGURES, GEOMETRY_FIGURES, MEASUREMENT_FIGURES
 
         return (*MEASUREMENT_FIGURES, *FIGURES, *GEOMETRY_FIGURES)
 

@@ -1,0 +1,220 @@
+"""The modal table of an identification result: rows, aligned text and CSV rows.
+
+Needs no matplotlib: the CLI prints the table, :mod:`ami_xr.app.report` writes it into the
+report and :func:`ami_xr.plot.modal.plot_modal_table` draws it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.errors import AmiXrValueError
+
+__all__ = [
+    "modal_table",
+    "modal_table_csv_rows",
+    "format_modal_table",
+    "STD_COLUMNS",
+    "INDICATOR_COLUMNS",
+]
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, bytes):
+        value = value.decode()
+    text = str(value)
+    return "" if text in ("nan", "None") else text
+
+
+def modal_table(ds: xr.Dataset) -> list[dict[str, Any]]:
+    """One row per identified mode.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Identification result with ``eigenvalue`` (rad/s) or ``natural_frequency`` (Hz) and
+        ``damping_ratio``; ``detected`` (point, mode) and ``quality_flags`` (mode) are used when
+        present.
+
+    Returns
+    -------
+    list of dict
+        Keys ``mode``, ``frequency_hz``, ``frequency_rad_s``, ``damping_percent``,
+        ``eigenvalue`` (complex rad/s or nan), ``detected_in`` (point labels joined by spaces, or
+        "-" when unknown) and ``flags`` ("" when none).
+    """
+    if names.EIGENVALUE in ds:
+        lam = np.atleast_1d(np.asarray(ds[names.EIGENVALUE].values, dtype=np.complex128))
+        wn = np.abs(lam)
+        fn = wn / (2 * np.pi)
+        zeta = np.where(wn > 0, -lam.real / np.where(wn > 0, wn, 1), np.nan)
+    elif names.NATURAL_FREQUENCY in ds:
+        fn = np.atleast_1d(np.asarray(ds[names.NATURAL_FREQUENCY].values, dtype=float))
+        wn = 2 * np.pi * fn
+        lam = np.full(fn.size, np.nan + 0j)
+        zeta = np.full(fn.size, np.nan)
+    else:
+        raise AmiXrValueError(
+            f"modal_table: the Dataset has no {names.EIGENVALUE!r} or {names.NATURAL_FREQUENCY!r} "
+            "(run ami_xr.identify first)"
+        )
+    if names.DAMPING_RATIO in ds:
+        zeta = np.atleast_1d(np.asarray(ds[names.DAMPING_RATIO].values, dtype=float))
+    modes = (
+        list(ds[names.MODE].values.tolist())
+        if names.MODE in ds.coords
+        else list(range(1, fn.size + 1))
+    )
+    detected: list[str] = ["-"] * fn.size
+    if names.DETECTED in ds and names.POINT in ds[names.DETECTED].dims:
+        det = ds[names.DETECTED].transpose(names.POINT, names.MODE).values.astype(bool)
+        pts = [str(p) for p in ds[names.POINT].values.tolist()]
+        detected = [
+            " ".join(p for p, d in zip(pts, det[:, k], strict=True) if d) or "none"
+            for k in range(fn.size)
+        ]
+    flags = (
+        [_text(f) for f in np.atleast_1d(ds[names.QUALITY_FLAGS].values)]
+        if names.QUALITY_FLAGS in ds
+        else [""] * fn.size
+    )
+    stds = _std_columns(ds, fn.size)
+    return [
+        {
+            "mode": modes[k],
+            "frequency_hz": float(fn[k]),
+            "frequency_rad_s": float(wn[k]),
+            "damping_percent": float(100 * zeta[k]),
+            "eigenvalue": complex(lam[k]),
+            **{key: float(values[k]) for key, values in stds.items()},
+            "detected_in": detected[k],
+            "flags": flags[k],
+        }
+        for k in range(fn.size)
+    ]
+
+
+#: Standard deviations the table shows when the Dataset has them: row key -> (variable, part,
+#: header text). ``part`` picks the real or imaginary part of a complex std.
+STD_COLUMNS: dict[str, tuple[str, str, str]] = {
+    "frequency_hz_std": (names.NATURAL_FREQUENCY_STD, "real", "std f [Hz]"),
+    "damping_percent_std": (names.DAMPING_RATIO_STD, "percent", "std zeta [%]"),
+    "eigenvalue_real_std_rad_s": (names.EIGENVALUE_STD, "real", "std Re(lambda) [rad/s]"),
+    "eigenvalue_imag_std_rad_s": (names.EIGENVALUE_STD, "imag", "std Im(lambda) [rad/s]"),
+}
+
+
+#: Modal quality indicators the table shows when the Dataset has them: row key -> (variable,
+#: header text).
+INDICATOR_COLUMNS: dict[str, tuple[str, str]] = {
+    "mpc": (names.MPC, "MPC [-]"),
+    "mpd_deg": (names.MPD, "MPD [deg]"),
+    "complexity": (names.COMPLEXITY, "complexity [-]"),
+    "stability_fraction": (names.STABILITY_FRACTION, "stability [-]"),
+}
+
+
+def _std_columns(ds: xr.Dataset, n_mode: int) -> dict[str, np.ndarray]:
+    out: dict[str, np.ndarray] = {}
+    for key, (var, _) in INDICATOR_COLUMNS.items():
+        if var in ds and ds[var].size == n_mode:
+            out[key] = np.atleast_1d(np.asarray(ds[var].values, dtype=float))
+    for key, (var, part, _) in STD_COLUMNS.items():
+        if var not in ds:
+            continue
+        values = np.atleast_1d(np.asarray(ds[var].values))
+        if values.size != n_mode:
+            continue
+        if part == "imag":
+            out[key] = np.imag(values).astype(float)
+        elif part == "percent":
+            out[key] = 100 * np.real(values).astype(float)
+        else:
+            out[key] = np.real(values).astype(float)
+    return out
+
+
+def modal_table_csv_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The rows of ``modal_table.csv``: one column per real quantity, numbers as plain floats.
+
+    The complex eigenvalue becomes ``eigenvalue_real_rad_s`` and ``eigenvalue_imag_rad_s``
+    (a spreadsheet cannot read Python's ``(-0.44+30.6j)``); the damping is given as a ratio as
+    well as in percent; std columns follow their quantity; flags stay text.
+    """
+    out = []
+    for r in rows:
+        lam = r["eigenvalue"]
+        row: dict[str, Any] = {
+            "mode": r["mode"],
+            "frequency_hz": r["frequency_hz"],
+            "frequency_rad_s": r["frequency_rad_s"],
+            "damping_ratio": r["damping_percent"] / 100,
+            "damping_percent": r["damping_percent"],
+            "eigenvalue_real_rad_s": lam.real,
+            "eigenvalue_imag_rad_s": lam.imag,
+        }
+        row.update({key: r[key] for key in STD_COLUMNS if key in r})
+        row.update({key: r[key] for key in INDICATOR_COLUMNS if key in r})
+        row["detected_in"] = r["detected_in"]
+        row["flags"] = r["flags"]
+        out.append(row)
+    return out
+
+
+def _short_points(detected: str, n_points: int, max_points: int) -> str:
+    labels = detected.split() if detected not in ("-", "none") else []
+    if not labels or len(labels) <= max_points:
+        return detected
+    return f"all {n_points}" if len(labels) == n_points else f"{len(labels)} of {n_points}"
+
+
+def format_modal_table(
+    ds: xr.Dataset,
+    *,
+    extra: dict[str, list[str]] | None = None,
+    max_points: int = 6,
+) -> str:
+    """The modal table as aligned text, for terminals and logs.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Identification result (see :func:`modal_table`).
+    extra : dict of column name -> list of str, optional
+        Additional columns (one string per mode), e.g. reference values to compare with.
+    max_points : int
+        The "detected in" column lists point labels up to this many, then says "all N" or
+        "k of N" (:func:`modal_table` and the report always list them all).
+    """
+    rows = modal_table(ds)
+    header = ["mode", "f [Hz]", "w [rad/s]", "zeta [%]"]
+    body = [
+        [
+            str(r["mode"]),
+            f"{r['frequency_hz']:.5f}",
+            f"{r['frequency_rad_s']:.4f}",
+            f"{r['damping_percent']:.3f}",
+        ]
+        for r in rows
+    ]
+    for name, values in (extra or {}).items():
+        header.append(name)
+        for row, v in zip(body, list(values) + [""] * len(body), strict=False):
+            row.append(v)
+    header += ["detected in", "flags"]
+    n_points = ds.sizes.get(names.POINT, 0)
+    for row, r in zip(body, rows, strict=True):
+        row += [_short_points(r["detected_in"], n_points, max_points), r["flags"] or "-"]
+    if not body:
+        return "no modes identified"
+    widths = [max(len(h), *(len(row[i]) for row in body)) for i, h in enumerate(header)]
+    lines = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)).rstrip()]
+    lines.append("  ".join("-" * w for w in widths))
+    lines += [
+        "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in body
+    ]
+    return "\n".join(lines)
