@@ -3,9 +3,12 @@
 :func:`annotate` runs on every Dataset :func:`ami_xr.io.netcdf.to_netcdf` writes. It only adds
 what is missing (attributes a function set are kept) and never changes a value:
 
-* the global attribute ``Conventions = "CF-1.10"`` (the CF version whose rules the files follow:
-  ``units`` in UDUNITS spelling, ``long_name``, ``history``, ``flag_masks``/``flag_meanings``;
-  nothing of CF 1.11 is used);
+* the global attribute ``Conventions = "CF-1.11"`` (the CF version whose rules the files follow:
+  ``units`` in UDUNITS spelling, ``long_name``, ``history``, ``flag_masks``/``flag_meanings``,
+  label variables), and the recommended global attributes that fit: ``title`` (what the file
+  holds and the file it came from, :func:`title`), ``source`` (ami_xr and its version) and, for
+  AMI results, ``references`` (:data:`REFERENCES`). ``institution`` and ``comment`` are left to
+  the user (annotate cannot know them);
 * ``long_name`` on every variable and coordinate (from :data:`LONG_NAMES`, else built from the
   name: ``ami_`` values are "AMI estimate before refinement: ...", ``*_std`` "standard
   deviation of ...", others the name in words);
@@ -21,10 +24,20 @@ what is missing (attributes a function set are kept) and never changes a value:
 
 * the CF global attribute ``history``: one line per ``ami_xr_history`` record (UTC time,
   function, ami_xr version; :func:`ami_xr.provenance.cf_history`), after any ``history`` text
-  the Dataset already had (from another tool).
+  the Dataset already had (from another tool);
+* mode vectors scaled at the drive point have units ``sqrt(<FRF units>)`` (eq. 8,
+  ``Phi_P = sqrt(A_P / lam)``; for accelerance in m/s^2/N that is kg^-1/2). UDUNITS has integer
+  powers only (it reads ``"m0.5"`` as ``0.25``, not as a square root), so no UDUNITS string
+  states them. On disk such a variable carries no ``units`` and instead ``units_of_square``
+  (:data:`ATTR_UNITS_OF_SQUARE`), the UDUNITS units of the square (of ``Phi_j Phi_k``), e.g.
+  ``"m/s^2/N"``; in memory ``units`` stays ``"sqrt(m/s^2/N)"``;
+* a dimension coordinate that CF does not allow as a coordinate variable (CF 1.3: numeric and
+  strictly monotonic), such as string point labels, ``residual_term`` or unsorted integer
+  labels, is stored as the CF label (auxiliary coordinate) variable ``<dim>_label`` along the
+  dim (:data:`LABEL_SUFFIX`; plain xarray: ``raw.set_xindex("point_label")`` selects by it).
 
 These are an on-disk encoding, like the complex pairs: the global attribute ``ami_xr_cf_added``
-(JSON) lists what :func:`annotate` added, and :func:`strip` (run by
+(JSON) lists what :func:`annotate` added, moved or renamed, and :func:`strip` (run by
 :func:`ami_xr.open_dataset`) removes exactly that, so a file read back is identical to the
 Dataset written and nothing accumulates over read/write cycles. Plain xarray, netCDF4, ncdump
 and CF tools see the metadata.
@@ -33,6 +46,7 @@ and CF tools see the metadata.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import xarray as xr
@@ -43,6 +57,10 @@ from ami_xr.provenance import cf_history
 __all__ = [
     "CONVENTIONS",
     "ATTR_CONVENTIONS",
+    "ATTR_UNITS_OF_SQUARE",
+    "LABEL_SUFFIX",
+    "REFERENCES",
+    "title",
     "QUALITY_FLAG_MASK",
     "FLAG_MEANINGS",
     "LONG_NAMES",
@@ -58,7 +76,17 @@ __all__ = [
 ATTR_CONVENTIONS = "Conventions"
 ATTR_CF_HISTORY = "history"
 ATTR_CF_ADDED = "ami_xr_cf_added"  # JSON: what annotate added (strip removes it on reading)
-CONVENTIONS = "CF-1.10"
+CONVENTIONS = "CF-1.11"
+ATTR_TITLE = "title"
+ATTR_SOURCE = "source"  # CF: method of production (here ami_xr and its version)
+ATTR_REFERENCES = "references"
+REFERENCES = (
+    "J. H. Ginsberg and M. S. Allen, Recent improvements of the Algorithm of Mode Isolation"
+)
+# on disk instead of units "sqrt(X)" (UDUNITS has no fractional powers): X, the units of the square
+ATTR_UNITS_OF_SQUARE = "units_of_square"
+_SQRT_UNITS = re.compile(r"^sqrt\((.+)\)$")
+LABEL_SUFFIX = "_label"  # a dim coordinate CF cannot hold is stored as <dim>_label
 QUALITY_FLAG_MASK = "quality_flag_mask"  # int32 bit field of quality_flags (CF flag_masks)
 ATTR_FLAG_MASKS = "flag_masks"
 ATTR_FLAG_MEANINGS = "flag_meanings"
@@ -225,8 +253,60 @@ def _residual_units(ds: xr.Dataset) -> dict:
     }
 
 
+def title(ds: xr.Dataset) -> str:
+    """A CF ``title`` for ``ds``: what it holds (modal parameters, FRFs, time histories) and the
+    file it came from (``source_file``, a file name) when known."""
+    variables = ds.variables
+    if names.EIGENVALUE in variables:
+        what = "Modal parameters"
+        if names.ATTR_AMI_PHASE in ds.attrs:
+            what += " identified by the Algorithm of Mode Isolation"
+    elif names.FRF in variables:
+        what = "Frequency response functions"
+    elif names.RESPONSE in variables or names.FORCE in variables:
+        what = "Force and response time histories"
+    else:
+        what = "ami_xr data"
+    source = ds.attrs.get(names.ATTR_SOURCE_FILE)
+    return f"{what} (from {source})" if source else what
+
+
+def _cf_coordinate(var: xr.Variable) -> bool:
+    """Whether ``var`` (1-D, named like its dim) is a CF coordinate variable: numeric, strictly
+    monotonic (CF 1.3)."""
+    if var.dtype.kind not in "iuf":
+        return False
+    values = np.asarray(var.values)
+    if values.size < 2:
+        return True
+    step = np.diff(values.astype(np.float64) if values.dtype.kind == "f" else values)
+    return bool(np.all(step > 0) or np.all(step < 0))
+
+
+def _labels_to_aux(out: xr.Dataset, added: dict) -> xr.Dataset:
+    """Dim coordinates CF cannot hold -> label variables ``<dim>_label`` (see the docstring)."""
+    renamed = {}
+    for dim in list(out.dims):
+        if dim not in out.coords or out[dim].ndim != 1:
+            continue
+        var = out.variables[dim]
+        label = f"{dim}{LABEL_SUFFIX}"
+        # complex (rejected by the netCDF encoder) and datetimes (xarray encodes them) stay
+        if var.dtype.kind in "cmM" or _cf_coordinate(var) or label in out.variables:
+            continue
+        out = out.drop_vars(dim).assign_coords(
+            {label: xr.Variable((dim,), var.values, dict(var.attrs), dict(var.encoding))}
+        )
+        renamed[label] = str(dim)
+    if renamed:
+        added["labels"] = renamed
+    return out
+
+
 def annotate(ds: xr.Dataset) -> xr.Dataset:
     """``ds`` with CF metadata added where missing (see the module docstring); a shallow copy."""
+    from ami_xr import __version__
+
     out = ds.copy()
     out.attrs = {k: v for k, v in ds.attrs.items() if k != ATTR_CF_ADDED}
     added: dict = {"variables": [], "attrs": {}, "global": {}}
@@ -242,6 +322,7 @@ def annotate(ds: xr.Dataset) -> xr.Dataset:
                 ATTR_FLAG_MEANINGS: " ".join(FLAG_MEANINGS),
             },
         )
+    moved = {}
     for name in list(out.variables):
         var = out.variables[name]
         attrs = dict(var.attrs)
@@ -256,12 +337,28 @@ def annotate(ds: xr.Dataset) -> xr.Dataset:
         new = {k: v for k, v in new.items() if k not in attrs}
         if new and name not in added["variables"]:
             added["attrs"][str(name)] = sorted(new)
-        var.attrs = {**attrs, **new}
+        attrs = {**attrs, **new}
+        root = _SQRT_UNITS.match(str(attrs.get(names.ATTR_UNITS, "")))
+        if root and ATTR_UNITS_OF_SQUARE not in attrs:
+            # mode vectors: UDUNITS has no square roots, state the units of the square
+            moved[str(name)] = attrs.pop(names.ATTR_UNITS)
+            attrs[ATTR_UNITS_OF_SQUARE] = root.group(1)
+        var.attrs = attrs
+    if moved:
+        added["units_of_square"] = moved
+    out = _labels_to_aux(out, added)
     previous = out.attrs.get(ATTR_CONVENTIONS)
     conventions = str(previous or "").replace(",", " ").split()
     kept = [c for c in conventions if not c.startswith("CF-")]
     out.attrs[ATTR_CONVENTIONS] = " ".join([CONVENTIONS, *kept])
     added["global"][ATTR_CONVENTIONS] = previous
+    recommended = {ATTR_TITLE: title(ds), ATTR_SOURCE: f"ami_xr {__version__}"}
+    if names.ATTR_AMI_PHASE in ds.attrs:
+        recommended[ATTR_REFERENCES] = REFERENCES
+    for key, value in recommended.items():
+        if not out.attrs.get(key):  # CF: a non-empty string; the user's own is kept
+            added["global"][key] = out.attrs.get(key)
+            out.attrs[key] = value
     lines = cf_history(ds)
     if lines:
         previous = out.attrs.get(ATTR_CF_HISTORY)
@@ -281,6 +378,16 @@ def strip(ds: xr.Dataset) -> xr.Dataset:
         added = json.loads(raw)
         variables = [v for v in added["variables"] if v in ds.variables]
         out = ds.drop_vars(variables).copy()  # new Variable objects: ds keeps its attrs
+        for label, dim in added.get("labels", {}).items():
+            if label in out.variables and dim not in out.variables:
+                var = out.variables[label]
+                restored = xr.Variable((dim,), var.values, dict(var.attrs), dict(var.encoding))
+                out = out.drop_vars(label).assign_coords({dim: restored})
+        for name, units in added.get("units_of_square", {}).items():
+            if name in out.variables:
+                var = out.variables[name]
+                attrs = {k: v for k, v in var.attrs.items() if k != ATTR_UNITS_OF_SQUARE}
+                var.attrs = {**attrs, names.ATTR_UNITS: units}
         for name, keys in added["attrs"].items():
             if name in out.variables:
                 var = out.variables[name]

@@ -19,9 +19,12 @@ On-disk conventions (readable without ami_xr, see the README's "netCDF files" se
   array stored as a scalar).
 * Float variables are written without ``_FillValue`` so every bit pattern (NaN payloads, -0.0)
   comes back unchanged.
-* CF metadata (:mod:`ami_xr.io.cf`): ``Conventions = "CF-1.10"``, a CF ``history`` line per
-  step, ``long_name`` on every variable, ``units`` on every numeric one, and the quality flags
-  also as a CF bit field ``quality_flag_mask`` (``flag_masks``/``flag_meanings``).
+* CF metadata (:mod:`ami_xr.io.cf`): ``Conventions = "CF-1.11"``, ``title``, ``source``, a CF
+  ``history`` line per step, ``long_name`` on every variable, ``units`` (UDUNITS) on every
+  numeric one (mode vectors in ``sqrt(X)``: ``units_of_square = X`` instead), string or
+  unsorted dim coordinates as label variables ``<dim>_label``, and the quality flags also as a
+  CF bit field ``quality_flag_mask`` (``flag_masks``/``flag_meanings``). The IOOS compliance
+  checker (``cf:1.11``) finds no issue in these files (``tests/io/test_cf_compliance.py``).
 * No machine path: ``source_file`` and the history records hold file names only. In memory,
   :func:`open_dataset` sets ``source_file`` to the absolute path read.
 """

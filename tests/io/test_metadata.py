@@ -100,7 +100,10 @@ def test_written_files_carry_cf_metadata(tmp_path, identified):
     path = to_netcdf(identified[0], tmp_path / "m.nc", function="ami_xr.identify")
     frf_units = identified[0][names.FRF].attrs["units"]
     with xr.open_dataset(path, engine="netcdf4") as raw:
-        assert raw.attrs["Conventions"] == "CF-1.10"
+        assert raw.attrs["Conventions"] == "CF-1.11"
+        assert raw.attrs["title"].startswith("Modal parameters identified by the Algorithm")
+        assert raw.attrs["source"] == f"ami_xr {ami_xr.__version__}"
+        assert "Mode Isolation" in raw.attrs["references"]
         lines = raw.attrs["history"].splitlines()
         assert len(lines) == len(json.loads(raw.attrs[names.ATTR_HISTORY]))
         assert lines[-1].endswith(f"ami_xr.identify (ami_xr {ami_xr.__version__})")
@@ -111,8 +114,12 @@ def test_written_files_carry_cf_metadata(tmp_path, identified):
             if name == names.RESIDUAL_COEFFICIENT:  # two units along residual_term
                 assert var.attrs["units_lower"] == f"{frf_units} (rad/s)^2"
                 assert var.attrs["units_upper"] == frf_units
+            elif name in (names.MODE_VECTOR, names.MODE_VECTOR_STD):  # sqrt(FRF units)
+                assert "units" not in var.attrs and var.attrs["units_of_square"] == frf_units
             elif numeric and "flag_masks" not in var.attrs:
                 assert var.attrs.get("units"), f"{name} has no units"
+        # string point labels: a CF label variable, not a coordinate variable
+        assert names.POINT not in raw.variables and raw.point_label.dims == (names.POINT,)
         mask = raw[cf.QUALITY_FLAG_MASK]
         meanings = mask.attrs["flag_meanings"].split()
         assert list(mask.attrs["flag_masks"]) == [1 << k for k in range(len(meanings))]
@@ -128,7 +135,7 @@ def test_flag_mask_and_conventions_merge():
     assert cf.flag_mask(flags).tolist() == [0, 1 | 8, 0]
     ds = xr.Dataset({"v": ("x", [1.0])}, attrs={"Conventions": "CF-1.6, ACDD-1.3"})
     out = cf.annotate(ds)
-    assert out.attrs["Conventions"] == "CF-1.10 ACDD-1.3"
+    assert out.attrs["Conventions"] == "CF-1.11 ACDD-1.3"
     assert out.v.attrs == {"long_name": "v"} and ds.v.attrs == {}  # input untouched
 
 
@@ -156,6 +163,7 @@ def test_cf_metadata_is_an_on_disk_encoding(tmp_path, identified):
     for back in (first, second):
         assert cf.QUALITY_FLAG_MASK not in back and cf.ATTR_CF_ADDED not in back.attrs
         assert back.attrs["history"] == "made by hand" and "Conventions" not in back.attrs
+        assert not {"title", "source", "references"} & set(back.attrs)
         assert back[names.FREQUENCY].attrs["long_name"] == "my frequency"
         assert "long_name" not in back[names.POINT].attrs
         for name, var in ds.variables.items():
@@ -176,3 +184,60 @@ def test_complex_layout_reads_with_netcdf4_auto_complex(tmp_path, frf_dataset):
     np.testing.assert_array_equal(values, frf_dataset[names.FRF].values)
     with xr.open_dataset(path, engine="netcdf4", auto_complex=True) as raw:
         np.testing.assert_array_equal(raw[names.FRF].values, frf_dataset[names.FRF].values)
+
+
+def test_mode_vector_units_on_disk_are_the_units_of_the_square(tmp_path):
+    """UDUNITS has integer powers only ("m0.5" is read as 0.25): sqrt(X) units are stored as
+    units_of_square = X on disk and come back as units = sqrt(X)."""
+    from ami_xr.io import cf
+
+    ds = xr.Dataset(
+        {
+            names.MODE_VECTOR: ((names.POINT, names.MODE), np.ones((2, 1)), {"units": "sqrt(m/N)"}),
+            "kept": ("x", [1.0], {"units": "sqrt(m/N)", cf.ATTR_UNITS_OF_SQUARE: "own"}),
+        },
+        coords={names.POINT: ["a", "b"], names.MODE: [1]},
+    )
+    encoded = cf.annotate(ds)
+    attrs = encoded[names.MODE_VECTOR].attrs
+    assert "units" not in attrs and attrs[cf.ATTR_UNITS_OF_SQUARE] == "m/N"
+    assert encoded["kept"].attrs["units"] == "sqrt(m/N)"  # the user's own attribute wins
+    assert ds[names.MODE_VECTOR].attrs == {"units": "sqrt(m/N)"}  # input untouched
+    back = open_dataset(to_netcdf(ds, tmp_path / "u.nc"))
+    xr.testing.assert_identical(back.drop_attrs(deep=False), ds)
+    assert back[names.MODE_VECTOR].attrs == {"units": "sqrt(m/N)"}
+
+
+@pytest.mark.parametrize(
+    "labels",
+    [["b", "a", "c"], [3, 1, 2], [1.0, 1.0, 2.0], [True, False, True], ["only"], [1, 2, 3]],
+)
+def test_dim_coordinates_cf_cannot_hold_are_label_variables_on_disk(tmp_path, labels):
+    """CF 1.3: a coordinate variable is numeric and strictly monotonic. Others are stored as the
+    label variable <dim>_label and come back as the dim coordinate."""
+    from ami_xr.io import cf
+
+    ds = xr.Dataset(
+        {"v": ((names.POINT, "r"), np.arange(2.0 * len(labels)).reshape(-1, 2))},
+        coords={names.POINT: labels, "r": ["lower", "upper"]},
+    )
+    path = to_netcdf(ds, tmp_path / "l.nc")
+    numeric = np.asarray(labels).dtype.kind in "iuf"
+    cf_coordinate = bool(numeric and (len(labels) < 2 or np.all(np.diff(labels) > 0)))
+    with xr.open_dataset(path, engine="netcdf4") as raw:
+        assert ("point_label" in raw.variables) is not cf_coordinate
+        assert (names.POINT in raw.variables) is cf_coordinate
+        assert "r_label" in raw.variables and "r" not in raw.variables
+        assert "r_label" in raw.v.encoding["coordinates"].split()  # CF coordinates attribute
+    back = open_dataset(path)
+    xr.testing.assert_identical(back.drop_attrs(deep=False), ds)
+    assert set(back.indexes) == set(ds.indexes)
+    assert cf.LABEL_SUFFIX == "_label"
+
+
+def test_a_taken_label_name_keeps_the_coordinate():
+    from ami_xr.io import cf
+
+    ds = xr.Dataset(coords={names.POINT: ["a", "b"], "point_label": ("x", [1, 2])})
+    out = cf.annotate(ds)
+    assert out[names.POINT].values.tolist() == ["a", "b"]  # point_label taken: left alone
