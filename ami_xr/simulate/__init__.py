@@ -9,8 +9,10 @@
 * :mod:`~ami_xr.simulate.random` -- random lumped-mass chains and grids for tests.
 * :mod:`~ami_xr.simulate.symmetric` -- a grounded ring of equal masses with repeated pairs of
   modes, one pair split by a chosen relative amount (multi-reference benchmarks).
-* :mod:`~ami_xr.simulate.catalogue` -- the fixed benchmark catalogue of random systems and the
-  scoring of identified modes against the truth.
+* :mod:`~ami_xr.simulate.cluster` -- systems with clusters of three or four modes at a chosen
+  modal overlap, non-proportionally damped (issue 20 benchmarks).
+* :mod:`~ami_xr.simulate.catalogue` -- the fixed benchmark catalogues (random systems, overlap
+  cases) and the scoring of identified modes against the truth.
 """
 
 from ami_xr.simulate.beam import (
@@ -26,7 +28,8 @@ from ami_xr.simulate.beam import (
     frf_from_impulse,
     paper_tables,
 )
-from ami_xr.simulate.catalogue import catalogue, score_modes
+from ami_xr.simulate.catalogue import catalogue, cluster_catalogue, score_modes
+from ami_xr.simulate.cluster import clustered_system, overlap_factor
 from ami_xr.simulate.modal import (
     frf,
     impulse_response,
@@ -44,6 +47,8 @@ __all__ = [
     "add_noise",
     "beam_absorbers",
     "catalogue",
+    "cluster_catalogue",
+    "clustered_system",
     "contrast",
     "benchmark",
     "benchmark_model",
@@ -51,6 +56,7 @@ __all__ = [
     "frf_from_impulse",
     "impulse_response",
     "modal_model",
+    "overlap_factor",
     "mode_peaks",
     "paper_tables",
     "random_system",

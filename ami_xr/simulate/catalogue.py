@@ -4,6 +4,10 @@
 (issue 10, item 7): random chains and grids from :func:`~ami_xr.simulate.random_system`, with
 and without a closely spaced pair and a weakly excited mode, at noise 0, 1, 5 and 15 %. Every
 block of 32 consecutive cases holds each of the 2 x 2 x 2 x 4 combinations once.
+:func:`cluster_catalogue` lists the overlap cases of issue 20 (item 5): systems of
+:func:`~ami_xr.simulate.clustered_system` with clusters of three and four modes at target
+overlap 0.15, 0.35, 0.7 and 1.4, analytic and FFT'd impulse-response FRFs, at the same noise
+levels; every block of 32 cases holds each of the 2 x 4 x 4 combinations once.
 
 :func:`score_modes` matches identified modes to the true ones (one-to-one, nearest first) and
 measures their errors, relative and over the Cramér-Rao bound. :func:`line_noise_std` and
@@ -12,7 +16,9 @@ measures their errors, relative and over the Cramér-Rao bound. :func:`line_nois
 * **Noise of one FRF line** ``sigma_j = sqrt(E |e_jn|^2)`` at point ``j``: for the analytic FRFs
   of ``random_system(noise=alpha)`` the real and the imaginary part get eq. 15 along frequency,
   so ``sigma_j^2 = c alpha^2 (max_n |Re H_jn|^2 + max_n |Im H_jn|^2)`` with the noise-free
-  ``H``, ``c = 1/3`` for uniform and ``c = 1`` for Gaussian ``r``.
+  ``H``, ``c = 1/3`` for uniform and ``c = 1`` for Gaussian ``r``. For FFT'd impulse responses
+  (``frf_source="impulse_response"``) eq. 15 is on the ``N`` samples of each response ``h_j``
+  and the FRF is ``dt * rfft``, so ``sigma_j = alpha max_n |h_jn| dt sqrt(c N)``.
 * **Peak SNR** of mode ``k`` at point ``j``: ``|A_jk| / |Re lam_k| / sigma_j`` -- the peak
   magnitude of the mode's own contribution ``A_jk / (i w - lam_k)`` (reached at
   ``w = Im lam_k``; see :func:`~ami_xr.simulate.mode_peaks`) over the noise of that FRF line.
@@ -32,7 +38,9 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError
+from ami_xr.simulate.cluster import clustered_system
 from ami_xr.simulate.modal import frf as model_frf
+from ami_xr.simulate.modal import impulse_response
 from ami_xr.simulate.noise import ATTR_NOISE_KIND, ATTR_NOISE_LEVEL
 from ami_xr.simulate.random import TOPOLOGIES, mode_peaks, random_system
 
@@ -43,6 +51,17 @@ COMBINATIONS = tuple(
     (topo, pair, weak, noise)
     for weak, pair, topo, noise in product((False, True), (False, True), TOPOLOGIES, NOISE_LEVELS)
 )
+#: Target overlap of the cluster cases, one in each overlap bin <0.25, 0.25-0.5, 0.5-1, 1-2.
+CLUSTER_OVERLAPS = (0.15, 0.35, 0.7, 1.4)
+#: Damping ratios of the cluster modes per target overlap: well separated modes with 8 %
+#: damping would span more than the band, so the low-overlap clusters are lighter.
+CLUSTER_DAMPING = {0.15: (0.005, 0.02), 0.35: (0.01, 0.04), 0.7: (0.02, 0.08), 1.4: (0.02, 0.08)}
+CLUSTER_SOURCES = (names.SOURCE_ANALYTIC, names.SOURCE_IMPULSE)
+#: Every combination (source, overlap, noise) of the cluster cases, noise varying fastest.
+CLUSTER_COMBINATIONS = tuple(
+    (src, ov, noise) for src, ov, noise in product(CLUSTER_SOURCES, CLUSTER_OVERLAPS, NOISE_LEVELS)
+)
+CLUSTER_LAYOUTS = ((3,), (4,), (3, 4))  # cluster sizes, drawn per case
 MIN_MODES, MAX_MODES = 6, 12  # degrees of freedom of a catalogue system (absorbers included)
 DEFAULT_SNR_DB = 6.0
 DEFAULT_TOLERANCE = 1.0  # match radius in units of |Re lam_true| (half the half-power bandwidth)
@@ -112,23 +131,93 @@ def catalogue(n_cases: int = 32, seed: int = 0) -> list[CatalogueCase]:
     return cases
 
 
+class ClusterCase(NamedTuple):
+    """One overlap case: the arguments of :func:`~ami_xr.simulate.clustered_system`."""
+
+    index: int
+    source: str
+    overlap: float
+    cluster_sizes: tuple[int, ...]
+    noise: float
+    n_points: int
+    n_modes: int
+    seed: int
+
+    @property
+    def name(self) -> str:
+        """A short label such as ``C05-imp-ov0.35-3+4-1%``."""
+        src = "imp" if self.source == names.SOURCE_IMPULSE else "ana"
+        sizes = "+".join(str(m) for m in self.cluster_sizes)
+        return f"C{self.index:02d}-{src}-ov{self.overlap:.2f}-{sizes}-{100 * self.noise:g}%"
+
+    def build(self, **kwargs: Any) -> tuple[xr.Dataset, xr.Dataset]:
+        """``clustered_system(...)`` of this case: ``(frf, truth)``; ``kwargs`` (for example
+        ``n_frequencies`` for analytic FRFs) are passed on."""
+        if self.source == names.SOURCE_IMPULSE:
+            kwargs.pop("n_frequencies", None)
+        return clustered_system(
+            self.n_points,
+            cluster_sizes=self.cluster_sizes,
+            overlap=self.overlap,
+            n_modes=self.n_modes,
+            cluster_damping=CLUSTER_DAMPING[self.overlap],
+            noise=self.noise,
+            seed=self.seed,
+            source=self.source,
+            **kwargs,
+        )
+
+
+def cluster_catalogue(n_cases: int = 32, seed: int = 0) -> list[ClusterCase]:
+    """The overlap cases: ``n_cases`` clustered systems, the same for the same ``seed``.
+
+    Case ``i`` has combination ``CLUSTER_COMBINATIONS[i % 32]`` (source analytic/impulse
+    response, target overlap 0.15/0.35/0.7/1.4, noise 0/1/5/15 %; noise varies fastest). Its
+    clusters (one of three, one of four, or both), number of modes (clusters + 2..5 isolated
+    ones), measured points (5..modes) and system seed come from
+    ``numpy.random.default_rng(seed)``.
+    """
+    n_cases = _check_int(n_cases, "n_cases", 1)
+    seed = _check_int(seed, "seed", 0)
+    rng = np.random.default_rng(seed)
+    cases = []
+    for i in range(n_cases):
+        src, ov, noise = CLUSTER_COMBINATIONS[i % len(CLUSTER_COMBINATIONS)]
+        sizes = CLUSTER_LAYOUTS[int(rng.integers(len(CLUSTER_LAYOUTS)))]
+        n_modes = sum(sizes) + int(rng.integers(2, 6))
+        n_points = int(rng.integers(5, n_modes + 1))
+        cases.append(
+            ClusterCase(i, src, ov, sizes, noise, n_points, n_modes, int(rng.integers(2**31)))
+        )
+    return cases
+
+
 def line_noise_std(frf: xr.Dataset, truth: xr.Dataset) -> xr.DataArray:
-    """``sigma_j = sqrt(E |e|^2)`` of one FRF line per point for an analytic FRF of
-    :func:`~ami_xr.simulate.random_system` (see the module docstring); zeros without noise."""
-    if frf.attrs.get(names.ATTR_SOURCE) != names.SOURCE_ANALYTIC:
+    """``sigma_j = sqrt(E |e|^2)`` of one FRF line per point for an FRF of
+    :func:`~ami_xr.simulate.random_system` or :func:`~ami_xr.simulate.clustered_system`,
+    analytic or FFT'd impulse responses (see the module docstring); zeros without noise."""
+    source = frf.attrs.get(names.ATTR_SOURCE)
+    if source not in (names.SOURCE_ANALYTIC, names.SOURCE_IMPULSE):
         raise AmiXrValueError(
-            f"frf: expected an analytic FRF of random_system (attribute {names.ATTR_SOURCE}="
-            f"{names.SOURCE_ANALYTIC!r}), got {frf.attrs.get(names.ATTR_SOURCE)!r}"
+            f"frf: expected a simulated FRF (attribute {names.ATTR_SOURCE}="
+            f"{names.SOURCE_ANALYTIC!r} or {names.SOURCE_IMPULSE!r}), got {source!r}"
         )
     points = frf[names.POINT].values
     alpha = float(frf.attrs.get(ATTR_NOISE_LEVEL, 0.0) or 0.0)
     if alpha == 0.0:
         return xr.DataArray(np.zeros(points.size), dims=[names.POINT], coords={names.POINT: points})
     kind = frf.attrs.get(ATTR_NOISE_KIND, "uniform")
-    clean = model_frf(truth, frf[names.FREQUENCY].values, truth.attrs[names.ATTR_DRIVE_POINT])
+    c = 1.0 / 3.0 if kind == "uniform" else 1.0
+    drive = truth.attrs[names.ATTR_DRIVE_POINT]
+    if source == names.SOURCE_IMPULSE:
+        dt, n = float(frf.attrs["sample_interval"]), int(frf.attrs["record_samples"])
+        h = impulse_response(truth, (n * dt, n), drive)[names.RESPONSE]
+        peak = np.abs(h.sel({names.POINT: points}).transpose(names.POINT, names.TIME).values)
+        std = alpha * peak.max(axis=1) * dt * np.sqrt(c * n)
+        return xr.DataArray(std, dims=[names.POINT], coords={names.POINT: points})
+    clean = model_frf(truth, frf[names.FREQUENCY].values, drive)
     h = clean[names.FRF].sel({names.POINT: points}).transpose(names.POINT, names.FREQUENCY).values
     var = np.abs(h.real).max(axis=1) ** 2 + np.abs(h.imag).max(axis=1) ** 2
-    c = 1.0 / 3.0 if kind == "uniform" else 1.0
     return xr.DataArray(alpha * np.sqrt(c * var), dims=[names.POINT], coords={names.POINT: points})
 
 
@@ -271,7 +360,10 @@ def score_modes(
 
 
 __all__: Sequence[str] = (
+    "CLUSTER_COMBINATIONS",
     "COMBINATIONS",
+    "ClusterCase",
+    "cluster_catalogue",
     "NOISE_LEVELS",
     "CatalogueCase",
     "ModeScore",

@@ -382,9 +382,47 @@ def random_system(
     )
 
     # ---- FRFs ----
+    out = system_frfs(
+        truth,
+        drive,
+        source=source,
+        frequency=frequency,
+        max_frequency_hz=fmax,
+        n_frequencies=n_frequencies,
+        duration=duration,
+        n_samples=n_samples,
+        noise=noise,
+        noise_kind=noise_kind,
+        noise_seed=noise_seed,
+    )
+    out = add_history(
+        out, "ami_xr.simulate.random_system", {"source": source, "noise": noise, "seed": seed}
+    )
+    return out, truth
+
+
+def system_frfs(
+    truth: xr.Dataset,
+    drive,
+    *,
+    source: str,
+    frequency: Any,
+    max_frequency_hz: float,
+    n_frequencies: int,
+    duration: float | None,
+    n_samples: int | None,
+    noise: float,
+    noise_kind: str,
+    noise_seed: int | None,
+) -> xr.Dataset:
+    """The FRFs of a truth Dataset as :func:`random_system` makes them (arguments checked by the
+    caller): analytic eq. 4 on ``frequency`` (default ``n_frequencies`` lines from 0 to
+    ``max_frequency_hz``) with eq. 15 on the real and imaginary parts, or ``dt * rfft`` of
+    impulse responses with eq. 15 on each channel (record: until the slowest mode decays by
+    e^-8, Nyquist at least ``1.25 max_frequency_hz``, a power of two samples)."""
     if source == names.SOURCE_ANALYTIC:
         f = (
-            np.linspace(0.0, fmax, n_frequencies)
+            np.linspace(0.0, max_frequency_hz, n_frequencies)
             if frequency is None
             else np.asarray(frequency, dtype=np.float64)
         )
@@ -394,7 +432,7 @@ def random_system(
         if duration is None:
             duration = float(np.ceil(8.0 / np.min(-lam.real)))
         if n_samples is None:
-            n_samples = int(2 ** np.ceil(np.log2(2 * 1.25 * fmax * duration)))
+            n_samples = int(2 ** np.ceil(np.log2(2 * 1.25 * max_frequency_hz * duration)))
         ts = impulse_response(truth, (duration, n_samples), drive)
         if noise:
             ts = add_noise(ts, noise, seed=noise_seed, kind=noise_kind)
@@ -404,10 +442,7 @@ def random_system(
         out.attrs[ATTR_NOISE_KIND] = noise_kind
         if noise_seed is not None:
             out.attrs[ATTR_NOISE_SEED] = noise_seed
-    out = add_history(
-        out, "ami_xr.simulate.random_system", {"source": source, "noise": noise, "seed": seed}
-    )
-    return out, truth
+    return out
 
 
 def contrast(truth: xr.Dataset, mode: int, point) -> float:
