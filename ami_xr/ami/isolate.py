@@ -10,67 +10,67 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import common as c
+from ami_xr.ami import subtract as sub_phase
 from ami_xr.ami.settings import IsolateSettings, SubtractSettings, from_attrs, parameters, to_attrs
 from ami_xr.core.matching import gather, match_modes, n_labels, weighted_average
 from ami_xr.core.model import resolve_model
 from ami_xr.errors import ConvergenceWarning, IdentificationError, NoModesWarning
 from ami_xr.kernels import isolate as ki
-from ami_xr.kernels import isolate_simo as kis
 from ami_xr.kernels import modal_basis as kb
 from ami_xr.kernels import noise as kn
-from ami_xr.progress import by_rows
 
 METHODS = (names.METHOD_SIMO, names.METHOD_PER_FRF)
 WEIGHTINGS = (names.WEIGHTING_SNR, names.WEIGHTING_MEAN)
 
 
-def _isolate_block(
-    g,
-    lam0,
-    res0,
-    n0,
-    sigma,
-    omega,
-    dt,
-    n_samples,
-    delta,
-    tol,
-    max_iter,
-    pfa,
-    min_points,
-    zeta_max,
-    merge_tol,
-    max_modes,
-):
-    shape = g.shape[:-1]
-    g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
-    n_c = lam0.shape[-1]
-    lam_in = np.full((g2.shape[0], max_modes), np.nan + 0j)
-    res_in = np.full((g2.shape[0], max_modes), np.nan + 0j)
-    m = min(n_c, max_modes)
-    lam_in[:, :m] = lam0.reshape(-1, n_c)[:, :m]
-    res_in[:, :m] = res0.reshape(-1, n_c)[:, :m]
-    args = (
-        g2,
-        omega,
-        dt,
-        n_samples,
-        lam_in,
-        res_in,
-        np.minimum(n0.reshape(-1).astype(np.int64), m),
-        sigma.reshape(-1).astype(np.float64),
-        ki.IsolateParams(
-            delta, tol, max_iter, pfa, min_points, zeta_max, merge_tol, max_modes, False
-        ),
+# Outputs of the per-FRF isolation: IsolateResult field -> (core dims, dtype). The apply_ufunc
+# call and the unpacking of its results both follow this table, so no output is matched by
+# position.
+_OUTPUTS = {
+    "lam": ([names.SLOT], np.complex128),
+    "res": ([names.SLOT], np.complex128),
+    "n_modes": ([], np.int64),
+    "iterations": ([], np.int64),
+    "converged": ([], np.bool_),
+}
+
+
+def kernel_params(sub: SubtractSettings, settings: IsolateSettings) -> ki.IsolateParams:
+    """The kernel's record of the subtraction's settings (read from the Dataset) and the
+    isolation's (checked) settings."""
+    return ki.IsolateParams(
+        delta=sub.delta,
+        tol=settings.tol,
+        max_iter=settings.max_iter,
+        pfa=sub.pfa,
+        min_points=sub.min_points,
+        zeta_max=sub.zeta_max,
+        merge_tol=sub.merge_tol,
+        max_modes=sub.max_modes,
+        reweight=settings.snr_weighting,
     )
-    # FRFs counted on a progress bar when one listens (blocks of FRFs; same results)
-    lam, res, n, it, conv = by_rows(ki.isolate_batch, args, rowwise=(0, 4, 5, 6, 7))
-    return (
-        lam.reshape(shape + (max_modes,)),
-        res.reshape(shape + (max_modes,)),
-        n.reshape(shape),
-        it.reshape(shape),
-        conv.reshape(shape),
+
+
+def _isolate_block(g, lam0, res0, n0, sigma, *, omega, dt, n_samples, params):
+    """Per-FRF isolation of FRFs ``g`` (..., F) from the subtraction's candidates ``lam0``,
+    ``res0`` (..., S), counts ``n0`` and noise floors ``sigma`` (...): the fields of
+    ``_OUTPUTS`` in its order."""
+    shape = g.shape[:-1]
+    n_c = lam0.shape[-1]
+    rows = (
+        np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128),
+        lam0.reshape(-1, n_c),
+        res0.reshape(-1, n_c),
+        n0.reshape(-1).astype(np.int64),
+        sigma.reshape(-1).astype(np.float64),
+    )
+
+    def kernel(g2, lam2, res2, n2, sigma2):
+        return ki.isolate_batch(g2, omega, dt, n_samples, lam2, res2, n2, sigma2, params)
+
+    out = sub_phase.by_pieces(kernel, rows)
+    return tuple(
+        getattr(out, name).reshape(shape + getattr(out, name).shape[1:]) for name in _OUTPUTS
     )
 
 
@@ -145,10 +145,6 @@ def _isolate_per_frf(ds, omega, data_model, sub, settings, sigma) -> _Isolated:
     """The paper's isolation: each FRF on its own (one apply_ufunc over points), then the
     estimates matched into modes and averaged (plain or ``snr^2``-weighted mean)."""
     dt, n_samples = data_model.dt, data_model.n_samples
-    delta, pfa, max_modes = sub.delta, sub.pfa, sub.max_modes
-    min_points, zeta_max, merge_tol = sub.min_points, sub.zeta_max, sub.merge_tol
-    tol, max_iter, match_tol = settings.tol, settings.max_iter, settings.match_tol
-    weighting = settings.weighting
     outs = xr.apply_ufunc(
         _isolate_block,
         ds[names.FRF],
@@ -156,53 +152,48 @@ def _isolate_per_frf(ds, omega, data_model, sub, settings, sigma) -> _Isolated:
         ds[names.SUB_RESIDUE],
         ds[names.SUB_N_MODES],
         ds[names.SUB_NOISE_FLOOR],
-        kwargs=dict(
-            omega=omega,
-            dt=dt,
-            n_samples=n_samples,
-            delta=delta,
-            tol=tol,
-            max_iter=max_iter,
-            pfa=pfa,
-            min_points=min_points,
-            zeta_max=zeta_max,
-            merge_tol=merge_tol,
-            max_modes=max_modes,
-        ),
+        kwargs=dict(omega=omega, dt=dt, n_samples=n_samples, params=kernel_params(sub, settings)),
         input_core_dims=[[names.FREQUENCY], [names.CANDIDATE], [names.CANDIDATE], [], []],
-        output_core_dims=[[names.SLOT], [names.SLOT], [], [], []],
+        output_core_dims=[dims for dims, _ in _OUTPUTS.values()],
         dask="parallelized",
-        output_dtypes=[np.complex128, np.complex128, np.int64, np.int64, np.bool_],
-        dask_gufunc_kwargs={"output_sizes": {names.SLOT: max_modes}},
+        output_dtypes=[dtype for _, dtype in _OUTPUTS.values()],
+        dask_gufunc_kwargs={"output_sizes": {names.SLOT: sub.max_modes}},
         keep_attrs=False,
     )
-    lam_p, res_p, n_p_modes, iters, conv = (o.transpose(names.POINT, ...).values for o in outs)
-    snr_p = kb.contribution_peaks(omega, dt, n_samples, lam_p, res_p) / sigma[:, None]
-    label = match_modes(lam_p, snr_p, match_tol)
+    r = ki.IsolateResult(
+        **{
+            name: o.transpose(names.POINT, ...).values
+            for name, o in zip(_OUTPUTS, outs, strict=True)
+        }
+    )
+    snr_p = kb.contribution_peaks(omega, dt, n_samples, r.lam, r.res) / sigma[:, None]
+    label = match_modes(r.lam, snr_p, settings.match_tol)
     n_modes = n_labels(label)
-    point_lam = gather(lam_p, label, n_modes)
+    point_lam = gather(r.lam, label, n_modes)
     point_snr = gather(snr_p + 0j, label, n_modes).real
     weight = (
         np.ones_like(point_snr)
-        if weighting == names.WEIGHTING_MEAN
+        if settings.weighting == names.WEIGHTING_MEAN
         else np.nan_to_num(point_snr) ** 2
     )
     eig, spread = weighted_average(point_lam, weight)
-    detected = np.isfinite(point_lam)
-    iterations = np.asarray(iters, dtype=np.int64)
-    converged = np.asarray(conv, dtype=bool)
-    return _Isolated(eig, spread, detected, point_lam, point_snr, iterations, converged, n_modes)
+    return _Isolated(
+        eig=eig,
+        spread=spread,
+        detected=np.isfinite(point_lam),
+        point_lam=point_lam,
+        point_snr=point_snr,
+        iterations=np.asarray(r.iterations, dtype=np.int64),
+        converged=np.asarray(r.converged, dtype=bool),
+        n_modes=n_modes,
+    )
 
 
 def _isolate_simo_modes(ds, omega, data_model, sub, settings, sigma) -> _Isolated:
     """Global SIMO isolation: the subtraction candidates matched into starting modes, each
     single-mode fit shared by all FRFs; per-point estimates where the mode is detected."""
     dt, n_samples = data_model.dt, data_model.n_samples
-    delta, pfa, max_modes = sub.delta, sub.pfa, sub.max_modes
-    min_points, zeta_max, merge_tol = sub.min_points, sub.zeta_max, sub.merge_tol
-    tol, max_iter, match_tol = settings.tol, settings.max_iter, settings.match_tol
-    snr_weighting = settings.snr_weighting
-    t1 = kn.peak_threshold(omega.size, pfa)
+    t1 = kn.peak_threshold(omega.size, sub.pfa)
     n_p = ds.sizes[names.POINT]
     g = c.frf_values(ds)
     lam_c = np.asarray(ds[names.SUB_EIGENVALUE].transpose(names.POINT, ...).values)
@@ -213,30 +204,16 @@ def _isolate_simo_modes(ds, omega, data_model, sub, settings, sigma) -> _Isolate
         )
         / sigma[:, None]
     )
-    label = match_modes(lam_c, snr_c, match_tol)
+    label = match_modes(lam_c, snr_c, settings.match_tol)
     n0 = n_labels(label)
     start = gather(lam_c, label, n0)
     w0 = np.where(np.isfinite(start), np.nan_to_num(gather(snr_c + 0j, label, n0).real) ** 2, 0.0)
     lam0, _ = weighted_average(start, w0)
-    lam_in = np.full(max_modes, np.nan + 0j)
-    m0 = min(n0, max_modes)
-    lam_in[:m0] = lam0[:m0]
-    lam_s, res_s, n_modes, it, conv = kis.isolate_simo(
-        g,
-        omega,
-        dt,
-        n_samples,
-        lam_in,
-        m0,
-        sigma,
-        ki.IsolateParams(
-            delta, tol, max_iter, pfa, min_points, zeta_max, merge_tol, max_modes, snr_weighting
-        ),
-    )
-    n_modes = int(n_modes)
-    order = np.argsort(np.abs(lam_s[:n_modes]))
-    eig = lam_s[:n_modes][order]
-    res_m = np.ascontiguousarray(res_s[:, :n_modes][:, order])
+    params = kernel_params(sub, settings)
+    r = ki.isolate_simo(g, omega, dt, n_samples, lam0, min(n0, sub.max_modes), sigma, params)
+    order = np.argsort(np.abs(r.lam[: r.n_modes]))
+    eig = r.lam[: r.n_modes][order]
+    res_m = np.ascontiguousarray(r.res[:, : r.n_modes][:, order])
     peaks = kb.contribution_peaks(omega, dt, n_samples, eig[None, :], res_m)
     point_snr = peaks / sigma[:, None]
     detected = point_snr**2 >= t1
@@ -247,15 +224,22 @@ def _isolate_simo_modes(ds, omega, data_model, sub, settings, sigma) -> _Isolate
         n_samples,
         np.ascontiguousarray(eig),
         res_m,
-        delta=delta,
-        min_points=min_points,
-        zeta_max=zeta_max,
+        delta=sub.delta,
+        min_points=sub.min_points,
+        zeta_max=sub.zeta_max,
     )
     point_lam = np.where(detected, est, np.nan + 0j)
     _, spread = weighted_average(point_lam, np.ones(point_lam.shape))
-    iterations = np.full(n_p, int(it), dtype=np.int64)
-    converged = np.full(n_p, bool(conv))
-    return _Isolated(eig, spread, detected, point_lam, point_snr, iterations, converged, n_modes)
+    return _Isolated(
+        eig=eig,
+        spread=spread,
+        detected=detected,
+        point_lam=point_lam,
+        point_snr=point_snr,
+        iterations=np.full(n_p, r.iterations, dtype=np.int64),
+        converged=np.full(n_p, r.converged),
+        n_modes=r.n_modes,
+    )
 
 
 def isolate(
@@ -328,7 +312,14 @@ def isolate(
     c.check_choice(weighting, "weighting", WEIGHTINGS)
     match_tol = c.check_positive(match_tol, "match_tol")
     snr_weighting = IsolateSettings.snr_weighting if snr_weighting is None else bool(snr_weighting)
-    settings = IsolateSettings(tol, max_iter, method, weighting, match_tol, snr_weighting)
+    settings = IsolateSettings(
+        tol=tol,
+        max_iter=max_iter,
+        method=method,
+        weighting=weighting,
+        match_tol=match_tol,
+        snr_weighting=snr_weighting,
+    )
     sub = from_attrs(SubtractSettings, ds.attrs)
     data_model = resolve_model(ds.attrs, "auto")
     omega = c.omega_of(ds)

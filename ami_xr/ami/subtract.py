@@ -8,6 +8,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr import progress as pg
 from ami_xr.ami import common as c
 from ami_xr.ami.settings import SubtractSettings, parameters, to_attrs
 from ami_xr.core.model import resolve_model
@@ -37,30 +38,71 @@ def power_of_two_scale(peak: np.ndarray | float) -> np.ndarray | float:
     return scale if scale.ndim else float(scale)
 
 
-def _subtract_block(
-    g, omega, dt, n_samples, delta, max_modes, pfa, min_points, zeta_max, merge_tol
-):
+# Outputs of the Subtraction Phase: SubtractResult field -> (core dims, dtype). The apply_ufunc
+# call and the unpacking of its results both follow this table, so no output is matched by
+# position.
+_OUTPUTS = {
+    "lam": ([names.CANDIDATE], np.complex128),
+    "res": ([names.CANDIDATE], np.complex128),
+    "band_low": ([names.CANDIDATE], np.float64),
+    "band_high": ([names.CANDIDATE], np.float64),
+    "sigma": ([], np.float64),
+    "statistic": ([], np.float64),
+    "reason": ([], np.int64),
+    "n_modes": ([], np.int64),
+}
+
+PIECE_ROWS = 64
+"""Most FRFs per kernel call of a per-FRF phase: a pending Ctrl-C (a signal cannot be handled
+inside compiled code) is handled between calls, and a progress bar counts the FRFs done."""
+
+
+def by_pieces(kernel, rows: tuple[np.ndarray, ...], unit: str = "FRFs"):
+    """``kernel(*rows)`` for a kernel that treats every row (FRF) on its own, called on pieces of
+    at most :data:`PIECE_ROWS` rows (finer, up to ``progress.MAX_CALLS`` pieces, while a bar
+    listens; the counts go to it between pieces). The result, a NamedTuple of arrays with one
+    row per input row, is joined field by field: the same as one call on all rows."""
+    n_rows = rows[0].shape[0]
+    step = PIECE_ROWS
+    if pg.active():
+        step = max(1, min(step, -(-n_rows // pg.MAX_CALLS)))
+    if n_rows <= step:  # one call, nothing to count
+        return kernel(*rows)
+    pg.detail(f"0/{n_rows} {unit}")
+    parts = []
+    for lo in range(0, n_rows, step):
+        parts.append(kernel(*(r[lo : lo + step] for r in rows)))
+        pg.detail(f"{min(lo + step, n_rows)}/{n_rows} {unit}")
+    return parts[0]._make(np.concatenate(field, axis=0) for field in zip(*parts, strict=True))
+
+
+def kernel_params(settings: SubtractSettings) -> ks.SubtractParams:
+    """The kernel's record of the (checked) settings."""
+    return ks.SubtractParams(
+        delta=settings.delta,
+        max_modes=settings.max_modes,
+        pfa=settings.pfa,
+        min_points=settings.min_points,
+        zeta_max=settings.zeta_max,
+        merge_tol=settings.merge_tol,
+    )
+
+
+def _subtract_block(g, *, omega, dt, n_samples, params) -> tuple[np.ndarray, ...]:
+    """The Subtraction Phase on FRFs ``g`` (..., F): the fields of ``_OUTPUTS`` in its order."""
     shape = g.shape[:-1]
     g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
     scale = power_of_two_scale(np.max(np.abs(g2), axis=-1)) if g2.size else np.ones(0)
     rescaled = bool(np.any(scale != 1.0))
     if rescaled:
         g2 = g2 * scale[:, None]
-    params = ks.SubtractParams(delta, max_modes, pfa, min_points, zeta_max, merge_tol)
-    lam, res, blo, bhi, sigma, stat, reason, n = ks.subtract_batch(g2, omega, dt, n_samples, params)
+    out = by_pieces(lambda rows: ks.subtract_batch(rows, omega, dt, n_samples, params), (g2,))
     if rescaled:  # residues and noise floors are in FRF units: back to the data as given
-        res = res / scale[:, None]
-        sigma = sigma / scale
+        out = out._replace(res=out.res / scale[:, None], sigma=out.sigma / scale)
     two_pi = 2.0 * np.pi
-    return (
-        lam.reshape(shape + (max_modes,)),
-        res.reshape(shape + (max_modes,)),
-        (blo / two_pi).reshape(shape + (max_modes,)),
-        (bhi / two_pi).reshape(shape + (max_modes,)),
-        sigma.reshape(shape),
-        stat.reshape(shape),
-        reason.reshape(shape),
-        n.reshape(shape),
+    out = out._replace(band_low=out.band_low / two_pi, band_high=out.band_high / two_pi)
+    return tuple(
+        getattr(out, name).reshape(shape + getattr(out, name).shape[1:]) for name in _OUTPUTS
     )
 
 
@@ -158,90 +200,77 @@ def subtract(
     data_model = resolve_model(ds.attrs, model)
     dt, n_samples = data_model.dt, data_model.n_samples
     settings = SubtractSettings(
-        delta, max_modes, pfa, min_points, zeta_max, merge_tol, data_model.name
+        delta=delta,
+        max_modes=max_modes,
+        pfa=pfa,
+        min_points=min_points,
+        zeta_max=zeta_max,
+        merge_tol=merge_tol,
+        model=data_model.name,
     )
     frf = ds[names.FRF]
     c.check_values(ds)
     omega = c.omega_of(ds)
-    out_core = [[names.CANDIDATE]] * 4 + [[]] * 4
     res = xr.apply_ufunc(
         _subtract_block,
         frf,
-        kwargs=dict(
-            omega=omega,
-            dt=dt,
-            n_samples=n_samples,
-            delta=delta,
-            max_modes=max_modes,
-            pfa=pfa,
-            min_points=min_points,
-            zeta_max=zeta_max,
-            merge_tol=merge_tol,
-        ),
+        kwargs=dict(omega=omega, dt=dt, n_samples=n_samples, params=kernel_params(settings)),
         input_core_dims=[[names.FREQUENCY]],
-        output_core_dims=out_core,
+        output_core_dims=[dims for dims, _ in _OUTPUTS.values()],
         dask="parallelized",
-        output_dtypes=[
-            np.complex128,
-            np.complex128,
-            np.float64,
-            np.float64,
-            np.float64,
-            np.float64,
-            np.int64,
-            np.int64,
-        ],
+        output_dtypes=[dtype for _, dtype in _OUTPUTS.values()],
         dask_gufunc_kwargs={"output_sizes": {names.CANDIDATE: max_modes}},
         keep_attrs=False,
     )
-    lam, resid, blo, bhi, sigma, stat, reason, n = (r.compute() for r in res)
-    n_keep = max(int(n.max()) if n.size else 0, 1)  # at least one (NaN) slot keeps files simple
+    r = ks.SubtractResult(**{name: o.compute() for name, o in zip(_OUTPUTS, res, strict=True)})
+    # at least one (NaN) slot keeps files simple
+    n_keep = max(int(r.n_modes.max()) if r.n_modes.size else 0, 1)
     sl = {names.CANDIDATE: slice(0, n_keep)}
     reason_str = xr.DataArray(
-        np.array([ks.STOP_REASONS[int(r)] for r in np.ravel(reason.values)], dtype=object)
-        .reshape(reason.shape)
+        np.array([ks.STOP_REASONS[int(k)] for k in np.ravel(r.reason.values)], dtype=object)
+        .reshape(r.reason.shape)
         .astype(str),
-        dims=reason.dims,
-        coords=reason.coords,
+        dims=r.reason.dims,
+        coords=r.reason.coords,
     )
     out = c.drop_results(ds, (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS))
     frf_units = ds[names.FRF].attrs.get(names.ATTR_UNITS, "")
     out = out.assign(
         {
-            names.SUB_EIGENVALUE: lam.isel(sl).assign_attrs(
+            names.SUB_EIGENVALUE: r.lam.isel(sl).assign_attrs(
                 {names.ATTR_UNITS: names.ANGULAR_UNITS}
             ),
-            names.SUB_RESIDUE: resid.isel(sl).assign_attrs(
+            names.SUB_RESIDUE: r.res.isel(sl).assign_attrs(
                 {names.ATTR_UNITS: f"{frf_units} {names.ANGULAR_UNITS}"}
             ),
-            names.SUB_BAND_LOW: blo.isel(sl).assign_attrs(
+            names.SUB_BAND_LOW: r.band_low.isel(sl).assign_attrs(
                 {names.ATTR_UNITS: names.FREQUENCY_UNITS}
             ),
-            names.SUB_BAND_HIGH: bhi.isel(sl).assign_attrs(
+            names.SUB_BAND_HIGH: r.band_high.isel(sl).assign_attrs(
                 {names.ATTR_UNITS: names.FREQUENCY_UNITS}
             ),
-            names.SUB_NOISE_FLOOR: sigma.assign_attrs(
+            names.SUB_NOISE_FLOOR: r.sigma.assign_attrs(
                 {
                     names.ATTR_UNITS: frf_units,
                     names.ATTR_LONG_NAME: "noise standard deviation per line "
                     "(median of adjacent differences)",
                 }
             ),
-            names.SUB_STOP_STATISTIC: stat.assign_attrs(
+            names.SUB_STOP_STATISTIC: r.statistic.assign_attrs(
                 {
                     names.ATTR_LONG_NAME: "|Y|^2/sigma^2 of the last examined peak",
                     names.ATTR_THRESHOLD: float(kn.peak_threshold(omega.size, pfa)),
                 }
             ),
             names.SUB_STOP_REASON: reason_str,
-            names.SUB_N_MODES: n,
+            names.SUB_N_MODES: r.n_modes,
         }
     )
     out = out.assign_coords({names.CANDIDATE: np.arange(n_keep)})
     to_attrs(settings, out.attrs)
     _warn_caps(out, max_modes)
-    if int(n.sum()) == 0:
-        _explain_no_modes(out, frf, sigma, pfa, zeta_max, omega.size)
+    if int(r.n_modes.sum()) == 0:
+        _explain_no_modes(out, frf, r.sigma, pfa, zeta_max, omega.size)
     return c.finish(out, "ami_xr.subtract", "subtract", parameters(settings))
 
 
@@ -276,7 +305,7 @@ def _warn_caps(out: xr.Dataset, max_modes: int) -> None:
         if at.size:
             hit.append(f"subtract:{reason}")
             warnings.warn(
-                f"subtract: stopped at the cap of {what} at point(s) {c._shorten(at.tolist())}, "
+                f"subtract: stopped at the cap of {what} at point(s) {c.shorten(at.tolist())}, "
                 "before the remaining peaks fell below the noise floor; modes may be missing "
                 "(raise max_modes, or narrow the band with fmin/fmax); see "
                 f"{names.SUB_STOP_REASON}",

@@ -16,10 +16,12 @@ Modules (numba policy in ``_numba``):
 * ``modal_basis``: the modal model b(lam, w) (continuous and exact discrete), its derivative,
   residual terms, model columns, synthesis, contribution peaks.
 * ``linalg``: small dense solvers (Gaussian elimination, scaled normal equations).
-* ``noise``: noise floors, detection thresholds, fit bands.
+* ``noise``: noise floors and detection thresholds.
 * ``single_mode`` / ``two_mode``: single-mode (per FRF, SIMO) and two-mode least squares.
 * ``residues``: residues with fixed eigenvalues (eq. 9).
-* ``subtract``, ``isolate``, ``isolate_simo``: the Subtraction Phase, the per-FRF and the global
-  SIMO Isolation Phase with the model-order check.
+* ``peak``: the peak trial (band, fit, energy drop) and fit bands, shared by the AMI phases.
+* ``subtract``: the Subtraction Phase. ``engine``: the one isolation engine (sweeps, merge and
+  prune, model-order check, restarts) for per-FRF and SIMO isolation; ``isolate``: its checked
+  wrappers.
 * ``projection``: variable-projection refinement kernels.
 """

@@ -25,9 +25,11 @@ the partial-fraction residue ``r = (e1 v1 + e0) / (v1 - v2)`` gives ``A = ws r``
 ``A = p dt ws r / (dt (1 - exp(lam N dt)))`` (discrete).
 
 The two-mode analogue of (*) is in :mod:`.two_mode`. Jitted, unchecked helpers for the other
-kernel modules: ``fit_single``, ``fit_single_simo``, ``band_energy_drop``, ``v_at``. Checked
-wrappers: :func:`single_mode_rows`, :func:`fit_single_mode`, :func:`fit_single_mode_simo`. A fit
-returns one of the ``FIT_*`` codes below; ``FitLimits`` holds the limits a pole must meet.
+kernel modules: ``fit_single`` (one eigenvalue from one or many FRFs: the fit step of the
+isolation engine, :mod:`.isolate`, and of the peak trial, :mod:`.peak`) and ``pole_code``.
+Checked wrappers: :func:`single_mode_rows`, :func:`fit_single_mode`,
+:func:`fit_single_mode_simo`. A fit returns one of the ``FIT_*`` codes below; ``FitLimits``
+holds the limits a pole must meet.
 """
 
 from __future__ import annotations
@@ -40,14 +42,7 @@ import numpy as np
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
 from ami_xr.kernels.linalg import solve_normal
-from ami_xr.kernels.modal_basis import (
-    Grid,
-    add_mode,
-    as_dt,
-    checked_omega,
-    line_variable,
-    pole_factor,
-)
+from ami_xr.kernels.modal_basis import Grid, as_dt, checked_omega, line_variable, pole_factor
 
 FIT_OK = 0
 FIT_SINGULAR = 1
@@ -82,22 +77,6 @@ class FitLimits(NamedTuple):
 
 
 @jit
-def v_at(xi, ws, dt):
-    """Jitted, unchecked: the variable ``v`` of (*) at line variable ``xi``."""
-    if dt > 0.0:
-        return (1.0 - xi) / (dt * ws)
-    return xi / ws
-
-
-@jit
-def _v_of_pole(lam, ws, dt):
-    """The root ``v1`` of (*) that belongs to pole ``lam``."""
-    if dt > 0.0:
-        return (1.0 - np.exp(-lam * dt)) / (dt * ws)
-    return lam / ws
-
-
-@jit
 def _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, blocks):
     """Accumulate the normal equations of (*) on lines lo..hi-1 of one FRF.
 
@@ -113,10 +92,14 @@ def _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, blocks):
     nss, nsl, nll, rs, rl = blocks
     cols = np.empty(4, dtype=np.complex128)
     use_w = not np.isnan(prev.real)
-    pv = _v_of_pole(prev, ws, dt) if use_w else 0j
+    # v of a line (and the root v1 of the previous pole): (1 - q) / (dt ws) or i w / ws
+    discrete = dt > 0.0
+    pv = 0j
+    if use_w:
+        pv = (1.0 - np.exp(-prev * dt)) / (dt * ws) if discrete else prev / ws
     for i in range(lo, hi):
         g = data[i] / gscale
-        v = v_at(x[i], ws, dt)
+        v = (1.0 - x[i]) / (dt * ws) if discrete else x[i] / ws
         wgt = 1.0
         if use_w:
             wgt = 1.0 / abs((v - pv) * (v - np.conj(pv)))
@@ -138,188 +121,94 @@ def _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, blocks):
 
 
 @jit
-def _single_mode_rows(data, omega, ws, dt):
-    """Real rows and right side of (*) for every line: (2F, 4), (2F,) (for tests/references)."""
-    n = data.shape[0]
-    x = line_variable(omega, dt)
-    rows = np.empty((2 * n, 4))
-    rhs = np.empty(2 * n)
-    for i in range(n):
-        g = data[i]
-        v = v_at(x[i], ws, dt)
-        c = (-g, -g * v, 1.0 + 0j, v)
-        r = g * v * v
-        for a in range(4):
-            rows[2 * i, a] = c[a].real
-            rows[2 * i + 1, a] = c[a].imag
-        rhs[2 * i] = r.real
-        rhs[2 * i + 1] = r.imag
-    return rows, rhs
+def fit_single(data, grid, lo, hi, ws, limits, prev, wts, res_out):
+    """Single-mode fit on lines lo..hi-1 of the rows of ``data`` (P, F): one eigenvalue shared
+    by all rows (P = 1: one FRF), one residue per row written to ``res_out`` (P,). Row ``j`` is
+    weighted by ``wts[j]`` (its data divided by ``1 / wts[j]``); ``prev``: a previous pole
+    estimate (NaN: none) that weights the lines by ``1 / |D_prev|``. Returns ``(lam, code)``.
 
-
-@jit
-def _poles_from_coefficients(c0, c1, ws, dt, n_samples, limits):
-    """Pole and partial-fraction helpers from ``v^2 + c1 v + c0``.
-
-    Returns ``(lam, v1, v2, code)``; ``code`` is FIT_OK or a rejection code.
+    The per-row unknowns ``(e0, e1)`` are eliminated by their 2x2 Schur complements, so the cost
+    is linear in the number of rows.
     """
-    disc = 4.0 * c0 - c1 * c1
+    x, dt, n_samples = grid.x, grid.dt, grid.n_samples
+    n_p = data.shape[0]
     nanc = complex(np.nan, np.nan)
+    if hi - lo < 2:
+        return nanc, FIT_SINGULAR
+    red = np.zeros((2, 2))
+    redr = np.zeros((2, 1))
+    nll_all = np.zeros((n_p, 2, 2))
+    nsl_all = np.zeros((n_p, 2, 2))
+    rl_all = np.zeros((n_p, 2))
+    nss = np.empty((2, 2))
+    t = np.empty((2, 2))
+    for j in range(n_p):
+        nss[:] = 0.0
+        nsl, nll, rl = nsl_all[j], nll_all[j], rl_all[j]
+        rs = np.zeros(2)
+        _single_mode_blocks(data[j], x, lo, hi, ws, dt, 1.0 / wts[j], prev, (nss, nsl, nll, rs, rl))
+        det = nll[0, 0] * nll[1, 1] - nll[0, 1] * nll[1, 0]
+        if not (det != 0.0 and np.isfinite(det)):
+            return nanc, FIT_SINGULAR
+        # red += nss - nsl nll^-1 nls ; redr += rs - nsl nll^-1 rl  (2x2 by hand: a BLAS call
+        # per FRF cost more than the fit)
+        for a in range(2):
+            t[a, 0] = (nsl[a, 0] * nll[1, 1] - nsl[a, 1] * nll[1, 0]) / det
+            t[a, 1] = (nsl[a, 1] * nll[0, 0] - nsl[a, 0] * nll[0, 1]) / det
+        for a in range(2):
+            for b in range(2):
+                red[a, b] += nss[a, b] - (t[a, 0] * nsl[b, 0] + t[a, 1] * nsl[b, 1])
+            redr[a, 0] += rs[a] - (t[a, 0] * rl[0] + t[a, 1] * rl[1])
+    sol, ok = solve_normal(red, redr)
+    if not ok:
+        return nanc, FIT_SINGULAR
+    c0 = sol[0, 0]
+    c1 = sol[1, 0]
+    # the pole: root v1 (Im > 0) of v^2 + c1 v + c0
+    disc = 4.0 * c0 - c1 * c1
     if not (disc > 0.0) or not np.isfinite(disc):
-        return nanc, nanc, nanc, FIT_NOT_OSCILLATORY
+        return nanc, FIT_NOT_OSCILLATORY
     sq = math.sqrt(disc)
     v1 = complex(-0.5 * c1, 0.5 * sq)
     v2 = complex(-0.5 * c1, -0.5 * sq)
     if dt > 0.0:
         q1 = 1.0 - dt * ws * v1
         if abs(q1) == 0.0:
-            return nanc, v1, v2, FIT_UNSTABLE
-        p = 1.0 / q1
-        lam = np.log(p) / dt
+            return nanc, FIT_UNSTABLE
+        lam = np.log(1.0 / q1) / dt
     else:
         lam = ws * v1
-    if not (lam.real < 0.0):
-        return lam, v1, v2, FIT_UNSTABLE
-    wn = abs(lam)
-    if -lam.real / wn > limits.zeta_max or lam.imag <= 0.0:
-        return lam, v1, v2, FIT_DAMPING
-    if wn < limits.w_lo or wn > limits.w_hi:
-        return lam, v1, v2, FIT_OUT_OF_RANGE
-    return lam, v1, v2, FIT_OK
-
-
-@jit
-def _residue_from(e0, e1, v1, v2, lam, ws, dt, n_samples, gscale):
-    r = (e1 * v1 + e0) / (v1 - v2) * gscale
-    if dt > 0.0:
-        p, sc = pole_factor(lam, dt, n_samples)
-        return p * dt * ws * r / sc
-    return ws * r
-
-
-@jit
-def band_energy_drop(y, grid, lam, res, power, lo, hi):
-    """Band energy ``sum power[lo:hi]`` minus that of ``y`` with the mode (lam, res) removed."""
-    x, dt, n_samples = grid.x, grid.dt, grid.n_samples
-    n_f = y.shape[0]
-    trial = y.copy()
-    add_mode(trial, x, lam, res, dt, n_samples, -1.0, 0, n_f)
-    e0 = 0.0
-    e1 = 0.0
-    for i in range(lo, hi):
-        e0 += power[i]
-        e1 += abs(trial[i]) ** 2
-    return e0 - e1
-
-
-@jit
-def fit_single(data, grid, lo, hi, ws, limits, prev):
-    """Single-mode fit of one FRF on lines lo..hi-1 with frequency scale ``ws``:
-    ``(lam, residue, code)``. ``prev``: a previous pole estimate (NaN: none) that weights the
-    rows by ``1 / |D_prev|``."""
-    x, dt, n_samples = grid.x, grid.dt, grid.n_samples
-    nss = np.zeros((2, 2))
-    nsl = np.zeros((2, 2))
-    nll = np.zeros((2, 2))
-    rs = np.zeros(2)
-    rl = np.zeros(2)
-    gscale = 0.0
-    for i in range(lo, hi):
-        gscale = max(gscale, abs(data[i]))
-    nanc = complex(np.nan, np.nan)
-    if gscale == 0.0 or hi - lo < 2:
-        return nanc, nanc, FIT_SINGULAR
-    _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, (nss, nsl, nll, rs, rl))
-    nmat = np.empty((4, 4))
-    rhs = np.empty((4, 1))
-    for a in range(2):
-        for b in range(2):
-            nmat[a, b] = nss[a, b]
-            nmat[a, 2 + b] = nsl[a, b]
-            nmat[2 + b, a] = nsl[a, b]
-            nmat[2 + a, 2 + b] = nll[a, b]
-        rhs[a, 0] = rs[a]
-        rhs[2 + a, 0] = rl[a]
-    sol, ok = solve_normal(nmat, rhs)
-    if not ok:
-        return nanc, nanc, FIT_SINGULAR
-    lam, v1, v2, code = _poles_from_coefficients(sol[0, 0], sol[1, 0], ws, dt, n_samples, limits)
-    if code != FIT_OK:
-        return lam, nanc, code
-    res = _residue_from(sol[2, 0], sol[3, 0], v1, v2, lam, ws, dt, n_samples, gscale)
-    return lam, res, FIT_OK
-
-
-@jit
-def fit_single_simo(data, grid, lo, hi, ws, limits, prev, wts, res_out):
-    """Global SIMO single-mode fit: one eigenvalue from all FRFs (rows of ``data``, already
-    divided by each FRF's noise floor), one residue per FRF written to ``res_out``.
-
-    The per-FRF unknowns ``(e0, e1)`` are eliminated by their 2x2 Schur complements, so the cost
-    is linear in the number of FRFs. Returns ``(lam, code)``.
-    """
-    x, dt, n_samples = grid.x, grid.dt, grid.n_samples
-    n_p = data.shape[0]
-    red = np.zeros((2, 2))
-    redr = np.zeros((2, 1))
-    nll_all = np.zeros((n_p, 2, 2))
-    nsl_all = np.zeros((n_p, 2, 2))
-    rl_all = np.zeros((n_p, 2))
-    nanc = complex(np.nan, np.nan)
-    # scratch blocks reused for every FRF (no allocation per FRF)
-    nss = np.empty((2, 2))
-    nsl = np.empty((2, 2))
-    nll = np.empty((2, 2))
-    rs = np.empty(2)
-    rl = np.empty(2)
-    inv = np.empty((2, 2))
-    t = np.empty((2, 2))
-    for j in range(n_p):
-        nss[:] = 0.0
-        nsl[:] = 0.0
-        nll[:] = 0.0
-        rs[:] = 0.0
-        rl[:] = 0.0
-        # FRF weight wts[j]: rows scaled by it (1 / wts[j] as the data scale)
-        _single_mode_blocks(data[j], x, lo, hi, ws, dt, 1.0 / wts[j], prev, (nss, nsl, nll, rs, rl))
-        det = nll[0, 0] * nll[1, 1] - nll[0, 1] * nll[1, 0]
-        if det == 0.0:
-            return nanc, FIT_SINGULAR
-        inv[0, 0] = nll[1, 1] / det
-        inv[1, 1] = nll[0, 0] / det
-        inv[0, 1] = -nll[0, 1] / det
-        inv[1, 0] = -nll[1, 0] / det
-        # red += nss - nsl inv nls ; redr += rs - nsl inv rl  (2x2 product by hand: a BLAS
-        # call per FRF cost more than the fit)
-        for a in range(2):
-            for b in range(2):
-                t[a, b] = nsl[a, 0] * inv[0, b] + nsl[a, 1] * inv[1, b]
-        for a in range(2):
-            for b in range(2):
-                red[a, b] += nss[a, b] - (t[a, 0] * nsl[b, 0] + t[a, 1] * nsl[b, 1])
-            redr[a, 0] += rs[a] - (t[a, 0] * rl[0] + t[a, 1] * rl[1])
-        nll_all[j] = nll
-        nsl_all[j] = nsl
-        rl_all[j, 0] = rl[0]
-        rl_all[j, 1] = rl[1]
-    sol, ok = solve_normal(red, redr)
-    if not ok:
-        return nanc, FIT_SINGULAR
-    c0 = sol[0, 0]
-    c1 = sol[1, 0]
-    lam, v1, v2, code = _poles_from_coefficients(c0, c1, ws, dt, n_samples, limits)
+    code = pole_code(lam, limits)
     if code != FIT_OK:
         return lam, code
+    # residues by partial fractions: r = (e1 v1 + e0) / (v1 - v2), A = ws r (continuous) or
+    # p dt ws r / (dt (1 - exp(lam N dt))) (discrete)
+    factor = ws / (v1 - v2)
+    if dt > 0.0:
+        p, sc = pole_factor(lam, dt, n_samples)
+        factor = factor * p * dt / sc
     for j in range(n_p):
-        # nll e = rl - nls s
+        nll = nll_all[j]
         b0 = rl_all[j, 0] - (nsl_all[j, 0, 0] * c0 + nsl_all[j, 1, 0] * c1)
         b1 = rl_all[j, 1] - (nsl_all[j, 0, 1] * c0 + nsl_all[j, 1, 1] * c1)
-        nll = nll_all[j]
         det = nll[0, 0] * nll[1, 1] - nll[0, 1] * nll[1, 0]
         e0 = (nll[1, 1] * b0 - nll[0, 1] * b1) / det
         e1 = (-nll[1, 0] * b0 + nll[0, 0] * b1) / det
-        res_out[j] = _residue_from(e0, e1, v1, v2, lam, ws, dt, n_samples, 1.0 / wts[j])
+        res_out[j] = (e1 * v1 + e0) * factor / wts[j]
     return lam, FIT_OK
+
+
+@jit
+def pole_code(lam, limits):
+    """``FIT_OK``, or the ``FIT_*`` code of the first limit the pole ``lam`` breaks."""
+    if not (lam.real < 0.0):
+        return FIT_UNSTABLE
+    wn = abs(lam)
+    if -lam.real / wn > limits.zeta_max or lam.imag <= 0.0:
+        return FIT_DAMPING
+    if wn < limits.w_lo or wn > limits.w_hi:
+        return FIT_OUT_OF_RANGE
+    return FIT_OK
 
 
 def check_frf(data: np.ndarray, omega: np.ndarray, name: str = "data") -> np.ndarray:
@@ -340,15 +229,11 @@ def check_zeta_max(zeta_max: float) -> float:
     return zeta_max
 
 
-def _check_prev(prev: complex | None) -> complex:
-    return complex(np.nan, np.nan) if prev is None else complex(prev)
-
-
 def single_mode_rows(
     data: np.ndarray, omega: np.ndarray, scale: float, dt: float | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Real least-squares rows and right side of the single-mode equation (*) (eqs. 11-12 when
-    ``dt`` is None).
+    ``dt`` is None), unweighted, for tests and references.
 
     Parameters
     ----------
@@ -372,7 +257,14 @@ def single_mode_rows(
         raise AmiXrValueError(f"data: expected one FRF of shape {omega.shape}, got {data.shape}")
     if not float(scale) > 0.0:
         raise AmiXrValueError(f"scale: expected a positive frequency scale, got {scale!r}")
-    return _single_mode_rows(data, omega, float(scale), as_dt(dt))
+    dt = as_dt(dt)
+    x = line_variable(omega, dt)
+    v = (1.0 - x) / (dt * scale) if dt > 0.0 else x / scale
+    cols = np.stack([-data, -data * v, np.ones_like(data), v], axis=-1)
+    rhs = data * v * v
+    rows = np.empty((2 * omega.size, 4))
+    rows[0::2], rows[1::2] = cols.real, cols.imag
+    return rows, np.ravel(np.column_stack([rhs.real, rhs.imag]))
 
 
 def fit_single_mode(
@@ -409,11 +301,10 @@ def fit_single_mode(
     data = check_frf(data, omega)
     if data.ndim != 1:
         raise AmiXrValueError(f"data: expected one FRF of shape {omega.shape}, got {data.shape}")
-    dt = as_dt(dt)
-    grid = Grid(omega, line_variable(omega, dt), dt, int(n_samples or 0))
-    ws = float(np.mean(omega)) or 1.0
-    limits = FitLimits(check_zeta_max(zeta_max), 0.0, np.inf)
-    return fit_single(data, grid, 0, omega.size, ws, limits, _check_prev(prev))
+    lam, res, code = fit_single_mode_simo(
+        data[None, :], omega, dt, n_samples, zeta_max=zeta_max, prev=prev
+    )
+    return lam, res[0], code
 
 
 def fit_single_mode_simo(
@@ -425,7 +316,8 @@ def fit_single_mode_simo(
     zeta_max: float = 1.0,
     prev: complex | None = None,
 ) -> tuple[complex, np.ndarray, int]:
-    """Global SIMO single-mode fit: one eigenvalue from all rows of ``data``, one residue each.
+    """Global SIMO single-mode fit: one eigenvalue from all rows of ``data``, one residue each
+    (each row scaled by its largest magnitude, so the rows weigh alike).
 
     Parameters are those of :func:`fit_single_mode`, with ``data`` of shape (P, F).
 
@@ -440,12 +332,13 @@ def fit_single_mode_simo(
     if data.ndim != 2:
         raise AmiXrValueError(f"data: expected shape (P, {omega.size}), got {data.shape}")
     dt = as_dt(dt)
-    x = line_variable(omega, dt)
     res = np.full(data.shape[0], complex(np.nan, np.nan))
+    peak = np.max(np.abs(data), axis=1) if data.size else np.zeros(data.shape[0])
+    if not np.all(peak > 0.0):  # an all-zero row: nothing to fit
+        return complex(np.nan, np.nan), res, FIT_SINGULAR
     ws = float(np.mean(omega)) or 1.0
     limits = FitLimits(check_zeta_max(zeta_max), 0.0, np.inf)
-    grid = Grid(omega, x, dt, int(n_samples or 0))
-    lam, code = fit_single_simo(
-        data, grid, 0, omega.size, ws, limits, _check_prev(prev), np.ones(data.shape[0]), res
-    )
+    grid = Grid(omega, line_variable(omega, dt), dt, int(n_samples or 0))
+    prev = complex(np.nan, np.nan) if prev is None else complex(prev)
+    lam, code = fit_single(data, grid, 0, omega.size, ws, limits, prev, 1.0 / peak, res)
     return lam, res, code

@@ -1,8 +1,10 @@
 """Subtraction Phase of the AMI (eq. 6): one FRF at a time, the strongest peak of the residual
-is fitted by a single mode and subtracted, until no significant peak is left.
+is tried as a single mode (the peak trial of :mod:`.peak`) and subtracted, until no significant
+peak is left.
 
-Checked wrapper: :func:`subtract_batch` (settings in a :class:`SubtractParams` record). The stop
-reasons are ``STOP_*`` codes; :data:`STOP_REASONS` names them.
+Checked wrapper: :func:`subtract_batch` (settings in a :class:`SubtractParams` record, results
+in a :class:`SubtractResult`). The stop reasons are ``STOP_*`` codes; :data:`STOP_REASONS`
+names them.
 """
 
 from __future__ import annotations
@@ -13,22 +15,10 @@ import numpy as np
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
-from ami_xr.kernels.modal_basis import Grid, add_mode, as_dt, checked_omega, line_variable
-from ami_xr.kernels.noise import (
-    band_around,
-    noise_floor_kernel,
-    normalized_distance,
-    peak_threshold_kernel,
-)
-from ami_xr.kernels.single_mode import (
-    FIT_NO_DROP,
-    FIT_OK,
-    FIT_OUT_OF_RANGE,
-    FitLimits,
-    band_energy_drop,
-    fit_single,
-)
-from ami_xr.progress import by_rows
+from ami_xr.kernels.modal_basis import add_mode
+from ami_xr.kernels.noise import noise_floor
+from ami_xr.kernels.peak import check_inputs, nearest_within, peak_trial, scene
+from ami_xr.kernels.single_mode import FIT_OK
 
 # Stop codes of the Subtraction Phase (mapped to strings in the labeled layer).
 STOP_BELOW_FLOOR = 0
@@ -55,119 +45,90 @@ class SubtractParams(NamedTuple):
     """Candidates closer than this many half-power bandwidths merge."""
 
 
+class SubtractResult(NamedTuple):
+    """What the Subtraction Phase finds in ``P`` FRFs, ``max_modes`` candidate slots each."""
+
+    lam: np.ndarray
+    """(P, max_modes) complex candidate eigenvalues, NaN-padded."""
+    res: np.ndarray
+    """(P, max_modes) complex residues, NaN-padded."""
+    band_low: np.ndarray
+    """(P, max_modes) lower edge of each candidate's fit band, rad/s."""
+    band_high: np.ndarray
+    """(P, max_modes) upper edge, rad/s."""
+    sigma: np.ndarray
+    """(P,) noise floor of each FRF."""
+    statistic: np.ndarray
+    """(P,) the last examined peak ``|Y|^2 / sigma^2``."""
+    reason: np.ndarray
+    """(P,) ``STOP_*`` code."""
+    n_modes: np.ndarray
+    """(P,) number of candidates."""
+
+
 @jit
-def _subtract_one(data, grid, params, lam_out, res_out, lo_out, hi_out):
-    """Subtraction Phase on one FRF ``data`` (F,): candidates written to ``lam_out``,
-    ``res_out`` and their band edges (rad/s) to ``lo_out``, ``hi_out`` (each ``max_modes``).
-    Returns ``(n_modes, sigma, statistic, reason)``."""
-    omega, x, dt, n_samples = grid
-    delta, max_modes, pfa, min_points, zeta_max, merge_tol = params
-    n_f = data.shape[0]
-    sigma = noise_floor_kernel(data)
-    scale_floor = 1e-14 * np.max(np.abs(data))
-    sigma = max(sigma, scale_floor)
-    t = peak_threshold_kernel(n_f, pfa)
-    dw = (omega[n_f - 1] - omega[0]) / (n_f - 1)
-    w_lo = max(omega[0], dw)
-    w_hi = omega[n_f - 1]
-    limits = FitLimits(zeta_max, w_lo, w_hi)
-    y = data.copy()
+def _subtract_batch(data, scene, params):
+    """Subtraction Phase on every row of ``data`` (P, F), in units of each row's noise floor
+    (residues in those units; ``sigma`` left at 1 for the wrapper)."""
+    omega, x, dt, n_samples = scene.grid
+    n_p, n_f = data.shape
+    m = params.max_modes
+    nan = complex(np.nan, np.nan)
+    out = SubtractResult(
+        lam=np.full((n_p, m), nan),
+        res=np.full((n_p, m), nan),
+        band_low=np.full((n_p, m), np.nan),
+        band_high=np.full((n_p, m), np.nan),
+        sigma=np.ones(n_p),
+        statistic=np.zeros(n_p),
+        reason=np.full(n_p, STOP_MAX_ATTEMPTS),
+        n_modes=np.zeros(n_p, dtype=np.int64),
+    )
+    y = np.empty((1, n_f), dtype=np.complex128)
     power = np.empty(n_f)
-    masked = np.zeros(n_f, dtype=np.bool_)
-    n_modes = 0
-    stat = 0.0
-    reason = STOP_MAX_ATTEMPTS
-    max_attempts = 3 * max_modes + 10
-    for _attempt in range(max_attempts):
-        if n_modes >= max_modes:
-            reason = STOP_MAX_MODES
-            break
-        peak = -1
-        best = -1.0
-        for i in range(n_f):
-            power[i] = abs(y[i]) ** 2
-            if not masked[i] and power[i] > best:
-                best = power[i]
-                peak = i
-        if peak < 0:
-            reason = STOP_BELOW_FLOOR
-            stat = 0.0
-            break
-        stat = best / sigma**2
-        if stat < t:
-            reason = STOP_BELOW_FLOOR
-            break
-        lo, hi = band_around(power, peak, delta * delta * best)
-        if hi - lo < min_points:
-            for i in range(lo, hi):
-                masked[i] = True
-            continue
-        ws = omega[peak] if omega[peak] > 0.0 else dw
-        lam, res, code = fit_single(y, grid, lo, hi, ws, limits, complex(np.nan, np.nan))
-        if code == FIT_OK:
-            # natural frequency must lie near the band; the band energy must drop significantly
-            bw = abs(lam.real)
-            if lam.imag < omega[lo] - 2.0 * bw - dw or lam.imag > omega[hi - 1] + 2.0 * bw + dw:
-                code = FIT_OUT_OF_RANGE
-            else:
-                drop = band_energy_drop(y, grid, lam, res, power, lo, hi)
-                if drop / sigma**2 < t:
-                    code = FIT_NO_DROP
-        if code != FIT_OK:
-            for i in range(lo, hi):
-                masked[i] = True
-            continue
-        merged = False
-        for k in range(n_modes):
-            if normalized_distance(lam, lam_out[k]) < merge_tol:
+    masked = np.empty(n_f, dtype=np.bool_)
+    wts = np.ones(1)
+    r = np.empty(1, dtype=np.complex128)
+    for j in range(n_p):
+        lam_j, res_j = out.lam[j], out.res[j]
+        y[0] = data[j]
+        masked[:] = False
+        n = 0
+        for _attempt in range(3 * m + 10):
+            if n >= m:
+                out.reason[j] = STOP_MAX_MODES
+                break
+            peak = -1
+            for i in range(n_f):
+                power[i] = abs(y[0, i]) ** 2
+                if not masked[i] and (peak < 0 or power[i] > power[peak]):
+                    peak = i
+            out.statistic[j] = power[peak] if peak >= 0 else 0.0
+            if peak < 0 or power[peak] < scene.t_line:
+                out.reason[j] = STOP_BELOW_FLOOR
+                break
+            lam, lo, hi, code = peak_trial(
+                y, power, scene, peak, params.delta, params.min_points, wts, r, masked
+            )
+            if code != FIT_OK:
+                continue
+            k = nearest_within(lam_j, n, lam, params.merge_tol, -1)
+            if k >= 0:
                 # a duplicate of an earlier candidate: the residual left near that pole; fold the
                 # residue into the earlier candidate (poles this close add their residues)
-                res_out[k] = res_out[k] + res
-                merged = True
-                break
-        if not merged:
-            lam_out[n_modes] = lam
-            res_out[n_modes] = res
-            lo_out[n_modes] = omega[lo]
-            hi_out[n_modes] = omega[hi - 1]
-            n_modes += 1
-        # recompute the residual from the data (eq. 6 with the current candidates)
-        for i in range(n_f):
-            y[i] = data[i]
-        for k in range(n_modes):
-            add_mode(y, x, lam_out[k], res_out[k], dt, n_samples, -1.0, 0, n_f)
-    return n_modes, sigma, stat, reason
-
-
-@jit
-def _subtract_batch(data, omega, dt, n_samples, params):
-    """:func:`_subtract_one` on every row of ``data`` (P, F)."""
-    n_p = data.shape[0]
-    max_modes = params.max_modes
-    grid = Grid(omega, line_variable(omega, dt), dt, n_samples)
-    lam = np.full((n_p, max_modes), complex(np.nan, np.nan))
-    res = np.full((n_p, max_modes), complex(np.nan, np.nan))
-    blo = np.full((n_p, max_modes), np.nan)
-    bhi = np.full((n_p, max_modes), np.nan)
-    n_modes = np.zeros(n_p, dtype=np.int64)
-    sigma = np.zeros(n_p)
-    stat = np.zeros(n_p)
-    reason = np.zeros(n_p, dtype=np.int64)
-    for j in range(n_p):
-        n, s, st, r = _subtract_one(
-            data[j],
-            grid,
-            params,
-            lam[j],
-            res[j],
-            blo[j],
-            bhi[j],
-        )
-        n_modes[j] = n
-        sigma[j] = s
-        stat[j] = st
-        reason[j] = r
-    return lam, res, blo, bhi, sigma, stat, reason, n_modes
+                res_j[k] += r[0]
+            else:
+                lam_j[n] = lam
+                res_j[n] = r[0]
+                out.band_low[j, n] = omega[lo]
+                out.band_high[j, n] = omega[hi - 1]
+                n += 1
+            # the residual recomputed from the data (eq. 6 with the current candidates)
+            y[0] = data[j]
+            for k in range(n):
+                add_mode(y[0], x, lam_j[k], res_j[k], dt, n_samples, -1.0, 0, n_f)
+        out.n_modes[j] = n
+    return out
 
 
 def subtract_batch(
@@ -176,7 +137,7 @@ def subtract_batch(
     dt: float | None,
     n_samples: int | None,
     params: SubtractParams,
-) -> tuple[np.ndarray, ...]:
+) -> SubtractResult:
     """Subtraction Phase on every FRF.
 
     Parameters
@@ -192,24 +153,11 @@ def subtract_batch(
 
     Returns
     -------
-    lam, res : ndarray of complex, shape (P, max_modes)
-        Candidate eigenvalues and residues, NaN-padded.
-    band_lo, band_hi : ndarray of float, shape (P, max_modes)
-        Edges of each candidate's fit band in rad/s.
-    sigma, statistic : ndarray of float, shape (P,)
-        Noise floor and the last peak statistic ``|Y|^2 / sigma^2``.
-    reason : ndarray of int, shape (P,)
-        ``STOP_*`` code.
-    n_modes : ndarray of int, shape (P,)
+    SubtractResult
+        Candidates (NaN-padded), their band edges, the noise floors, the last peak statistic,
+        the stop reason and the number of candidates of every FRF.
     """
-    omega = checked_omega(omega)
-    data = np.ascontiguousarray(data, dtype=np.complex128)
-    if data.ndim != 2 or data.shape[1] != omega.size:
-        raise AmiXrValueError(f"data: expected shape (P, {omega.size}), got {data.shape}")
-    dt = as_dt(dt)
-    n = int(n_samples or 0)
-    if dt < 0.0 or n < 0:
-        raise AmiXrValueError(f"dt, n_samples: expected >= 0 or None, got {dt!r}, {n_samples!r}")
+    data, omega, dt, n = check_inputs(data, omega, dt, n_samples)
     if not isinstance(params, SubtractParams):
         raise AmiXrValueError(
             f"params: expected a SubtractParams record, got {type(params).__name__}"
@@ -219,5 +167,10 @@ def subtract_batch(
             f"params: max_modes and min_points must be >= 1, got {params.max_modes}, "
             f"{params.min_points}"
         )
-    # FRFs counted on a progress bar when one listens (blocks of FRFs; same results)
-    return by_rows(_subtract_batch, (data, omega, dt, n, params), rowwise=(0,))
+    # the noise floor, bounded below by rounding (a noise-free FRF) and 1 for an all-zero FRF
+    peak = np.max(np.abs(data), axis=1) if data.size else np.zeros(data.shape[0])
+    sigma = np.maximum(noise_floor(data), 1e-14 * peak) if data.shape[0] else np.ones(0)
+    sigma = np.where(sigma > 0.0, sigma, 1.0)
+    where = scene(omega, dt, n, params.zeta_max, params.pfa, 1)
+    out = _subtract_batch(data / sigma[:, None], where, params)
+    return out._replace(res=out.res * sigma[:, None], sigma=sigma)

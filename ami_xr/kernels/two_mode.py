@@ -18,16 +18,14 @@ from ami_xr.kernels._numba import jit
 from ami_xr.kernels.linalg import gauss_solve, solve_normal
 from ami_xr.kernels.modal_basis import Grid, as_dt, checked_omega, line_variable, pole_factor
 from ami_xr.kernels.single_mode import (
-    FIT_DAMPING,
     FIT_NOT_OSCILLATORY,
     FIT_OK,
-    FIT_OUT_OF_RANGE,
     FIT_SINGULAR,
     FIT_UNSTABLE,
     FitLimits,
     check_frf,
     check_zeta_max,
-    v_at,
+    pole_code,
 )
 
 
@@ -47,8 +45,10 @@ def fit_two(data, grid, lo, hi, ws, limits, wts, lam_out, res_out):
     nsl_all = np.zeros((n_p, m, m))
     rl_all = np.zeros((n_p, m))
     vp = np.empty(m + 1, dtype=np.complex128)
+    # v of every line of the band: (1 - q) / (dt ws) (discrete) or i w / ws
+    v_band = (1.0 - x[lo:hi]) / (dt * ws) if dt > 0.0 else x[lo:hi] / ws
     for i in range(lo, hi):
-        v = v_at(x[i], ws, dt)
+        v = v_band[i - lo]
         vp[0] = 1.0
         for a in range(1, m + 1):
             vp[a] = vp[a - 1] * v
@@ -65,7 +65,7 @@ def fit_two(data, grid, lo, hi, ws, limits, wts, lam_out, res_out):
         rl = np.zeros(m)
         for i in range(lo, hi):
             g = data[j, i] * wts[j]
-            v = v_at(x[i], ws, dt)
+            v = v_band[i - lo]
             vp[0] = 1.0
             for a in range(1, m + 1):
                 vp[a] = vp[a - 1] * v
@@ -111,13 +111,9 @@ def fit_two(data, grid, lo, hi, ws, limits, wts, lam_out, res_out):
         if lam.imag > 0.0:
             if cnt >= 2:
                 return FIT_NOT_OSCILLATORY
-            if not (lam.real < 0.0):
-                return FIT_UNSTABLE
-            wn = abs(lam)
-            if -lam.real / wn > limits.zeta_max:
-                return FIT_DAMPING
-            if wn < limits.w_lo or wn > limits.w_hi:
-                return FIT_OUT_OF_RANGE
+            code = pole_code(lam, limits)
+            if code != FIT_OK:
+                return code
             lam_out[cnt] = lam
             vsel[cnt] = vr
             cnt += 1

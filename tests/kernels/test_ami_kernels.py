@@ -10,7 +10,6 @@ import pytest
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels import isolate as ki
-from ami_xr.kernels import isolate_simo as kis
 from ami_xr.kernels import linalg as kl
 from ami_xr.kernels import modal_basis as kb
 from ami_xr.kernels import noise as kn
@@ -371,7 +370,7 @@ def test_subtract_isolate_recover_two_modes():
         _assert_same_eigenvalues(lam_i[j], TRUE_LAM, 1e-4)
     start = np.full(6, np.nan + 0j)
     start[:2] = lam[0, :2]
-    lam_s, res_s, n_s, it_s, conv_s = kis.isolate_simo(
+    lam_s, res_s, n_s, it_s, conv_s = ki.isolate_simo(
         g, W2, None, None, start, 2, sigma, _isolate_params()
     )
     assert conv_s and n_s == 2
@@ -405,9 +404,9 @@ def test_isolate_wrappers_validate():
     with pytest.raises(AmiXrValueError, match="n0"):
         ki.isolate_batch(g, W2, None, None, lam0, lam0, np.full(2, 7), sigma, params)
     with pytest.raises(AmiXrValueError, match="sigma"):
-        kis.isolate_simo(g, W2, None, None, lam0[0], 0, sigma[:1], params)
+        ki.isolate_simo(g, W2, None, None, lam0[0], 0, sigma[:1], params)
     with pytest.raises(AmiXrValueError, match="data"):
-        kis.isolate_simo(g[:, :-1], W2, None, None, lam0[0], 0, sigma, params)
+        ki.isolate_simo(g[:, :-1], W2, None, None, lam0[0], 0, sigma, params)
     with pytest.raises(AmiXrValueError, match="params"):
         ks.subtract_batch(g, W2, None, None, params)
     with pytest.raises(AmiXrValueError, match="res"):
