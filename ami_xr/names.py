@@ -246,3 +246,18 @@ STABILITY_FRACTION = "stability_fraction"  # (mode) found / in-band variants, 0.
 STABILITY_FREQUENCY_SPREAD = "stability_frequency_spread"  # (mode) Hz, std of matches
 ATTR_STABILITY_RULE = "stability_rule"  # one sentence: variants, match radius, fraction
 ATTR_STABILITY_TOLERANCE = "stability_match_tolerance"  # match radius in units of |Re lam|
+# The quality flags of a mode as named bits, bit k = 2**k for FLAG_MEANINGS[k]: the one encoding
+# of QUALITY_FLAGS (ami_xr.core.flags). In memory the text joins the flags set, in this order,
+# with FLAG_SEPARATOR; on disk ami_xr.io.cf also writes the CF flag_masks/flag_meanings bit field.
+# Never reorder, only append (files hold the bits).
+FLAG_MEANINGS = (
+    FLAG_LOW_DRIVE_SNR,
+    FLAG_UNSCALED,
+    FLAG_NOT_CONVERGED,
+    FLAG_SINGLE_FRF,
+    FLAG_REFINE_NOT_CONVERGED,
+    FLAG_REFINE_FALLBACK,
+    FLAG_ADDED_BY_REFINE,
+    FLAG_REPEATED_ROOT,
+    FLAG_REPEATED_ROOT_SEPARATED,
+)

@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 from collections.abc import Hashable
+from functools import partial
 from typing import Any
 
 import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.errors import IdentificationError
-from ami_xr.io.schema import impulse_grid_problem
+from ami_xr.core import checks, flags
+from ami_xr.errors import IdentificationError, SchemaError
+from ami_xr.io.schema import find_problems
 from ami_xr.provenance import add_history
 
 MODELS = ("auto", *names.AMI_MODELS)  # the ``model`` argument of subtract
@@ -54,9 +56,13 @@ GLOBAL_VARS = (
 def check_frf(ds: Any, function: str) -> xr.Dataset:
     """The input checks every phase makes before any work.
 
-    Structure (dims, dtype, a strictly increasing frequency axis that fits ``sample_interval``
-    and ``record_samples`` for impulse-response FRFs), unique point labels, and finite values
-    (one pass over the data; NaN and inf are named with their points and counts).
+    The FRF Dataset's structure is checked by the data model's one validator,
+    :func:`ami_xr.io.schema.find_problems` (dims, dtype, unique point labels, a strictly
+    increasing frequency axis on the rfft grid of an impulse-response FRF, finite values named
+    with their points and counts; every problem at once in a
+    :class:`~ami_xr.errors.SchemaError`), without the descriptive attributes (units, quantity)
+    an analysis does not need. Multi-reference data and too few lines for a fit are the
+    phases' own errors.
     """
     if not isinstance(ds, xr.Dataset):
         raise IdentificationError(f"ds: expected an xarray.Dataset, got {type(ds).__name__}")
@@ -78,116 +84,37 @@ def check_frf(ds: Any, function: str) -> xr.Dataset:
             f"or ami_xr.io.datasets.select_reference(ds, {first!r}) (which also sets "
             f"{names.ATTR_DRIVE_POINT!r} when the reference is a measured point)"
         )
-    if set(frf.dims) != {names.POINT, names.FREQUENCY}:
+    if set(frf.dims) == {names.POINT, names.FREQUENCY}:  # either order: phases transpose
+        ds = ds.transpose(names.POINT, names.FREQUENCY, ...)
+    what, problems = find_problems(ds, "frf", require_drive_point=False, metadata=False)
+    if problems:
+        raise SchemaError(problems, what=f"{function}: the {what}")
+    n_lines = ds.sizes[names.FREQUENCY]
+    if n_lines < MIN_LINES:
         raise IdentificationError(
-            f"{names.FRF}: expected dims ({names.POINT}, {names.FREQUENCY}), got {frf.dims}"
+            f"{names.FREQUENCY}: {n_lines} lines; the single-mode fit needs at least {MIN_LINES}"
         )
-    if not np.issubdtype(frf.dtype, np.complexfloating):
-        raise IdentificationError(f"{names.FRF}: expected a complex dtype, got {frf.dtype}")
-    f = np.asarray(ds[names.FREQUENCY].values, dtype=float)
-    if f.size < MIN_LINES:
-        raise IdentificationError(
-            f"{names.FREQUENCY}: {f.size} lines; the single-mode fit needs at least {MIN_LINES}"
-        )
-    if not np.all(np.diff(f) > 0):
-        raise IdentificationError(f"{names.FREQUENCY}: must be strictly increasing")
-    if f[0] < 0:
-        raise IdentificationError(f"{names.FREQUENCY}: must be >= 0 Hz")
-    grid = impulse_grid_problem(ds)
-    if grid:
-        raise IdentificationError(grid)
-    _check_unique_points(ds)
-    _check_finite(frf, ds)
     return ds
 
 
-def _shorten(values: list, limit: int = 8) -> str:
-    more = f", ... ({len(values)} in all)" if len(values) > limit else ""
-    return ", ".join(map(str, values[:limit])) + more
-
-
-def _check_unique_points(ds: xr.Dataset) -> None:
-    """Each point label once: results are selected and written (report, UFF) by label."""
-    labels = np.asarray(ds[names.POINT].values)
-    keys = labels.astype(str) if labels.dtype.kind in "OUS" else labels
-    uniq, first, counts = np.unique(keys, return_index=True, return_counts=True)
-    if np.any(counts > 1):
-        dup = [labels[i].item() if hasattr(labels[i], "item") else labels[i] for i in first]
-        dup = [d for d, c in zip(dup, counts, strict=True) if c > 1]
-        raise IdentificationError(
-            f"coordinate {names.POINT!r}: expected unique point labels, found duplicates "
-            f"{_shorten([repr(d) for d in dup])}"
-        )
-
-
-def _check_finite(frf: xr.DataArray, ds: xr.Dataset) -> None:
-    """NaN/inf in ``frf`` are named with their points before any work (one pass over the data;
-    a NaN would otherwise surface deep in a fit as an SVD that does not converge)."""
-    counts = np.asarray((~np.isfinite(frf)).sum(names.FREQUENCY).transpose(names.POINT).values)
-    bad = np.flatnonzero(counts)
-    if bad.size:
-        labels = np.asarray(ds[names.POINT].values)
-        where = [
-            f"{labels[i].item() if hasattr(labels[i], 'item') else labels[i]!r}: {int(counts[i])}"
-            for i in bad
-        ]
-        raise IdentificationError(
-            f"variable {names.FRF!r}: expected finite values, found {int(counts.sum())} NaN or "
-            f"inf value(s) at {bad.size} point(s) (point: count) {_shorten(where)}"
-        )
-
-
 def check_values(ds: xr.Dataset) -> None:
-    """All-zero or non-finite FRFs are errors naming the point (one reduction over the data)."""
-    # skipna=False: the default max skips NaN, so a partly NaN FRF would pass.
-    peak = np.asarray(np.abs(ds[names.FRF]).max(names.FREQUENCY, skipna=False).values)
-    points = np.asarray(ds[names.POINT].values)
-    bad = ~np.isfinite(peak)
-    if np.any(bad):
-        raise IdentificationError(
-            f"{names.FRF}: non-finite values at point(s) {points[bad].tolist()}"
-        )
+    """An all-zero FRF is an error naming the point (nothing to identify; the values are
+    known finite from :func:`check_frf`)."""
+    peak = np.asarray(np.abs(ds[names.FRF]).max(names.FREQUENCY).values)
     zero = peak == 0
     if np.any(zero):
+        points = np.asarray(ds[names.POINT].values)
         raise IdentificationError(
-            f"{names.FRF}: all-zero FRF at point(s) {points[zero].tolist()}; nothing to identify"
+            f"{names.FRF}: all-zero FRF at point(s) {shorten(points[zero])}; nothing to identify"
         )
 
 
-def check_fraction(value: Any, argument: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise IdentificationError(
-            f"{argument}: expected a number in (0, 1), got {value!r}"
-        ) from None
-    if not 0.0 < v < 1.0:
-        raise IdentificationError(f"{argument}: expected a number in (0, 1), got {value!r}")
-    return v
-
-
-def check_positive_int(value: Any, argument: str, minimum: int = 1) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise IdentificationError(f"{argument}: expected an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
-def check_positive(value: Any, argument: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise IdentificationError(
-            f"{argument}: expected a positive number, got {value!r}"
-        ) from None
-    if not (v > 0 and np.isfinite(v)):
-        raise IdentificationError(f"{argument}: expected a positive number, got {value!r}")
-    return v
-
-
-def check_choice(value: Any, argument: str, choices) -> str:
-    if value not in choices:
-        raise IdentificationError(f"{argument}: expected one of {choices}, got {value!r}")
-    return value
+# The scalar checks of :mod:`ami_xr.core.checks`, raising IdentificationError as the phases do.
+check_choice = partial(checks.check_choice, error=IdentificationError)
+check_fraction = partial(checks.check_fraction, error=IdentificationError)
+check_positive = partial(checks.check_positive, error=IdentificationError)
+check_positive_int = partial(checks.check_positive_int, error=IdentificationError)
+shorten = checks.shorten
 
 
 def omega_of(ds: xr.Dataset) -> np.ndarray:
@@ -286,40 +213,10 @@ def drop_outside_band(ds: xr.Dataset, fmin: float, fmax: float) -> tuple[xr.Data
     return select_modes(ds, np.flatnonzero(inside)), fn[~inside]
 
 
-# flags about the AMI iteration that the refinement's converged estimate supersedes
-SUPERSEDED_BY_REFINE = (names.FLAG_NOT_CONVERGED,)
-_REFINE_TROUBLE = (names.FLAG_REFINE_FALLBACK, names.FLAG_REFINE_NOT_CONVERGED)
-
-
-def clear_superseded_flags(ds: xr.Dataset, decay: float = 0.0) -> xr.Dataset:
-    """After a refinement, the flags that no longer apply are removed.
-
-    * ``refine_fallback`` says the mode was frozen at its AMI eigenvalue. When the final
-      polish of the refinement falls back, it freezes every mode at the *refined* values of
-      the stage before (measurement.uff: all 8 modes), so a mode whose reported eigenvalue
-      (less the exponential-window ``decay`` identify added) differs from ``ami_eigenvalue``
-      was refined, not frozen at AMI's value: the flag is dropped.
-    * ``not_converged`` (the isolation stopped at its sweep cap) no longer applies to a mode
-      the refinement moved to its converged maximum-likelihood estimate (no ``refine_fallback``
-      or ``refine_not_converged`` left): the reported eigenvalue is not the isolation's.
-    """
-    if names.QUALITY_FLAGS not in ds or ds[names.QUALITY_FLAGS].dims != (names.MODE,):
-        return ds
-    ami = names.AMI_PREFIX + names.EIGENVALUE
-    refined = np.zeros(ds.sizes[names.MODE], bool)
-    if ami in ds and names.EIGENVALUE in ds:
-        lam = np.asarray(ds[names.EIGENVALUE].transpose(names.MODE).values) - decay
-        lam0 = np.asarray(ds[ami].transpose(names.MODE).values)
-        with np.errstate(invalid="ignore"):
-            refined = np.isfinite(lam0) & (np.abs(lam - lam0) > 1e-9 * np.abs(lam0))
-    new = []
-    for k, text in enumerate(np.asarray(ds[names.QUALITY_FLAGS].values).astype(str)):
-        flags = [f for f in text.split(names.FLAG_SEPARATOR) if f]
-        if refined[k]:
-            flags = [f for f in flags if f != names.FLAG_REFINE_FALLBACK]
-        if not any(f in _REFINE_TROUBLE for f in flags):
-            flags = [f for f in flags if f not in SUPERSEDED_BY_REFINE]
-        new.append(names.FLAG_SEPARATOR.join(flags))
-    out = ds.copy(deep=False)
-    out[names.QUALITY_FLAGS] = ds[names.QUALITY_FLAGS].copy(data=np.array(new, dtype=str))
-    return out
+def flag_mask(ds: xr.Dataset) -> np.ndarray:
+    """The int32 flag mask (:mod:`ami_xr.core.flags`) of each mode of ``ds``: decoded from its
+    ``quality_flags``, zeros when it has none."""
+    n_mode = ds.sizes.get(names.MODE, 0)
+    if names.QUALITY_FLAGS in ds and ds[names.QUALITY_FLAGS].dims == (names.MODE,):
+        return flags.decode(ds[names.QUALITY_FLAGS].values)
+    return np.zeros(n_mode, np.int32)

@@ -9,7 +9,14 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import common as c
-from ami_xr.ami.settings import GlobalFitSettings, parameters, to_attrs
+from ami_xr.ami.settings import (
+    FrfAttributes,
+    GlobalFitSettings,
+    from_attrs,
+    parameters,
+    to_attrs,
+)
+from ami_xr.core import flags
 from ami_xr.core.modal import mac_matrix, mode_vectors
 from ami_xr.core.model import resolve_model
 from ami_xr.errors import AssumptionWarning, IdentificationError
@@ -147,7 +154,7 @@ def global_fit(
     use = _band_mask(omega, lam, band)
     kind = -1
     if residual_terms:
-        kind = RESIDUAL_KIND.get(ds.attrs.get(names.ATTR_FRF_TYPE, "receptance"), 0)
+        kind = RESIDUAL_KIND.get(from_attrs(FrfAttributes, ds.attrs).frf_type, 0)
         if kind in (0, 1):
             use &= omega > 0  # the lower residual is singular at 0 Hz
     n_unknown = 2 * n_k + (4 if kind >= 0 else 0)
@@ -202,24 +209,19 @@ def global_fit(
     else:
         sigma = kn.noise_floor(c.frf_values(ds))
     peaks = kb.contribution_peaks(omega, dt, n_samples, lam[None, :], np.ascontiguousarray(res))
-    flags = [[] for _ in range(n_k)]
+    mask = np.zeros(n_k, np.int32)
     if drive_index is None:
         snr_drive = np.full(n_k, np.nan)
-        for f in flags:
-            f.append(names.FLAG_UNSCALED)
+        mask = flags.set_where(mask, names.FLAG_UNSCALED, True)
     else:
         snr_drive = peaks[drive_index] / sigma[drive_index]
-        for m in range(n_k):
-            if not snr_drive[m] >= drive_snr_min:
-                flags[m].append(names.FLAG_LOW_DRIVE_SNR)
+        mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, ~(snr_drive >= drive_snr_min))
     if names.DETECTED in ds and names.ISO_CONVERGED in ds:
         det = np.asarray(ds[names.DETECTED].transpose(names.POINT, names.MODE).values, bool)
         conv = np.asarray(ds[names.ISO_CONVERGED].transpose(names.POINT).values, bool)
-        for m in range(n_k):
-            if np.any(det[:, m] & ~conv) or (not np.any(det[:, m]) and not np.all(conv)):
-                flags[m].append(names.FLAG_NOT_CONVERGED)
-            if det[:, m].sum() == 1:
-                flags[m].append(names.FLAG_SINGLE_FRF)
+        capped = np.any(det & ~conv[:, None], axis=0) | (~np.any(det, axis=0) & ~np.all(conv))
+        mask = flags.set_where(mask, names.FLAG_NOT_CONVERGED, capped)
+        mask = flags.set_where(mask, names.FLAG_SINGLE_FRF, det.sum(axis=0) == 1)
     residual = frf - synth_da.transpose(*frf.dims)
     out = c.drop_results(ds, (c.GLOBAL_VARS,))
     out = out.assign_coords({names.MODE_2: out[names.MODE].values})
@@ -245,10 +247,7 @@ def global_fit(
         names.FRF_RESIDUAL: residual.assign_attrs({names.ATTR_UNITS: units}),
         names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi), _ONE),
         names.DRIVE_POINT_SNR: ((names.MODE,), snr_drive, _ONE),
-        names.QUALITY_FLAGS: (
-            (names.MODE,),
-            np.array([names.FLAG_SEPARATOR.join(f) for f in flags], dtype=str),
-        ),
+        names.QUALITY_FLAGS: ((names.MODE,), flags.encode(mask)),
     }
     if kind >= 0:
         out = out.assign_coords({names.RESIDUAL_TERM: list(names.RESIDUAL_TERM_LABELS)})

@@ -18,6 +18,7 @@ the one eigenvalue (:func:`ami_xr.core.mimo.split_repeated`), otherwise flagged.
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -25,7 +26,10 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import common as c
-from ami_xr.ami.settings import GlobalFitSettings, from_attrs
+from ami_xr.ami.global_fit import mode_vector_units
+from ami_xr.ami.pipeline import identify_single, with_quality
+from ami_xr.ami.settings import GlobalFitSettings, IdentifySettings, from_attrs
+from ami_xr.core import flags
 from ami_xr.core import mimo as cm
 from ami_xr.core.modal import mac_matrix
 from ami_xr.errors import AssumptionWarning, IdentificationError
@@ -150,12 +154,32 @@ def _drive_snr(a: np.ndarray, lam: np.ndarray, pairs: list, sigma) -> np.ndarray
     return snr
 
 
-def _add_flag(text: str, flag: str, on: bool) -> str:
-    flags = [f for f in text.split(names.FLAG_SEPARATOR) if f and f != flag]
-    return names.FLAG_SEPARATOR.join(flags + ([flag] if on else []))
+@dataclass
+class _Modes:
+    """Per mode (K) what the residue matrices give: mode vectors ``phi`` (K, P), participation
+    ``part`` (K, R), residues ``a`` (K, P, R), eigenvalues, the scale's spread over the drive
+    points, the SNR at the drive point used, ``s2/s1``, the scaling reference and the flags
+    decided here."""
+
+    phi: np.ndarray
+    part: np.ndarray
+    a: np.ndarray
+    lam: np.ndarray
+    spread: np.ndarray
+    best_snr: np.ndarray
+    ratio: np.ndarray
+    scaling_ref: np.ndarray
+    repeated: np.ndarray
+    separated: np.ndarray
+
+    def take(self, index: list[int]) -> _Modes:
+        """The modes at positions ``index`` (repeated positions copy a mode)."""
+        return _Modes(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
 
 
-def identify_multi_reference(ds: xr.Dataset, **kwargs: Any) -> xr.Dataset:
+def identify_multi_reference(
+    ds: xr.Dataset, settings: IdentifySettings, progress=False
+) -> xr.Dataset:
     """:func:`ami_xr.identify` on FRFs with dims (reference, point, frequency).
 
     Parameters
@@ -163,9 +187,11 @@ def identify_multi_reference(ds: xr.Dataset, **kwargs: Any) -> xr.Dataset:
     ds : xarray.Dataset
         Multi-reference FRF Dataset (``reference`` labels in the point labels' type; a
         reference whose label is a point label is that point's drive point).
-    **kwargs
-        The arguments of :func:`ami_xr.identify`, used unchanged by its SIMO phases on the
-        stacked FRFs.
+    settings : IdentifySettings
+        The settings of :func:`ami_xr.identify`, used unchanged by the single-reference pipeline
+        on the stacked FRFs.
+    progress : bool or callable
+        As for :func:`ami_xr.identify`.
 
     Returns
     -------
@@ -186,14 +212,10 @@ def identify_multi_reference(ds: xr.Dataset, **kwargs: Any) -> xr.Dataset:
         reciprocity misfit of the pair's factorisation; an AssumptionWarning says that the
         pair's basis in its plane is a choice).
     """
-    from ami_xr.ami.identify import _with_quality, identify
-
     refs, points = _check(ds)
     R, P = len(refs), len(points)
-    stacked = _stacked(ds, refs, points)
-    result = identify(stacked, **kwargs)
+    result = identify_single(_stacked(ds, refs, points), settings, progress)
     out = _unstack(result, ds, R, P)
-    n_k = out.sizes.get(names.MODE, 0)
     pairs = [(points.index(r), i) for i, r in enumerate(refs) if r in points]
     out.attrs.pop(names.ATTR_DRIVE_POINT, None)
     out.attrs[names.ATTR_MULTI_REFERENCE] = (
@@ -208,14 +230,34 @@ def identify_multi_reference(ds: xr.Dataset, **kwargs: Any) -> xr.Dataset:
             AssumptionWarning,
             stacklevel=3,
         )
-    if n_k == 0 or names.RESIDUE not in out:
+    if out.sizes.get(names.MODE, 0) == 0 or names.RESIDUE not in out:
         return out
-    lam = np.asarray(out[names.EIGENVALUE].transpose(names.MODE).values, dtype=np.complex128)
-    a = out[names.RESIDUE].transpose(names.MODE, names.POINT, names.REFERENCE).values
-    u, s1, w, ratio = cm.rank_one(a)
     sigma = None
     if names.SUB_NOISE_FLOOR in out:
         sigma = out[names.SUB_NOISE_FLOOR].transpose(names.POINT, names.REFERENCE).values
+    modes = _rank_one_modes(out, refs, pairs, sigma)
+    if len(pairs) >= 2:
+        out, modes = _separate_repeated(out, modes, refs, pairs, sigma)
+    out = _with_mode_outputs(out, modes, ds, bool(pairs))
+    if np.any(modes.repeated):
+        warnings.warn(
+            "identify: the residue matrix of mode(s) "
+            f"{np.asarray(out[names.MODE].values)[modes.repeated].tolist()} is not rank one "
+            f"(s2/s1 > {RANK_ONE_RATIO_MAX}): two modes at the same frequency suspected "
+            f"(flag {names.FLAG_REPEATED_ROOT})",
+            AssumptionWarning,
+            stacklevel=3,
+        )
+    return with_quality(out)
+
+
+def _rank_one_modes(out: xr.Dataset, refs: list, pairs: list, sigma) -> _Modes:
+    """Mode vectors, participation factors and the rank-one diagnostics of every mode, scaled
+    by eq. 8 at the drive point of largest SNR (unit largest entry without a drive point)."""
+    n_k = out.sizes[names.MODE]
+    lam = np.asarray(out[names.EIGENVALUE].transpose(names.MODE).values, dtype=np.complex128)
+    a = out[names.RESIDUE].transpose(names.MODE, names.POINT, names.REFERENCE).values
+    u, s1, w, ratio = cm.rank_one(a)
     snr = _drive_snr(a, lam, pairs, sigma)
     if pairs:
         scales = cm.drive_point_scales(u, s1, w, lam, pairs)
@@ -229,8 +271,6 @@ def identify_multi_reference(ds: xr.Dataset, **kwargs: Any) -> xr.Dataset:
         spread = np.full(n_k, np.nan)
         best_snr = np.full(n_k, np.nan)
         scaling_ref = np.array([""] * n_k)
-    phi = u * scale[:, None]  # (K, P)
-    part = cm.participation(s1, w, lam, scale)  # (K, R)
     noisy = np.zeros(n_k, bool)  # s2 within the residues' noise (known from the refinement)
     if names.RESIDUE_STD in out:
         std = out[names.RESIDUE_STD].transpose(names.MODE, names.POINT, names.REFERENCE).values
@@ -239,110 +279,117 @@ def identify_multi_reference(ds: xr.Dataset, **kwargs: Any) -> xr.Dataset:
             noisy = np.isfinite(noise) & ~(ratio * s1 > NOISE_FACTOR * noise)
     with np.errstate(invalid="ignore"):
         repeated = (ratio > RANK_ONE_RATIO_MAX) & ~noisy
-    split = {}
-    if len(pairs) >= 2:
-        for k in np.flatnonzero(repeated):
-            got = cm.split_repeated(a[k], lam[k], pairs)
-            if got is not None:
-                split[int(k)] = got
-    separated = np.zeros(n_k, bool)
-    if split:  # each separable repeated root becomes two modes at its eigenvalue
-        src = [k for k in range(n_k) for _ in range(2 if k in split else 1)]
-        phi, part, a, lam = phi[src], part[src], a[src], lam[src]
-        spread, best_snr, ratio = spread[src], best_snr[src], ratio[src]
-        scaling_ref, repeated, separated = scaling_ref[src], repeated[src], separated[src]
-        both = ",".join(str(refs[r]) for _, r in pairs)
-        for k, (phi2, part2, asym) in split.items():
-            j = src.index(k)
-            for m in (0, 1):
-                phi[j + m], part[j + m] = phi2[:, m], part2[:, m]
-                a[j + m] = lam[j + m] * np.outer(phi2[:, m], part2[:, m])
-                spread[j + m], scaling_ref[j + m] = asym, both
-                separated[j + m], repeated[j + m] = True, False
-                best_snr[j + m] = np.nanmax(_drive_snr(a[j + m][None], lam[[j]], pairs, sigma))
-        out = c.select_modes(out, src)
-        labels = np.arange(1, len(src) + 1)
-        out = out.assign_coords({names.MODE: labels})
-        if names.MODE_2 in out.dims:
-            out = out.assign_coords({names.MODE_2: labels})
-        residue = out[names.RESIDUE]
-        out[names.RESIDUE] = residue.copy(
-            data=xr.DataArray(a, dims=(names.MODE, names.POINT, names.REFERENCE))
-            .transpose(*residue.dims)
-            .values
-        )
-        n_k = len(src)
-        warnings.warn(
-            f"identify: {len(split)} repeated root(s) separated into two modes at one eigenvalue "
-            f"by the drive points {both} (flag {names.FLAG_REPEATED_ROOT_SEPARATED}); the "
-            "pair's two mode vectors are one basis of its plane, fixed by the factorisation of "
-            "the drive-point residues (at an exactly repeated root any rotation fits the data)",
-            AssumptionWarning,
-            stacklevel=3,
-        )
-    frf_units = str(ds[names.FRF].attrs.get(names.ATTR_UNITS, ""))
-    from ami_xr.ami.global_fit import mode_vector_units
+    return _Modes(
+        phi=u * scale[:, None],
+        part=cm.participation(s1, w, lam, scale),
+        a=a,
+        lam=lam,
+        spread=spread,
+        best_snr=best_snr,
+        ratio=ratio,
+        scaling_ref=scaling_ref,
+        repeated=repeated,
+        separated=np.zeros(n_k, bool),
+    )
 
+
+def _separate_repeated(
+    out: xr.Dataset, modes: _Modes, refs: list, pairs: list, sigma
+) -> tuple[xr.Dataset, _Modes]:
+    """Each repeated root that two drive points separate becomes two modes at its eigenvalue
+    (flag ``repeated_root_separated``); ``out``'s modes and residues follow."""
+    split = {}
+    for k in np.flatnonzero(modes.repeated):
+        got = cm.split_repeated(modes.a[k], modes.lam[k], pairs)
+        if got is not None:
+            split[int(k)] = got
+    if not split:
+        return out, modes
+    n_k = modes.lam.size
+    src = [k for k in range(n_k) for _ in range(2 if k in split else 1)]
+    modes = modes.take(src)
+    both = ",".join(str(refs[r]) for _, r in pairs)
+    for k, (phi2, part2, asym) in split.items():
+        j = src.index(k)
+        for m in (0, 1):
+            modes.phi[j + m], modes.part[j + m] = phi2[:, m], part2[:, m]
+            modes.a[j + m] = modes.lam[j + m] * np.outer(phi2[:, m], part2[:, m])
+            modes.spread[j + m], modes.scaling_ref[j + m] = asym, both
+            modes.separated[j + m], modes.repeated[j + m] = True, False
+            snr = _drive_snr(modes.a[j + m][None], modes.lam[[j]], pairs, sigma)
+            modes.best_snr[j + m] = np.nanmax(snr)
+    out = c.select_modes(out, src)
+    labels = np.arange(1, len(src) + 1)
+    out = out.assign_coords({names.MODE: labels})
+    if names.MODE_2 in out.dims:
+        out = out.assign_coords({names.MODE_2: labels})
+    residue = out[names.RESIDUE]
+    out[names.RESIDUE] = residue.copy(
+        data=xr.DataArray(modes.a, dims=(names.MODE, names.POINT, names.REFERENCE))
+        .transpose(*residue.dims)
+        .values
+    )
+    warnings.warn(
+        f"identify: {len(split)} repeated root(s) separated into two modes at one eigenvalue "
+        f"by the drive points {both} (flag {names.FLAG_REPEATED_ROOT_SEPARATED}); the "
+        "pair's two mode vectors are one basis of its plane, fixed by the factorisation of "
+        "the drive-point residues (at an exactly repeated root any rotation fits the data)",
+        AssumptionWarning,
+        stacklevel=4,
+    )
+    return out, modes
+
+
+def _with_mode_outputs(out: xr.Dataset, modes: _Modes, ds: xr.Dataset, scaled: bool):
+    """``out`` with the per-mode outputs of the residue matrices and their flags."""
+    frf_units = str(ds[names.FRF].attrs.get(names.ATTR_UNITS, ""))
+    units = mode_vector_units(frf_units, scaled)
     one = {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
-    mv_attrs = {
-        names.ATTR_SCALING: "eq. 8 at the drive point of largest SNR (rank-one residues)"
-        if pairs
-        else "unit largest entry (no drive point)",
-        **mode_vector_units(frf_units, bool(pairs)),
-    }
+    scaling = (
+        "eq. 8 at the drive point of largest SNR (rank-one residues)"
+        if scaled
+        else "unit largest entry (no drive point)"
+    )
+    k = (names.MODE,)
     out = out.assign(
         {
-            names.MODE_VECTOR: ((names.POINT, names.MODE), phi.T, mv_attrs),
+            names.MODE_VECTOR: (
+                (names.POINT, names.MODE),
+                modes.phi.T,
+                {names.ATTR_SCALING: scaling, **units},
+            ),
             names.PARTICIPATION: (
                 (names.MODE, names.REFERENCE),
-                part,
-                {
-                    **mode_vector_units(frf_units, bool(pairs)),
-                    names.ATTR_LONG_NAME: "modal participation factor L (A = lam phi L^T)",
-                },
+                modes.part,
+                {**units, names.ATTR_LONG_NAME: "modal participation factor L (A = lam phi L^T)"},
             ),
             names.RANK_ONE_RATIO: (
-                (names.MODE,),
-                ratio,
-                {
-                    **one,
-                    names.ATTR_LONG_NAME: "s2/s1 of the residue matrix (point x reference)",
-                },
+                k,
+                modes.ratio,
+                {**one, names.ATTR_LONG_NAME: "s2/s1 of the residue matrix (point x reference)"},
             ),
             names.DRIVE_POINT_CONSISTENCY: (
-                (names.MODE,),
-                spread,
+                k,
+                modes.spread,
                 {
                     **one,
                     names.ATTR_LONG_NAME: "largest relative deviation of the mode-vector "
                     "scale from the other drive points",
                 },
             ),
-            names.SCALING_REFERENCE: ((names.MODE,), scaling_ref),
-            names.DRIVE_POINT_SNR: ((names.MODE,), best_snr, one),
-            names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi.T), one),
+            names.SCALING_REFERENCE: (k, modes.scaling_ref),
+            names.DRIVE_POINT_SNR: (k, modes.best_snr, one),
+            names.MAC: ((names.MODE, names.MODE_2), mac_matrix(modes.phi.T), one),
         }
     )
     if names.MODE_2 not in out.coords:
         out = out.assign_coords({names.MODE_2: out[names.MODE].values})
     if names.QUALITY_FLAGS in out:
-        smin = from_attrs(GlobalFitSettings, out.attrs).drive_snr_min
-        texts = np.asarray(out[names.QUALITY_FLAGS].values).astype(str)
-        new = []
-        for k, text in enumerate(texts):
-            t = _add_flag(text, names.FLAG_REPEATED_ROOT, bool(repeated[k]))
-            t = _add_flag(t, names.FLAG_REPEATED_ROOT_SEPARATED, bool(separated[k]))
-            if pairs:
-                t = _add_flag(t, names.FLAG_LOW_DRIVE_SNR, not best_snr[k] >= smin)
-            new.append(t)
-        out[names.QUALITY_FLAGS] = out[names.QUALITY_FLAGS].copy(data=np.array(new, dtype=str))
-    if np.any(repeated):
-        warnings.warn(
-            "identify: the residue matrix of mode(s) "
-            f"{np.asarray(out[names.MODE].values)[repeated].tolist()} is not rank one "
-            f"(s2/s1 > {RANK_ONE_RATIO_MAX}): two modes at the same frequency suspected "
-            f"(flag {names.FLAG_REPEATED_ROOT})",
-            AssumptionWarning,
-            stacklevel=3,
-        )
-    return _with_quality(out)
+        mask = c.flag_mask(out)
+        mask = flags.set_where(mask, names.FLAG_REPEATED_ROOT, modes.repeated)
+        mask = flags.set_where(mask, names.FLAG_REPEATED_ROOT_SEPARATED, modes.separated)
+        if scaled:
+            smin = from_attrs(GlobalFitSettings, out.attrs).drive_snr_min
+            mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, ~(modes.best_snr >= smin))
+        out[names.QUALITY_FLAGS] = out[names.QUALITY_FLAGS].copy(data=flags.encode(mask))
+    return out

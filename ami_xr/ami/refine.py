@@ -61,18 +61,29 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.ami import common as c
 from ami_xr.ami.global_fit import RESIDUAL_KIND, mode_vector_units, residue_units
-from ami_xr.ami.settings import GlobalFitSettings, RefineSettings, from_attrs, parameters, to_attrs
+from ami_xr.ami.settings import (
+    FrfAttributes,
+    GlobalFitSettings,
+    RefineSettings,
+    from_attrs,
+    parameters,
+    to_attrs,
+)
 from ami_xr.core.modal import damping_ratio, mac_matrix, natural_frequency
 from ami_xr.core.model import resolve_model, resolve_residual_terms
+from ami_xr.core import flags
 from ami_xr.core.refine import (
     STATUS_FALLBACK,
     STATUS_NOT_CONVERGED,
+    STATUS_OK,
+    RefineModel,
     RefineResult,
     contribution_peaks,
     refine_arrays,
     synthesize,
 )
 from ami_xr.errors import IdentificationError
+from ami_xr.progress import Iterations, active
 from ami_xr.provenance import add_history
 
 _LOWER_UPPER = list(names.RESIDUAL_TERM_LABELS)  # coordinate of the residual_term dim
@@ -100,9 +111,9 @@ _OUTPUTS = {
 }
 
 
-def _refine_block(*args, **kwargs) -> tuple[np.ndarray, ...]:
+def _refine_block(frf, freq, lam0, res0, *, settings, model, trace) -> tuple[np.ndarray, ...]:
     """:func:`refine_arrays` with its result as a tuple in the order of ``_OUTPUTS``."""
-    result = refine_arrays(*args, **kwargs)
+    result = refine_arrays(frf, freq, lam0, res0, settings, model, trace)
     return tuple(getattr(result, name) for name in _OUTPUTS)
 
 
@@ -248,7 +259,16 @@ def refine(
         raise IdentificationError(f"add_pfa: expected a number in (0, 1), got {add_pfa!r}")
     data_model = resolve_model(ds.attrs, "exact")
     terms = resolve_residual_terms(residual_terms, ds.attrs, names.RESIDUAL_COEFFICIENT in ds)
-    settings = RefineSettings(max_iter, tol, band, terms, max_shift, add_modes, add_pfa, drop_modes)
+    settings = RefineSettings(
+        max_iter=int(max_iter),
+        tol=float(tol),
+        band=band,
+        residual_terms=terms,
+        max_shift=float(max_shift),
+        add_modes=int(add_modes),
+        add_pfa=float(add_pfa),
+        drop_modes=bool(drop_modes),
+    )
     frf = ds[names.FRF].transpose(P, F)
     if band != "all":
         frf = frf.sel({F: slice(float(band[0]), float(band[1]))})
@@ -270,25 +290,18 @@ def refine(
     else:
         res0 = xr.zeros_like(frf.isel({F: 0}, drop=True)) * xr.zeros_like(lam0, dtype=np.complex128)
         res0 = res0.transpose(P, M)
-    kind = RESIDUAL_KIND.get(ds.attrs.get(names.ATTR_FRF_TYPE, "receptance"), 0)
+    data = from_attrs(FrfAttributes, ds.attrs)
     # identify() corrects the eigenvalues for an exponential window after refine; if they were
     # corrected already (attr set), the data's poles are lam - beta.
-    decay = float(ds.attrs.get(names.ATTR_EXP_CORRECTED, 0.0) or 0.0)
-    drive_index = c.drive_index(ds)
-    kwargs = dict(
+    model = RefineModel(
         dt=data_model.dt,
         n_samples=data_model.n_samples,
         residual_terms=terms,
-        residual_kind=kind,
-        drive_index=drive_index,
-        decay=decay,
-        max_iter=int(max_iter),
-        tol=float(tol),
-        max_shift=float(max_shift),
-        add_modes=int(add_modes),
-        add_pfa=float(add_pfa),
-        drop_modes=bool(drop_modes),
+        residual_kind=RESIDUAL_KIND.get(data.frf_type, 0),
+        drive_index=c.drive_index(ds),
+        decay=float(data.exponential_window_corrected),
     )
+    trace = Iterations() if active() else None  # counts on a progress bar, when one listens
     if n_mode == 0:
         out = ds.assign_coords({names.RESIDUAL_TERM: _LOWER_UPPER}) if terms else ds.copy()
     else:
@@ -298,7 +311,7 @@ def refine(
             _as(frf[F], np.float64),
             _as(lam0, np.complex128),
             _as(res0, np.complex128),
-            kwargs=kwargs,
+            kwargs=dict(settings=settings, model=model, trace=trace),
             input_core_dims=[[P, F], [F], [M], [P, M]],
             output_core_dims=[dims for dims, _ in _OUTPUTS.values()],
             exclude_dims={M},  # modes may be added
@@ -308,18 +321,19 @@ def refine(
             keep_attrs=False,
         )
         fields = {k: o.compute() if o.chunks else o for k, o in zip(_OUTPUTS, result, strict=True)}
-        out = _with_results(ds, fields, terms, kind, data_model, decay, drive_index)
+        out = _with_results(ds, fields, model, data_model)
     out.attrs[names.ATTR_REFINE_MODEL] = data_model.name
     to_attrs(settings, out.attrs)
     out = c.restore_coordinate_attrs(out, coord_attrs)
     return add_history(out, "ami_xr.refine", parameters(settings))
 
 
-def _with_results(ds, fields, terms, kind, data_model, decay, drive_index) -> xr.Dataset:
+def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
     """``ds`` with the refined values of :class:`RefineResult` ``fields`` (DataArrays by field
     name): AMI's values kept with the ``ami_`` prefix, modes dropped or added, the global-fit
     outputs recomputed, flags and attributes updated."""
     n_mode = ds.sizes[M]
+    terms, drive_index = model.residual_terms, model.drive_index
     r = RefineResult(**fields)
     lam = r.lam
     origin = r.origin.values
@@ -368,19 +382,7 @@ def _with_results(ds, fields, terms, kind, data_model, decay, drive_index) -> xr
         new[names.RESIDUAL_COEFFICIENT] = r.residual_coefficient.assign_coords(
             {names.RESIDUAL_TERM: _LOWER_UPPER}
         )
-    low_snr = _refresh_global_outputs(
-        ds,
-        new,
-        lam.values - decay,
-        r.residue.transpose(P, M).values,
-        r.residual_coefficient.values,
-        r.mode_vector.transpose(P, M).values,
-        r.noise_std.values,
-        terms,
-        kind,
-        data_model,
-        drive_index,
-    )
+    low_snr = _refresh_global_outputs(ds, new, r, lam.values - model.decay, model, data_model)
     new[names.QUALITY_FLAGS] = _merge_flags(ds, r.status.values, lam0, low_snr, added)
     attrs[names.ATTR_REFINE_ITERATIONS] = int(r.n_iter)
     attrs[names.ATTR_REFINE_CONVERGED] = int(bool(np.all(r.status.values != STATUS_NOT_CONVERGED)))
@@ -427,16 +429,24 @@ def _relabel_added(out: xr.Dataset, n_old: int, labels: np.ndarray) -> xr.Datase
     return out
 
 
-def _refresh_global_outputs(
-    ds, new, mu, residue, res_terms, phi, noise_std, terms, kind, data_model, drive_index
-):
+def _refresh_global_outputs(ds, new, r: RefineResult, mu, model: RefineModel, data_model):
     """Recompute what global_fit derived from the residues: the synthesised FRFs and their
     residual (whole band), the MAC matrix and the drive-point SNR. Returns the new
     ``low_drive_point_snr`` decision per mode (None when there is no drive point), with the
     threshold global_fit used (attribute ``ami_drive_snr_min``)."""
+    residue = r.residue.transpose(P, M).values
+    phi = r.mode_vector.transpose(P, M).values
+    drive_index = model.drive_index
     omega = 2 * np.pi * ds[F].values.astype(float)
     synth, cols = synthesize(
-        omega, mu, residue, res_terms, terms, kind, data_model.dt, data_model.n_samples
+        omega,
+        mu,
+        residue,
+        r.residual_coefficient.values,
+        model.residual_terms,
+        model.residual_kind,
+        data_model.dt,
+        data_model.n_samples,
     )
     n_mode = mu.size
     frf = ds[names.FRF].transpose(P, F)
@@ -454,7 +464,7 @@ def _refresh_global_outputs(
     if names.SUB_NOISE_FLOOR in ds:
         sigma = float(ds[names.SUB_NOISE_FLOOR].transpose(P).values[drive_index])
     else:
-        sigma = float(noise_std[drive_index])
+        sigma = float(r.noise_std.values[drive_index])
     snr = peak / sigma if sigma > 0 else np.full(n_mode, np.inf)
     new[names.DRIVE_POINT_SNR] = xr.Variable(
         (M,), snr, {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
@@ -501,27 +511,20 @@ def _with_added_modes(ds, n_added):
 
 
 def _merge_flags(ds, status, lam0, low_snr=None, added=None):
-    """AMI's flags per mode with the refinement's flags appended (and the drive-point SNR flag
-    decided again from the refined residues)."""
-    n_mode = status.shape[0]
-    if names.QUALITY_FLAGS in ds and ds[names.QUALITY_FLAGS].dims == (names.MODE,):
-        old = [str(v) for v in ds[names.QUALITY_FLAGS].values]
-    else:
-        old = [""] * n_mode
-    new = []
-    for k in range(n_mode):
-        flags = [f for f in old[k].split(names.FLAG_SEPARATOR) if f]
-        if low_snr is not None:
-            flags = [f for f in flags if f != names.FLAG_LOW_DRIVE_SNR]
-            if low_snr[k]:
-                flags.insert(0, names.FLAG_LOW_DRIVE_SNR)
-        if added is not None and added[k]:
-            flags.append(names.FLAG_ADDED_BY_REFINE)
-        if status[k] == STATUS_NOT_CONVERGED:
-            flags.append(names.FLAG_REFINE_NOT_CONVERGED)
-        elif status[k] == STATUS_FALLBACK:
-            flags.append(names.FLAG_REFINE_FALLBACK)
-        new.append(names.FLAG_SEPARATOR.join(flags))
+    """The flags of each mode after the refinement, decided from its status (set in
+    :mod:`ami_xr.core.refine`, where it is known): ``refine_not_converged`` and
+    ``refine_fallback`` as the status says; the isolation's ``not_converged`` no longer applies
+    to a mode the refinement moved to its converged estimate (status ok); ``added_by_refine``;
+    ``low_drive_point_snr`` decided again from the refined residues."""
+    mask = c.flag_mask(ds)
+    ok = status == STATUS_OK
+    mask = flags.set_where(mask, names.FLAG_REFINE_NOT_CONVERGED, status == STATUS_NOT_CONVERGED)
+    mask = flags.set_where(mask, names.FLAG_REFINE_FALLBACK, status == STATUS_FALLBACK)
+    mask = flags.set_where(mask, names.FLAG_NOT_CONVERGED, ~ok & flags.has(mask, names.FLAG_NOT_CONVERGED))
+    if added is not None:
+        mask = flags.set_where(mask, names.FLAG_ADDED_BY_REFINE, added)
+    if low_snr is not None:
+        mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, low_snr)
     return xr.DataArray(
-        np.array(new, dtype=str), dims=(names.MODE,), coords={names.MODE: lam0[names.MODE].values}
+        flags.encode(mask), dims=(names.MODE,), coords={names.MODE: lam0[names.MODE].values}
     )

@@ -80,6 +80,37 @@ class RefineSettings:
     drop_modes: bool = True
 
 
+@dataclass(frozen=True)
+class FrfAttributes:
+    """What the attributes of an FRF Dataset tell every phase, with the defaults that apply when
+    one is absent: the FRF type (which residual terms), the decay rate (1/s) of an exponential
+    window applied to the data, and the decay already corrected in the eigenvalues."""
+
+    frf_type: str = _attr("receptance", names.ATTR_FRF_TYPE)
+    exponential_window_decay: float = _attr(0.0, names.ATTR_EXP_DECAY)
+    exponential_window_corrected: float = _attr(0.0, names.ATTR_EXP_CORRECTED)
+
+
+@dataclass(frozen=True)
+class IdentifySettings:
+    """Settings of :func:`ami_xr.identify` (see its docstring): the single- and the
+    multi-reference pipelines take this one record. ``refine=None``: refine unless
+    ``method="paper"``."""
+
+    method: str = IsolateSettings.method
+    refine: bool | None = None
+    delta: float = SubtractSettings.delta
+    tol: float = IsolateSettings.tol
+    max_iter: int = IsolateSettings.max_iter
+    band: float | str = GlobalFitSettings.band
+    residual_terms: bool = GlobalFitSettings.residual_terms
+    pfa: float = SubtractSettings.pfa
+    max_modes: int = SubtractSettings.max_modes
+    zeta_max: float = SubtractSettings.zeta_max
+    fmin: float | None = None
+    fmax: float | None = None
+
+
 def _encode(value: Any) -> Any:
     """netCDF attributes hold numbers and strings: bools become 0/1, tuples comma lists."""
     if isinstance(value, bool):
@@ -115,7 +146,7 @@ def from_attrs(cls: type[_S], attrs: Mapping[str, Any]) -> _S:
     values = {}
     for f in dataclasses.fields(cls):
         name = f.metadata.get("attr")
-        if name is not None and name in attrs:
+        if name is not None and attrs.get(name) is not None:  # None: not set
             values[f.name] = _decode(attrs[name], f.default)
     return cls(**values)
 

@@ -10,6 +10,7 @@ wrapper is :func:`ami_xr.refine`; the method is described in :mod:`ami_xr.ami.re
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
@@ -19,12 +20,51 @@ from ami_xr.core.modal import modal_std, mode_vectors
 from ami_xr.core.model import RESIDUAL_TERMS
 from ami_xr.kernels.modal_basis import model_columns
 from ami_xr.kernels.projection import project_points
-from ami_xr.progress import Iterations, active, detail
 
-# status of each refined mode
+# Status of each refined mode, decided here, where it is known: STATUS_FALLBACK only for a mode
+# whose eigenvalue is still its AMI value (frozen there by the first fit, or nothing could be
+# fitted); a mode frozen later, at a value an earlier stage refined, is STATUS_OK.
 STATUS_OK, STATUS_NOT_CONVERGED, STATUS_FALLBACK = 0, 1, 2
 TRIAL_ITERATIONS = 10  # cap of the trial fits of the model-order tests
 FALLBACK_MESSAGE = "fallback: nothing could be fitted"  # FitResult.message of a fit given up
+
+
+class RefineOptions(Protocol):
+    """The settings :func:`refine_arrays` reads: the fields of
+    :class:`ami_xr.ami.settings.RefineSettings` (read by attribute, so this array core does not
+    import the labeled layer)."""
+
+    max_iter: int
+    tol: float
+    max_shift: float
+    add_modes: int
+    add_pfa: float
+    drop_modes: bool
+
+
+class RefineModel(NamedTuple):
+    """What the data say about the model: the basis (``dt = 0``: continuous; else the discrete
+    basis of ``n_samples``), the residual terms (resolved) and their kind (0 receptance, 1
+    mobility, 2 accelerance), the drive point's row (None: no drive point) and the decay rate
+    (1/s) of an exponential window already corrected in the starting eigenvalues."""
+
+    dt: float
+    n_samples: int
+    residual_terms: tuple[str, ...]
+    residual_kind: int
+    drive_index: int | None
+    decay: float
+
+
+class Trace(Protocol):
+    """Progress counter the labeled layer may pass (:class:`ami_xr.progress.Iterations`)."""
+
+    stage: str
+    modes: int
+
+    def append(self, item: object) -> None: ...
+
+    def show(self) -> None: ...
 
 
 @dataclass
@@ -63,6 +103,7 @@ class _State:
     res0: np.ndarray  # (P, K_ami) AMI residues of the AMI modes kept
     origin: np.ndarray  # (K_ami,) AMI index of each AMI mode kept
     n_iter: int
+    at_ami: np.ndarray | None = None  # (K,) bool: frozen at its AMI eigenvalue (a fallback)
     changed: bool = False
     supported: np.ndarray | None = None  # (K,) bool: kept by the close-pair test
     merged_fn: np.ndarray | None = None  # (K,) Hz of a duplicate merged into the mode
@@ -216,84 +257,95 @@ def refine_arrays(
     freq: np.ndarray,
     lam0: np.ndarray,
     res0: np.ndarray,
-    *,
-    dt: float,
-    n_samples: int,
-    residual_terms: tuple[str, ...],
-    residual_kind: int,
-    drive_index: int | None,
-    decay: float,
-    max_iter: int,
-    tol: float,
-    max_shift: float,
-    add_modes: int,
-    add_pfa: float,
-    drop_modes: bool,
+    settings: RefineOptions,
+    model: RefineModel,
+    trace: Trace | None = None,
 ) -> RefineResult:
     """Refine on plain arrays: frf (P, L), freq (L,) Hz, lam0 (K,), res0 (P, K).
 
-    ``dt``/``n_samples`` select the basis (``dt = 0``: continuous); ``decay`` is the decay rate
-    (1/s) of an exponential window already corrected in ``lam0``; the other arguments are those
-    of :func:`ami_xr.refine`.
+    ``settings`` are those of :func:`ami_xr.refine` (a ``RefineSettings``), ``model`` what the
+    data say (:class:`RefineModel`); ``trace`` counts the iterations and names the stage for a
+    progress bar (None: nothing reported).
     """
     from scipy.stats import chi2  # lazy: scipy.stats is slow to import
 
     n_point = frf.shape[0]
+    decay = model.decay
     omega = 2.0 * np.pi * np.asarray(freq, dtype=np.float64)
-    nyquist = np.pi / dt if dt else None
     prob = varpro.make_problem(
-        frf, omega, dt, n_samples, residual_terms, nyquist=nyquist, residual_kind=residual_kind
+        frf,
+        omega,
+        model.dt,
+        model.n_samples,
+        model.residual_terms,
+        nyquist=np.pi / model.dt if model.dt else None,
+        residual_kind=model.residual_kind,
     )
     # An exponential window multiplies exp(lam t) by exp(-decay t): data poles are lam - decay.
     lam0 = np.asarray(lam0, dtype=np.complex128)
-    mu0 = lam0 - decay
     min_width = 2.0 * (omega[1] - omega[0]) if omega.size > 1 else 0.0
-    opts = dict(decay=decay, max_iter=max_iter, tol=tol, max_shift=max_shift, min_width=min_width)
-    trace = Iterations() if active() else None  # counts on a progress bar, when one listens
+    opts = dict(
+        decay=decay,
+        max_iter=settings.max_iter,
+        tol=settings.tol,
+        max_shift=settings.max_shift,
+        min_width=min_width,
+        trace=trace,
+    )
+    _stage(trace, "fit")
+    fit, free, n_iter, start_cost = _fit_modes(prob, lam0 - decay, lam0, **opts)
+    # the first fit starts at AMI's values: a mode frozen there is a fallback
+    state = _State(fit, free, lam0, res0, np.arange(lam0.size), n_iter, at_ami=~free)
+    _order_tests(prob, state, settings, opts, n_point, chi2, min_width)
+    n_ami = state.origin.size  # AMI modes kept (the added ones follow them)
+    if state.changed and np.isfinite(state.fit.cost):  # polish the new model (frozen stay so)
+        _stage(trace, "polish")
+        fit, free = state.fit, state.free
+        ref = np.where(free, state.lam0, fit.lam + decay)
+        polish_opts = dict(opts, max_iter=max(settings.max_iter - state.n_iter, 5))
+        polish = _fit_modes(prob, fit.lam, ref, free=free, **polish_opts)
+        state.n_iter += polish[2]
+        if polish[0].cost <= fit.cost:
+            # a mode the polish froze stays at its start: at AMI's value only if it was there
+            state.fit, state.free = polish[0], free & polish[1]
+            state.at_ami = state.at_ami & ~polish[1]
+    _stage(trace, "standard errors")
+    return _result(prob, state, n_ami, start_cost, model.drive_index, decay, min_width)
+
+
+def _stage(trace: Trace | None, stage: str) -> None:
+    """Name the stage on the progress counter (when one listens)."""
     if trace is not None:
-        opts["trace"] = trace
-        trace.stage = "fit"
-    fit, free, n_iter, start_cost = _fit_modes(prob, mu0, lam0, **opts)
-    state = _State(fit, free, lam0, res0, np.arange(lam0.size), n_iter)
-    # Model-order check by likelihood ratio: a mode AMI missed (e.g. one of a close pair lost in
-    # noise) leaves a coherent residual; add it when the likelihood gain is significant at
-    # false-alarm probability add_pfa over all lines (2 + 2P parameters per mode).
-    threshold = chi2.isf(add_pfa / max(omega.size, 1), 2 + 2 * n_point)
+        trace.stage = stage
+        trace.show()
+
+
+def _order_tests(prob, state: _State, settings: RefineOptions, opts, n_point, chi2, min_width):
+    """Model-order checks by likelihood ratio: a mode AMI missed (e.g. one of a close pair lost
+    in noise) leaves a coherent residual; it is added when the likelihood gain is significant at
+    false-alarm probability ``add_pfa`` over all lines (2 + 2P parameters per mode)."""
+    fit = state.fit
+    trace = opts["trace"]
+    threshold = chi2.isf(settings.add_pfa / max(prob.omega.size, 1), 2 + 2 * n_point)
     # An exact fit (noise-free data) leaves no noise for the tests to refer to: order kept.
     exact = (
         not (fit.proj.ok and np.isfinite(fit.cost)) or np.max(fit.proj.rss / prob.y_norm2) < 1e-20
     )
+    if exact:
+        return
     # Trial fits of the order tests stop early: an unfinished fit only overstates the cost of
     # the smaller model (conservative for dropping) and the kept model is polished at the end.
-    trial_opts = dict(opts, max_iter=min(max_iter, TRIAL_ITERATIONS))
-    if drop_modes and not exact:
-        if trace is not None:
-            trace.stage = "order test (drop)"
+    trial_opts = dict(opts, max_iter=min(settings.max_iter, TRIAL_ITERATIONS))
+    if settings.drop_modes:
+        _stage(trace, "order test (drop)")
         _drop_insignificant(prob, state, threshold, trial_opts)
-    if trace is not None:
-        trace.stage = "order test (add)"
-    for _ in range(add_modes if not exact else 0):
-        if not _add_missed(prob, state, threshold, decay, trial_opts):
+    _stage(trace, "order test (add)")
+    for _ in range(settings.add_modes):
+        if not _add_missed(prob, state, threshold, opts["decay"], trial_opts):
             break
-    if not exact and drop_modes:
-        if trace is not None:
-            trace.stage = "order test (close pairs)"
-        _merge_split_pairs(prob, state, add_pfa, decay, trial_opts, min_width)
-    n_ami = state.origin.size  # AMI modes kept (the added ones follow them)
-    fit, free, n_iter = state.fit, state.free, state.n_iter
-    if state.changed and np.isfinite(fit.cost):  # polish the new model (frozen modes stay frozen)
-        if trace is not None:
-            trace.stage = "polish"
-        ref = np.where(free, state.lam0, fit.lam + decay)
-        polish = _fit_modes(
-            prob, fit.lam, ref, free=free, **dict(opts, max_iter=max(max_iter - n_iter, 5))
-        )
-        n_iter += polish[2]
-        if polish[0].cost <= fit.cost:
-            fit, free = polish[0], free & polish[1]
-    state.fit, state.free, state.n_iter = fit, free, n_iter
-    detail(f"standard errors, {fit.lam.size} modes, {n_iter} iterations")
-    return _result(prob, state, n_ami, start_cost, drive_index, decay, min_width)
+    if settings.drop_modes:
+        _stage(trace, "order test (close pairs)")
+        _merge_split_pairs(prob, state, settings.add_pfa, opts["decay"], trial_opts, min_width)
 
 
 def _drop_insignificant(prob, state: _State, threshold: float, trial_opts: dict) -> None:
@@ -311,6 +363,7 @@ def _drop_insignificant(prob, state: _State, threshold: float, trial_opts: dict)
         if not 2.0 * (trial[0].cost - fit.cost) < threshold:
             break
         state.fit, state.free = trial[0], np.delete(state.free, k) & trial[1]
+        state.at_ami = np.delete(state.at_ami, k) & ~trial[1]  # refitted unless frozen
         state.changed = True
         state.lam0 = np.delete(state.lam0, k)
         state.origin = np.delete(state.origin, k)
@@ -340,6 +393,7 @@ def _add_missed(prob, state: _State, threshold: float, decay: float, trial_opts:
         return False
     state.fit, trial_free, _, _ = best
     state.free = np.append(state.free, True) & trial_free
+    state.at_ami = np.append(state.at_ami, False) & ~trial_free
     state.lam0 = np.append(state.lam0, state.fit.lam[-1] + decay)
     state.changed = True
     return True
@@ -478,6 +532,7 @@ def _merge_split_pairs(prob, state: _State, pfa: float, decay: float, trial_opts
         state.fit = one
         state.free = np.delete(state.free, weak) & trial[1]
         state.free[kept] = trial[1][kept]  # the merged mode was refitted: frozen only if now
+        state.at_ami = np.delete(state.at_ami, weak) & ~trial[1]
         state.lam0 = np.delete(state.lam0, weak)
         state.lam0[kept] = one.lam[kept] + decay  # the merged mode's region: its merged value
         state.supported = np.delete(state.supported, weak)
@@ -511,8 +566,9 @@ def _result(
     if not fit.converged:
         # flag the modes still moving (a mode wandering in noise must not flag the others)
         moving = fit.mode_step > 1e-4 if fit.mode_step is not None else np.ones(n_mode, bool)
-        status[moving if moving[free].any() else np.ones(n_mode, bool)] = STATUS_NOT_CONVERGED
-    status[~free] = STATUS_FALLBACK
+        # (a frozen mode is not moving: it is a fallback or sits at a value refined before)
+        status[free & (moving if moving[free].any() else True)] = STATUS_NOT_CONVERGED
+    status[state.at_ami] = STATUS_FALLBACK  # frozen at a refined value: not a fallback
     proj = fit.proj
     lam = fit.lam + decay
     n_coef = 2 * n_mode + 2 * len(residual_terms)

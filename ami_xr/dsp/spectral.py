@@ -20,19 +20,13 @@ import math
 import numpy as np
 import scipy.fft
 
+from ami_xr.core.checks import check_choice
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels import spectral as _k
 from ami_xr.kernels import windows as _w
 
 AVERAGES = ("linear", "exponential")
 _BATCH_BYTES = 16 * 2**20  # segment buffer per batch (the FFT output is about as large again)
-
-
-def check_choice(value, allowed: tuple[str, ...], argument: str) -> str:
-    """``value`` if it is one of the strings ``allowed``, else an error naming ``argument``."""
-    if not isinstance(value, str) or value not in allowed:
-        raise AmiXrValueError(f"{argument}: expected one of {allowed}, got {value!r}")
-    return value
 
 
 def check_segments(n_samples: int, nperseg, noverlap, nfft) -> tuple[int, int, int]:

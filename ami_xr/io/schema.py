@@ -53,21 +53,34 @@ MULTI_REFERENCE_DIMS = (names.REFERENCE, names.POINT, names.FREQUENCY)
 
 
 def _check_finite(da: xr.DataArray, subject: str, problems: list[str]) -> None:
-    """Report NaN and inf values of ``da`` (one pass over the data; locations only if bad)."""
+    """Report NaN and inf values of ``da`` (one pass over the data; locations only if bad):
+    counted per point when ``da`` has the ``point`` dim, else the first index."""
     if da.size == 0 or not (
         np.issubdtype(da.dtype, np.floating) or np.issubdtype(da.dtype, np.complexfloating)
     ):
         return
-    n_bad = int((~np.isfinite(da)).sum())
+    bad = ~np.isfinite(np.asarray(da.values))
+    n_bad = int(bad.sum())
     if n_bad == 0:
         return
-    bad = ~np.isfinite(np.asarray(da.values))
+    if names.POINT in da.dims:
+        axis = da.dims.index(names.POINT)
+        counts = np.moveaxis(bad, axis, 0).reshape(bad.shape[axis], -1).sum(axis=1)
+        where = np.flatnonzero(counts)
+        labels = np.asarray(da[names.POINT].values) if names.POINT in da.coords else where
+        listed = [f"{python_scalar(labels[i])!r}: {int(counts[i])}" for i in where]
+        more = f", ... ({where.size} in all)" if where.size > 8 else ""
+        problems.append(
+            f"{subject}: expected finite values, found {n_bad} NaN or inf value(s) at "
+            f"{where.size} point(s) (point: count) {', '.join(listed[:8])}{more}"
+        )
+        return
     n_nan = int(np.isnan(da.values).sum())
     first = np.unravel_index(int(np.argmax(bad)), bad.shape)
-    where = ", ".join(f"{dim}={i}" for dim, i in zip(da.dims, first, strict=True))
+    at = ", ".join(f"{dim}={i}" for dim, i in zip(da.dims, first, strict=True))
     problems.append(
         f"{subject}: expected finite values, found {n_nan} NaN and {n_bad - n_nan} inf "
-        f"(first at index {where})"
+        f"(first at index {at})"
     )
 
 
@@ -80,6 +93,7 @@ def _check_axis(
     *,
     uniform: bool = False,
     nonnegative: bool = False,
+    metadata: bool = True,
 ) -> None:
     """Check a frequency or time coordinate: present, real, finite, strictly increasing."""
     subject = namer.coord(dim)
@@ -93,7 +107,7 @@ def _check_axis(
     if not (np.issubdtype(coord.dtype, np.floating) or np.issubdtype(coord.dtype, np.integer)):
         problems.append(f"{subject}: expected real numbers in {units}, got dtype {coord.dtype}")
         return
-    if coord.attrs.get(names.ATTR_UNITS) != units:
+    if metadata and coord.attrs.get(names.ATTR_UNITS) != units:
         problems.append(
             f"{namer.var_attr(dim, names.ATTR_UNITS)}: expected {units!r}, "
             f"got {coord.attrs.get(names.ATTR_UNITS)!r}"
@@ -437,7 +451,13 @@ def _check_noise_std(
 # --- the two kinds of Dataset -------------------------------------------------------------------
 
 
-def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool, namer: Namer):
+def _frf_problems(
+    ds: xr.Dataset,
+    require_drive_point: bool,
+    check_values: bool,
+    namer: Namer,
+    metadata: bool = True,
+) -> list[str]:
     problems: list[str] = []
     want_dims = (names.POINT, names.FREQUENCY)
     multi = False
@@ -472,9 +492,34 @@ def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool,
             _check_finite(frf, subject, problems)
         if names.FRF_LINE_NOISE_STD in ds.data_vars:
             _check_noise_std(ds[names.FRF_LINE_NOISE_STD], frf, check_values, namer, problems)
-    _check_axis(ds, names.FREQUENCY, names.FREQUENCY_UNITS, namer, problems, nonnegative=True)
+    _check_axis(
+        ds,
+        names.FREQUENCY,
+        names.FREQUENCY_UNITS,
+        namer,
+        problems,
+        nonnegative=True,
+        metadata=metadata,
+    )
     labels = _check_points(ds, namer, problems)
     problems += coordinate_problems(ds, namer)
+    if metadata:
+        _frf_metadata_problems(ds, frf, labels, multi, require_drive_point, namer, problems)
+    source = ds.attrs.get(names.ATTR_SOURCE)
+    if source == names.SOURCE_IMPULSE:
+        _impulse_problems(ds, source, namer, problems)
+    if names.ATTR_EXP_DECAY in ds.attrs:
+        decay = ds.attrs[names.ATTR_EXP_DECAY]
+        if not (is_positive_number(decay) or (isinstance(decay, Real) and decay == 0)):
+            problems.append(
+                f"{namer.attr(names.ATTR_EXP_DECAY)}: expected a finite decay rate >= 0 in 1/s, "
+                f"got {python_scalar(decay)!r}"
+            )
+    return problems
+
+
+def _frf_metadata_problems(ds, frf, labels, multi, require_drive_point, namer, problems):
+    """The drive point(s), quantity, units and source attributes of an FRF Dataset."""
     if multi:
         _check_references(ds, labels, require_drive_point, namer, problems)
     else:
@@ -492,33 +537,28 @@ def _frf_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool,
     if source not in names.SOURCES:
         got = "missing" if source is None else f"got {source!r}"
         problems.append(f"{namer.attr(names.ATTR_SOURCE)}: expected one of {names.SOURCES}, {got}")
-    if source == names.SOURCE_IMPULSE:
-        dt = ds.attrs.get(names.ATTR_DT)
-        if not is_positive_number(dt):
-            got = "missing" if dt is None else f"got {python_scalar(dt)!r}"
-            problems.append(
-                f"{namer.attr(names.ATTR_DT)}: expected a positive sample interval in s "
-                f"because frf_source is {source!r}, {got}"
-            )
-        n = ds.attrs.get(names.ATTR_NSAMPLES)
-        if not (is_positive_number(n) and isinstance(n, Integral)):
-            got = "missing" if n is None else f"got {python_scalar(n)!r}"
-            problems.append(
-                f"{namer.attr(names.ATTR_NSAMPLES)}: expected a positive integer record length "
-                f"because frf_source is {source!r}, {got}"
-            )
-        elif is_positive_number(dt):
-            grid = impulse_grid_problem(ds, namer)
-            if grid:
-                problems.append(grid)
-    if names.ATTR_EXP_DECAY in ds.attrs:
-        decay = ds.attrs[names.ATTR_EXP_DECAY]
-        if not (is_positive_number(decay) or (isinstance(decay, Real) and decay == 0)):
-            problems.append(
-                f"{namer.attr(names.ATTR_EXP_DECAY)}: expected a finite decay rate >= 0 in 1/s, "
-                f"got {python_scalar(decay)!r}"
-            )
-    return problems
+
+
+def _impulse_problems(ds: xr.Dataset, source: str, namer: Namer, problems: list[str]) -> None:
+    """An impulse-response FRF's sample interval and record length, and its rfft grid."""
+    dt = ds.attrs.get(names.ATTR_DT)
+    if not is_positive_number(dt):
+        got = "missing" if dt is None else f"got {python_scalar(dt)!r}"
+        problems.append(
+            f"{namer.attr(names.ATTR_DT)}: expected a positive sample interval in s "
+            f"because frf_source is {source!r}, {got}"
+        )
+    n = ds.attrs.get(names.ATTR_NSAMPLES)
+    if not (is_positive_number(n) and isinstance(n, Integral)):
+        got = "missing" if n is None else f"got {python_scalar(n)!r}"
+        problems.append(
+            f"{namer.attr(names.ATTR_NSAMPLES)}: expected a positive integer record length "
+            f"because frf_source is {source!r}, {got}"
+        )
+    elif is_positive_number(dt):
+        grid = impulse_grid_problem(ds, namer)
+        if grid:
+            problems.append(grid)
 
 
 def _signal_problems(
@@ -585,6 +625,7 @@ def find_problems(
     require_drive_point: bool = True,
     check_values: bool = True,
     arguments: Mapping[str, str] | None = None,
+    metadata: bool = True,
 ) -> tuple[str, list[str]]:
     """What :func:`validate` checks, without raising: a description of ``ds`` and its problems.
 
@@ -596,6 +637,11 @@ def find_problems(
         Dataset names (variables, coordinates, attributes, or ``"var.attr"``) to the argument
         names a constructor took them from; messages then say "argument 'points'" rather than
         "coordinate 'point'".
+    metadata : bool, default True
+        FRF Datasets: also check the attributes that describe the data (units, quantity,
+        source, drive point). False checks what an analysis needs (structure, labels, the
+        frequency axis and its agreement with an impulse-response grid, finite values): the
+        AMI phases validate their input so.
 
     Returns
     -------
@@ -627,10 +673,11 @@ def find_problems(
                 f"{names.FRF!r} for an FRF Dataset or {names.RESPONSE!r} for a time Dataset; "
                 f"has {sorted(map(str, ds.data_vars))})"
             ]
-    check = _frf_problems if kind == "frf" else _time_problems
-    return f"{'FRF' if kind == 'frf' else 'Time'} Dataset", check(
-        ds, require_drive_point, check_values, namer
-    )
+    if kind == "frf":
+        return "FRF Dataset", _frf_problems(
+            ds, require_drive_point, check_values, namer, metadata=metadata
+        )
+    return "Time Dataset", _time_problems(ds, require_drive_point, check_values, namer)
 
 
 def validate(

@@ -15,6 +15,7 @@ import pytest
 
 import ami_xr
 from ami_xr import names
+from ami_xr.ami.settings import RefineSettings
 from ami_xr.core import refine as core_refine
 from ami_xr.core import varpro
 from ami_xr.simulate import random_system
@@ -47,22 +48,11 @@ def _distorted_frf(lam, res, freq, distortion, noise, seed=0):
 
 
 def _refine(frf, freq, lam0, res0, **kw):
-    opts = dict(
-        dt=0.0,
-        n_samples=0,
-        residual_terms=(),
-        residual_kind=0,
-        drive_index=0,
-        decay=0.0,
-        max_iter=100,
-        tol=1e-10,
-        max_shift=3.0,
-        add_modes=0,
-        add_pfa=1e-3,
-        drop_modes=True,
+    settings = RefineSettings(max_iter=100, tol=1e-10, max_shift=3.0, add_modes=0, **kw)
+    model = core_refine.RefineModel(
+        dt=0.0, n_samples=0, residual_terms=(), residual_kind=0, drive_index=0, decay=0.0
     )
-    opts.update(kw)
-    return core_refine.refine_arrays(frf, freq, lam0, res0, **opts)
+    return core_refine.refine_arrays(frf, freq, lam0, res0, settings, model)
 
 
 def test_single_mode_fitted_as_a_split_pair_is_merged():
@@ -121,6 +111,31 @@ def test_fallback_flag_only_on_the_modes_that_fell_back(monkeypatch):
     np.testing.assert_array_equal(free, [True, False, True])
     np.testing.assert_array_equal(calls[2], lam * (1 + 1e-3))  # refitted from the start
     assert fit.lam[1] == lam[1] * (1 + 1e-3)  # the frozen mode at its start
+
+
+def test_fallback_status_only_for_a_mode_frozen_at_its_ami_value(monkeypatch):
+    """The status is decided where it is known: the mode the first fit froze keeps its AMI
+    eigenvalue and is a fallback; the others are ok (no repair by float comparison later)."""
+    lam, res = _three_modes()
+    freq = np.arange(0.0, 45.0, 0.05)
+    frf = _distorted_frf(lam, res, freq, distortion=0.0, noise=1e-3)
+    real_lm = varpro.levenberg_marquardt
+    calls = []
+
+    def scripted(prob_, start, **kw):
+        fit = real_lm(prob_, start, **{k: v for k, v in kw.items() if k != "check"})
+        calls.append(start.copy())
+        if len(calls) == 1:  # the middle mode leaves its region in the first fit
+            fit.bad = np.array([False, True, False])
+        return fit
+
+    monkeypatch.setattr(varpro, "levenberg_marquardt", scripted)
+    lam0 = lam * (1 + 1e-3)
+    out = _refine(frf, freq, lam0, res, drop_modes=False)
+    ok, fallback = core_refine.STATUS_OK, core_refine.STATUS_FALLBACK
+    np.testing.assert_array_equal(out.status, [ok, fallback, ok])
+    assert out.lam[1] == lam0[1]  # at its AMI value
+    assert np.all(out.lam[[0, 2]] != lam0[[0, 2]])
 
 
 def _pairs(ds):

@@ -154,12 +154,12 @@ FRF_CASES = {
     ),
     "nan": (
         lambda ds: _with_frf_index(ds, (1, 7), complex(np.nan, 0)),
-        r"variable 'frf': expected finite values, found 1 NaN and 0 inf "
-        r"\(first at index point=1, frequency=7\)",
+        r"variable 'frf': expected finite values, found 1 NaN or inf value\(s\) at 1 "
+        r"point\(s\) \(point: count\) \S+: 1",
     ),
     "inf": (
         lambda ds: _with_frf_index(ds, (2, 0), complex(0, np.inf)),
-        r"variable 'frf': expected finite values, found 0 NaN and 1 inf",
+        r"variable 'frf': expected finite values, found 1 NaN or inf value\(s\) at 1 point",
     ),
     "empty": (
         lambda ds: ds.isel({names.FREQUENCY: slice(0, 0)}),

@@ -1,0 +1,240 @@
+"""The single-reference AMI pipeline: subtract -> isolate -> global_fit [-> refine].
+
+:func:`identify_single` runs the phases on an FRF Dataset with dims (point, frequency) and
+returns their outputs with the modes as reported (analysis band, exponential-window correction,
+sorted, quality indicators). :func:`ami_xr.identify` calls it for one reference, and
+:func:`ami_xr.ami.mimo.identify_multi_reference` on the FRFs of every reference stacked.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.ami import common as c
+from ami_xr.ami.global_fit import global_fit
+from ami_xr.ami.isolate import METHODS as ISOLATE_METHODS
+from ami_xr.ami.isolate import isolate
+from ami_xr.ami.refine import refine as refine_phase
+from ami_xr.ami.settings import FrfAttributes, IdentifySettings, IsolateSettings, from_attrs
+from ami_xr.ami.subtract import add_capped, band_of, power_of_two_scale, subtract
+from ami_xr.core.modal import (
+    complexity,
+    damping_ratio,
+    mode_vectors,
+    mpc,
+    mpd,
+    natural_frequency,
+    phase_normalised,
+)
+from ami_xr.dsp import band as bd
+from ami_xr.errors import ConvergenceWarning, IdentificationError
+from ami_xr.progress import phases
+
+METHODS = (*ISOLATE_METHODS, names.METHOD_PAPER)
+
+
+def check_settings(settings: IdentifySettings) -> None:
+    """The choices of :func:`ami_xr.identify` that no phase checks on its own."""
+    c.check_choice(settings.method, "method", METHODS)
+    if settings.refine is not None and not isinstance(settings.refine, bool):
+        raise IdentificationError(
+            f"refine: expected True, False or None, got {settings.refine!r}"
+        )
+
+
+def refines(settings: IdentifySettings) -> bool:
+    """Whether the pipeline ends with the refinement (by default unless ``method="paper"``)."""
+    if settings.refine is None:
+        return settings.method != names.METHOD_PAPER
+    return settings.refine
+
+
+def identify_single(ds: xr.Dataset, settings: IdentifySettings, progress=False) -> xr.Dataset:
+    """The phases on the FRF Dataset ``ds`` (dims (point, frequency)) with ``settings``; see
+    :func:`ami_xr.identify` for what is returned (its provenance record is the caller's)."""
+    c.check_frf(ds, "identify")
+    check_settings(settings)
+    whole = ds
+    ds = band_of(ds, settings.fmin, settings.fmax, "identify")
+    refined = refines(settings)
+    # one power of two for all FRFs (the isolation and the global fit combine them)
+    peak = np.abs(ds[names.FRF]).max(skipna=False).values
+    scale = float(power_of_two_scale(peak))
+    work = ds if scale == 1.0 else ds.assign({names.FRF: ds[names.FRF] * scale})
+    result = _phases(work, settings, refined, progress)
+    if scale != 1.0:
+        result = unscale(result, ds, scale)
+    result = _window_corrected(result, from_attrs(FrfAttributes, ds.attrs))
+    result = _finish_modes(result, whole, refined=refined)
+    return with_quality(result)
+
+
+def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progress) -> xr.Dataset:
+    """subtract -> isolate -> global_fit [-> refine] on ``work``, with a progress bar."""
+    s = settings
+    paper = s.method == names.METHOD_PAPER
+    steps = [names.PHASE_SUBTRACT, names.PHASE_ISOLATE, names.PHASE_GLOBAL_FIT]
+    steps += [names.PHASE_REFINE] if refined else []
+    label = (
+        f"identify: {work.sizes.get(names.POINT, 0)} FRFs x {work.sizes[names.FREQUENCY]} lines"
+    )
+    with phases(progress, label, steps) as step:
+        step(names.PHASE_SUBTRACT)
+        out = subtract(
+            work,
+            s.delta,
+            pfa=s.pfa,
+            max_modes=s.max_modes,
+            model=names.MODEL_CONTINUOUS if paper else "auto",
+            zeta_max=s.zeta_max,
+        )
+        step(names.PHASE_ISOLATE)
+        out = isolate(
+            out,
+            s.tol,
+            s.max_iter,
+            method=names.METHOD_PER_FRF if paper else s.method,
+            weighting=names.WEIGHTING_MEAN if paper else IsolateSettings.weighting,
+        )
+        if out.sizes.get(names.MODE, 0) == 0:
+            return out
+        step(names.PHASE_GLOBAL_FIT)
+        out = global_fit(out, band=s.band, residual_terms=s.residual_terms)
+        if refined:
+            step(names.PHASE_REFINE)
+            out = refine_phase(out)
+    return out
+
+
+def _window_corrected(result: xr.Dataset, data: FrfAttributes) -> xr.Dataset:
+    """``result`` with its eigenvalues corrected for the exponential window of the data
+    (``lam = lam_measured + beta``), natural frequencies, damping ratios and mode vectors
+    following; attr ``exponential_window_corrected`` records beta."""
+    beta = float(data.exponential_window_decay)
+    if not beta or not result.sizes.get(names.MODE, 0):
+        return result
+    lam = result[names.EIGENVALUE].values + beta
+    result[names.EIGENVALUE] = result[names.EIGENVALUE].copy(data=lam)
+    result[names.NATURAL_FREQUENCY] = result[names.NATURAL_FREQUENCY].copy(
+        data=natural_frequency(lam)
+    )
+    result[names.DAMPING_RATIO] = result[names.DAMPING_RATIO].copy(data=damping_ratio(lam))
+    if names.RESIDUE in result:
+        res = result[names.RESIDUE].transpose(names.POINT, names.MODE).values
+        phi = mode_vectors(res, lam, c.drive_index(result))
+        result[names.MODE_VECTOR] = result[names.MODE_VECTOR].copy(
+            data=phi if result[names.MODE_VECTOR].dims[0] == names.POINT else phi.T
+        )
+    result.attrs[names.ATTR_EXP_CORRECTED] = beta
+    return result
+
+
+# Outputs in FRF units (scale with the FRF) and those that scale with its square root (mode
+# vectors: Phi_j Phi_P = A_jP / lam). Everything else (eigenvalues, frequencies, damping ratios,
+# SNRs, MAC, counts, flags) is scale-free.
+_LINEAR_VARS = (
+    names.SUB_RESIDUE,
+    names.SUB_NOISE_FLOOR,
+    names.RESIDUE,
+    names.RESIDUE_STD,
+    names.FRF_SYNTHESIZED,
+    names.FRF_RESIDUAL,
+    names.FRF_NOISE_STD,
+    names.RESIDUAL_COEFFICIENT,
+    names.AMI_PREFIX + names.RESIDUE,
+)
+_SQRT_VARS = (names.MODE_VECTOR, names.MODE_VECTOR_STD, names.AMI_PREFIX + names.MODE_VECTOR)
+
+
+def unscale(result: xr.Dataset, ds: xr.Dataset, scale: float) -> xr.Dataset:
+    """Results of the FRF scaled by the power of two ``scale`` back to ``ds`` as given (exact:
+    ``scale`` and its square root are powers of two)."""
+    result = result.assign({names.FRF: ds[names.FRF]})
+    for factor, variables in ((scale, _LINEAR_VARS), (np.sqrt(scale), _SQRT_VARS)):
+        for v in variables:
+            if v in result:
+                result[v] = result[v].copy(data=result[v].values / factor)
+    # the refinement's objective sum_j (n_rows / 2) log rss_j, rss ~ scale^2, n_rows = 2 F
+    shift = ds.sizes[names.POINT] * 2 * ds.sizes[names.FREQUENCY] * float(np.log(scale))
+    for key in (names.ATTR_REFINE_COST_START, names.ATTR_REFINE_COST):
+        if key in result.attrs:
+            result.attrs[key] = float(result.attrs[key]) - shift
+    return result
+
+
+def with_quality(result: xr.Dataset) -> xr.Dataset:
+    """Add the modal quality indicators of the final mode vectors (MPC, MPD, complexity; on
+    ``mode``) and the mode vectors normalised in phase and magnitude (largest component 1;
+    scale-free, like the indicators); nothing when there are no mode vectors."""
+    if names.MODE_VECTOR not in result or result.sizes.get(names.MODE, 0) == 0:
+        return result
+    mv = result[names.MODE_VECTOR]
+    phi = mv.transpose(names.POINT, names.MODE).values
+    mode = [names.MODE]
+    normalised = xr.DataArray(
+        phase_normalised(phi, unit=True), dims=(names.POINT, names.MODE)
+    ).transpose(*mv.dims)
+    normalised.attrs[names.ATTR_UNITS] = "1"
+    normalised.attrs[names.ATTR_LONG_NAME] = (
+        "mode vector rotated in phase and scaled so that its largest component is 1"
+    )
+    return result.assign(
+        {
+            names.MPC: (
+                mode,
+                mpc(phi),
+                {
+                    names.ATTR_UNITS: "1",
+                    names.ATTR_LONG_NAME: "modal phase collinearity (1: real mode)",
+                },
+            ),
+            names.MPD: (
+                mode,
+                mpd(phi),
+                {
+                    names.ATTR_UNITS: "degree",
+                    names.ATTR_LONG_NAME: "mean phase deviation from the best straight line",
+                },
+            ),
+            names.COMPLEXITY: (
+                mode,
+                complexity(phi),
+                {
+                    names.ATTR_UNITS: "1",
+                    names.ATTR_LONG_NAME: "mode complexity 1 - MPC (0: real mode)",
+                },
+            ),
+            names.MODE_VECTOR_NORMALISED: normalised,
+        }
+    )
+
+
+
+def _finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dataset:
+    """The modes as reported: none outside a restricted analysis band, sorted by frequency with
+    labels 1..n; caps that ended a phase warned about and listed in attr ``ami_capped``."""
+    band = bd.analysis_band(result)
+    if not bd.is_whole(whole, band):
+        result, dropped = c.drop_outside_band(result, band.fmin, band.fmax)
+        result.attrs[names.ATTR_BAND_DROPPED] = ",".join(f"{f:.6g}" for f in dropped)
+    result = c.sort_modes(result)
+    caps = []
+    if names.ISO_CONVERGED in result and not bool(np.all(result[names.ISO_CONVERGED].values)):
+        caps.append("isolate:max_iter")  # isolate warned already
+    if refined and names.ATTR_REFINE_CONVERGED in result.attrs:
+        if not int(result.attrs[names.ATTR_REFINE_CONVERGED]):
+            caps.append("refine:max_iter")
+            warnings.warn(
+                "identify: the refinement stopped at its iteration cap before converging "
+                f"({result.attrs.get(names.ATTR_REFINE_ITERATIONS, '?')} iterations in all; "
+                f"attr {names.ATTR_REFINE_CONVERGED}=0; modes still moving carry "
+                f"{names.FLAG_REFINE_NOT_CONVERGED})",
+                ConvergenceWarning,
+                stacklevel=3,
+            )
+    add_capped(result.attrs, caps)
+    return result

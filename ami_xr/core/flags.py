@@ -1,0 +1,63 @@
+"""Quality flags of the modes as named bits: the one place they are encoded.
+
+A phase decides each flag where it knows it and sets or clears its bit in an int32 mask per mode
+(:func:`bit`, :func:`set_where`); :func:`encode` turns the mask into the text of
+``quality_flags`` (the flags set, in the order of :data:`ami_xr.names.FLAG_MEANINGS`, joined by
+``","``) and :func:`decode` reads it back. Bit ``k`` is ``2**k`` for ``FLAG_MEANINGS[k]``, as in
+the CF ``flag_masks``/``flag_meanings`` field written to files.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+
+from ami_xr import names
+from ami_xr.errors import AmiXrValueError
+
+MEANINGS = names.FLAG_MEANINGS
+MASKS = np.array([1 << k for k in range(len(MEANINGS))], dtype=np.int32)
+_BIT = dict(zip(MEANINGS, MASKS.tolist(), strict=True))
+
+
+def bit(flag: str) -> int:
+    """The mask of ``flag`` (one of :data:`ami_xr.names.FLAG_MEANINGS`)."""
+    try:
+        return _BIT[flag]
+    except KeyError:
+        raise AmiXrValueError(
+            f"quality flag: expected one of {MEANINGS}, got {flag!r}"
+        ) from None
+
+
+def set_where(mask: np.ndarray, flag: str, where: Iterable[bool] | bool) -> np.ndarray:
+    """``mask`` with the bit of ``flag`` set where ``where`` is True and cleared elsewhere."""
+    b = np.int32(bit(flag))
+    where = np.broadcast_to(np.asarray(where, dtype=bool), np.shape(mask))
+    return np.where(where, mask | b, mask & ~b).astype(np.int32)
+
+
+def has(mask: np.ndarray, flag: str) -> np.ndarray:
+    """Where ``mask`` has the bit of ``flag`` set (bool, the shape of ``mask``)."""
+    return (np.asarray(mask, dtype=np.int32) & bit(flag)) != 0
+
+
+def encode(mask: np.ndarray) -> np.ndarray:
+    """The text of each mask: the flags set, in bit order, joined by ``","`` ("" for none)."""
+    mask = np.asarray(mask, dtype=np.int32)
+    out = [
+        names.FLAG_SEPARATOR.join(f for f, b in _BIT.items() if m & b) for m in mask.ravel()
+    ]
+    return np.array(out, dtype=str).reshape(mask.shape)
+
+
+def decode(text: np.ndarray) -> np.ndarray:
+    """The int32 mask of each flag text (the inverse of :func:`encode`; order and blanks
+    around a flag do not matter); an unknown flag is an error naming it."""
+    text = np.asarray(text).astype(str)
+    out = np.zeros(text.shape, np.int32)
+    for index, value in np.ndenumerate(text):
+        for flag in filter(None, (f.strip() for f in value.split(names.FLAG_SEPARATOR))):
+            out[index] |= bit(flag)
+    return out

@@ -1,0 +1,89 @@
+"""Quality flags as named bits decided once (issue 19, item 3): the codec, and the same flags
+from ``ami_xr.refine`` on the phases' output as from ``ami_xr.identify``."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import ami_xr
+from ami_xr import names
+from ami_xr.core import flags
+from ami_xr.errors import AmiXrValueError
+from ami_xr.io import cf
+
+
+def test_encode_decode_round_trip_in_bit_order():
+    mask = np.array([0, 1 | 4, 2**8, 2 ** len(names.FLAG_MEANINGS) - 1], np.int32)
+    text = flags.encode(mask)
+    assert text[0] == ""
+    assert text[1] == f"{names.FLAG_LOW_DRIVE_SNR},{names.FLAG_NOT_CONVERGED}"
+    assert text[2] == names.FLAG_REPEATED_ROOT_SEPARATED
+    assert text[3].split(",") == list(names.FLAG_MEANINGS)
+    np.testing.assert_array_equal(flags.decode(text), mask)
+    # order and blanks do not matter when reading
+    assert flags.decode([f"{names.FLAG_NOT_CONVERGED}, {names.FLAG_LOW_DRIVE_SNR}"])[0] == 5
+
+
+def test_set_where_sets_and_clears_one_bit_only():
+    mask = np.array([1, 1, 0], np.int32)
+    out = flags.set_where(mask, names.FLAG_SINGLE_FRF, [True, False, True])
+    np.testing.assert_array_equal(out, [1 | 8, 1, 8])
+    out = flags.set_where(out, names.FLAG_LOW_DRIVE_SNR, False)
+    np.testing.assert_array_equal(out, [8, 0, 8])
+    np.testing.assert_array_equal(flags.has(out, names.FLAG_SINGLE_FRF), [True, False, True])
+
+
+def test_unknown_flag_is_an_error_naming_it():
+    with pytest.raises(AmiXrValueError, match="quality flag: expected one of .* got 'bogus'"):
+        flags.decode(["not_converged,bogus"])
+
+
+def test_the_file_bits_are_the_same_bits():
+    """The CF bit field on disk uses the bits of the one table (append-only)."""
+    assert tuple(cf.FLAG_MEANINGS) == names.FLAG_MEANINGS[: len(cf.FLAG_MEANINGS)]
+    text = flags.encode(np.arange(2 ** len(cf.FLAG_MEANINGS), dtype=np.int32))
+    np.testing.assert_array_equal(cf.flag_mask(text), np.arange(2 ** len(cf.FLAG_MEANINGS)))
+
+
+def _quiet(function, *args, **kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return function(*args, **kwargs)
+
+
+@pytest.fixture(scope="module")
+def capped():
+    """A system whose isolation stops at its cap (one sweep): every mode gets not_converged."""
+    ds, _ = ami_xr.simulate.random_system(seed=2, n_points=5, n_frequencies=1024, noise=0.01)
+    return ds
+
+
+def test_refine_and_identify_report_the_same_flags(capped):
+    out = _quiet(ami_xr.identify, capped, max_iter=1)
+    sub = _quiet(ami_xr.subtract, capped)
+    iso = _quiet(ami_xr.isolate, sub, max_iter=1)
+    glob = _quiet(ami_xr.global_fit, iso)
+    assert any(names.FLAG_NOT_CONVERGED in f for f in glob[names.QUALITY_FLAGS].values)
+    ref = _quiet(ami_xr.refine, glob)
+    ref = ref.sortby(names.NATURAL_FREQUENCY)
+    assert out.sizes[names.MODE] == ref.sizes[names.MODE]
+    np.testing.assert_allclose(
+        out[names.EIGENVALUE].values, ref[names.EIGENVALUE].values, rtol=1e-12
+    )
+    assert list(out[names.QUALITY_FLAGS].values) == list(ref[names.QUALITY_FLAGS].values)
+
+
+def test_refine_supersedes_the_isolation_cap_where_it_converged(capped):
+    sub = _quiet(ami_xr.subtract, capped)
+    glob = _quiet(ami_xr.global_fit, _quiet(ami_xr.isolate, sub, max_iter=1))
+    ref = _quiet(ami_xr.refine, glob)
+    mask = flags.decode(ref[names.QUALITY_FLAGS].values)
+    trouble = flags.has(mask, names.FLAG_REFINE_FALLBACK) | flags.has(
+        mask, names.FLAG_REFINE_NOT_CONVERGED
+    )
+    # not_converged stays only on modes the refinement did not move to a converged estimate
+    assert not np.any(flags.has(mask, names.FLAG_NOT_CONVERGED) & ~trouble)
+    assert np.any(~trouble)
