@@ -101,7 +101,7 @@ def _setup(
             f"{average!r}, scipy's meaning of 'average'; scipy's 'mean' is 'linear' here, and a "
             "median average is not offered"
         )
-    average = check_choice(average, AVERAGES, "average")
+    average = check_choice(average, "average", AVERAGES)
     if average == "exponential" and (
         isinstance(n_average, bool) or not isinstance(n_average, (int, np.integer)) or n_average < 1
     ):
@@ -606,7 +606,8 @@ def frf_from_options(ds: xr.Dataset, options: Mapping[str, Any]) -> xr.Dataset:
     so does an option of neither.
     """
     options = dict(options)
-    excitation = check_choice(options.pop("excitation", AUTO), (*EXCITATIONS, AUTO), "excitation")
+    excitation = options.pop("excitation", AUTO)
+    excitation = check_choice(excitation, "excitation", (*EXCITATIONS, AUTO))
     if excitation == AUTO:
         excitation = excitation_of(ds)
     function, other = (impact_frf, frf) if excitation == "impact" else (frf, impact_frf)

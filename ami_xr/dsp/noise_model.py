@@ -20,7 +20,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.core import frf_noise as _fn
-from ami_xr.dsp.spectral import check_choice
+from ami_xr.core.checks import check_choice
 from ami_xr.errors import AmiXrValueError
 
 METHODS = ("roughness",)
@@ -90,7 +90,7 @@ def estimate_frf_noise(
         No ``frf``, non-uniform lines, unknown ``method``, bad ``order`` or ``window``, fewer
         than ``order + 1`` lines.
     """
-    check_choice(method, METHODS, "method")
+    check_choice(method, "method", METHODS)
     h = _check_frf(ds)
     _fn.check_roughness(order, window, h.sizes[names.FREQUENCY])
     std = xr.apply_ufunc(

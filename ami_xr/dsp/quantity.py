@@ -6,7 +6,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.dsp.spectral import check_choice
+from ami_xr.core.checks import check_choice
 from ami_xr.errors import AmiXrValueError
 from ami_xr.provenance import add_history
 
@@ -58,8 +58,8 @@ def convert_quantity(ds: xr.Dataset, to: str, *, dc: str = "nan") -> xr.Dataset:
     """
     if not isinstance(ds, xr.Dataset) or names.FRF not in ds.data_vars:
         raise AmiXrValueError("ds: expected an FRF Dataset with an 'frf' variable")
-    to = check_choice(to, QUANTITIES, "to")
-    dc = check_choice(dc, ("nan", "zero", "drop"), "dc")
+    to = check_choice(to, "to", QUANTITIES)
+    dc = check_choice(dc, "dc", ("nan", "zero", "drop"))
     src = ds.attrs.get(names.ATTR_QUANTITY)
     if src not in names.QUANTITY_POWER:
         raise AmiXrValueError(

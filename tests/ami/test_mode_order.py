@@ -1,4 +1,4 @@
-"""Modes sorted by frequency with contiguous labels; superseded flags cleared; no silent cap
+"""Modes sorted by frequency with contiguous labels; no silent cap (the flags the refinement supersedes: tests/ami/test_flags.py)
 (issue 10, items 2 and 5)."""
 
 from __future__ import annotations
@@ -85,23 +85,6 @@ def test_drop_outside_band():
     assert out.sizes[names.MODE_2] == 2
 
 
-def test_refine_supersedes_isolation_not_converged():
-    ds = _modes(
-        [1.0, 2.0, 3.0],
-        [
-            "not_converged,single_frf",
-            "not_converged,refine_fallback",
-            "not_converged,refine_not_converged",
-        ],
-    )
-    out = c.clear_superseded_flags(ds)
-    assert list(out[names.QUALITY_FLAGS].values) == [
-        "single_frf",
-        "not_converged,refine_fallback",
-        "not_converged,refine_not_converged",
-    ]
-
-
 @pytest.mark.skipif(not (SHARED_DATA / "measurement.uff").exists(), reason="no shared data")
 def test_measurement_uff_sorted_contiguous():
     ds = read_any(SHARED_DATA / "measurement.uff")
@@ -113,22 +96,3 @@ def test_measurement_uff_sorted_contiguous():
     assert np.all(np.diff(out[names.NATURAL_FREQUENCY].values) > 0)
     # the subtraction ends on its cap of examined peaks there: recorded, not silent
     assert "subtract:max_rejected_peaks" in out.attrs[names.ATTR_AMI_CAPPED].split(",")
-
-
-def test_refine_fallback_kept_only_where_the_mode_kept_its_ami_eigenvalue():
-    """refine_fallback means "frozen at the AMI eigenvalue": a mode reported at another
-    (refined) eigenvalue does not carry it (measurement.uff: every mode carried it)."""
-    ds = _modes([1.0, 2.0, 3.0], ["refine_fallback"] * 3)
-    lam0 = np.array([-1 + 10j, -1 + 20j, np.nan + 1j * np.nan])
-    ds = ds.assign(
-        {
-            names.EIGENVALUE: ((names.MODE,), np.array([-1 + 10j, -1.1 + 20.5j, -1 + 30j])),
-            names.AMI_PREFIX + names.EIGENVALUE: ((names.MODE,), lam0),
-        }
-    )
-    out = c.clear_superseded_flags(ds)
-    assert list(out[names.QUALITY_FLAGS].values) == ["refine_fallback", "", "refine_fallback"]
-    # with an exponential window identify adds its decay to the reported eigenvalue only
-    shifted = ds.assign({names.EIGENVALUE: ds[names.EIGENVALUE] + 0.5})
-    out = c.clear_superseded_flags(shifted, 0.5)
-    assert list(out[names.QUALITY_FLAGS].values) == ["refine_fallback", "", "refine_fallback"]
