@@ -35,6 +35,7 @@ what is missing (attributes a function set are kept) and never changes a value:
   strictly monotonic), such as string point labels, ``residual_term`` or unsorted integer
   labels, is stored as the CF label (auxiliary coordinate) variable ``<dim>_label`` along the
   dim (:data:`LABEL_SUFFIX`; plain xarray: ``raw.set_xindex("point_label")`` selects by it).
+  Float axes (``time``, ``frequency``) are data and stay as they are.
 
 These are an on-disk encoding, like the complex pairs: the global attribute ``ami_xr_cf_added``
 (JSON) lists what :func:`annotate` added, moved or renamed, and :func:`strip` (run by
@@ -291,8 +292,9 @@ def _labels_to_aux(out: xr.Dataset, added: dict) -> xr.Dataset:
             continue
         var = out.variables[dim]
         label = f"{dim}{LABEL_SUFFIX}"
-        # complex (rejected by the netCDF encoder) and datetimes (xarray encodes them) stay
-        if var.dtype.kind in "cmM" or _cf_coordinate(var) or label in out.variables:
+        # labels only: float axes (time, frequency) are data and stay, complex is rejected by
+        # the netCDF encoder, datetimes are encoded by xarray
+        if var.dtype.kind in "fcmM" or _cf_coordinate(var) or label in out.variables:
             continue
         out = out.drop_vars(dim).assign_coords(
             {label: xr.Variable((dim,), var.values, dict(var.attrs), dict(var.encoding))}

@@ -114,12 +114,14 @@ def test_written_files_carry_cf_metadata(tmp_path, identified):
             if name == names.RESIDUAL_COEFFICIENT:  # two units along residual_term
                 assert var.attrs["units_lower"] == f"{frf_units} (rad/s)^2"
                 assert var.attrs["units_upper"] == frf_units
-            elif name in (names.MODE_VECTOR, names.MODE_VECTOR_STD):  # sqrt(FRF units)
+            elif name in (names.MODE_VECTOR, names.MODE_VECTOR_STD, "ami_mode_vector"):
                 assert "units" not in var.attrs and var.attrs["units_of_square"] == frf_units
             elif numeric and "flag_masks" not in var.attrs:
                 assert var.attrs.get("units"), f"{name} has no units"
-        # string point labels: a CF label variable, not a coordinate variable
-        assert names.POINT not in raw.variables and raw.point_label.dims == (names.POINT,)
+        # sorted integer points stay a coordinate; string labels become a CF label variable
+        assert raw[names.POINT].dims == (names.POINT,)
+        assert names.RESIDUAL_TERM not in raw.variables
+        assert raw.residual_term_label.dims == (names.RESIDUAL_TERM,)
         mask = raw[cf.QUALITY_FLAG_MASK]
         meanings = mask.attrs["flag_meanings"].split()
         assert list(mask.attrs["flag_masks"]) == [1 << k for k in range(len(meanings))]
@@ -210,7 +212,7 @@ def test_mode_vector_units_on_disk_are_the_units_of_the_square(tmp_path):
 
 @pytest.mark.parametrize(
     "labels",
-    [["b", "a", "c"], [3, 1, 2], [1.0, 1.0, 2.0], [True, False, True], ["only"], [1, 2, 3]],
+    [["b", "a", "c"], [3, 1, 2], [1, 1, 2], [True, False, True], ["only"], [1, 2, 3]],
 )
 def test_dim_coordinates_cf_cannot_hold_are_label_variables_on_disk(tmp_path, labels):
     """CF 1.3: a coordinate variable is numeric and strictly monotonic. Others are stored as the
@@ -235,9 +237,11 @@ def test_dim_coordinates_cf_cannot_hold_are_label_variables_on_disk(tmp_path, la
     assert cf.LABEL_SUFFIX == "_label"
 
 
-def test_a_taken_label_name_keeps_the_coordinate():
+def test_a_taken_label_name_and_float_axes_keep_the_coordinate():
     from ami_xr.io import cf
 
     ds = xr.Dataset(coords={names.POINT: ["a", "b"], "point_label": ("x", [1, 2])})
     out = cf.annotate(ds)
     assert out[names.POINT].values.tolist() == ["a", "b"]  # point_label taken: left alone
+    axis = xr.Dataset(coords={names.TIME: [0.0, 1.0, np.nan]})  # a float axis is data
+    assert names.TIME in cf.annotate(axis).indexes
