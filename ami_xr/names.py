@@ -261,3 +261,7 @@ FLAG_MEANINGS = (
     FLAG_REPEATED_ROOT,
     FLAG_REPEATED_ROOT_SEPARATED,
 )
+# Noise the simulator added (ami_xr.simulate.noise), read by the Cramer-Rao bound (ami_xr.ami.crb)
+ATTR_NOISE_LEVEL = "noise_level"  # alpha of eq. 15
+ATTR_NOISE_KIND = "noise_kind"  # "uniform" | "gaussian"
+NOISE_KINDS = ("uniform", "gaussian")

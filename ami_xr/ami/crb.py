@@ -21,13 +21,13 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.ami.settings import FrfAttributes, from_attrs
 from ami_xr.core import varpro
 from ami_xr.core.modal import modal_std
 from ami_xr.core.model import resolve_model, resolve_residual_terms
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels.modal_basis import model_columns
 from ami_xr.provenance import add_history
-from ami_xr.simulate.noise import ATTR_NOISE_KIND, ATTR_NOISE_LEVEL, NOISE_KINDS
 
 
 def expected_norm(cov: np.ndarray) -> float:
@@ -137,7 +137,7 @@ def cramer_rao_bound(
             f"FRFs, got response_quantity={quantity!r}"
         )
     power = 0
-    decay = float(frf.attrs.get(names.ATTR_EXP_DECAY, 0.0) or 0.0)
+    decay = float(from_attrs(FrfAttributes, frf.attrs).exponential_window_decay)
 
     line_std = _line_noise_std(
         frf, frf_noise_std, noise_level, noise_kind, points, lam, residue, dt, n_samples, power
@@ -221,15 +221,15 @@ def _line_noise_std(
         if isinstance(frf_noise_std, xr.DataArray) and names.POINT in frf_noise_std.dims:
             line_std = frf_noise_std.sel({names.POINT: points}).values.astype(float)
     else:
-        alpha = noise_level if noise_level is not None else frf.attrs.get(ATTR_NOISE_LEVEL)
-        kind = noise_kind or frf.attrs.get(ATTR_NOISE_KIND, "uniform")
+        alpha = noise_level if noise_level is not None else frf.attrs.get(names.ATTR_NOISE_LEVEL)
+        kind = noise_kind or frf.attrs.get(names.ATTR_NOISE_KIND, "uniform")
         if alpha is None or not np.isfinite(alpha) or alpha <= 0:
             raise AmiXrValueError(
                 "noise_level: expected a positive alpha of eq. 15 (or frf_noise_std), "
                 f"got {alpha!r}"
             )
-        if kind not in NOISE_KINDS:
-            raise AmiXrValueError(f"noise_kind: expected one of {NOISE_KINDS}, got {kind!r}")
+        if kind not in names.NOISE_KINDS:
+            raise AmiXrValueError(f"noise_kind: expected one of {names.NOISE_KINDS}, got {kind!r}")
         if not dt:
             raise AmiXrValueError(
                 "frf: eq. 15 noise needs attrs sample_interval and record_samples "

@@ -14,7 +14,12 @@ import xarray as xr
 from ami_xr.ami import common as c
 from ami_xr.ami import mimo
 from ami_xr.ami.pipeline import METHODS, identify_single, refines
-from ami_xr.ami.settings import GlobalFitSettings, IdentifySettings, IsolateSettings, SubtractSettings
+from ami_xr.ami.settings import (
+    GlobalFitSettings,
+    IdentifySettings,
+    IsolateSettings,
+    SubtractSettings,
+)
 
 __all__ = ["identify", "METHODS"]
 

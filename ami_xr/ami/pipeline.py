@@ -41,9 +41,7 @@ def check_settings(settings: IdentifySettings) -> None:
     """The choices of :func:`ami_xr.identify` that no phase checks on its own."""
     c.check_choice(settings.method, "method", METHODS)
     if settings.refine is not None and not isinstance(settings.refine, bool):
-        raise IdentificationError(
-            f"refine: expected True, False or None, got {settings.refine!r}"
-        )
+        raise IdentificationError(f"refine: expected True, False or None, got {settings.refine!r}")
 
 
 def refines(settings: IdentifySettings) -> bool:
@@ -79,9 +77,7 @@ def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progres
     paper = s.method == names.METHOD_PAPER
     steps = [names.PHASE_SUBTRACT, names.PHASE_ISOLATE, names.PHASE_GLOBAL_FIT]
     steps += [names.PHASE_REFINE] if refined else []
-    label = (
-        f"identify: {work.sizes.get(names.POINT, 0)} FRFs x {work.sizes[names.FREQUENCY]} lines"
-    )
+    label = f"identify: {work.sizes.get(names.POINT, 0)} FRFs x {work.sizes[names.FREQUENCY]} lines"
     with phases(progress, label, steps) as step:
         step(names.PHASE_SUBTRACT)
         out = subtract(
@@ -211,7 +207,6 @@ def with_quality(result: xr.Dataset) -> xr.Dataset:
             names.MODE_VECTOR_NORMALISED: normalised,
         }
     )
-
 
 
 def _finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dataset:

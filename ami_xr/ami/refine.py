@@ -69,9 +69,9 @@ from ami_xr.ami.settings import (
     parameters,
     to_attrs,
 )
+from ami_xr.core import flags
 from ami_xr.core.modal import damping_ratio, mac_matrix, natural_frequency
 from ami_xr.core.model import resolve_model, resolve_residual_terms
-from ami_xr.core import flags
 from ami_xr.core.refine import (
     STATUS_FALLBACK,
     STATUS_NOT_CONVERGED,
@@ -520,7 +520,9 @@ def _merge_flags(ds, status, lam0, low_snr=None, added=None):
     ok = status == STATUS_OK
     mask = flags.set_where(mask, names.FLAG_REFINE_NOT_CONVERGED, status == STATUS_NOT_CONVERGED)
     mask = flags.set_where(mask, names.FLAG_REFINE_FALLBACK, status == STATUS_FALLBACK)
-    mask = flags.set_where(mask, names.FLAG_NOT_CONVERGED, ~ok & flags.has(mask, names.FLAG_NOT_CONVERGED))
+    mask = flags.set_where(
+        mask, names.FLAG_NOT_CONVERGED, ~ok & flags.has(mask, names.FLAG_NOT_CONVERGED)
+    )
     if added is not None:
         mask = flags.set_where(mask, names.FLAG_ADDED_BY_REFINE, added)
     if low_snr is not None:

@@ -10,7 +10,7 @@ variants it is found again.
 
 * **Match.** A variant's mode matches a reference mode ``k`` when ``|lam - lam_k| <
   |Re lam_k|`` (half the half-power bandwidth ``2 |Re lam_k|``); pairs are taken nearest first,
-  each mode at most once (:func:`ami_xr.simulate.score_modes`).
+  each mode at most once (:func:`ami_xr.core.matching.match_nearest`).
 * **Fraction.** ``stability_fraction`` is the share of the variants whose band contains the
   mode in which it is found. A mode found in every such variant (fraction 1) is *solid*; a
   mode that appears only with the loosest threshold, or only in one band, is not.
@@ -29,7 +29,11 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import common as c
+from ami_xr.ami.identify import identify
+from ami_xr.ami.settings import SubtractSettings, from_attrs
+from ami_xr.core.matching import match_nearest
 from ami_xr.errors import AmiXrValueError
+from ami_xr.progress import Progress
 
 __all__ = ["DEFAULT_BAND_TRIM", "DEFAULT_PFA", "MATCH_TOLERANCE", "stability", "variant_label"]
 
@@ -111,10 +115,6 @@ def stability(
         in [0, 1] over the variants whose band holds the mode, ``stability_frequency_spread``
         (mode) Hz; attrs ``stability_rule`` and ``stability_match_tolerance``.
     """
-    import ami_xr
-    from ami_xr.progress import Progress
-    from ami_xr.simulate import score_modes
-
     c.check_frf(ds, "stability")
     pfas, trims = _check(pfa, band_trim)
     if result is not None and (
@@ -126,7 +126,7 @@ def stability(
         )
     own_reference = result is None
     if own_reference:
-        result = ami_xr.identify(ds, **identify_kwargs)
+        result = identify(ds, **identify_kwargs)
     lo, hi = _reference_band(result, ds)
     n_mode = result.sizes.get(names.MODE, 0)
     lam_ref = np.atleast_1d(result[names.EIGENVALUE].values).astype(np.complex128)
@@ -139,7 +139,7 @@ def stability(
     in_band = np.zeros((n_mode, n_var), bool)
     freq = np.full((n_mode, n_var), np.nan)
     fmins, fmaxs = np.empty(n_var), np.empty(n_var)
-    ref_pfa = float(result.attrs.get(names.ATTR_AMI_PFA, np.nan))
+    ref_pfa = from_attrs(SubtractSettings, result.attrs).pfa if own_reference else None
     with Progress(
         "stability: identify variants", total=n_var, unit="variant", enabled=progress
     ) as bar:
@@ -154,15 +154,16 @@ def stability(
                 kwargs = {**identify_kwargs, "fmin": f0, "fmax": f1}
                 with warnings.catch_warnings():  # the variants' warnings are not the user's
                     warnings.simplefilter("ignore")
-                    out = ami_xr.identify(ds, pfa=p, **kwargs)
+                    out = identify(ds, pfa=p, **kwargs)
             bar.update()
             if out.sizes.get(names.MODE, 0) == 0 or not usable.any():
                 continue
             lam_v = np.atleast_1d(out[names.EIGENVALUE].values)
-            score = score_modes(lam_v, lam_ref[usable], tolerance=MATCH_TOLERANCE)
-            rows = np.flatnonzero(usable)[score.true_index]
+            lam_v = np.where(lam_v.imag < 0, lam_v.conj(), lam_v)  # upper half plane
+            ref_index, index = match_nearest(lam_v, lam_ref[usable], MATCH_TOLERANCE)
+            rows = np.flatnonzero(usable)[ref_index]
             hit = in_band[rows, v]
-            rows, ids = rows[hit], score.identified_index[hit]
+            rows, ids = rows[hit], index[hit]
             found[rows, v] = True
             freq[rows, v] = np.abs(lam_v[ids]) / (2 * np.pi)
     n_in = in_band.sum(axis=1)

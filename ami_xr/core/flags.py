@@ -26,9 +26,7 @@ def bit(flag: str) -> int:
     try:
         return _BIT[flag]
     except KeyError:
-        raise AmiXrValueError(
-            f"quality flag: expected one of {MEANINGS}, got {flag!r}"
-        ) from None
+        raise AmiXrValueError(f"quality flag: expected one of {MEANINGS}, got {flag!r}") from None
 
 
 def set_where(mask: np.ndarray, flag: str, where: Iterable[bool] | bool) -> np.ndarray:
@@ -46,9 +44,7 @@ def has(mask: np.ndarray, flag: str) -> np.ndarray:
 def encode(mask: np.ndarray) -> np.ndarray:
     """The text of each mask: the flags set, in bit order, joined by ``","`` ("" for none)."""
     mask = np.asarray(mask, dtype=np.int32)
-    out = [
-        names.FLAG_SEPARATOR.join(f for f, b in _BIT.items() if m & b) for m in mask.ravel()
-    ]
+    out = [names.FLAG_SEPARATOR.join(f for f, b in _BIT.items() if m & b) for m in mask.ravel()]
     return np.array(out, dtype=str).reshape(mask.shape)
 
 

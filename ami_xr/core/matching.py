@@ -121,3 +121,36 @@ def match_by_distance(lam: np.ndarray, lam0: np.ndarray, width: np.ndarray) -> n
     perm = np.empty(lam.size, dtype=int)
     perm[rows] = cols
     return perm
+
+
+def match_nearest(
+    lam: np.ndarray, lam_ref: np.ndarray, tolerance: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Match eigenvalues ``lam`` to reference eigenvalues ``lam_ref`` nearest first.
+
+    A pair ``(i, k)`` may match when ``|lam_i - lam_ref_k| < tolerance |Re lam_ref_k|``; pairs
+    are taken in order of that distance, each eigenvalue at most once; NaN matches nothing.
+
+    Returns
+    -------
+    ref_index, index : ndarray of int
+        The matched pairs ``(k, i)``, sorted by ``k``.
+    """
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dist = np.abs(lam[:, None] - lam_ref[None, :]) / np.abs(lam_ref.real)[None, :]
+    dist = np.where(np.isfinite(dist), dist, np.inf)
+    used = np.zeros(lam.size, bool)
+    found = np.zeros(lam_ref.size, bool)
+    pairs = []
+    for flat in np.argsort(dist, axis=None, kind="stable"):
+        i, k = divmod(int(flat), lam_ref.size)
+        if dist[i, k] >= tolerance:
+            break
+        if not used[i] and not found[k]:
+            used[i] = found[k] = True
+            pairs.append((k, i))
+    pairs.sort()
+    return (
+        np.array([k for k, _ in pairs], dtype=np.int64),
+        np.array([i for _, i in pairs], dtype=np.int64),
+    )

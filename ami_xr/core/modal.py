@@ -30,11 +30,18 @@ def mode_vectors(residue: np.ndarray, lam: np.ndarray, drive_index: int | None) 
 
 
 def mac_matrix(phi: np.ndarray) -> np.ndarray:
-    """Modal assurance criterion ``|phi_a^H phi_b|^2 / (|phi_a|^2 |phi_b|^2)`` of columns (P, K)."""
+    """Modal assurance criterion ``|phi_a^H phi_b|^2 / (|phi_a|^2 |phi_b|^2)`` of columns (P, K).
+
+    The one MAC of the package (the plots use it too). A zero column has no direction: its
+    row and column are NaN (undefined), as are those of a column holding NaN; every other entry
+    lies in [0, 1].
+    """
+    phi = np.asarray(phi, dtype=np.complex128)
     num = np.abs(phi.conj().T @ phi) ** 2
     nrm = np.sum(np.abs(phi) ** 2, axis=0)
+    den = np.outer(nrm, nrm)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return num / np.outer(nrm, nrm)
+        return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
 
 
 def modal_std(lam: np.ndarray, cov_theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -20,7 +20,7 @@ import math
 import numpy as np
 import scipy.fft
 
-from ami_xr.core.checks import check_choice
+from ami_xr.core.checks import check_choice  # noqa: F401 (re-exported for dsp.frf)
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels import spectral as _k
 from ami_xr.kernels import windows as _w
