@@ -48,6 +48,8 @@ def kernel_params(sub: SubtractSettings, settings: IsolateSettings) -> ki.Isolat
         merge_tol=sub.merge_tol,
         max_modes=sub.max_modes,
         reweight=settings.snr_weighting,
+        # the paper's per-FRF isolation stops on the relative change alone
+        se_fraction=0.0 if settings.method == names.METHOD_PER_FRF else ki.STOP_FRACTION,
     )
 
 

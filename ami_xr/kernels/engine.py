@@ -63,7 +63,7 @@ class IsolateParams(NamedTuple):
     """Fit band: contiguous lines with ``|Y| >= delta`` times the peak."""
     tol: float
     """Convergence: relative change of Re and Im of every eigenvalue in a sweep (or a step
-    below ``STOP_FRACTION`` of the eigenvalue's standard error)."""
+    below ``se_fraction`` of the eigenvalue's standard error)."""
     max_iter: int
     """Most sweeps per restart."""
     pfa: float
@@ -78,6 +78,9 @@ class IsolateParams(NamedTuple):
     """Most modes (the length of the output slots)."""
     reweight: bool
     """Weight each FRF of a group by its SNR for the mode (frozen after 3 sweeps)."""
+    se_fraction: float
+    """A step below this fraction of the eigenvalue's standard error also counts as settled
+    (:data:`STOP_FRACTION`); 0: the relative change ``tol`` alone (the paper's criterion)."""
 
 
 class ModeSet(NamedTuple):
@@ -339,17 +342,20 @@ def _fit_mode(scene, params, modes, n, k, work, state, it):
     ch = max(abs(new.real - lk.real) / abs(new.real), abs(new.imag - lk.imag) / abs(new.imag))
     step = abs(new - lk)
     cycle = abs(new - work.back[k]) < CYCLE_RATIO * step
-    # standard error of the eigenvalue: 1 / sqrt(J), Fisher information J = sum_j c_j^2
-    # sum_i (Re lam)^2 / |i w_i - lam|^4 (c_j the peak contribution in FRF j; residues known)
-    cs = 0.0
-    for j in range(n_p):
-        cs += contribution_peak(omega, x, new, work.rtmp[j], dt, n_samples) ** 2
-    g = 0.0
-    for i in range(lo, hi):
-        d = 1j * omega[i] - new
-        q = d.real * d.real + d.imag * d.imag
-        g += new.real * new.real / (q * q)
-    se = 1.0 / np.sqrt(cs * g) if cs * g > 0.0 else np.inf
+    score = ch / params.tol
+    if params.se_fraction > 0.0:
+        # standard error of the eigenvalue: 1 / sqrt(J), Fisher information J = sum_j c_j^2
+        # sum_i (Re lam)^2 / |i w_i - lam|^4 (c_j the peak contribution in FRF j; residues known)
+        cs = 0.0
+        for j in range(n_p):
+            cs += contribution_peak(omega, x, new, work.rtmp[j], dt, n_samples) ** 2
+        g = 0.0
+        for i in range(lo, hi):
+            d = 1j * omega[i] - new
+            q = d.real * d.real + d.imag * d.imag
+            g += new.real * new.real / (q * q)
+        se = 1.0 / np.sqrt(cs * g) if cs * g > 0.0 else np.inf
+        score = min(score, step / (params.se_fraction * se))
     state.frozen[k] = ch < FREEZE_CHANGE or cycle
     if cycle:
         new = 0.5 * (new + lk)
@@ -357,7 +363,7 @@ def _fit_mode(scene, params, modes, n, k, work, state, it):
     res[:, k] = work.rtmp
     lam[k] = new
     mode_basis(x, new, dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
-    return min(ch / params.tol, step / (STOP_FRACTION * se))
+    return score
 
 
 @jit
@@ -365,17 +371,17 @@ def _sweeps(scene, params, modes, n, work):
     """Isolation sweeps until every eigenvalue has settled, or the early pruning after 3 sweeps
     finds an insignificant mode. Returns ``(iterations, converged)``.
 
-    Stopping rule: a mode has settled in a sweep when its step ``|lam_new - lam_old|`` is below
-    ``STOP_FRACTION`` of its standard error or its Re and Im change less than ``tol``
-    (relative); the sweeps have converged when every mode has settled in the same sweep. The
-    standard error term makes the rule reachable at any noise level: close modes converge only
-    linearly (each isolation sees the other's error), and asking for a relative change of
-    ``tol`` there costs tens of sweeps that move the eigenvalues by a small fraction of their
-    uncertainty. A mode that steps back to where it was two sweeps before (``|lam_new -
-    lam_back| < CYCLE_RATIO |lam_new - lam_old|``) is in a two-state cycle (its fit band
-    switching between two data-defined choices): it takes the mean of the two states and keeps
-    its band, which makes the iteration map continuous so the cycle dies out. Modes flagged in
-    ``work.pinned`` are not re-fitted.
+    Stopping rule: a mode has settled in a sweep when its Re and Im change less than ``tol``
+    (relative) or (``se_fraction > 0``) its step ``|lam_new - lam_old|`` is below
+    ``se_fraction`` of its standard error; the sweeps have converged when every mode has settled
+    in the same sweep. The standard error term makes the rule reachable at any noise level:
+    close modes converge only linearly (each isolation sees the other's error), and asking for a
+    relative change of ``tol`` there costs tens of sweeps that move the eigenvalues by a small
+    fraction of their uncertainty. A mode that steps back to where it was two sweeps before
+    (``|lam_new - lam_back| < CYCLE_RATIO |lam_new - lam_old|``) is in a two-state cycle (its
+    fit band switching between two data-defined choices): it takes the mean of the two states
+    and keeps its band, which makes the iteration map continuous so the cycle dies out. Modes
+    flagged in ``work.pinned`` are not re-fitted.
     """
     omega, x, dt, n_samples = scene.grid
     lam, res, fails = modes

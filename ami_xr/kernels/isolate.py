@@ -13,6 +13,7 @@ import numpy as np
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels.engine import (
+    STOP_FRACTION,
     IsolateParams,
     IsolateResult,
     isolate_groups,
@@ -21,7 +22,14 @@ from ami_xr.kernels.engine import (
 from ami_xr.kernels.peak import check_inputs, scene
 from ami_xr.kernels.residues import residues_fixed_kernel
 
-__all__ = ["IsolateParams", "IsolateResult", "isolate_batch", "isolate_simo", "point_estimates"]
+__all__ = [
+    "STOP_FRACTION",
+    "IsolateParams",
+    "IsolateResult",
+    "isolate_batch",
+    "isolate_simo",
+    "point_estimates",
+]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -123,23 +131,16 @@ def isolate_simo(
 ) -> IsolateResult:
     """Global SIMO isolation with the model-order check (all FRFs one group).
 
+    ``data``, ``omega``, ``dt``, ``n_samples``, ``sigma`` and ``params`` are those of
+    :func:`isolate_batch`.
+
     Parameters
     ----------
-    data : ndarray of complex, shape (P, F)
-        FRFs.
-    omega : ndarray of float, shape (F,)
-        Angular frequencies in rad/s, strictly increasing.
-    dt, n_samples : float or None, int or None
-        Discrete model; None (or 0) for the continuous one.
     lam0 : ndarray of complex, shape (S,)
         Starting eigenvalues; the first ``n0`` are used (their starting residues: linear least
         squares with the eigenvalues fixed, over all lines).
     n0 : int
         Number of starting modes.
-    sigma : ndarray of float, shape (P,)
-        Noise floor of each FRF.
-    params : IsolateParams
-        Settings.
 
     Returns
     -------

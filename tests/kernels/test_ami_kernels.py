@@ -334,6 +334,7 @@ def _isolate_params(**kw):
         merge_tol=0.5,
         max_modes=6,
         reweight=True,
+        se_fraction=ki.STOP_FRACTION,
     )
     base.update(kw)
     return ki.IsolateParams(**base)
@@ -400,7 +401,7 @@ def test_isolate_wrappers_validate():
     lam0 = np.full((2, 6), np.nan + 0j)
     params = _isolate_params()
     with pytest.raises(AmiXrValueError, match="params"):
-        ki.isolate_batch(g, W2, None, None, lam0, lam0, np.zeros(2, int), sigma, (0.5,) * 9)
+        ki.isolate_batch(g, W2, None, None, lam0, lam0, np.zeros(2, int), sigma, (0.5,) * 10)
     with pytest.raises(AmiXrValueError, match="n0"):
         ki.isolate_batch(g, W2, None, None, lam0, lam0, np.full(2, 7), sigma, params)
     with pytest.raises(AmiXrValueError, match="sigma"):
