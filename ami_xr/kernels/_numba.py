@@ -1,68 +1,77 @@
-"""The one place for numba policy.
+"""The one place for numba policy, written against numba's public API only.
 
 * Lazy compilation: no eager signatures, so ``import ami_xr`` and ``ami-xr --help`` compile nothing.
 * ``cache=True`` so a compiled kernel is reused by the next process (set ``AMI_XR_NUMBA_CACHE=0``
-  to switch the on-disk cache off, e.g. on a read-only install).
+  to switch the on-disk cache off). A cache folder that cannot be written (read-only home or
+  install, ``NUMBA_CACHE_DIR`` unwritable or a plain file) means compiling in memory, with one
+  notice: it never stops a run.
 * ``fastmath`` stays off: results must match the numpy references to rounding.
 * ``NUMBA_DISABLE_JIT=1`` (numba's own switch) runs every kernel as plain Python for debugging
   and coverage.
 
-Cache stamps that follow calls across files
--------------------------------------------
+Where the cache lives, and why it follows calls across files
+------------------------------------------------------------
 numba stamps a cached kernel with its own source file only, but a kernel that calls a jitted
 function of another module has that function compiled into it: after an edit to
-``single_mode.py`` the cached kernels of ``isolate.py`` would still run the old code. So every
-function compiled through :func:`jit` or :func:`guvectorize` gets a stamp made of numba's own
-stamp of its file plus the content hash of each *kernel module* its module imports,
-transitively (a kernel module is one that imports this policy module; this file counts too,
-since a policy change such as ``fastmath`` is not part of numba's cache key). An edit to one
-kernel module therefore recompiles its own kernels and those of the modules that import it,
-directly or not, and no others; a ``touch`` or a checkout that leaves the text unchanged
-recompiles nothing extra.
+``single_mode.py`` the cached kernels of ``isolate.py`` would still run the old code. So each
+kernel module caches into a folder of its own dependencies' version::
 
-This hooks into numba's cache-locator list (``numba.core.caching.CacheImpl._locator_classes``, a
-private interface, present from numba 0.58 to at least 0.68). If that interface is missing or
-behaves differently, or the dependencies cannot be worked out, the kernels fall back to numba's
-default per-file stamp; the hook never makes a kernel fail to compile or to cache.
+    <NUMBA_CACHE_DIR, else $XDG_CACHE_HOME or ~/.cache, + /ami_xr-numba>/<stamp>/...
+
+where ``<stamp>`` hashes the text of every *kernel module* the module imports, transitively
+(a kernel module is one that imports :func:`jit`; this policy file counts too, since a policy
+change such as ``fastmath`` is not part of numba's cache key). numba's own per-file stamp covers
+the module itself. An edit to one kernel module therefore recompiles its own kernels (numba) and
+those of the modules that import it, directly or not (a new folder), and no others. The folder
+is handed to numba as ``numba.config.CACHE_DIR`` (``NUMBA_CACHE_DIR``) while the decorator runs,
+which is when numba picks a function's cache location, and restored at once, so other numba
+users in the process are not affected. Folders of superseded versions stay behind (a few MB
+each); deleting the ``ami_xr-numba`` folder at any time is safe.
+
+The first compilation of a process (a cache miss) is announced once, through numba's event API
+(``numba.core.event``, the ``"numba:compile"`` event, sent only when a kernel really compiles).
 """
 
 from __future__ import annotations
 
-import ast
-import functools
 import hashlib
-import importlib.util
+import logging
 import os
 import sys
-import weakref
-from collections.abc import Callable
+import tempfile
+import threading
 from typing import Any
 
 import numba
-import numba.core.registry
-import numba.core.sigutils
-import numba.core.types
+from numba.core import event
 
 CACHE = os.environ.get("AMI_XR_NUMBA_CACHE", "1").strip().lower() not in ("0", "false", "no", "off")
 
-# Python functions compiled with this policy: only their cache stamps are widened.
-_POLICY_FUNCTIONS: weakref.WeakSet = weakref.WeakSet()
-
-
-# The first-compilation notice goes to logging.getLogger(names.COMPILE_LOGGER) at INFO: the CLI
-# prints it on stderr; the Python API leaves it to the caller's logging set-up (silent by default).
-#: What a cold ``ami-xr demo`` spends compiling, in CPU seconds on a 2-core machine (measured
-#: with ``scripts/bench_first_run.py``: 45-48 s CPU for the whole cold demo, 28 s compiling).
+#: What a cold ``ami-xr demo`` spends compiling, in seconds on a 2-core machine (measured with
+#: ``scripts/bench_first_run.py``).
 FIRST_RUN_SECONDS = 45
+
+# The notices go to logging.getLogger(names.COMPILE_LOGGER): the first-compilation one at INFO
+# (the CLI prints it on stderr; the Python API leaves it to the caller's logging set-up), the
+# unwritable-cache one at WARNING (Python prints it on stderr when logging is not set up).
+_COMPILE_LOGGER = "ami_xr.compile"  # names.COMPILE_LOGGER: kernels import numpy and numba only
+
+_LOCK = threading.Lock()
+_POLICY_FUNCTIONS: set[Any] = set()  # Python functions compiled here (their code objects)
+_CACHE_DIRS: dict[str, str | None] = {}  # kernel module -> its cache folder (None: in memory)
+_UNWRITABLE: list[str] = []  # the unwritable-cache notice, once per process
 _NOTICE_GIVEN: list[bool] = []
 
 
-def _cache_location(dispatcher: Any) -> str | None:
-    """The cache folder: ``NUMBA_CACHE_DIR`` when set, else where this kernel is cached."""
-    if numba.config.CACHE_DIR:
-        return str(numba.config.CACHE_DIR)
-    path = getattr(getattr(dispatcher, "_cache", None), "_cache_path", None)
-    return path if isinstance(path, str) else None
+def cache_base() -> str:
+    """The folder under which the kernels' cache folders go (``NUMBA_CACHE_DIR`` when set)."""
+    base = os.environ.get("NUMBA_CACHE_DIR", "").strip()
+    if base:
+        return base
+    home = os.environ.get("XDG_CACHE_HOME", "").strip() or os.path.join(
+        os.path.expanduser("~"), ".cache"
+    )
+    return os.path.join(home, "ami_xr-numba")
 
 
 def first_run_notice(location: str | None = None) -> str:
@@ -74,118 +83,19 @@ def first_run_notice(location: str | None = None) -> str:
     )
 
 
-def _notice(dispatcher: Any) -> None:
-    """Log :func:`first_run_notice` once per process, just before the first kernel compiles."""
-    if _NOTICE_GIVEN:
-        return
-    _NOTICE_GIVEN.append(True)
-    import logging
-
-    from ami_xr.names import COMPILE_LOGGER
-
-    logging.getLogger(COMPILE_LOGGER).info(first_run_notice(_cache_location(dispatcher)))
+def unwritable_notice(folder: str, reason: str) -> str:
+    """The text of the notice given once when the cache folder cannot be used."""
+    return (
+        f"ami-xr: numba cache folder {folder} is not writable ({reason}): compiling in memory, "
+        "so every run compiles again; set NUMBA_CACHE_DIR to a writable folder, or "
+        "AMI_XR_NUMBA_CACHE=0 to switch the cache off and this notice with it"
+    )
 
 
-class _Dispatcher(numba.core.registry.CPUDispatcher):
-    """numba's CPU dispatcher with two changes, neither of which touches the generated code:
-
-    * a call from another kernel is typed with its arguments' plain types (``int64``, not
-      ``Literal[int](0)``), so a kernel called with a constant and with a variable compiles
-      once, not once per constant (numba specialises jitted-to-jitted calls on literal values);
-    * the first compilation of the process (a cache miss) is announced, see :func:`_notice`.
-    """
-
-    def get_call_template(self, args, kws):
-        unlit = numba.core.types.unliteral
-        args = tuple(unlit(a) for a in args)
-        kws = {k: unlit(v) for k, v in kws.items()}
-        return super().get_call_template(args, kws)
-
-    def compile(self, sig):
-        if not _NOTICE_GIVEN and self._can_compile:
-            args, _ = numba.core.sigutils.normalize_signature(sig)
-            if self.overloads.get(tuple(args)) is None:
-                load = self._cache.load_overload
-                self._cache.load_overload = lambda s, ctx: _missed(self, load(s, ctx))
-                try:
-                    return super().compile(sig)
-                finally:
-                    del self._cache.load_overload
-        return super().compile(sig)
+# --- where each kernel module caches --------------------------------------------------------
 
 
-def _missed(dispatcher: Any, loaded: Any) -> Any:
-    if loaded is None:
-        _notice(dispatcher)
-    return loaded
-
-
-def jit(func=None, *, parallel: bool = False, **options):
-    """``numba.njit`` with the project's policy (lazy, cached, no fastmath, one specialisation
-    per argument types: see :class:`_Dispatcher`)."""
-    options.setdefault("cache", CACHE)
-    options.setdefault("fastmath", False)
-    options.setdefault("nogil", True)
-
-    def decorate(f):
-        _POLICY_FUNCTIONS.add(f)
-        disp = numba.njit(parallel=parallel, **options)(f)
-        if type(disp) is numba.core.registry.CPUDispatcher:  # not under NUMBA_DISABLE_JIT
-            disp.__class__ = _Dispatcher
-        return disp
-
-    return decorate if func is None else decorate(func)
-
-
-def guvectorize(signatures, layout: str, **options):
-    """``numba.guvectorize`` with the project's policy (cached, no fastmath).
-
-    Note that gufuncs need explicit signatures; they are compiled on first call only when
-    ``signatures`` is empty (dynamic gufunc), which is what we use to keep imports cheap.
-    """
-    options.setdefault("cache", CACHE)
-    options.setdefault("fastmath", False)
-    options.setdefault("nopython", True)
-    if signatures:
-        decorator = numba.guvectorize(signatures, layout, **options)
-    else:
-        decorator = numba.guvectorize(layout, **options)
-
-    def decorate(f):
-        _POLICY_FUNCTIONS.add(f)
-        return decorator(f)
-
-    return decorate
-
-
-prange = numba.prange
-
-
-# --- dependency-aware cache stamps ------------------------------------------------------------
-
-
-@functools.cache
-def _file_hash(path: str, mtime_ns: int, size: int) -> str:
-    """sha256 of a file's bytes (memoised on its mtime and size, like numba's own stamp)."""
-    with open(path, "rb") as f:
-        return hashlib.sha256(f.read()).hexdigest()
-
-
-@functools.cache
-def _imports(path: str, mtime_ns: int, size: int) -> tuple[tuple[int, str, tuple[str, ...]], ...]:
-    """``(level, module, names)`` of every import statement in a source file."""
-    with open(path, "rb") as f:
-        tree = ast.parse(f.read(), filename=path)
-    out = []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            out.extend((0, alias.name, ()) for alias in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            out.append((node.level, node.module or "", tuple(a.name for a in node.names)))
-    return tuple(out)
-
-
-def _source_file(module: Any) -> str | None:
+def _source(module: Any) -> str | None:
     path = getattr(module, "__file__", None)
     if isinstance(path, str) and path.endswith(".py") and os.path.isfile(path):
         return path
@@ -193,115 +103,136 @@ def _source_file(module: Any) -> str | None:
 
 
 def _is_kernel_module(module: Any) -> bool:
-    """Whether ``module`` compiles kernels with this policy (it holds ``jit``, ``guvectorize``
-    or this module), or is this policy module itself."""
-    if module is sys.modules.get(__name__):
-        return True
+    """Whether ``module`` compiles kernels with this policy (it holds :func:`jit`)."""
     try:
-        values = list(vars(module).values())
+        return any(v is jit for v in vars(module).values())
     except TypeError:
         return False
-    policy = sys.modules.get(__name__)
-    return any(v is jit or v is guvectorize or (policy is not None and v is policy) for v in values)
 
 
-def _imported_modules(name: str) -> set[str]:
-    """Names of the already imported modules that module ``name`` imports, including the
-    modules of jitted functions it imports by name (so re-exports are followed)."""
-    module = sys.modules.get(name)
-    path = _source_file(module)
-    if path is None:
-        return set()
-    st = os.stat(path)
-    package = getattr(module, "__package__", None) or ""
-    found: set[str] = set()
-    for level, target, names in _imports(path, st.st_mtime_ns, st.st_size):
-        if level:
-            try:
-                target = importlib.util.resolve_name("." * level + target, package)
-            except (ImportError, ValueError):
-                continue
-        found.add(target)
-        parent = sys.modules.get(target)
-        for n in names:
-            found.add(f"{target}.{n}")
-            py_func = getattr(getattr(parent, n, None), "py_func", None)
-            owner = getattr(py_func, "__module__", None)
-            if isinstance(owner, str):
-                found.add(owner)
-    found.discard(name)
-    return {m for m in found if m in sys.modules}
+def _kernel_imports(module: Any) -> set[Any]:
+    """The already imported kernel modules that ``module`` uses: modules it holds, and the
+    modules of the jitted functions it holds (so a re-export is followed to its source)."""
+    found = set()
+    for value in list(vars(module).values()):
+        owner = value
+        if not isinstance(value, type(sys)):
+            py_func = getattr(value, "py_func", None)
+            owner = sys.modules.get(getattr(py_func, "__module__", None) or "")
+        if owner is not None and owner is not module and _is_kernel_module(owner):
+            found.add(owner)
+    return found
 
 
-@functools.cache
-def _dependency_stamp(name: str) -> tuple[tuple[str, str], ...]:
-    """``(module, sha256)`` of every kernel module that module ``name`` imports, transitively,
-    sorted by name (``name`` itself left out: numba's own stamp covers it).
-
-    Memoised per module for the life of the process, like the imported code it describes.
-    """
-    seen: set[str] = set()
-    todo = [name]
+def dependency_stamp(module_name: str) -> tuple[tuple[str, str], ...]:
+    """``(module, sha256 of its text)`` of this policy file and of every kernel module that
+    module ``module_name`` uses, transitively, sorted by name (the module itself left out:
+    numba's own stamp covers it). Read when the module defines its first kernel, so only what
+    it imported above that line counts (kernel modules import at the top)."""
+    module = sys.modules[module_name]
+    seen: dict[str, Any] = {__name__: sys.modules[__name__]}
+    todo = [module]
     while todo:
-        for dep in _imported_modules(todo.pop()):
-            if dep not in seen and _is_kernel_module(sys.modules[dep]):
-                seen.add(dep)
+        for dep in _kernel_imports(todo.pop()):
+            if dep.__name__ not in seen and dep is not module:
+                seen[dep.__name__] = dep
                 todo.append(dep)
-    seen.discard(name)
     stamp = []
-    for dep in sorted(seen):
-        path = _source_file(sys.modules[dep])
+    for name in sorted(seen):
+        path = _source(seen[name])
         if path is not None:
-            st = os.stat(path)
-            stamp.append((dep, _file_hash(path, st.st_mtime_ns, st.st_size)))
+            with open(path, "rb") as fh:
+                stamp.append((name, hashlib.sha256(fh.read()).hexdigest()))
     return tuple(stamp)
 
 
-class _DependencyStampLocator:
-    """Entry of numba's locator list for the functions compiled here: it takes the locator
-    numba would have chosen and widens that locator's source stamp with
-    :func:`_dependency_stamp`. For any other function, or on any failure, it returns ``None``
-    and numba goes on to its own locators unchanged."""
-
-    @classmethod
-    def from_function(cls, py_func: Callable, py_file: str) -> Any:
-        try:
-            if py_func not in _POLICY_FUNCTIONS:
-                return None
-            from numba.core import caching
-
-            for other in list(caching.CacheImpl._locator_classes):
-                if other is cls:
-                    continue
-                locator = other.from_function(py_func, py_file)
-                if locator is not None:
-                    break
-            else:
-                return None
-            own_stamp = locator.get_source_stamp
-            deps = _dependency_stamp(py_func.__module__)
-        except Exception:  # numba's internals differ: keep its default behaviour
-            return None
-        if not deps:
-            return locator
-        locator.get_source_stamp = lambda: (own_stamp(), deps)
-        return locator
-
-
-def _install_dependency_stamps() -> bool:
-    """Put :class:`_DependencyStampLocator` first in numba's locator list; ``False`` (and numba's
-    default per-file stamps) where that list is not there."""
+def _writable(folder: str) -> str | None:
+    """``None`` when ``folder`` can be created and written, else why not."""
     try:
-        from numba.core import caching
-
-        classes = caching.CacheImpl._locator_classes
-        if not isinstance(classes, list):
-            return False
-        if _DependencyStampLocator not in classes:
-            classes.insert(0, _DependencyStampLocator)
-        return True
-    except Exception:
-        return False
+        os.makedirs(folder, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as err:
+        return err.strerror or type(err).__name__
+    return None
 
 
-DEPENDENCY_STAMPS = CACHE and _install_dependency_stamps()
+def _cache_dir(module_name: str) -> str | None:
+    """The cache folder of a kernel module, created; ``None`` (and one notice in the process)
+    when it cannot be written."""
+    if module_name not in _CACHE_DIRS:
+        try:
+            stamp = dependency_stamp(module_name)
+        except (KeyError, OSError):  # not a module with a source file: numba's stamp alone
+            stamp = ()
+        digest = hashlib.sha256(repr(stamp).encode()).hexdigest()[:16]
+        folder = os.path.join(cache_base(), digest)
+        reason = _writable(folder)
+        _CACHE_DIRS[module_name] = None if reason else folder
+        if reason:
+            _notice_unwritable(folder, reason)
+    return _CACHE_DIRS[module_name]
+
+
+def _notice_unwritable(folder: str, reason: str) -> None:
+    if not _UNWRITABLE:
+        _UNWRITABLE.append(folder)
+        logging.getLogger(_COMPILE_LOGGER).warning(unwritable_notice(folder, reason))
+
+
+# --- the decorator ----------------------------------------------------------------------------
+
+
+def jit(func=None, *, parallel: bool = False, **options):
+    """``numba.njit`` with the project's policy: lazy, cached (per dependency version, see the
+    module docstring; in memory where the cache cannot be written), no fastmath, no GIL."""
+    options.setdefault("fastmath", False)
+    options.setdefault("nogil", True)
+    want_cache = options.pop("cache", CACHE)
+
+    def decorate(f):
+        folder = _cache_dir(f.__module__) if want_cache else None
+        _POLICY_FUNCTIONS.add(f.__code__)
+        if folder is None:
+            return numba.njit(parallel=parallel, cache=False, **options)(f)
+        with _LOCK:
+            saved = numba.config.CACHE_DIR
+            numba.config.CACHE_DIR = folder
+            try:
+                return numba.njit(parallel=parallel, cache=True, **options)(f)
+            except RuntimeError as err:  # numba found no usable cache location after all
+                _notice_unwritable(folder, str(err))
+                return numba.njit(parallel=parallel, cache=False, **options)(f)
+            finally:
+                numba.config.CACHE_DIR = saved
+
+    return decorate if func is None else decorate(func)
+
+
+prange = numba.prange
+
+
+# --- the first-compilation notice --------------------------------------------------------------
+
+
+class _FirstCompile(event.Listener):
+    """Logs :func:`first_run_notice` once per process, when a kernel of this policy starts to
+    compile (numba sends ``"numba:compile"`` only on a cache miss). It stays registered (a
+    listener removed while numba broadcasts would make numba skip the next one); after the
+    notice it costs one check per compilation."""
+
+    def on_start(self, ev: event.Event) -> None:
+        dispatcher = (ev.data or {}).get("dispatcher")
+        code = getattr(getattr(dispatcher, "py_func", None), "__code__", None)
+        if _NOTICE_GIVEN or code not in _POLICY_FUNCTIONS:
+            return
+        _NOTICE_GIVEN.append(True)
+        module = getattr(dispatcher.py_func, "__module__", "")
+        location = _CACHE_DIRS.get(module) if CACHE else None
+        logging.getLogger(_COMPILE_LOGGER).info(first_run_notice(location))
+
+    def on_end(self, ev: event.Event) -> None:
+        pass
+
+
+event.register("numba:compile", _FirstCompile())

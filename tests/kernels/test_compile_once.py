@@ -1,7 +1,7 @@
 """A first run compiles each kernel once, and says so once (issue 11 item 1).
 
-* A kernel called from another kernel with constants (numba types them ``Literal[int](0)``) and
-  with variables compiles one specialisation, not one per constant.
+* numba compiles a kernel called from another kernel once per integer or boolean *constant* it
+  is given (it types them ``Literal[int](0)``): no kernel passes one to another kernel.
 * After an identification every kernel dispatcher holds at most one specialisation, and a
   checked wrapper given another layout or dtype adds none.
 * A process that must compile (numba cache miss) logs one notice at INFO on
@@ -11,6 +11,8 @@
 
 from __future__ import annotations
 
+import ast
+import importlib
 import json
 import os
 import subprocess
@@ -24,7 +26,7 @@ import pytest
 from ami_xr.kernels import _numba
 
 pytestmark = pytest.mark.skipif(
-    not isinstance(_numba.jit(lambda x: x), _numba._Dispatcher), reason="NUMBA_DISABLE_JIT"
+    not hasattr(_numba.jit(lambda x: x), "signatures"), reason="NUMBA_DISABLE_JIT"
 )
 
 KERNELS = """
@@ -72,11 +74,48 @@ def _run(tmp_path: Path, setup: str = "", cache: str = "cache") -> tuple[dict, s
     return json.loads(done.stdout.strip().splitlines()[-1]), done.stderr
 
 
-def test_literal_arguments_compile_one_specialisation(tmp_path):
+def test_literal_arguments_compile_one_specialisation_each(tmp_path):
+    """What the rule below guards against: numba compiles ``g`` once per constant."""
     out, _ = _run(tmp_path)
     assert out["value"] == 3.0 * (0 + 1 - 1 + 3)
-    assert out["g"] == 1  # without the unliteral typing: 4 (three constants and int64)
+    assert out["g"] == 4  # three constants and int64: why kernels pass variables
     assert out["f"] == 1
+
+
+def _literal(node: ast.expr) -> bool:
+    """An int or bool constant (floats are never typed as literals), possibly negated."""
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
+        node = node.operand
+    return isinstance(node, ast.Constant) and isinstance(node.value, (bool, int))
+
+
+def _kernel_calls_with_constants() -> list[str]:
+    import ami_xr.kernels
+
+    found = []
+    for path in sorted(Path(ami_xr.kernels.__file__).parent.glob("*.py")):
+        module = importlib.import_module(f"ami_xr.kernels.{path.stem}")
+        for fn in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(fn, ast.FunctionDef):
+                continue
+            if not hasattr(getattr(module, fn.name, None), "py_func"):
+                continue  # not a kernel
+            for call in ast.walk(fn):
+                if not (isinstance(call, ast.Call) and isinstance(call.func, ast.Name)):
+                    continue
+                if not hasattr(getattr(module, call.func.id, None), "py_func"):
+                    continue  # numpy, math or a builtin: not a dispatcher
+                args = [*call.args, *(k.value for k in call.keywords)]
+                if any(_literal(a) for a in args):
+                    found.append(f"{path.name}:{call.lineno} {fn.name} -> {call.func.id}")
+    return found
+
+
+def test_no_kernel_passes_an_integer_constant_to_another_kernel():
+    """Each such call costs a whole extra compilation of the callee on a first run. Pass
+    ``np.int64(0)`` or a variable computed at run time (``zero = 0`` does not help: numba
+    types it as the constant too), or restructure."""
+    assert _kernel_calls_with_constants() == []
 
 
 def test_cli_says_once_that_a_first_run_compiles(tmp_path):

@@ -1,10 +1,12 @@
-"""numba's on-disk cache follows calls across kernel modules (``ami_xr.kernels._numba``).
+"""numba's on-disk cache as the project uses it (``ami_xr.kernels._numba``).
 
 A throw-away package of three kernel modules (``callee``; ``caller``, which calls ``callee``;
 ``other``, unrelated) is compiled in fresh processes with the project's :func:`jit`. After an
 edit to ``callee`` the cached ``caller`` must run the new code, and an edit to ``other`` must
 recompile ``other`` only. numba's own cache counters (``dispatcher.stats``) tell compiled
-(miss) from loaded (hit).
+(miss) from loaded (hit). A cache folder that cannot be written means compiling in memory with
+one notice; two processes whose first (compiling) runs overlap on an empty cache, as
+``ami-xr batch --workers 2`` does, both succeed and leave a cache the next run loads.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import pytest
@@ -57,7 +60,7 @@ from kpkg.caller import f
 from kpkg.other import h
 from ami_xr.kernels import _numba
 
-out = {"stamps": _numba.DEPENDENCY_STAMPS}
+out = {"folder": _numba._CACHE_DIRS.get("kpkg.caller")}
 for name, fn in (("f", f), ("g", g), ("h", h)):
     value = fn(1.0)
     out[name] = {
@@ -112,7 +115,7 @@ def _compiled(out: dict) -> dict[str, bool]:
 def test_edit_to_a_callee_module_recompiles_its_callers_and_nothing_else(tmp_path):
     _write(tmp_path)
     first = _run(tmp_path)
-    assert first["stamps"] is True
+    assert first["folder"] is not None
     assert first["f"]["value"] == 3.0
     assert _compiled(first) == {"f": True, "g": True, "h": True}
 
@@ -136,44 +139,135 @@ def test_cache_switched_off_compiles_every_time_and_writes_nothing(tmp_path):
     _write(tmp_path)
     for _ in range(2):
         out = _run(tmp_path, AMI_XR_NUMBA_CACHE="0")
-        assert out["stamps"] is False
+        assert out["folder"] is None
         assert out["f"]["value"] == 3.0
         assert all(out[k]["hits"] == 0 for k in "fgh")
     assert not list(tmp_path.rglob("*.nbi"))
 
 
-def test_unknown_numba_internals_fall_back_to_numba_defaults(monkeypatch):
-    from numba.core import caching
+@pytest.mark.parametrize(
+    "where",
+    [
+        "NUMBA_CACHE_DIR=plain file",
+        "NUMBA_CACHE_DIR=below a plain file",
+        "XDG_CACHE_HOME=read-only",
+        "HOME=read-only",
+    ],
+)
+def test_unwritable_cache_compiles_in_memory_with_one_notice(tmp_path, where):
+    """A cache that cannot be written never stops a run: kernels compile in memory and one
+    notice (logged at WARNING, so printed without any logging set-up) says what to do."""
+    _write(tmp_path)
+    plain = tmp_path / "plain"
+    plain.write_text("not a folder")
+    env = {
+        "NUMBA_CACHE_DIR=plain file": {"NUMBA_CACHE_DIR": str(plain)},
+        "NUMBA_CACHE_DIR=below a plain file": {"NUMBA_CACHE_DIR": str(plain / "sub")},
+        # /proc refuses new folders, even to root (a chmod would not stop root)
+        "XDG_CACHE_HOME=read-only": {"XDG_CACHE_HOME": "/proc/ami_xr_cache"},
+        "HOME=read-only": {"HOME": "/proc/ami_xr_home", "XDG_CACHE_HOME": ""},
+    }[where]
+    environ = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    environ.pop("AMI_XR_NUMBA_CACHE", None)
+    environ.pop("XDG_CACHE_HOME", None)
+    environ["PYTHONPATH"] = os.pathsep.join([str(tmp_path), environ.get("PYTHONPATH", "")])
+    environ.update(env)
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(RUN)],
+        cwd=tmp_path,
+        env=environ,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    assert out["folder"] is None
+    assert (out["f"]["value"], out["g"]["value"], out["h"]["value"]) == (3.0, 2.0, 0.0)
+    notices = [line for line in done.stderr.splitlines() if "not writable" in line]
+    assert len(notices) == 1, done.stderr  # three modules, one notice
+    assert "compiling in memory" in notices[0] and "NUMBA_CACHE_DIR" in notices[0]
+    assert plain.read_text() == "not a folder"
 
-    # the locator list is missing or not a list: nothing is installed
-    monkeypatch.setattr(caching.CacheImpl, "_locator_classes", None)
-    assert _numba._install_dependency_stamps() is False
-    monkeypatch.undo()
 
-    # the stamp cannot be worked out: the hook steps aside and numba picks its own locator
-    def broken(name):
-        raise RuntimeError("numba internals changed")
+CONCURRENT = """
+import json, os, sys, time
+import numpy as np
+from ami_xr.kernels import linalg, modal_basis
+# both processes start compiling at the same moment: wait for the go file
+while not os.path.exists(sys.argv[1]):
+    time.sleep(0.01)
+w = np.linspace(1.0, 60.0, 41)
+lam = np.array([[-0.5 + 20j, -1.0 + 45j]])
+res = np.array([[1.0 - 2j, 0.5 + 1j]])
+h = modal_basis.synthesize(w, lam, res)[0]
+a = np.array([[4.0, 1.0, 0.5], [1.0, 3.0, 0.2], [0.5, 0.2, 2.0]])
+x, ok = linalg.solve_normal_equations(a, np.array([1.0, 2.0, 3.0]))
+stats = [d.stats for m in (linalg, modal_basis) for d in vars(m).values() if hasattr(d, "stats")]
+print(json.dumps({
+    "h": [h.real.tolist(), h.imag.tolist()],
+    "x": np.asarray(x).tolist(),
+    "ok": bool(ok),
+    "misses": sum(sum(s.cache_misses.values()) for s in stats),
+    "hits": sum(sum(s.cache_hits.values()) for s in stats),
+}))
+"""
 
-    def kernel(x):
-        return x
 
-    _numba._POLICY_FUNCTIONS.add(kernel)
-    monkeypatch.setattr(_numba, "_dependency_stamp", broken)
-    assert _numba._DependencyStampLocator.from_function(kernel, __file__) is None
-    # a function not compiled with the project's policy is never touched
-    assert _numba._DependencyStampLocator.from_function(len, __file__) is None
+def test_two_first_runs_at_once_both_succeed_and_leave_a_good_cache(tmp_path):
+    """numba issue 4807: concurrent first runs on one cache (``batch --workers 2``). Both
+    processes compile into an empty cache folder at the same moment and give the right
+    results; a third process then loads everything from that cache and agrees."""
+    import numpy as np
+
+    go = tmp_path / "go"
+    environ = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    environ.pop("AMI_XR_NUMBA_CACHE", None)
+    environ["NUMBA_CACHE_DIR"] = str(tmp_path / "cache")
+    cmd = [sys.executable, "-c", CONCURRENT, str(go)]
+    procs = [
+        subprocess.Popen(
+            cmd, env=environ, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        for _ in range(2)
+    ]
+    time.sleep(1.0)  # both interpreters up and waiting
+    go.write_text("")
+    results = []
+    for proc in procs:
+        stdout, stderr = proc.communicate(timeout=600)
+        assert proc.returncode == 0, stderr
+        results.append(json.loads(stdout.strip().splitlines()[-1]))
+    assert all(r["misses"] >= 2 and r["hits"] == 0 for r in results)  # both really compiled
+    again = subprocess.run(
+        cmd, env=environ, capture_output=True, text=True, timeout=300, check=True
+    )
+    warm = json.loads(again.stdout.strip().splitlines()[-1])
+    assert warm["misses"] == 0 and warm["hits"] >= 2  # the cache the two first runs wrote
+
+    w = np.linspace(1.0, 60.0, 41)
+    lam = np.array([-0.5 + 20j, -1.0 + 45j])
+    res = np.array([1.0 - 2j, 0.5 + 1j])
+    s = 1j * w[:, None]
+    h = np.sum(res / (s - lam) + np.conj(res) / (s - np.conj(lam)), axis=1)
+    a = np.array([[4.0, 1.0, 0.5], [1.0, 3.0, 0.2], [0.5, 0.2, 2.0]])
+    x = np.linalg.solve(a, [1.0, 2.0, 3.0])
+    for r in (*results, warm):
+        np.testing.assert_allclose(r["h"][0] + 1j * np.asarray(r["h"][1]), h, rtol=1e-12)
+        np.testing.assert_allclose(np.ravel(r["x"]), x, rtol=1e-12)
+        assert r["ok"]
 
 
 @pytest.mark.parametrize(
     ("module", "expected"),
     [
         ("ami_xr.kernels.linalg", {"_numba"}),
-        ("ami_xr.kernels.single_mode", {"_numba", "linalg", "modal_basis"}),
+        ("ami_xr.kernels.residues", {"_numba", "linalg", "modal_basis"}),
     ],
 )
 def test_kernel_modules_are_stamped_with_the_kernel_modules_they_import(module, expected):
     import importlib
 
     importlib.import_module(module)
-    names = {dep.rsplit(".", 1)[-1] for dep, _ in _numba._dependency_stamp(module)}
+    names = {dep.rsplit(".", 1)[-1] for dep, _ in _numba.dependency_stamp(module)}
     assert names == expected
