@@ -18,6 +18,13 @@ and which of them an identified mode matches (within 1 % or 3 Hz, whichever is w
 
 Targets of issue 10 printed with met / NOT met: hammer - no unflagged mode above the valid band,
 at least 15 visible peaks matched; measurement.uff - no such pair.
+
+Issue 20 (the result must not depend on how the data were cut): the hammer FRF is also
+identified over 20-4885 Hz twice, ``ami-xr identify h.nc --fmin 20 --fmax 4885`` and
+``ami-xr identify`` of the file cut first with ``h.sel(frequency=slice(20, 4885))`` (written
+with ``ami_xr.to_netcdf``); for each the band, the modes found and the visible peaks matched,
+then whether both give the same modes, and the targets of issue 20: each at least 20 of the
+visible peaks with no unflagged mode above its band.
 """
 
 from __future__ import annotations
@@ -39,6 +46,8 @@ PEAK_PROMINENCE_DB = 6.0
 MATCH_REL, MATCH_HZ = 0.01, 3.0
 PAIR_REL, PAIR_MAC = 0.01, 0.9
 TARGET_PEAKS = 15
+CUT_HZ = (20.0, 4885.0)
+TARGET_PEAKS_CUT = 20  # issue 20
 
 
 def ami_xr_cli(*args: str) -> str:
@@ -99,6 +108,58 @@ def describe(modes, warnings_text: str) -> None:
     print(f"  the command printed {len(lines)} warning line(s):")
     for ln in lines:
         print(f"    {ln[:160]}")
+
+
+def above_band(modes) -> tuple[int, float]:
+    """Unflagged modes above the band the result records, and that band's upper limit."""
+    fn = modes[names.NATURAL_FREQUENCY].values
+    fmax = modes.attrs.get("analysis_band_fmax", np.inf)
+    flags = (
+        modes[names.QUALITY_FLAGS].values.astype(str)
+        if names.QUALITY_FLAGS in modes
+        else np.full(fn.size, "")
+    )
+    return int(np.sum((fn > fmax) & (flags == ""))), float(fmax)
+
+
+def cut_runs(tmp: Path, h_path: Path, peaks: np.ndarray, extra: list[str]) -> list[str]:
+    """The hammer FRF over CUT_HZ with --fmin/--fmax and cut first with .sel (issue 20): prints
+    both results and returns the target lines."""
+    a, b = CUT_HZ
+    with ami_xr.open_dataset(h_path) as h:
+        ami_xr.to_netcdf(h.sel({names.FREQUENCY: slice(a, b)}).load(), tmp / "h_cut.nc")
+    runs = {
+        "fmin/fmax": ("h.nc", ["--fmin", f"{a:g}", "--fmax", f"{b:g}"]),
+        ".sel": ("h_cut.nc", []),
+    }
+    targets, found = [], {}
+    for label, (src, opts) in runs.items():
+        out = tmp / f"cut_{len(found)}.nc"
+        how = f"--fmin {a:g} --fmax {b:g}" if opts else f".sel(frequency=slice({a:g}, {b:g}))"
+        print(f"\n== {h_path.name} over {a:g}-{b:g} Hz, {how}: ami-xr identify {src}")
+        said = ami_xr_cli("identify", str(tmp / src), "-o", str(out), *opts, *extra)
+        with ami_xr.open_dataset(out) as m:
+            describe(m, said)
+            fn = np.sort(m[names.NATURAL_FREQUENCY].values)
+            above, fmax = above_band(m)
+        hit = matched_peaks(peaks, fn)
+        found[label] = fn
+        print(f"  {label}: {fn.size} modes, visible peaks matched {sum(hit)}/{len(peaks)}")
+        targets.append(
+            verdict(
+                f"hammer {a:g}-{b:g} Hz, {label}: >= {TARGET_PEAKS_CUT} peaks, none above band",
+                sum(hit) >= TARGET_PEAKS_CUT and above == 0,
+                f"{sum(hit)}/{len(peaks)}, {above} above {fmax:.0f} Hz",
+            )
+        )
+    one, two = found.values()
+    same = one.size == two.size and np.allclose(one, two, rtol=1e-6, atol=0)
+    print(
+        f"\n  same modes with --fmin/--fmax and with .sel: {'yes' if same else 'no'} "
+        f"({one.size} and {two.size} modes)"
+    )
+    targets.append(verdict("hammer: the same modes with fmin/fmax and with .sel", same, ""))
+    return targets
 
 
 def verdict(name: str, ok: bool, detail: str) -> str:
@@ -175,8 +236,11 @@ def main(argv: list[str] | None = None) -> int:
                 f"{len(pairs)} pair(s)",
             )
         )
+        cut_targets = cut_runs(tmp, tmp / "h.nc", peaks, extra)
     print("\nTargets (issue 10)")
     print("\n".join(targets))
+    print("\nTargets (issue 20)")
+    print("\n".join(cut_targets))
     return 0
 
 

@@ -53,5 +53,12 @@ def test_real_data_script_runs_both_files_and_prints_the_targets(capsys):
     assert "== impact_hammer.lvm" in out and "== measurement.uff" in out
     assert "rule 'excitation'" in out  # the hammer band comes from the force and coherence
     assert "visible peaks 50-4900 Hz" in out
-    targets = out.split("Targets (issue 10)")[1].strip().splitlines()
+    targets = out.split("Targets (issue 10)")[1].split("Targets (issue 20)")[0].strip().splitlines()
     assert len(targets) == 3 and all(t.endswith(("met", "NOT met")) for t in targets)
+    # issue 20: the hammer FRF over 20-4885 Hz with --fmin/--fmax and cut first with .sel
+    assert "--fmin 20 --fmax 4885: ami-xr identify h.nc" in out
+    assert ".sel(frequency=slice(20, 4885)): ami-xr identify h_cut.nc" in out
+    assert "same modes with --fmin/--fmax and with .sel: yes" in out
+    cut = out.split("Targets (issue 20)")[1].strip().splitlines()
+    assert len(cut) == 3 and all(t.endswith(("met", "NOT met")) for t in cut)
+    assert cut[2].endswith(" met") and not cut[2].endswith("NOT met")  # the same modes
