@@ -8,7 +8,7 @@
   back the impulse-response formula.
 
 The FFT is ``scipy.fft.rfft``; the per-sample work around it (window times ``dt``, the spectral
-division) is numba.
+division) is one numpy expression each (no jitted code: nothing here is worth a compilation).
 """
 
 from __future__ import annotations
@@ -17,30 +17,7 @@ import numpy as np
 import scipy.fft
 
 from ami_xr.errors import AmiXrValueError
-from ami_xr.kernels._numba import jit
 from ami_xr.kernels.windows import checked_positive, checked_samples, checked_window_array
-
-
-@jit
-def _scaled_window(x, w, scale):
-    """``scale * w * x`` for ``x`` of shape (m, n) and ``w`` of shape (n,), into a new array."""
-    out = np.empty(x.shape, dtype=np.float64)
-    for k in range(x.shape[1]):
-        c = scale * w[k]
-        for i in range(x.shape[0]):
-            out[i, k] = x[i, k] * c
-    return out
-
-
-@jit
-def _divide_spectra(num, den):
-    """``num / den`` elementwise for complex (m, nf) arrays; a zero ``den`` gives complex inf/nan
-    (the public wrapper checks ``den`` first)."""
-    out = np.empty(num.shape, dtype=np.complex128)
-    for i in range(num.shape[0]):
-        for k in range(num.shape[1]):
-            out[i, k] = num[i, k] / den[i, k]
-    return out
 
 
 def rfft_frequencies(n: int, dt: float) -> np.ndarray:
@@ -77,9 +54,7 @@ def _window_for(window, n: int, argument: str) -> np.ndarray:
 
 
 def _windowed_rfft(x: np.ndarray, w: np.ndarray, scale: float) -> np.ndarray:
-    n = x.shape[-1]
-    xw = _scaled_window(x.reshape(-1, n), w, scale)
-    return scipy.fft.rfft(xw, axis=-1).reshape(x.shape[:-1] + (n // 2 + 1,))
+    return scipy.fft.rfft(x * (scale * w), axis=-1)
 
 
 def impulse_to_frf(y: np.ndarray, dt: float, *, window: np.ndarray | None = None) -> np.ndarray:
@@ -155,6 +130,4 @@ def frf_from_force(
             f"f: the force spectrum is zero at {int(np.count_nonzero(den == 0))} frequency bin(s); "
             "the FRF cannot be formed there"
         )
-    nf = num.shape[-1]
-    den = np.ascontiguousarray(np.broadcast_to(den, num.shape)).reshape(-1, nf)
-    return _divide_spectra(num.reshape(-1, nf), den).reshape(num.shape)
+    return num / den

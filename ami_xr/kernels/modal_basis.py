@@ -13,16 +13,15 @@ Two models of the data:
 ``dt <= 0`` (``dt=None`` in the wrappers) selects the continuous model everywhere. A mode with
 residue ``A = A1 + i A2`` contributes ``A * b(lam) + conj(A) * b(conj(lam))``.
 
-Bit-identity note: the AMI kernels (``line_variable``/``pole_factor``/``basis_at``), the
-reference :func:`pole_basis` and the refinement's :func:`basis_and_derivative` evaluate the same
-b(lam, w) with three different (documented) orders of floating-point operations; each caller's
-results were fixed by its order, so the three evaluations are kept side by side here rather than
-merged into one expression.
+The jitted kernels (the AMI phases' per-line evaluation, ``pole_factor`` then
+``scale / (1 - p q)``) and the numpy functions (whole arrays at once: :func:`_unit_basis` and
+:func:`basis_and_derivative`) evaluate the same b(lam, w); only what the AMI kernels call from
+nopython code is jitted, since every jitted function costs compile time on a first run.
 
 The :class:`Grid` record carries ``(omega, x, dt, n_samples)`` between kernels. Jitted,
 unchecked helpers for the other kernel modules: ``nearest_line``, ``line_variable``,
-``pole_factor``, ``basis_at``, ``add_mode``, ``mode_basis``, ``contribution_peak``,
-``tolerance_envelope``, ``residual_basis``. Checked wrappers: :func:`pole_basis`,
+``pole_factor``, ``add_mode``, ``mode_basis``, ``contribution_peak``,
+``tolerance_envelope``. Checked wrappers: :func:`pole_basis`,
 :func:`mode_contribution`, :func:`basis_and_derivative`, :func:`model_columns`,
 :func:`synthesize`, :func:`synthesize_residual_terms`, :func:`contribution_peaks`;
 :func:`checked_omega` and :func:`as_dt` are the argument checks the other wrappers share.
@@ -101,14 +100,6 @@ def pole_factor(lam, dt, n_samples):
 
 
 @jit
-def basis_at(x, p, scale, dt):
-    """Unit-residue basis at one line: ``scale / (1 - p q)`` or ``1 / (i w - lam)``."""
-    if dt > 0.0:
-        return scale / (1.0 - p * x)
-    return 1.0 / (x - p)
-
-
-@jit
 def add_mode(out, x, lam, res, dt, n_samples, sign, lo, hi):
     """``out[lo:hi] += sign * (A b(lam) + conj(A) b(conj(lam)))`` on lines ``lo..hi-1``."""
     p, sc = pole_factor(lam, dt, n_samples)
@@ -116,7 +107,12 @@ def add_mode(out, x, lam, res, dt, n_samples, sign, lo, hi):
     scc = np.conj(sc)
     rc = np.conj(res)
     for i in range(lo, hi):
-        out[i] += sign * (res * basis_at(x[i], p, sc, dt) + rc * basis_at(x[i], pc, scc, dt))
+        # the unit-residue basis at one line: scale / (1 - p q) or 1 / (i w - lam)
+        if dt > 0.0:
+            v = res * (sc / (1.0 - p * x[i])) + rc * (scc / (1.0 - pc * x[i]))
+        else:
+            v = res * (1.0 / (x[i] - p)) + rc * (1.0 / (x[i] - pc))
+        out[i] += sign * v
 
 
 @jit
@@ -128,128 +124,47 @@ def mode_basis(x, lam, dt, n_samples, br, bi, bcr, bci):
     pc = np.conj(p)
     scc = np.conj(sc)
     for i in range(x.shape[0]):
-        v = basis_at(x[i], p, sc, dt)
+        if dt > 0.0:
+            v = sc / (1.0 - p * x[i])
+            vc = scc / (1.0 - pc * x[i])
+        else:
+            v = 1.0 / (x[i] - p)
+            vc = 1.0 / (x[i] - pc)
         br[i] = v.real
         bi[i] = v.imag
-        v = basis_at(x[i], pc, scc, dt)
-        bcr[i] = v.real
-        bci[i] = v.imag
-
-
-@jit
-def _synthesize(omega, lam, res, dt, n_samples):
-    """Sum of modal contributions: ``lam`` (P, K) or broadcast, ``res`` (P, K) -> (P, F).
-
-    NaN eigenvalues (padding) are skipped.
-    """
-    n_p = res.shape[0]
-    n_k = res.shape[1]
-    n_f = omega.shape[0]
-    x = line_variable(omega, dt)
-    out = np.zeros((n_p, n_f), dtype=np.complex128)
-    for j in range(n_p):
-        jl = j if lam.shape[0] == n_p else 0
-        for k in range(n_k):
-            lk = lam[jl, k]
-            if np.isnan(lk.real) or np.isnan(res[j, k].real):
-                continue
-            add_mode(out[j], x, lk, res[j, k], dt, n_samples, 1.0, 0, n_f)
-    return out
+        bcr[i] = vc.real
+        bci[i] = vc.imag
 
 
 # ----------------------------------------------------------------------------------------------
 # the reference evaluation and the refinement's basis with its derivative
 # ----------------------------------------------------------------------------------------------
-@jit
-def _pole_basis(omega, lam, dt, n_samples):
-    """``b(lam)`` on the angular-frequency grid ``omega`` (rad/s); ``dt <= 0`` means continuous."""
-    out = np.empty(omega.shape[0], dtype=np.complex128)
-    if dt > 0.0:
-        scale = dt
-        if n_samples > 0:
-            scale = dt * (1.0 - np.exp(lam * (n_samples * dt)))
-        for i in range(omega.shape[0]):
-            out[i] = scale / (1.0 - np.exp((lam - 1j * omega[i]) * dt))
-    else:
-        for i in range(omega.shape[0]):
-            out[i] = 1.0 / (1j * omega[i] - lam)
-    return out
-
-
-@jit
-def _basis_and_derivative(omega, lam, dt, n_samples):
-    """``b(lam_k, w)`` and ``d b / d lam`` for every pole ``lam_k``: two arrays (K, L) complex.
-
-    ``dt <= 0`` selects the continuous basis ``1/(i w - lam)``; otherwise the exact discrete
-    basis ``dt s / (1 - exp((lam - i w) dt))`` with ``s = 1 - exp(lam n dt)`` (``s = 1`` when
-    ``n_samples <= 0``).
-    """
-    n_mode = lam.shape[0]
-    n_line = omega.shape[0]
-    b = np.empty((n_mode, n_line), dtype=np.complex128)
-    db = np.empty((n_mode, n_line), dtype=np.complex128)
-    # exp((lam - i w) dt) = exp(lam dt) exp(-i w dt): one exp per line, shared by the poles
-    turn = np.empty(n_line, dtype=np.complex128)
-    if dt > 0.0:
-        for i in range(n_line):
-            turn[i] = np.exp(-1j * omega[i] * dt)
-    for k in range(n_mode):
-        lk = lam[k]
+def _unit_basis(omega: np.ndarray, lam, dt: float, n_samples: int) -> np.ndarray:
+    """``b(lam)`` on the lines ``omega`` (F,) for poles ``lam`` of any shape -> ``lam.shape +
+    (F,)``: ``scale / (1 - p q)`` with ``p = exp(lam dt)``, ``q = exp(-i w dt)`` and ``scale =
+    dt (1 - exp(lam n dt))`` (``dt`` when ``n_samples <= 0``), or ``1 / (i w - lam)`` for
+    ``dt <= 0`` -- the arithmetic of :func:`add_mode`, on whole arrays."""
+    lam = np.asarray(lam, dtype=np.complex128)[..., None]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         if dt > 0.0:
-            s = 1.0 + 0j
-            ds = 0.0 + 0j
-            if n_samples > 0:
-                e_n = np.exp(lk * (n_samples * dt))
-                s = 1.0 - e_n
-                ds = -(n_samples * dt) * e_n
-            p = np.exp(lk * dt)
-            for i in range(n_line):
-                e = p * turn[i]
-                den = 1.0 - e
-                b[k, i] = dt * s / den
-                # d/dlam [dt s / (1 - e)] = dt (ds (1 - e) + s dt e) / (1 - e)^2
-                db[k, i] = dt * (ds * den + s * dt * e) / (den * den)
-        else:
-            for i in range(n_line):
-                den = 1j * omega[i] - lk
-                b[k, i] = 1.0 / den
-                db[k, i] = 1.0 / (den * den)
-    return b, db
+            scale = dt * (1.0 - np.exp(lam * (n_samples * dt))) if n_samples > 0 else dt + 0j
+            return scale / (1.0 - np.exp(lam * dt) * np.exp(-1j * omega * dt))
+        return 1.0 / (1j * omega - lam)
 
 
 # ----------------------------------------------------------------------------------------------
 # residual terms (lower / upper) and contribution peaks
 # ----------------------------------------------------------------------------------------------
-@jit
-def residual_basis(w, kind, which):
-    """Residual-term basis at angular frequency ``w``: lower (which=0) / upper (which=1).
-
-    ``kind``: 0 receptance (``1/(i w)^2``, ``1``), 1 mobility (``1/(i w)``, ``i w``),
-    2 accelerance (``1``, ``(i w)^2``).
-    """
-    s = 1j * w
-    if w == 0.0 and ((kind == 0 and which == 0) or (kind == 1 and which == 0)):
-        return 0.0 + 0j  # singular at DC: the term is left out there
-    if kind == 0:
-        return 1.0 / (s * s) if which == 0 else 1.0 + 0j
-    if kind == 1:
-        return 1.0 / s if which == 0 else s
-    return 1.0 + 0j if which == 0 else s * s
-
-
-@jit
-def _synthesize_residual_terms(omega, coef, residual_kind):
-    n_p = coef.shape[0]
-    n_f = omega.shape[0]
-    out = np.zeros((n_p, n_f), dtype=np.complex128)
-    for j in range(n_p):
-        for i in range(n_f):
-            if omega[i] == 0.0 and residual_kind == 0:
-                continue
-            out[j, i] = coef[j, 0] * residual_basis(omega[i], residual_kind, 0) + coef[
-                j, 1
-            ] * residual_basis(omega[i], residual_kind, 1)
-    return out
+def _residual_columns(omega: np.ndarray, kind: int) -> tuple[np.ndarray, np.ndarray]:
+    """The lower and upper residual terms on the lines ``omega``: ``kind`` 0 receptance
+    (``1/(i w)^2``, ``1``), 1 mobility (``1/(i w)``, ``i w``), 2 accelerance (``1``,
+    ``(i w)^2``); a term singular at 0 rad/s is 0 there."""
+    s = 1j * omega
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lower = (1.0 / s**2, 1.0 / s, np.ones_like(s))[kind]
+    lower = np.where(omega == 0.0, 0.0, lower) if kind < 2 else lower
+    upper = (np.ones_like(s), s, s**2)[kind]
+    return lower, upper
 
 
 @jit
@@ -264,7 +179,10 @@ def contribution_peak(omega, x, lam, res, dt, n_samples):
     rc = np.conj(res)
     best = 0.0
     for i in range(lo, hi):
-        v = res * basis_at(x[i], p, sc, dt) + rc * basis_at(x[i], pc, scc, dt)
+        if dt > 0.0:
+            v = res * (sc / (1.0 - p * x[i])) + rc * (scc / (1.0 - pc * x[i]))
+        else:
+            v = res * (1.0 / (x[i] - p)) + rc * (1.0 / (x[i] - pc))
         best = max(best, abs(v))
     return best
 
@@ -363,7 +281,7 @@ def pole_basis(
         raise AmiXrValueError(
             f"omega: expected a 1-D array of angular frequencies, got shape {omega.shape}"
         )
-    return _pole_basis(omega, complex(lam), float(dt) if dt else 0.0, int(n_samples or 0))
+    return _unit_basis(omega, complex(lam), float(dt) if dt else 0.0, int(n_samples or 0))
 
 
 def mode_contribution(
@@ -404,7 +322,22 @@ def basis_and_derivative(
         raise AmiXrValueError(f"omega: expected a 1-D array, got shape {omega.shape}")
     if lam.ndim != 1:
         raise AmiXrValueError(f"lam: expected a 1-D array of poles, got shape {lam.shape}")
-    return _basis_and_derivative(omega, lam, float(dt) if dt else 0.0, int(n_samples or 0))
+    dt = float(dt) if dt else 0.0
+    n = int(n_samples or 0)
+    lam = lam[:, None]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if dt > 0.0:
+            # b = dt s / (1 - e), e = exp((lam - i w) dt), s = 1 - exp(lam n dt) (1 if n <= 0);
+            # d/dlam [dt s / (1 - e)] = dt (ds (1 - e) + s dt e) / (1 - e)^2
+            s, ds = 1.0 + 0j, 0.0j
+            if n > 0:
+                e_n = np.exp(lam * (n * dt))
+                s, ds = 1.0 - e_n, -(n * dt) * e_n
+            e = np.exp(lam * dt) * np.exp(-1j * omega * dt)
+            den = 1.0 - e
+            return dt * s / den, dt * (ds * den + s * dt * e) / (den * den)
+        den = 1j * omega - lam
+        return 1.0 / den, 1.0 / (den * den)
 
 
 def model_columns(
@@ -441,11 +374,7 @@ def model_columns(
     phi = np.empty((omega.shape[0], 2 * n_mode + 2 * n_res), dtype=np.complex128)
     phi[:, 0 : 2 * n_mode : 2] = (b_l + b_c).T
     phi[:, 1 : 2 * n_mode : 2] = (1j * (b_l - b_c)).T
-    s = 1j * omega
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lower = (1.0 / s**2, 1.0 / s, np.ones_like(s))[residual_kind]
-    lower = np.where(omega == 0.0, 0.0, lower)
-    upper = (np.ones_like(s), s, s**2)[residual_kind]
+    lower, upper = _residual_columns(omega, residual_kind)
     for r, term in enumerate(residual_terms):
         col = lower if term == "lower" else upper
         phi[:, 2 * n_mode + 2 * r] = col
@@ -495,7 +424,17 @@ def synthesize(
         raise AmiXrValueError(
             f"lam: shape {lam.shape} does not match residue shape {residue.shape}"
         )
-    return _synthesize(omega, lam, residue, dt, n_samples)
+    out = np.zeros((residue.shape[0], omega.shape[0]), dtype=np.complex128)
+    with np.errstate(invalid="ignore"):
+        for k in range(residue.shape[1]):
+            lk, rk = lam[:, k, None], residue[:, k, None]
+            contribution = rk * _unit_basis(omega, lam[:, k], dt, n_samples) + np.conj(
+                rk
+            ) * _unit_basis(omega, np.conj(lam[:, k]), dt, n_samples)
+            # NaN eigenvalues or residues are padding: skipped
+            skip = np.isnan(lk.real) | np.isnan(rk.real)
+            out += np.where(skip, 0.0, contribution)
+    return out
 
 
 def synthesize_residual_terms(
@@ -524,7 +463,11 @@ def synthesize_residual_terms(
         raise AmiXrValueError(f"coef: expected shape (P, 2), got {coef.shape}")
     if residual_kind not in (0, 1, 2):
         raise AmiXrValueError(f"residual_kind: expected 0, 1 or 2, got {residual_kind!r}")
-    return _synthesize_residual_terms(omega, coef, int(residual_kind))
+    lower, upper = _residual_columns(omega, int(residual_kind))
+    out = coef[:, 0, None] * lower + coef[:, 1, None] * upper
+    if residual_kind == 0:
+        out[:, omega == 0.0] = 0.0  # receptance: the whole line at 0 rad/s is left at 0
+    return out
 
 
 def contribution_peaks(

@@ -22,10 +22,13 @@ Checked wrappers: :func:`normal_equations`, :func:`gram`, :func:`matmul_small`,
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from ami_xr.errors import AmiXrValueError
-from ami_xr.kernels._numba import jit, prange
+from ami_xr.kernels._numba import jit
 
 
 @jit
@@ -96,108 +99,61 @@ def normal_equations(
 
 
 @jit
-def _gram(a):
-    """``a' a`` for a tall ``a`` (n, m), accumulated row by row (no BLAS call)."""
-    m = a.shape[1]
-    out = np.zeros((m, m))
-    for i in range(a.shape[0]):
-        for r in range(m):
-            air = a[i, r]
-            for c in range(r, m):
-                out[r, c] += air * a[i, c]
-    for r in range(m):
-        for c in range(r):
-            out[r, c] = out[c, r]
-    return out
-
-
-@jit
-def _matmul_small(a, b):
-    """``a @ b`` for a tall ``a`` (n, m) and a small ``b`` (m, k)."""
-    n, m = a.shape
-    k = b.shape[1]
-    out = np.zeros((n, k))
-    for i in range(n):
-        for r in range(m):
-            air = a[i, r]
-            for c in range(k):
-                out[i, c] += air * b[r, c]
-    return out
-
-
-@jit
-def _project_one(y, j, q, v, qty, rss, vtr):
-    """Point ``j``: ``Q' y_j``, ``|r_j|^2`` and ``V' r_j`` with ``r_j = y_j - Q Q' y_j``."""
+def _project_points(y, q, v, lo, hi, qty, rss, vtr):
+    """Points ``lo .. hi-1`` (rows of ``y``, (P, n)): ``Q' y_j``, ``|r_j|^2`` and ``V' r_j`` with
+    ``r_j = y_j - Q Q' y_j``, for an orthonormal ``q`` (n, p) and derivative columns ``v``
+    (n, d), into rows ``j`` of ``qty``, ``rss`` and ``vtr``. No BLAS call (BLAS threads contend
+    badly on shared machines and the per-point work is small)."""
     n = y.shape[1]
     p = q.shape[1]
     d = v.shape[1]
-    acc = np.zeros(p)
-    for i in range(n):
-        yi = y[j, i]
-        for c in range(p):
-            acc[c] += q[i, c] * yi
-    s = 0.0
-    vacc = np.zeros(d)
-    for i in range(n):
-        ri = y[j, i]
-        for c in range(p):
-            ri -= q[i, c] * acc[c]
-        s += ri * ri
-        for c in range(d):
-            vacc[c] += v[i, c] * ri
-    qty[j] = acc
-    rss[j] = s
-    vtr[j] = vacc
-
-
-@jit(parallel=True)
-def _project_points_parallel(y, q, v):
-    n_point = y.shape[0]
-    qty = np.zeros((n_point, q.shape[1]))
-    rss = np.zeros(n_point)
-    vtr = np.zeros((n_point, v.shape[1]))
-    for j in prange(n_point):
-        _project_one(y, j, q, v, qty, rss, vtr)
-    return qty, rss, vtr
-
-
-@jit
-def _project_points(y, q, v):
-    """Per point ``j`` (rows of ``y``, (P, n)): ``Q' y_j``, ``|y_j - Q Q' y_j|^2`` and
-    ``V' (y_j - Q Q' y_j)`` for an orthonormal ``q`` (n, p) and derivative columns ``v`` (n, d)."""
-    n_point = y.shape[0]
-    qty = np.zeros((n_point, q.shape[1]))
-    rss = np.zeros(n_point)
-    vtr = np.zeros((n_point, v.shape[1]))
-    for j in range(n_point):
-        _project_one(y, j, q, v, qty, rss, vtr)
-    return qty, rss, vtr
+    acc = np.empty(p)
+    vacc = np.empty(d)
+    for j in range(lo, hi):
+        acc[:] = 0.0
+        for i in range(n):
+            yi = y[j, i]
+            for c in range(p):
+                acc[c] += q[i, c] * yi
+        s = 0.0
+        vacc[:] = 0.0
+        for i in range(n):
+            ri = y[j, i]
+            for c in range(p):
+                ri -= q[i, c] * acc[c]
+            s += ri * ri
+            for c in range(d):
+                vacc[c] += v[i, c] * ri
+        qty[j] = acc
+        rss[j] = s
+        vtr[j] = vacc
 
 
 def gram(a: np.ndarray) -> np.ndarray:
-    """``a' a`` of a real 2-D array without a BLAS call (validated wrapper of ``_gram``)."""
+    """``a' a`` of a real 2-D array without a BLAS call (``numpy.einsum`` without
+    ``optimize`` runs its own loops; BLAS threads contend badly on shared machines)."""
     a = np.ascontiguousarray(a, dtype=np.float64)
     if a.ndim != 2:
         raise AmiXrValueError(f"a: expected a 2-D array, got shape {a.shape}")
-    return _gram(a)
+    return np.einsum("ir,ic->rc", a, a)
 
 
 def matmul_small(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a @ b`` of real 2-D arrays without a BLAS call (validated wrapper of ``_matmul_small``)."""
+    """``a @ b`` of real 2-D arrays without a BLAS call (``numpy.einsum``, as :func:`gram`)."""
     a = np.ascontiguousarray(a, dtype=np.float64)
     b = np.ascontiguousarray(b, dtype=np.float64)
     if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[0]:
         raise AmiXrValueError(
             f"a, b: expected 2-D arrays with matching inner size, got {a.shape}, {b.shape}"
         )
-    return _matmul_small(a, b)
+    return np.einsum("ir,rc->ic", a, b)
 
 
 def project_points(y: np.ndarray, q: np.ndarray, v: np.ndarray):
     """``(Q' y_j, |r_j|^2, V' r_j)`` per row ``y_j`` of ``y`` (P, n), ``r_j = (I - Q Q') y_j``.
 
-    Parallel over points; no BLAS call (BLAS threads contend badly on shared machines and the
-    per-point work is small).
+    Large problems run in blocks of points on a few threads (the kernel releases the GIL); no
+    BLAS call (BLAS threads contend badly on shared machines and the per-point work is small).
     """
     y = np.ascontiguousarray(y, dtype=np.float64)
     q = np.ascontiguousarray(q, dtype=np.float64)
@@ -208,6 +164,21 @@ def project_points(y: np.ndarray, q: np.ndarray, v: np.ndarray):
         raise AmiXrValueError(
             f"q, v: expected {y.shape[1]} rows like y's columns, got {q.shape[0]}, {v.shape[0]}"
         )
-    if y.shape[0] * y.shape[1] * (q.shape[1] + v.shape[1]) > 5_000_000:
-        return _project_points_parallel(y, q, v)
-    return _project_points(y, q, v)
+    n_point = y.shape[0]
+    qty = np.zeros((n_point, q.shape[1]))
+    rss = np.zeros(n_point)
+    vtr = np.zeros((n_point, v.shape[1]))
+    threads = min(os.cpu_count() or 1, 8)
+    if threads < 2 or n_point < 2 or y.size * (q.shape[1] + v.shape[1]) <= 5_000_000:
+        _project_points(y, q, v, 0, n_point, qty, rss, vtr)
+        return qty, rss, vtr
+    edges = np.linspace(0, n_point, threads + 1).astype(np.int64)
+    with ThreadPoolExecutor(threads) as pool:
+        done = [
+            pool.submit(_project_points, y, q, v, lo, hi, qty, rss, vtr)
+            for lo, hi in zip(edges[:-1], edges[1:], strict=True)
+            if hi > lo
+        ]
+        for future in done:
+            future.result()
+    return qty, rss, vtr

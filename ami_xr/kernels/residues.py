@@ -2,8 +2,8 @@
 
 The unknowns of each mode are ``A1 = Re A`` and ``A2 = Im A`` (columns ``b + conj-b`` and
 ``i (b - conj-b)``); with ``residual_kind >= 0`` a lower and an upper residual term follow, two
-real unknowns each (``residual_kind`` 0 receptance, 1 mobility, 2 accelerance; see
-:func:`ami_xr.kernels.modal_basis.residual_basis`). Every FRF shares the columns, so the normal
+real unknowns each (``residual_kind`` 0 receptance, 1 mobility, 2 accelerance; the columns of
+:func:`ami_xr.kernels.modal_basis.model_columns`). Every FRF shares the columns, so the normal
 matrix is formed once and only the right sides are per FRF.
 
 Jitted, unchecked helper for the other kernel modules: ``residues_fixed_kernel``. Checked
@@ -17,22 +17,17 @@ import numpy as np
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
 from ami_xr.kernels.linalg import solve_normal
-from ami_xr.kernels.modal_basis import (
-    as_dt,
-    basis_at,
-    checked_omega,
-    line_variable,
-    pole_factor,
-    residual_basis,
-)
+from ami_xr.kernels.modal_basis import as_dt, checked_omega, line_variable, pole_factor
 
 
 @jit
-def _residue_columns(omega, lam, dt, n_samples, use, residual_kind):
-    """Complex columns of eq. 9 on the used lines: (n_unknown, n_used).
+def _residue_normal_equations(data, omega, lam, dt, n_samples, use, residual_kind):
+    """Normal matrix (n_u, n_u) shared by all FRFs, and right sides (n_u, P), of eq. 9.
 
-    Unknowns per mode ``(A1, A2)``: columns ``b + conj-b`` and ``i (b - conj-b)``; with
-    ``residual_kind >= 0`` two complex residual terms (lower, upper) follow, 2 real unknowns each.
+    Unknowns per mode ``(A1, A2)``: complex columns ``b + conj-b`` and ``i (b - conj-b)`` on the
+    used lines; with ``residual_kind >= 0`` two complex residual terms (lower, upper) follow, 2
+    real unknowns each: 0 receptance ``1/(i w)^2``, ``1``; 1 mobility ``1/(i w)``, ``i w``;
+    2 accelerance ``1``, ``(i w)^2`` (a term singular at 0 rad/s is 0 there).
     """
     n_k = lam.shape[0]
     n_f = omega.shape[0]
@@ -40,6 +35,12 @@ def _residue_columns(omega, lam, dt, n_samples, use, residual_kind):
     for i in range(n_f):
         if use[i]:
             n_used += 1
+    idx = np.empty(n_used, dtype=np.int64)
+    m = 0
+    for i in range(n_f):
+        if use[i]:
+            idx[m] = i
+            m += 1
     n_u = 2 * n_k + (4 if residual_kind >= 0 else 0)
     cols = np.empty((n_u, n_used), dtype=np.complex128)
     x = line_variable(omega, dt)
@@ -47,33 +48,33 @@ def _residue_columns(omega, lam, dt, n_samples, use, residual_kind):
         p, sc = pole_factor(lam[k], dt, n_samples)
         pc = np.conj(p)
         scc = np.conj(sc)
-        m = 0
-        for i in range(n_f):
-            if use[i]:
-                b = basis_at(x[i], p, sc, dt)
-                bc = basis_at(x[i], pc, scc, dt)
-                cols[2 * k, m] = b + bc
-                cols[2 * k + 1, m] = 1j * (b - bc)
-                m += 1
+        for m in range(n_used):
+            xi = x[idx[m]]
+            if dt > 0.0:
+                b = sc / (1.0 - p * xi)
+                bc = scc / (1.0 - pc * xi)
+            else:
+                b = 1.0 / (xi - p)
+                bc = 1.0 / (xi - pc)
+            cols[2 * k, m] = b + bc
+            cols[2 * k + 1, m] = 1j * (b - bc)
     if residual_kind >= 0:
-        m = 0
-        for i in range(n_f):
-            if use[i]:
-                lo = residual_basis(omega[i], residual_kind, 0)
-                up = residual_basis(omega[i], residual_kind, 1)
-                cols[2 * n_k, m] = lo
-                cols[2 * n_k + 1, m] = 1j * lo
-                cols[2 * n_k + 2, m] = up
-                cols[2 * n_k + 3, m] = 1j * up
-                m += 1
-    return cols
-
-
-@jit
-def _residue_normal_equations(data, cols, use):
-    """Normal matrix (n_u, n_u) shared by all FRFs, and right sides (n_u, P)."""
-    n_u = cols.shape[0]
-    n_used = cols.shape[1]
+        for m in range(n_used):
+            w = omega[idx[m]]
+            s = 1j * w
+            if residual_kind == 0:
+                lo = 1.0 / (s * s) if w != 0.0 else 0.0j
+                up = 1.0 + 0j
+            elif residual_kind == 1:
+                lo = 1.0 / s if w != 0.0 else 0.0j
+                up = s
+            else:
+                lo = 1.0 + 0j
+                up = s * s
+            cols[2 * n_k, m] = lo
+            cols[2 * n_k + 1, m] = 1j * lo
+            cols[2 * n_k + 2, m] = up
+            cols[2 * n_k + 3, m] = 1j * up
     n_p = data.shape[0]
     nmat = np.zeros((n_u, n_u))
     for a in range(n_u):
@@ -84,12 +85,6 @@ def _residue_normal_equations(data, cols, use):
             nmat[a, b] = acc
             nmat[b, a] = acc
     rhs = np.zeros((n_u, n_p))
-    idx = np.empty(n_used, dtype=np.int64)
-    m = 0
-    for i in range(use.shape[0]):
-        if use[i]:
-            idx[m] = i
-            m += 1
     for j in range(n_p):
         for a in range(n_u):
             acc = 0.0
@@ -103,8 +98,7 @@ def _residue_normal_equations(data, cols, use):
 def residues_fixed_kernel(data, omega, lam, dt, n_samples, use, residual_kind):
     """Residues (P, K) (and residual coefficients (P, 2) when ``residual_kind >= 0``) of eq. 9."""
     n_k = lam.shape[0]
-    cols = _residue_columns(omega, lam, dt, n_samples, use, residual_kind)
-    nmat, rhs = _residue_normal_equations(data, cols, use)
+    nmat, rhs = _residue_normal_equations(data, omega, lam, dt, n_samples, use, residual_kind)
     sol, ok = solve_normal(nmat, rhs)
     n_p = data.shape[0]
     n_r = 2 if residual_kind >= 0 else 0
@@ -175,8 +169,7 @@ def residue_normal_equations(
     data, omega, lam, use, dt, n, kind = _check_inputs(
         data, omega, lam, use, dt, n_samples, residual_kind
     )
-    cols = _residue_columns(omega, lam, dt, n, use, kind)
-    return _residue_normal_equations(data, cols, use)
+    return _residue_normal_equations(data, omega, lam, dt, n, use, kind)
 
 
 def residues_fixed(

@@ -4,7 +4,7 @@ The estimation of FRFs from time histories runs in three jitted steps with an FF
 
     prepare_segments  x (channel, time) -> windowed, detrended segments (channel, segment, nperseg)
     (scipy.fft.rfft in the caller)      -> spectra (channel, segment, frequency)
-    accumulate_linear / _exponential    -> Gff (ref, ref, f), Gfy (ref, point, f), Gyy (point, f)
+    accumulate_spectra (linear, exp.)   -> Gff (ref, ref, f), Gfy (ref, point, f), Gyy (point, f)
     frf_from_spectra                    -> H (ref, point, f) and coherence (point, f)
 
 Conventions (scipy.signal's): the cross-spectrum of ``x`` and ``y`` is ``conj(X) Y`` so
@@ -70,56 +70,38 @@ def _prepare_segments(x, starts, window, detrend, out):
 
 
 @jit
-def _accumulate_linear(F, Y, Gff, Gfy, Gyy):
-    """Add ``sum_s conj(F_i) F_j``, ``sum_s conj(F_i) Y_p`` and ``sum_s |Y_p|^2`` to the sums.
+def _accumulate(F, Y, Gff, Gfy, Gyy, count, n_average):
+    """Add the segments' ``conj(F_i) F_j``, ``conj(F_i) Y_p`` and ``|Y_p|^2`` to the spectra,
+    segment by segment in order; returns the new segment count.
 
     F (ref, segment, freq) and Y (point, segment, freq) complex128; Gff (ref, ref, freq),
     Gfy (ref, point, freq) complex128, Gyy (point, freq) float64, updated in place.
-    """
-    nref = F.shape[0]
-    npt = Y.shape[0]
-    nseg = F.shape[1]
-    nf = F.shape[2]
-    for i in range(nref):
-        for j in range(nref):
-            for s in range(nseg):
-                for k in range(nf):
-                    Gff[i, j, k] += np.conj(F[i, s, k]) * F[j, s, k]
-    for p in range(npt):
-        for s in range(nseg):
-            for k in range(nf):
-                y = Y[p, s, k]
-                Gyy[p, k] += y.real * y.real + y.imag * y.imag
-                for i in range(nref):
-                    Gfy[i, p, k] += np.conj(F[i, s, k]) * y
-
-
-@jit
-def _accumulate_exponential(F, Y, Gff, Gfy, Gyy, count, n_average):
-    """Exponential (running) averaging, segment by segment in order.
-
-    Segment number ``m`` (1-based over the whole run, ``count`` segments seen before this call)
-    updates ``G <- G + (S_m - G) / min(m, n_average)``: a linear average over the first
-    ``n_average`` segments, then exponential forgetting with time constant ``n_average``
-    segments. The sums hold averages (not totals). Returns the new count.
+    ``n_average <= 0``: linear, plain sums. ``n_average >= 1``: exponential (running)
+    averaging; segment number ``m`` (1-based over the whole run, ``count`` seen before this
+    call) updates ``G <- G + (S_m - G) / min(m, n_average)`` -- a linear average over the first
+    ``n_average`` segments, then forgetting with time constant ``n_average`` segments; the
+    spectra then hold averages, not totals.
     """
     nref = F.shape[0]
     npt = Y.shape[0]
     nseg = F.shape[1]
     nf = F.shape[2]
     for s in range(nseg):
-        m = count + s + 1
-        wgt = 1.0 / min(m, n_average)
+        linear = n_average <= 0
+        wgt = 1.0 if linear else 1.0 / min(count + s + 1, n_average)
         for i in range(nref):
             for j in range(nref):
                 for k in range(nf):
-                    Gff[i, j, k] += (np.conj(F[i, s, k]) * F[j, s, k] - Gff[i, j, k]) * wgt
+                    v = np.conj(F[i, s, k]) * F[j, s, k]
+                    Gff[i, j, k] += v if linear else (v - Gff[i, j, k]) * wgt
         for p in range(npt):
             for k in range(nf):
                 y = Y[p, s, k]
-                Gyy[p, k] += (y.real * y.real + y.imag * y.imag - Gyy[p, k]) * wgt
+                a = y.real * y.real + y.imag * y.imag
+                Gyy[p, k] += a if linear else (a - Gyy[p, k]) * wgt
                 for i in range(nref):
-                    Gfy[i, p, k] += (np.conj(F[i, s, k]) * y - Gfy[i, p, k]) * wgt
+                    v = np.conj(F[i, s, k]) * y
+                    Gfy[i, p, k] += v if linear else (v - Gfy[i, p, k]) * wgt
     return count + nseg
 
 
@@ -222,18 +204,6 @@ def estimator_code(estimator) -> int:
     return table[estimator.lower()]
 
 
-def segment_starts(n_samples: int, nperseg: int, noverlap: int) -> np.ndarray:
-    """Start samples of the Welch segments that fit in ``n_samples`` (scipy's, no padding)."""
-    if nperseg < 1 or not 0 <= noverlap < nperseg:
-        raise AmiXrValueError(
-            f"noverlap: expected 0 <= noverlap < nperseg={nperseg}, got {noverlap}"
-        )
-    step = nperseg - noverlap
-    if n_samples < nperseg:
-        return np.zeros(0, dtype=np.int64)
-    return np.arange(0, n_samples - nperseg + 1, step, dtype=np.int64)
-
-
 def prepare_segments(
     x: np.ndarray, starts: np.ndarray, window: np.ndarray, detrend="constant"
 ) -> np.ndarray:
@@ -304,7 +274,7 @@ def accumulate_spectra(
         Running sums (linear) or averages (exponential) to update in place; new zeros if omitted.
     average : {"linear", "exponential"}
         Linear: plain sums (divide by the segment count at the end). Exponential: running
-        averages with time constant ``n_average`` segments (see ``_accumulate_exponential``).
+        averages with time constant ``n_average`` segments (see ``_accumulate``).
     count : int
         Segments already accumulated in ``sums``.
 
@@ -324,12 +294,12 @@ def accumulate_spectra(
     if Gff.shape != (nref, nref, nf) or Gfy.shape != (nref, npt, nf) or Gyy.shape != (npt, nf):
         raise AmiXrValueError("sums: shapes do not match F and Y")
     if average == "linear":
-        _accumulate_linear(F, Y, Gff, Gfy, Gyy)
-        return Gff, Gfy, Gyy, count + F.shape[1]
+        new = _accumulate(F, Y, Gff, Gfy, Gyy, int(count), 0)
+        return Gff, Gfy, Gyy, int(new)
     if average == "exponential":
         if int(n_average) < 1:
             raise AmiXrValueError(f"n_average: expected an integer >= 1, got {n_average!r}")
-        new = _accumulate_exponential(F, Y, Gff, Gfy, Gyy, int(count), int(n_average))
+        new = _accumulate(F, Y, Gff, Gfy, Gyy, int(count), int(n_average))
         return Gff, Gfy, Gyy, int(new)
     raise AmiXrValueError(f"average: expected 'linear' or 'exponential', got {average!r}")
 

@@ -35,7 +35,6 @@ import math
 import numpy as np
 
 from ami_xr.errors import AmiXrValueError
-from ami_xr.kernels._numba import jit
 
 WINDOWS = ("boxcar", "hann", "flattop", "exponential", "force")
 _ALIASES = {
@@ -57,51 +56,24 @@ _ALIASES = {
 _SCIPY_NAMES = {"hann": "hann", "flattop": "flattop"}
 
 
-# --- private kernels (clean input assumed; never raise) ---------------------------------------
+# --- private helpers (clean input assumed; never raise) ---------------------------------------
+# Plain numpy: each is one vectorised expression, which numba would only make slower to start
+# (every jitted function costs compile time on a first run).
 
 
-@jit
-def _exponential(n, tau):
+def _exponential(n: int, tau: float) -> np.ndarray:
     """``exp(-k / tau)`` for ``k = 0 .. n-1`` (``tau`` in samples)."""
-    out = np.empty(n, dtype=np.float64)
-    for k in range(n):
-        out[k] = np.exp(-float(k) / tau)
-    return out
+    return np.exp(-np.arange(n, dtype=np.float64) / tau)
 
 
-@jit
-def _force(n, width, taper):
+def _force(n: int, width: int, taper: int) -> np.ndarray:
     """1 on ``[0, width)``, half-cosine ``0.5 (1 + cos(pi (j + 1) / (taper + 1)))`` on the next
     ``taper`` samples ``j = 0 .. taper-1``, 0 after; truncated at ``n``."""
     out = np.zeros(n, dtype=np.float64)
-    for k in range(min(width, n)):
-        out[k] = 1.0
-    for j in range(taper):
-        k = width + j
-        if k >= n:
-            break
-        out[k] = 0.5 * (1.0 + np.cos(np.pi * (j + 1) / (taper + 1)))
+    out[: min(width, n)] = 1.0
+    j = np.arange(max(0, min(taper, n - width)), dtype=np.float64)
+    out[width : width + j.size] = 0.5 * (1.0 + np.cos(np.pi * (j + 1.0) / (taper + 1)))
     return out
-
-
-@jit
-def _apply_window(x, w):
-    """``x * w`` for ``x`` of shape (m, n) and ``w`` of shape (n,), into a new array."""
-    out = np.empty_like(x)
-    for i in range(x.shape[0]):
-        for k in range(x.shape[1]):
-            out[i, k] = x[i, k] * w[k]
-    return out
-
-
-@jit
-def _sum_and_sum_sq(w):
-    s = 0.0
-    s2 = 0.0
-    for k in range(w.shape[0]):
-        s += w[k]
-        s2 += w[k] * w[k]
-    return s, s2
 
 
 # --- public wrappers (validate, then call the kernels) ----------------------------------------
@@ -300,7 +272,7 @@ def amplitude_correction(w: np.ndarray) -> float:
     2 for the periodic Hann window, 1 for boxcar.
     """
     w = checked_window_array(w)
-    s, _ = _sum_and_sum_sq(w)
+    s = float(np.sum(w))
     if s <= 0.0:
         raise AmiXrValueError(f"w: the window sum must be > 0, got {s}")
     return w.shape[0] / s
@@ -312,7 +284,7 @@ def energy_correction(w: np.ndarray) -> float:
     ``sqrt(8/3)`` for the periodic Hann window (any n >= 3), 1 for boxcar.
     """
     w = checked_window_array(w)
-    _, s2 = _sum_and_sum_sq(w)
+    s2 = float(np.sum(w * w))
     if s2 <= 0.0:
         raise AmiXrValueError("w: the window must not be all zeros")
     return math.sqrt(w.shape[0] / s2)
@@ -342,5 +314,4 @@ def apply_window(x: np.ndarray, w: np.ndarray) -> np.ndarray:
     if not np.issubdtype(x.dtype, np.number):
         raise AmiXrValueError(f"x: expected numeric samples, got dtype {x.dtype}")
     dtype = np.complex128 if np.iscomplexobj(x) else np.float64
-    x2 = np.ascontiguousarray(x, dtype=dtype).reshape(-1, w.shape[0])
-    return _apply_window(x2, w).reshape(x.shape)
+    return np.asarray(x, dtype=dtype) * w

@@ -175,7 +175,9 @@ def test_public_wrappers_take_any_layout():
     from ami_xr.kernels import modal_basis
 
     omega = np.linspace(0.0, 60.0, 33)
+    lam = np.array([[-1.0 + 20j]])
     variants = (omega, np.asfortranarray(omega), np.repeat(omega, 2)[::2], np.arange(33))
     for w in variants:
-        modal_basis.pole_basis(w, -1.0 + 20j)
-        assert len(modal_basis._pole_basis.signatures) == 1
+        for res in (np.array([[1.0 + 0j]]), np.array([[1, 2]])[:, ::2], np.ones((1, 1), int)):
+            modal_basis.contribution_peaks(w, None, None, lam, res)
+            assert len(modal_basis._contribution_peaks.signatures) == 1
