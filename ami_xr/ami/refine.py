@@ -53,6 +53,7 @@ estimated noise levels; for an efficient estimator they are the spread over repe
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
@@ -69,6 +70,7 @@ from ami_xr.ami.settings import (
     parameters,
     to_attrs,
 )
+from ami_xr.ami.subtract import add_capped
 from ami_xr.core import flags
 from ami_xr.core.modal import damping_ratio, mac_matrix, natural_frequency
 from ami_xr.core.model import resolve_model, resolve_residual_terms
@@ -82,7 +84,7 @@ from ami_xr.core.refine import (
     refine_arrays,
     synthesize,
 )
-from ami_xr.errors import IdentificationError
+from ami_xr.errors import ConvergenceWarning, IdentificationError
 from ami_xr.progress import Iterations, active
 from ami_xr.provenance import add_history
 
@@ -108,6 +110,7 @@ _OUTPUTS = {
     "cost": ([], float),
     "pair_supported": ([M], bool),
     "merged_fn": ([M], float),
+    "capped": ([], bool),
 }
 
 
@@ -322,6 +325,14 @@ def refine(
         )
         fields = {k: o.compute() if o.chunks else o for k, o in zip(_OUTPUTS, result, strict=True)}
         out = _with_results(ds, fields, model, data_model)
+        if bool(fields["capped"]):
+            add_capped(out.attrs, ["refine:add_modes"])
+            warnings.warn(
+                f"refine: stopped adding modes at the cap add_modes={settings.add_modes} while "
+                "the residual still showed structure; raise add_modes to go on",
+                ConvergenceWarning,
+                stacklevel=2,
+            )
     out.attrs[names.ATTR_REFINE_MODEL] = data_model.name
     to_attrs(settings, out.attrs)
     out = c.restore_coordinate_attrs(out, coord_attrs)

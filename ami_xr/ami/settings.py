@@ -75,7 +75,7 @@ class RefineSettings:
     band: str | tuple[float, float] = "all"
     residual_terms: str | tuple[str, ...] = _attr("auto", names.ATTR_REFINE_RESIDUAL_TERMS)
     max_shift: float = 3.0
-    add_modes: int = 2
+    add_modes: int = 50  # a safety cap: additions stop when the statistics say so
     add_pfa: float = 1e-3
     drop_modes: bool = True
 

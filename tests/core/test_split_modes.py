@@ -16,6 +16,7 @@ import pytest
 import ami_xr
 from ami_xr import names
 from ami_xr.ami.settings import RefineSettings
+from ami_xr.core import order as core_order
 from ami_xr.core import refine as core_refine
 from ami_xr.core import varpro
 from ami_xr.simulate import random_system
@@ -105,7 +106,7 @@ def test_fallback_flag_only_on_the_modes_that_fell_back(monkeypatch):
         return fit
 
     monkeypatch.setattr(varpro, "levenberg_marquardt", scripted)
-    fit, free, _, _ = core_refine._fit_modes(
+    fit, free, _, _ = core_order.fit_modes(
         prob, lam * (1 + 1e-3), lam, decay=0.0, max_iter=50, tol=1e-10, max_shift=3.0, min_width=0
     )
     np.testing.assert_array_equal(free, [True, False, True])
