@@ -20,6 +20,10 @@ Guarantees
   ``force=True`` redoes everything.
 * **One bad file never stops the batch.** Its error is reported in the summary (status
   ``failed``) and the others go on.
+* **An incomplete result is not a success.** A file whose identification stopped at a cap
+  (attribute ``ami_capped`` non-empty: ``subtract:max_modes``, ``refine:add_modes``, ...) gets
+  status ``capped`` (also when its output is up to date), is counted apart in the summary line
+  and makes ``ami-xr batch`` exit with 4 when no file failed (3 when some failed).
 * **Summary.** ``<output_dir>/batch_summary.csv`` (file, status, modes found, natural frequencies
   in Hz, output, seconds, message), written atomically after every run.
 """
@@ -70,6 +74,7 @@ PIPELINE_VERSION = 1
 STATUS_OK = "ok"
 STATUS_UP_TO_DATE = "up to date"
 STATUS_FAILED = "failed"
+STATUS_CAPPED = "capped"  # identified, but a phase stopped at a cap: modes may be missing
 SUMMARY_FIELDS = ("file", "status", "modes", "frequencies_hz", "output", "seconds", "message")
 
 
@@ -80,8 +85,8 @@ class BatchSummary:
     Attributes
     ----------
     rows : list of dict
-        Keys ``file`` (path relative to the input folder), ``status`` ("ok", "up to date" or
-        "failed"), ``modes`` (number found, "" when failed), ``frequencies_hz`` (space-separated
+        Keys ``file`` (path relative to the input folder), ``status`` ("ok", "up to date",
+        "capped": identified but stopped at a cap listed in ``message``, or "failed"), ``modes`` (number found, "" when failed), ``frequencies_hz`` (space-separated
         natural frequencies), ``output`` (relative to the output folder), ``seconds``,
         ``message`` (error or warnings).
     csv_path : pathlib.Path
@@ -97,9 +102,14 @@ class BatchSummary:
         return sum(r["status"] == STATUS_FAILED for r in self.rows)
 
     @property
+    def n_capped(self) -> int:
+        """Number of files whose identification stopped at a cap (incomplete, not failed)."""
+        return sum(r["status"] == STATUS_CAPPED for r in self.rows)
+
+    @property
     def ok(self) -> bool:
-        """True when no file failed."""
-        return self.n_failed == 0
+        """True when no file failed and none stopped at a cap."""
+        return self.n_failed == 0 and self.n_capped == 0
 
     def format(self, width: int = 60) -> str:
         """The summary as an aligned text table."""
@@ -125,11 +135,12 @@ class BatchSummary:
         ]
         counts = {
             s: sum(r["status"] == s for r in self.rows)
-            for s in (STATUS_OK, STATUS_UP_TO_DATE, STATUS_FAILED)
+            for s in (STATUS_OK, STATUS_UP_TO_DATE, STATUS_CAPPED, STATUS_FAILED)
         }
         lines.append(
             f"{len(self.rows)} file(s): {counts[STATUS_OK]} processed, "
-            f"{counts[STATUS_UP_TO_DATE]} up to date, {counts[STATUS_FAILED]} failed"
+            f"{counts[STATUS_UP_TO_DATE]} up to date, {counts[STATUS_CAPPED]} capped "
+            f"(incomplete), {counts[STATUS_FAILED]} failed"
         )
         return "\n".join(lines)
 
@@ -297,7 +308,8 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
                 report(result, out.with_name(out.name[: -len(OUTPUT_SUFFIX)] + ".report"))
             ami_xr.to_netcdf(result, out, function="ami_xr.batch", parameters=job["parameters"])
         row["modes"], row["frequencies_hz"] = _modal_summary(result)
-        row["status"] = STATUS_OK
+        caps = str(result.attrs.get(names.ATTR_AMI_CAPPED, "") or "")
+        row["status"] = STATUS_CAPPED if caps else STATUS_OK
         messages = sorted(
             {
                 f"{w.category.__name__}: {w.message}"
@@ -305,6 +317,8 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
                 if issubclass(w.category, UserWarning)
             }
         )
+        if caps:
+            messages.insert(0, f"stopped at cap(s): {caps}")
         row["message"] = "; ".join(messages)
     except Exception as err:  # a bad file must not stop the batch: report it and go on
         first = str(err).strip().splitlines()
@@ -426,7 +440,11 @@ def _plan(
         claimed[out] = rel
         if not force and _up_to_date(inp, out, shared["params_sha"]):
             count, freqs = _modal_summary_from_file(out)
-            rows[rel] = _row(rel, out_rel, STATUS_UP_TO_DATE, modes=count, frequencies_hz=freqs)
+            caps = str((_output_attrs(out) or {}).get(names.ATTR_AMI_CAPPED, "") or "")
+            status, message = STATUS_UP_TO_DATE, ""
+            if caps:  # an up-to-date incomplete result stays incomplete
+                status, message = STATUS_CAPPED, f"up to date; stopped at cap(s): {caps}"
+            rows[rel] = _row(rel, out_rel, status, message, modes=count, frequencies_hz=freqs)
             continue
         rows[rel] = {}
         paths = {"input": str(inp), "output": str(out), "rel": rel, "out_rel": out_rel}
@@ -475,7 +493,7 @@ def batch(
     Returns
     -------
     BatchSummary
-        One row per file; ``summary.ok`` is False when any file failed.
+        One row per file; ``summary.ok`` is False when any file failed or stopped at a cap.
 
     Raises
     ------

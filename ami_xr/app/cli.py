@@ -18,8 +18,9 @@ One rule holds for every subcommand (:func:`main`):
   anything else is a bug, named with its type and "run with -v for the traceback".
 * Exit codes (defined once, here): 0 success (:data:`EXIT_OK`); 1 an error
   (:data:`EXIT_ERROR`); 2 a usage error (argparse, :data:`EXIT_USAGE`); 3 ``batch`` finished but
-  some files failed (:data:`EXIT_BATCH_FAILURES`); 130 interrupted by Ctrl-C
-  (:data:`EXIT_INTERRUPTED`, one line ``ami-xr <command>: interrupted``); 143 terminated by
+  some files failed (:data:`EXIT_BATCH_FAILURES`); 4 ``batch`` finished, none failed, but some
+  identifications stopped at a cap (status ``capped``, :data:`EXIT_BATCH_CAPPED`); 130
+  interrupted by Ctrl-C (:data:`EXIT_INTERRUPTED`, one line ``ami-xr <command>: interrupted``); 143 terminated by
   SIGTERM (:data:`EXIT_TERMINATED`, one line ``ami-xr: terminated``; a write in progress is
   rolled back first).
 
@@ -63,6 +64,7 @@ EXIT_OK = 0
 EXIT_ERROR = 1
 EXIT_USAGE = 2  # argparse exits with this itself
 EXIT_BATCH_FAILURES = 3
+EXIT_BATCH_CAPPED = 4  # batch: no failure, but some results incomplete (stopped at a cap)
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a Ctrl-C
 EXIT_TERMINATED = 143  # 128 + SIGTERM
 
@@ -204,7 +206,8 @@ def _cmd_frf(args: argparse.Namespace) -> int:
             if rejected[i]:
                 _say(f"  hit {i} rejected: {reasons[i]}")
     given = {k: v for k, v in reader.items() if v is not None}
-    ami_xr.to_netcdf(g, args.output, function="ami_xr.frf", parameters={**given, **options})
+    # the record of the write names the command the user ran (no ami_xr.frf was called)
+    ami_xr.to_netcdf(g, args.output, function="ami-xr frf", parameters={**given, **options})
     _say(_wrote_frfs(g, args.output))
     return EXIT_OK
 
@@ -241,6 +244,9 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     if args.output:  # identify recorded itself in the history; the write adds its own record
         write_any(result, args.output)
         _say(f"wrote modes to {args.output}")
+    caps = str(result.attrs.get(names.ATTR_AMI_CAPPED, "") or "")
+    if caps:  # the last line says the result is incomplete (batch: status "capped")
+        _say(f"incomplete: stopped at cap(s) {caps}; modes may be missing (see the warnings)")
     return EXIT_OK
 
 
@@ -295,7 +301,9 @@ def _cmd_batch(args: argparse.Namespace) -> int:
         for row in summary.rows:
             if row.get("traceback"):
                 print(f"--- {row['file']}\n{row['traceback']}", file=sys.stderr)
-    return EXIT_OK if summary.ok else EXIT_BATCH_FAILURES
+    if summary.n_failed:
+        return EXIT_BATCH_FAILURES
+    return EXIT_BATCH_CAPPED if summary.n_capped else EXIT_OK
 
 
 # --- parser --------------------------------------------------------------------------------------
@@ -497,7 +505,8 @@ def _add_batch(add) -> None:
         "modes), writing OUTDIR/<same folders>/<stem>.modes.nc atomically. Files whose "
         "output is up to date (same input content and options) are skipped, so an "
         "interrupted run resumes. A bad file is reported and skipped. Prints and writes "
-        "OUTDIR/batch_summary.csv; exits with 3 when any file failed.",
+        "OUTDIR/batch_summary.csv; exits with 3 when any file failed, 4 when none failed but some "
+        "stopped at a cap (status capped).",
     )
     p.add_argument(
         "input", metavar="DIR", help="folder of measurement files (searched recursively)"
@@ -532,7 +541,8 @@ def build_parser() -> argparse.ArgumentParser:
         "(Ginsberg & Allen) on labeled xarray data.\n\n"
         "Start with:  ami-xr demo",
         epilog="Exit codes: 0 ok, 1 error (one line on stderr; -v shows the traceback), "
-        "2 usage error, 3 batch with failed files, 130 interrupted.",
+        "2 usage error, 3 batch with failed files, 4 batch with capped (incomplete) results, "
+        "130 interrupted.",
     )
     parser.add_argument("--version", action="version", version=f"ami_xr {__version__}")
     parser.add_argument(
