@@ -11,6 +11,12 @@ latest function, the ami_xr version and the source file are also plain attribute
 Files also get the CF global attribute ``history``, one line per record (:func:`cf_history`),
 written by :func:`ami_xr.io.netcdf.to_netcdf` (see :mod:`ami_xr.io.cf`).
 
+History lists only the calls the user made. A public function that calls other public functions
+(``identify`` runs ``subtract``, ``isolate``, ``global_fit`` and ``refine``) makes those calls
+inside :func:`nested_calls`, or is decorated with :func:`public_call` as are the functions it
+calls: a record is added only by the outermost public call (a context variable counts the
+depth, so threads and asyncio tasks each have their own).
+
 No machine path is recorded: ``source_file`` (record and attribute) holds the file name only,
 and a string parameter that is an absolute path is stored as its file name, so a file can be
 handed to a colleague without telling where it lay on the author's machine.
@@ -18,8 +24,12 @@ handed to a colleague without telling where it lay on the author's machine.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+import functools
 import json
 import os
+from collections.abc import Callable, Iterator
 from datetime import datetime, timezone
 from typing import Any
 
@@ -29,7 +39,57 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.names import ATTR_FUNCTION  # kept importable from here, defined in names
 
-__all__ = ["add_history", "history", "cf_history", "file_name", "ATTR_FUNCTION"]
+__all__ = [
+    "add_history",
+    "history",
+    "cf_history",
+    "file_name",
+    "nested_calls",
+    "public_call",
+    "recording",
+    "ATTR_FUNCTION",
+]
+
+# How many public calls enclose the code running now: 0 outside any, 1 in the body of the
+# outermost one, more inside calls it makes. add_history records only at depth 0 or 1.
+_DEPTH: contextvars.ContextVar[int] = contextvars.ContextVar("ami_xr_call_depth", default=0)
+
+
+def recording() -> bool:
+    """True when :func:`add_history` called here would append a record (no enclosing call is
+    itself recorded)."""
+    return _DEPTH.get() <= 1
+
+
+@contextlib.contextmanager
+def nested_calls() -> Iterator[None]:
+    """Public functions called inside add no provenance record (their caller records itself).
+
+    Examples
+    --------
+    >>> with nested_calls():  # doctest: +SKIP
+    ...     out = subtract(ds, delta)  # no "ami_xr.subtract" record
+    """
+    token = _DEPTH.set(max(_DEPTH.get(), 1) + 1)
+    try:
+        yield
+    finally:
+        _DEPTH.reset(token)
+
+
+def public_call(func: Callable) -> Callable:
+    """Decorator of a public function that records itself with :func:`add_history`: called from
+    inside another such function (or inside :func:`nested_calls`) it adds no record."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        token = _DEPTH.set(_DEPTH.get() + 1)
+        try:
+            return func(*args, **kwargs)
+        finally:
+            _DEPTH.reset(token)
+
+    return wrapper
 
 
 def file_name(path: str | os.PathLike) -> str:
@@ -107,9 +167,15 @@ def add_history(
     xarray.Dataset
         ``ds`` with the record appended to ``ami_xr_history``, and the plain attributes
         :data:`ATTR_FUNCTION`, ``ami_xr_version`` and (when given) ``source_file`` (the file
-        name, without its folder) set.
+        name, without its folder) set. Inside a call that records itself (see
+        :func:`nested_calls`) a copy of ``ds`` with its attributes unchanged.
     """
     from ami_xr import __version__
+
+    if not recording():
+        out = ds.copy()
+        out.attrs = dict(ds.attrs)
+        return out
 
     record = {
         "function": function,

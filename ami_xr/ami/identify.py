@@ -20,10 +20,12 @@ from ami_xr.ami.settings import (
     IsolateSettings,
     SubtractSettings,
 )
+from ami_xr.provenance import public_call
 
 __all__ = ["identify", "METHODS"]
 
 
+@public_call
 def identify(
     ds: xr.Dataset,
     *,

@@ -33,6 +33,7 @@ from ami_xr.core.modal import (
 from ami_xr.dsp import band as bd
 from ami_xr.errors import ConvergenceWarning, IdentificationError
 from ami_xr.progress import phases
+from ami_xr.provenance import nested_calls
 
 METHODS = (*ISOLATE_METHODS, names.METHOD_PAPER)
 
@@ -63,7 +64,8 @@ def identify_single(ds: xr.Dataset, settings: IdentifySettings, progress=False) 
     peak = np.abs(ds[names.FRF]).max(skipna=False).values
     scale = float(power_of_two_scale(peak))
     work = ds if scale == 1.0 else ds.assign({names.FRF: ds[names.FRF] * scale})
-    result = _phases(work, settings, refined, progress)
+    with nested_calls():  # the phases are identify's, which records itself
+        result = _phases(work, settings, refined, progress)
     if scale != 1.0:
         result = unscale(result, ds, scale)
     result = _window_corrected(result, from_attrs(FrfAttributes, ds.attrs))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -55,12 +56,8 @@ def test_lvm_and_uff_readers_write_no_machine_path(tmp_path, frf_dataset):
     assert np.array_equal(open_dataset(out).frf.values, ds.frf.values)
 
 
-@pytest.fixture(scope="module")
-def identified():
-    """Identified modes (with refinement) of the fixture's FRFs, and the same without a drive
-    point (mode vectors then unscaled)."""
-    import warnings
-
+def _fixture_frfs():
+    """The test fixture's three-mode FRFs with a little noise (points 1, 2, 3; drive point 1)."""
     from ..conftest import _frf_fixture_modes
     from ..reference import frf_from_residues
 
@@ -69,7 +66,14 @@ def identified():
     frf = frf_from_residues(2 * np.pi * frequency, lam, residue)
     rng = np.random.default_rng(0)
     frf = frf + 1e-4 * np.abs(frf).max() * (rng.standard_normal(frf.shape) + 0j)
-    ds = ami_xr.make_frf_dataset(frf, frequency, points=[1, 2, 3], drive_point=1)
+    return ami_xr.make_frf_dataset(frf, frequency, points=[1, 2, 3], drive_point=1)
+
+
+@pytest.fixture(scope="module")
+def identified():
+    """Identified modes (with refinement) of the fixture's FRFs, and the same without a drive
+    point (mode vectors then unscaled)."""
+    ds = _fixture_frfs()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scaled = ami_xr.identify(ds)
@@ -245,3 +249,89 @@ def test_a_taken_label_name_and_float_axes_keep_the_coordinate():
     assert out[names.POINT].values.tolist() == ["a", "b"]  # point_label taken: left alone
     axis = xr.Dataset(coords={names.TIME: [0.0, 1.0, np.nan]})  # a float axis is data
     assert names.TIME in cf.annotate(axis).indexes
+
+
+# --- history lists only the calls the user made (issue 23) -------------------------------------
+
+
+def _functions(ds) -> list[str]:
+    return [r["function"] for r in provenance.history(ds)]
+
+
+def test_history_of_cli_frf_on_an_lvm_file_lists_only_the_users_calls(tmp_path):
+    """``ami-xr frf hits.lvm``: the read, the impact FRF and the command's write; no ``ami_xr.frf``
+    (never called) and nothing else."""
+    from ami_xr.app.cli import main
+
+    from .test_lvm import _write
+    from .test_lvm_assumptions import hit_rows
+
+    lvm = _write(tmp_path / "hits.lvm", [hit_rows(p) for p in (100.0, 110.0, 95.0)])
+    out = tmp_path / "h.nc"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the drive point the reader assumes
+        assert (
+            main(["frf", str(lvm), "-o", str(out), "--drive-point", "Acceleration (Trigger)"]) == 0
+        )
+    records = provenance.history(open_dataset(out))
+    assert [r["function"] for r in records] == [
+        "ami_xr.read_lvm",
+        "ami_xr.impact_frf",
+        "ami-xr frf",
+    ]
+    assert records[-1]["parameters"]["excitation"] == "impact"
+    with xr.open_dataset(out, engine="netcdf4") as raw:
+        assert raw.attrs["history"].splitlines()[-1].split()[1:3] == ["ami-xr", "frf"]
+
+
+def test_identify_records_itself_not_its_phases(identified, tmp_path):
+    """identify runs subtract, isolate, global_fit and refine; only identify is recorded, also
+    through the CLI (then the write)."""
+    from ami_xr.app.cli import main
+
+    src = _functions(identified[0])
+    assert src[-1] == "ami_xr.identify"
+    assert not {"ami_xr.subtract", "ami_xr.isolate", "ami_xr.global_fit", "ami_xr.refine"} & set(
+        src
+    )
+    frfs = to_netcdf(_fixture_frfs(), tmp_path / "g.nc")
+    before = _functions(open_dataset(frfs))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["identify", str(frfs), "-o", str(tmp_path / "m.nc"), "-q"]) == 0
+    after = _functions(open_dataset(tmp_path / "m.nc"))
+    assert after == [*before, "ami_xr.identify", "ami_xr.to_netcdf"]
+
+
+def test_simulated_identify_history_and_direct_phase_calls():
+    """On the simulator: identify adds one record; the phases called by the user record each."""
+    g, _ = ami_xr.simulate.random_system(n_points=5, seed=1, noise=0.0)
+    before = _functions(g)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        modes = ami_xr.identify(g, refine=False)
+        sub = ami_xr.subtract(g, 0.05)
+    assert _functions(modes) == [*before, "ami_xr.identify"]
+    assert _functions(sub) == [*before, "ami_xr.subtract"]
+
+
+def test_nested_calls_and_public_call_record_only_the_outermost():
+    @provenance.public_call
+    def inner(ds):
+        return provenance.add_history(ds, "inner")
+
+    @provenance.public_call
+    def outer(ds):
+        ds = inner(ds)
+        with provenance.nested_calls():
+            ds = provenance.add_history(ds, "undecorated")
+        return provenance.add_history(ds, "outer")
+
+    ds = xr.Dataset(attrs={"keep": 1})
+    assert _functions(inner(ds)) == ["inner"]
+    assert _functions(outer(ds)) == ["outer"]
+    with provenance.nested_calls():
+        assert not provenance.recording()
+        quiet = outer(ds)
+    assert quiet.attrs == ds.attrs and quiet is not ds
+    assert provenance.recording()
