@@ -1,4 +1,6 @@
-"""Receptance, mobility and accelerance: :func:`convert_quantity` of an FRF Dataset."""
+"""Receptance, mobility and accelerance: :func:`convert_quantity` of an FRF Dataset, and
+:func:`resolve_quantity`, the one rule that turns what a user gave (a response quantity, an FRF
+type or one of its synonyms, units) into consistent ``response_quantity``/``frf_type``/units."""
 
 from __future__ import annotations
 
@@ -12,6 +14,74 @@ from ami_xr.provenance import add_history
 
 QUANTITIES = tuple(names.QUANTITY_TO_FRF_TYPE)
 _G = 9.80665  # m/s^2 per g
+
+# Common names of the three FRF types (case, "-" and "_" ignored) -> the type ami_xr stores.
+FRF_TYPE_SYNONYMS = {
+    "receptance": "receptance",
+    "compliance": "receptance",
+    "dynamic flexibility": "receptance",
+    "mobility": "mobility",
+    "admittance": "mobility",
+    "accelerance": "accelerance",
+    "inertance": "accelerance",
+}
+DEFAULT_QUANTITY = "displacement"  # taken, with an AssumptionWarning, when nothing is given
+ATTR_QUANTITY_ASSUMED = "response_quantity_assumed"  # why the quantity was assumed (not given)
+
+
+def frf_type_of(frf_type: str) -> str:
+    """The FRF type ami_xr stores for ``frf_type`` or one of its synonyms
+    (:data:`FRF_TYPE_SYNONYMS`: inertance = accelerance, admittance = mobility,
+    compliance and dynamic flexibility = receptance)."""
+    key = " ".join(str(frf_type).strip().lower().replace("_", " ").replace("-", " ").split())
+    if key not in FRF_TYPE_SYNONYMS:
+        raise AmiXrValueError(
+            f"frf_type: expected one of {tuple(FRF_TYPE_SYNONYMS)}, got {frf_type!r}"
+        )
+    return FRF_TYPE_SYNONYMS[key]
+
+
+def resolve_quantity(
+    response_quantity: str | None, frf_type: str | None, response_units: str | None
+) -> tuple[str, str, str | None]:
+    """``(response_quantity, response_units, assumed)`` from what a user gave.
+
+    The quantity comes from ``response_quantity`` or from ``frf_type`` (a synonym is accepted);
+    both given must agree. Units default to the SI units of the quantity (m, m/s, m/s^2).
+    Nothing given: displacement in m is assumed and ``assumed`` says so (else None); the caller
+    warns and records it in attribute :data:`ATTR_QUANTITY_ASSUMED`.
+    """
+    from_type = None
+    if frf_type is not None:
+        from_type = names.FRF_TYPE_TO_QUANTITY[frf_type_of(frf_type)]
+    if response_quantity is not None and response_quantity not in QUANTITIES:
+        # not ours to reject: the schema check reports it with every other problem at once
+        units = response_units if response_units is not None else "m"
+        return response_quantity, units, None
+    if response_quantity is not None:
+        if from_type is not None and from_type != response_quantity:
+            raise AmiXrValueError(
+                f"frf_type, response_quantity: a {frf_type!r} FRF has response quantity "
+                f"{from_type!r}, not {response_quantity!r}; give one of them"
+            )
+    quantity = response_quantity or from_type
+    assumed = None
+    if quantity is None:
+        quantity = DEFAULT_QUANTITY
+        if response_units is not None:  # the units may tell the quantity
+            hits = [q for q, us in names.RESPONSE_UNITS.items() if response_units in us]
+            quantity = hits[0] if len(hits) == 1 else quantity
+        if response_units is None or quantity == DEFAULT_QUANTITY and response_units not in (
+            names.RESPONSE_UNITS[DEFAULT_QUANTITY]
+        ):
+            assumed = (
+                "response_quantity and frf_type not given: displacement (receptance, "
+                f"{response_units or 'm'}) assumed; pass response_quantity= ('velocity' for "
+                "mobility, 'acceleration' for accelerance) or frf_type="
+            )
+    if response_units is None:
+        response_units = names.SI_RESPONSE_UNITS[quantity]
+    return quantity, response_units, assumed
 
 
 def _convert_units(units: str, k_from: int, k_to: int) -> tuple[str, float]:

@@ -13,7 +13,9 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.errors import AmiXrValueError, SchemaError
+from ami_xr.caller import warn
+from ami_xr.dsp.quantity import ATTR_QUANTITY_ASSUMED, resolve_quantity
+from ami_xr.errors import AmiXrValueError, AssumptionWarning, SchemaError
 from ami_xr.io.geometry import coordinate_arrays
 from ami_xr.io.messages import is_positive_number, python_scalar
 from ami_xr.io.schema import find_problems
@@ -45,14 +47,25 @@ def _labels(points: Any, n: int, argument: str = "points") -> np.ndarray:
 
 
 def _std_attrs(
-    drive_point: Any, response_quantity: str, response_units: str, force_units: str
+    drive_point: Any,
+    response_quantity: str | None,
+    response_units: str | None,
+    force_units: str,
+    frf_type: str | None = None,
+    function: str = "make_frf_dataset",
 ) -> dict[str, Any]:
+    """Standard attributes; the quantity rule of :func:`ami_xr.dsp.quantity.resolve_quantity`
+    (an assumed quantity warns, at the caller of ``function``, and is recorded)."""
+    quantity, units, assumed = resolve_quantity(response_quantity, frf_type, response_units)
     attrs: dict[str, Any] = {}
     if drive_point is not None:
         attrs[names.ATTR_DRIVE_POINT] = python_scalar(drive_point)
-    attrs[names.ATTR_QUANTITY] = response_quantity
-    attrs[names.ATTR_RESPONSE_UNITS] = response_units
+    attrs[names.ATTR_QUANTITY] = quantity
+    attrs[names.ATTR_RESPONSE_UNITS] = units
     attrs[names.ATTR_FORCE_UNITS] = force_units
+    if assumed is not None:
+        attrs[ATTR_QUANTITY_ASSUMED] = assumed
+        warn(f"{function}: {assumed}", AssumptionWarning)  # at the user's line
     return attrs
 
 
@@ -86,13 +99,14 @@ def make_frf_dataset(
     frequency: Any,
     points: Any = None,
     drive_point: Any = None,
-    response_quantity: str = "displacement",
-    response_units: str = "m",
+    response_quantity: str | None = None,
+    response_units: str | None = None,
     force_units: str = "N",
     frf_source: str = names.SOURCE_MEASURED,
     coordinates: Any = None,
     coordinate_units: str = names.COORDINATE_UNITS,
     references: Any = None,
+    frf_type: str | None = None,
     **attrs: Any,
 ) -> xr.Dataset:
     """Build a valid FRF Dataset from plain arrays (validated; errors name the argument).
@@ -110,11 +124,18 @@ def make_frf_dataset(
     drive_point : int or str, optional
         Label of the point where the force acts. ``None`` leaves the ``drive_point`` attribute
         out (AMI then leaves mode vectors unscaled).
-    response_quantity : {"displacement", "velocity", "acceleration"}
-        Sets ``frf_type`` to receptance, mobility or accelerance.
-    response_units, force_units : str
-        One of ``names.RESPONSE_UNITS[response_quantity]`` and of ``names.FORCE_UNITS``;
-        ``frf.attrs["units"]`` becomes ``"<response_units>/<force_units>"``.
+    response_quantity : {"displacement", "velocity", "acceleration"}, optional
+        Sets ``frf_type`` to receptance, mobility or accelerance. Not given (nor ``frf_type``,
+        nor units that tell it): displacement is assumed, with an
+        :class:`~ami_xr.errors.AssumptionWarning` and the reason in attribute
+        ``response_quantity_assumed`` (as ``drive_point_assumed`` records an assumed drive
+        point).
+    response_units : str, optional
+        One of ``names.RESPONSE_UNITS[response_quantity]``; default the SI units of the
+        quantity (m, m/s, m/s^2), so ``response_quantity="velocity"`` alone means m/s.
+    force_units : str
+        One of ``names.FORCE_UNITS``; ``frf.attrs["units"]`` becomes
+        ``"<response_units>/<force_units>"``.
     frf_source : str
         One of ``names.SOURCES``. For ``"impulse_response"`` pass ``sample_interval=dt`` and
         ``record_samples=N`` as keyword attributes; ``frequency`` must then be lines of the
@@ -130,6 +151,10 @@ def make_frf_dataset(
         Multi-reference only (3-D ``frf``): unique labels of the excitation locations, of the
         point labels' type; default ``0 .. n_reference - 1``. A reference whose label is a
         point label is that point's drive point (``drive_point`` must then be None).
+    frf_type : str, optional
+        Instead of (or agreeing with) ``response_quantity``: "receptance", "mobility",
+        "accelerance" or a synonym ("compliance", "dynamic flexibility" = receptance;
+        "admittance" = mobility; "inertance" = accelerance); stored as the canonical name.
     **attrs
         Further Dataset attributes (e.g. ``sample_interval``, ``record_samples``,
         ``exponential_window_decay``, ``title``).
@@ -174,9 +199,10 @@ def make_frf_dataset(
     if multi:
         ref_coord = {names.REFERENCE: _labels(references, values.shape[0], "references")}
         dims = (names.REFERENCE, *dims)
-    ds_attrs = _std_attrs(drive_point, response_quantity, response_units, force_units)
-    frf_type = names.QUANTITY_TO_FRF_TYPE.get(response_quantity)
-    if frf_type is not None:
+    ds_attrs = _std_attrs(drive_point, response_quantity, response_units, force_units, frf_type)
+    response_units = ds_attrs[names.ATTR_RESPONSE_UNITS]
+    frf_type = names.QUANTITY_TO_FRF_TYPE.get(ds_attrs[names.ATTR_QUANTITY])
+    if frf_type is not None:  # else the schema check names the bad quantity
         ds_attrs[names.ATTR_FRF_TYPE] = frf_type
     ds_attrs[names.ATTR_SOURCE] = frf_source
     ds_attrs.update(attrs)
@@ -246,8 +272,8 @@ def make_time_dataset(
     force: Any = None,
     points: Any = None,
     drive_point: Any = None,
-    response_quantity: str = "displacement",
-    response_units: str = "m",
+    response_quantity: str | None = None,
+    response_units: str | None = None,
     force_units: str = "N",
     **attrs: Any,
 ) -> xr.Dataset:
@@ -302,6 +328,10 @@ def make_time_dataset(
         (names.POINT, names.TIME) if values.ndim == 2 else (names.RECORD, names.POINT, names.TIME)
     )
     labels = _labels(points, values.shape[-2])
+    ds_attrs = _std_attrs(
+        drive_point, response_quantity, response_units, force_units, function="make_time_dataset"
+    )
+    response_units = ds_attrs[names.ATTR_RESPONSE_UNITS]
     data_vars: dict[str, Any] = {names.RESPONSE: (dims, values, {names.ATTR_UNITS: response_units})}
     coords: dict[str, Any] = {
         names.POINT: labels,
@@ -309,7 +339,6 @@ def make_time_dataset(
     }
     if values.ndim == 3:
         coords[names.RECORD] = np.arange(values.shape[0])
-    ds_attrs = _std_attrs(drive_point, response_quantity, response_units, force_units)
     if force is None:
         ds_attrs[names.ATTR_EXCITATION] = names.EXCITATION_UNIT_IMPULSE
     else:

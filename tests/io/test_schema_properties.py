@@ -415,6 +415,7 @@ def test_constructor_errors_name_the_argument(data):
     frequency = np.linspace(0.0, 10.0, n_freq)
     frf = np.ones((n_point, n_freq), complex)
     kwargs = {"points": points, "drive_point": 0, "response_units": "m"}
+    kwargs["response_quantity"] = "displacement"  # stated: units are checked against it
     broken = data.draw(
         st.lists(
             st.sampled_from(["points", "drive_point", "response_units", "frequency", "frf"]),
