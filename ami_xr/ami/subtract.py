@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -141,9 +142,6 @@ def subtract(
     into it (residues added). Other stops: ``"max_modes"``, ``"max_rejected_peaks"``
     (``3 max_modes + 10`` peaks examined).
 
-    Long because the docstring documents the phase's seven settings and its outputs; the code (95
-    lines) is checks, one ``apply_ufunc`` call and the output variables.
-
     Parameters
     ----------
     ds : xarray.Dataset
@@ -189,41 +187,54 @@ def subtract(
         point's ``subtraction_stop_reason`` and attr ``ami_capped`` record it.
     """
     c.check_frf(ds, "subtract")
-    delta = c.check_fraction(delta, "delta")
-    pfa = c.check_fraction(pfa, "pfa")
-    max_modes = c.check_positive_int(max_modes, "max_modes")
-    min_points = c.check_positive_int(min_points, "min_points", 2)
-    zeta_max = c.check_positive(zeta_max, "zeta_max")
-    merge_tol = c.check_positive(merge_tol, "merge_tol")
-    c.check_choice(model, "model", c.MODELS)
+    settings = SubtractSettings(
+        delta=c.check_fraction(delta, "delta"),
+        max_modes=c.check_positive_int(max_modes, "max_modes"),
+        pfa=c.check_fraction(pfa, "pfa"),
+        min_points=c.check_positive_int(min_points, "min_points", 2),
+        zeta_max=c.check_positive(zeta_max, "zeta_max"),
+        merge_tol=c.check_positive(merge_tol, "merge_tol"),
+        model=c.check_choice(model, "model", c.MODELS),
+    )
     ds = band_of(ds, fmin, fmax, "subtract")
     data_model = resolve_model(ds.attrs, model)
-    dt, n_samples = data_model.dt, data_model.n_samples
-    settings = SubtractSettings(
-        delta=delta,
-        max_modes=max_modes,
-        pfa=pfa,
-        min_points=min_points,
-        zeta_max=zeta_max,
-        merge_tol=merge_tol,
-        model=data_model.name,
-    )
-    frf = ds[names.FRF]
+    settings = dataclasses.replace(settings, model=data_model.name)
     c.check_values(ds)
     omega = c.omega_of(ds)
+    r = _run(ds[names.FRF], omega, data_model, settings)
+    out = _assign_outputs(ds, r, omega, settings)
+    to_attrs(settings, out.attrs)
+    _warn_caps(out, settings.max_modes)
+    if int(r.n_modes.sum()) == 0:
+        _explain_no_modes(out, ds[names.FRF], r.sigma, settings.pfa, settings.zeta_max, omega.size)
+    return c.finish(out, "ami_xr.subtract", "subtract", parameters(settings))
+
+
+def _run(frf: xr.DataArray, omega: np.ndarray, data_model, settings: SubtractSettings):
+    """The kernel on every FRF of ``frf`` (one ``apply_ufunc``): a :class:`SubtractResult` of
+    DataArrays."""
     res = xr.apply_ufunc(
         _subtract_block,
         frf,
-        kwargs=dict(omega=omega, dt=dt, n_samples=n_samples, params=kernel_params(settings)),
+        kwargs=dict(
+            omega=omega,
+            dt=data_model.dt,
+            n_samples=data_model.n_samples,
+            params=kernel_params(settings),
+        ),
         input_core_dims=[[names.FREQUENCY]],
         output_core_dims=[dims for dims, _ in _OUTPUTS.values()],
         dask="parallelized",
         output_dtypes=[dtype for _, dtype in _OUTPUTS.values()],
-        dask_gufunc_kwargs={"output_sizes": {names.CANDIDATE: max_modes}},
+        dask_gufunc_kwargs={"output_sizes": {names.CANDIDATE: settings.max_modes}},
         keep_attrs=False,
     )
-    r = ks.SubtractResult(**{name: o.compute() for name, o in zip(_OUTPUTS, res, strict=True)})
-    # at least one (NaN) slot keeps files simple
+    return ks.SubtractResult(**{name: o.compute() for name, o in zip(_OUTPUTS, res, strict=True)})
+
+
+def _assign_outputs(ds: xr.Dataset, r, omega: np.ndarray, settings: SubtractSettings):
+    """``ds`` without earlier results, plus the subtraction's output variables from the
+    kernel's result ``r`` (candidate slots cut to the most candidates found, at least one)."""
     n_keep = max(int(r.n_modes.max()) if r.n_modes.size else 0, 1)
     sl = {names.CANDIDATE: slice(0, n_keep)}
     reason_str = xr.DataArray(
@@ -235,23 +246,20 @@ def subtract(
     )
     out = c.drop_results(ds, (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS))
     frf_units = ds[names.FRF].attrs.get(names.ATTR_UNITS, "")
+    units = names.ATTR_UNITS
     out = out.assign(
         {
-            names.SUB_EIGENVALUE: r.lam.isel(sl).assign_attrs(
-                {names.ATTR_UNITS: names.ANGULAR_UNITS}
-            ),
+            names.SUB_EIGENVALUE: r.lam.isel(sl).assign_attrs({units: names.ANGULAR_UNITS}),
             names.SUB_RESIDUE: r.res.isel(sl).assign_attrs(
-                {names.ATTR_UNITS: f"{frf_units} {names.ANGULAR_UNITS}"}
+                {units: f"{frf_units} {names.ANGULAR_UNITS}"}
             ),
-            names.SUB_BAND_LOW: r.band_low.isel(sl).assign_attrs(
-                {names.ATTR_UNITS: names.FREQUENCY_UNITS}
-            ),
+            names.SUB_BAND_LOW: r.band_low.isel(sl).assign_attrs({units: names.FREQUENCY_UNITS}),
             names.SUB_BAND_HIGH: r.band_high.isel(sl).assign_attrs(
-                {names.ATTR_UNITS: names.FREQUENCY_UNITS}
+                {units: names.FREQUENCY_UNITS}
             ),
             names.SUB_NOISE_FLOOR: r.sigma.assign_attrs(
                 {
-                    names.ATTR_UNITS: frf_units,
+                    units: frf_units,
                     names.ATTR_LONG_NAME: "noise standard deviation per line "
                     "(median of adjacent differences)",
                 }
@@ -259,19 +267,14 @@ def subtract(
             names.SUB_STOP_STATISTIC: r.statistic.assign_attrs(
                 {
                     names.ATTR_LONG_NAME: "|Y|^2/sigma^2 of the last examined peak",
-                    names.ATTR_THRESHOLD: float(kn.peak_threshold(omega.size, pfa)),
+                    names.ATTR_THRESHOLD: float(kn.peak_threshold(omega.size, settings.pfa)),
                 }
             ),
             names.SUB_STOP_REASON: reason_str,
             names.SUB_N_MODES: r.n_modes,
         }
     )
-    out = out.assign_coords({names.CANDIDATE: np.arange(n_keep)})
-    to_attrs(settings, out.attrs)
-    _warn_caps(out, max_modes)
-    if int(r.n_modes.sum()) == 0:
-        _explain_no_modes(out, frf, r.sigma, pfa, zeta_max, omega.size)
-    return c.finish(out, "ami_xr.subtract", "subtract", parameters(settings))
+    return out.assign_coords({names.CANDIDATE: np.arange(n_keep)})
 
 
 def band_of(ds: xr.Dataset, fmin, fmax, function: str) -> xr.Dataset:
