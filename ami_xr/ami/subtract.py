@@ -254,9 +254,7 @@ def _assign_outputs(ds: xr.Dataset, r, omega: np.ndarray, settings: SubtractSett
                 {units: f"{frf_units} {names.ANGULAR_UNITS}"}
             ),
             names.SUB_BAND_LOW: r.band_low.isel(sl).assign_attrs({units: names.FREQUENCY_UNITS}),
-            names.SUB_BAND_HIGH: r.band_high.isel(sl).assign_attrs(
-                {units: names.FREQUENCY_UNITS}
-            ),
+            names.SUB_BAND_HIGH: r.band_high.isel(sl).assign_attrs({units: names.FREQUENCY_UNITS}),
             names.SUB_NOISE_FLOOR: r.sigma.assign_attrs(
                 {
                     units: frf_units,
