@@ -17,9 +17,7 @@ HAMMER = SHARED_DATA / "impact_hammer.lvm"
 
 
 def _section() -> str:
-    text = (REPO / "README.md").read_text(encoding="utf-8")
-    start = text.index("## For test-lab users")
-    return text[start : text.index("\n## ", start + 3)]
+    return (REPO / "docs" / "testlab.md").read_text(encoding="utf-8")
 
 
 def _blocks(section: str, language: str) -> list[str]:
