@@ -352,8 +352,8 @@ def frf(
     Parameters
     ----------
     ds : xarray.Dataset
-        Time Dataset: ``response`` ([record,] point, time), ``force`` ([record,] [reference,]
-        time), ``time`` coordinate in s (uniform). May be dask-backed (opened lazily with
+        Time Dataset: ``response`` ([record,] point, time), ``force`` ``([record,] [reference,]
+        time)``, ``time`` coordinate in s (uniform). May be dask-backed (opened lazily with
         :func:`ami_xr.open_dataset`); it is then read one time chunk at a time. Records are
         averaged together; no segment spans two records.
     estimator : {"H1", "H2", "Hv"}
@@ -479,8 +479,8 @@ def impact_frf(
     Parameters
     ----------
     ds : xarray.Dataset
-        Time Dataset: ``response`` ([record,] point, time), ``force`` ([record,] [reference,]
-        time), ``time`` coordinate in s (uniform); ``record`` is the hit.
+        Time Dataset: ``response`` ([record,] point, time), ``force`` ``([record,] [reference,]
+        time)``, ``time`` coordinate in s (uniform); ``record`` is the hit.
     estimator, force, fs
         As for :func:`frf`.
     force_window : float, optional
