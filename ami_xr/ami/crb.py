@@ -93,7 +93,16 @@ def cramer_rao_bound(
     noise_kind : {"uniform", "gaussian"}, optional
         Distribution of eq. 15's ``r``; default ``frf.attrs["noise_kind"]`` or ``"uniform"``.
     frf_noise_std : float or array (point), optional
-        Instead of eq. 15: the noise of one FRF line, ``sqrt(E |noise|^2)``, per point.
+        Instead of eq. 15: the noise of one FRF line, ``sqrt(E |noise|^2)``, per point
+        (per (reference, point) for multi-reference FRFs).
+
+    Multi-reference FRFs (``frf`` with dims (reference, point, frequency)): the truth needs
+    ``mode_vector`` (point, mode) on the measured points and the references (a reference need
+    not be measured); the residue of response ``p`` to a force at ``r`` is
+    ``lam phi_p phi_r``. The bound is that of the shared-pole model with a free residue per
+    (reference, point) FRF -- the model :func:`ami_xr.identify` fits to all references -- and
+    ``residue_std`` and ``frf_noise_std`` are on (reference, point); no mode-vector bound is
+    given (the mode vector of several references is a rank-one factorisation).
     band, residual_terms
         As in :func:`ami_xr.refine` (the bound is for that estimator's model).
 
@@ -108,6 +117,16 @@ def cramer_rao_bound(
         ``sqrt(2/pi) std / value``) and ``mode_vector_error`` (mode; ``E |dPhi| / |Phi|``),
         plus ``frf_noise_std`` (point).
     """
+    if names.REFERENCE in frf.dims:
+        return _multi_reference_bound(
+            truth,
+            frf,
+            noise_level=noise_level,
+            noise_kind=noise_kind,
+            frf_noise_std=frf_noise_std,
+            band=band,
+            residual_terms=residual_terms,
+        )
     for var, dims in (
         (names.EIGENVALUE, (names.MODE,)),
         (names.RESIDUE, (names.POINT, names.MODE)),
@@ -276,3 +295,79 @@ def _mode_vector_error(cov, k, drive, noise_var, power, lam_k):
             put(2 * j, 2 + 2 * drive, -0.5 * phi[j] / residue[drive])
     cov_phi = jac @ big @ jac.T
     return expected_norm(cov_phi) / np.linalg.norm(phi)
+
+
+REPEATED_POLE = "repeated_pole"  # output of the multi-reference bound: mode shares its pole
+
+
+def _multi_reference_bound(truth, frf, **kw) -> xr.Dataset:
+    """:func:`cramer_rao_bound` of multi-reference FRFs: every (reference, point) FRF one more
+    FRF of the same poles, stacked on ``point`` and bounded as one SIMO set."""
+    if names.EIGENVALUE not in truth or names.MODE_VECTOR not in truth:
+        raise AmiXrValueError(
+            "truth: a multi-reference bound needs 'eigenvalue' (mode) and 'mode_vector' "
+            "(point, mode) (the residues follow as lam phi_p phi_r)"
+        )
+    refs = list(np.asarray(frf[names.REFERENCE].values).tolist())
+    points = list(np.asarray(frf[names.POINT].values).tolist())
+    phi = truth[names.MODE_VECTOR]
+    known = set(np.asarray(phi[names.POINT].values).tolist())
+    missing = [x for x in refs + points if x not in known]
+    if missing:
+        raise AmiXrValueError(f"truth: 'mode_vector' has no entry for the labels {missing}")
+    lam = truth[names.EIGENVALUE].transpose(names.MODE).values.astype(np.complex128)
+    pp = phi.sel({names.POINT: points}).transpose(names.POINT, names.MODE).values
+    pr = phi.sel({names.POINT: refs}).transpose(names.POINT, names.MODE).values
+    residue = lam[None, None, :] * pr[:, None, :] * pp[None, :, :]  # (R, P, K)
+    # An exactly repeated root is one pole of the data (its residues add up): bounded as one
+    # pole, whose bound both members get.
+    group = np.arange(lam.size)
+    for k in range(lam.size):
+        same = np.flatnonzero(np.abs(lam[:k] - lam[k]) <= 1e-12 * np.abs(lam[k]))
+        group[k] = group[same[0]] if same.size else k
+    poles, first = np.unique(group, return_index=True)
+    pole_of = np.searchsorted(poles, group)
+    summed = np.zeros((*residue.shape[:2], poles.size), np.complex128)
+    np.add.at(summed, (slice(None), slice(None), pole_of), residue)
+    labels = [f"{r}@{p}" for r in refs for p in points]
+    stacked_truth = xr.Dataset(
+        {
+            names.EIGENVALUE: ((names.MODE,), lam[first]),
+            names.RESIDUE: (
+                (names.POINT, names.MODE),
+                summed.reshape(len(refs) * len(points), poles.size),
+            ),
+        },
+        coords={names.POINT: labels, names.MODE: np.arange(poles.size)},
+    )
+    stacked_frf = xr.Dataset(coords={names.FREQUENCY: frf[names.FREQUENCY]}, attrs=dict(frf.attrs))
+    stacked_frf.attrs.pop(names.ATTR_DRIVE_POINT, None)
+    std = kw.pop("frf_noise_std")
+    if isinstance(std, xr.DataArray) and names.REFERENCE in std.dims:
+        std = xr.DataArray(
+            std.transpose(names.REFERENCE, names.POINT).values.ravel(),
+            dims=(names.POINT,),
+            coords={names.POINT: labels},
+        )
+    out = cramer_rao_bound(stacked_truth, stacked_frf, frf_noise_std=std, **kw)
+    out = out.isel({names.MODE: pole_of}).assign_coords(
+        {names.MODE: truth[names.EIGENVALUE][names.MODE].values}
+    )
+    shape = (len(refs), len(points))
+    res_std = out[names.RESIDUE_STD].transpose(names.POINT, names.MODE).values
+    line = out[names.FRF_NOISE_STD].values
+    out = out.drop_vars([names.RESIDUE_STD, names.FRF_NOISE_STD, names.POINT])
+    rp = (names.REFERENCE, names.POINT)
+    out = out.assign_coords({names.REFERENCE: refs, names.POINT: points}).assign(
+        {
+            names.RESIDUE_STD: ((*rp, names.MODE), res_std.reshape(*shape, lam.size)),
+            REPEATED_POLE: ((names.MODE,), np.bincount(pole_of)[pole_of] > 1),
+            names.FRF_NOISE_STD: (rp, line.reshape(shape)),
+        }
+    )
+    out.attrs.pop(names.ATTR_DRIVE_POINT, None)
+    out.attrs[names.ATTR_MULTI_REFERENCE] = (
+        f"{len(refs)} references: shared poles, a free residue per (reference, point) FRF; "
+        "the members of an exactly repeated root share one pole's bound"
+    )
+    return out

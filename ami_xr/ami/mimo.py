@@ -27,6 +27,7 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.ami import common as c
 from ami_xr.ami import pipeline as pl
+from ami_xr.ami import repeated as rp
 from ami_xr.ami.global_fit import global_fit, mode_vector_units
 from ami_xr.ami.pipeline import identify_single, with_quality
 from ami_xr.ami.refine import refine as refine_phase
@@ -257,6 +258,8 @@ def identify_multi_reference(
     modes = _rank_one_modes(out, refs, pairs, sigma)
     if len(pairs) >= 2:
         out, modes = _separate_repeated(out, modes, refs, pairs, sigma)
+    # a pair no two references separate may still show in one reference's band (issue 22)
+    modes.repeated |= rp.suspected(*rp.band_rank_statistics(out)) & ~modes.separated
     out = _with_mode_outputs(out, modes, ds, bool(pairs))
     if np.any(modes.repeated):
         warnings.warn(

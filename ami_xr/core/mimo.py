@@ -169,3 +169,56 @@ def split_repeated(
     scale = np.abs(phi).max(axis=0)
     misfit = max(float(np.max(np.abs(part[r] - phi[p]) / scale)) for p, r in pairs)
     return phi, part, misfit
+
+
+def band_rank(
+    residual: np.ndarray,
+    noise_std: np.ndarray,
+    basis: np.ndarray,
+    residue: np.ndarray,
+    use: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Singular values of each mode's own part of the data within its band: is it one mode?
+
+    Within a mode's half-power band the data less every other term of the fitted model is
+    ``D = residual + A b(lam)`` (point x line): one mode makes it rank one (the mode vector times
+    ``b(lam, w)``) plus noise; two poles whose shapes differ (a repeated root split by less
+    than the bandwidth, which one reference sees as one mode) make the shape vary across the
+    band, and ``D`` rank two. Each row is divided by its FRF's noise standard deviation, so that
+    pure noise gives singular values up to about ``sqrt(P) + sqrt(n)`` (P rows, n lines).
+
+    Parameters
+    ----------
+    residual : ndarray of complex (P, F)
+        Data minus the fitted model.
+    noise_std : ndarray (P,)
+        Per-line noise standard deviation of each FRF (complex).
+    basis : ndarray of complex (K, F)
+        ``b(lam_k, w)`` of each mode's positive pole (unit residue).
+    residue : ndarray of complex (P, K)
+        The fitted residues.
+    use : ndarray of bool (K, F)
+        The lines of each mode's band.
+
+    Returns
+    -------
+    ratio : ndarray (K,)
+        ``s2 / s1`` of the whitened ``D`` (NaN with fewer than two rows or lines).
+    excess : ndarray (K,)
+        ``s2 / (sqrt(P) + sqrt(n))``: above about 1, the second direction is more than noise.
+    """
+    n_k = basis.shape[0]
+    ratio = np.full(n_k, np.nan)
+    excess = np.full(n_k, np.nan)
+    sd = np.asarray(noise_std, dtype=float)
+    ok = np.isfinite(sd) & (sd > 0)
+    for k in range(n_k):
+        cols = np.flatnonzero(use[k])
+        if cols.size < 2 or ok.sum() < 2:
+            continue
+        d = residual[np.ix_(ok, cols)] + np.outer(residue[ok, k], basis[k, cols])
+        s = np.linalg.svd(d / sd[ok, None], compute_uv=False)
+        if s[0] > 0:
+            ratio[k] = s[1] / s[0]
+            excess[k] = s[1] / (np.sqrt(ok.sum()) + np.sqrt(cols.size))
+    return ratio, excess
