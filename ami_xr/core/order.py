@@ -135,7 +135,7 @@ def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=0.1):
     is smoothed over the typical bandwidth (in lines) of the modes found. Only peaks above the
     chi-square level of false-alarm probability ``screen_pfa`` over the band are returned (a cheap
     screen before the likelihood-ratio test): candidate data poles, damping the median of the
-    modes found.
+    modes found. Also returns ``S`` smoothed and the level, ``(candidates, smooth, level)``.
     """
     from scipy.stats import chi2  # lazy: scipy.stats is slow to import
 
@@ -155,6 +155,7 @@ def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=0.1):
     smooth[-m - 1 :] = 0.0
     n_point = prob.n_points
     level = chi2.isf(screen_pfa / n_line, 2 * n_point * m) / m
+    whole = smooth.copy()
     out = []
     for _ in range(n_candidates):
         i = int(np.argmax(smooth))
@@ -163,7 +164,7 @@ def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=0.1):
         w = omega[i]
         out.append(-zeta * w + 1j * w * np.sqrt(1.0 - zeta**2))
         smooth[max(i - 3 * m, 0) : i + 3 * m + 1] = 0.0
-    return out
+    return out, whole, level
 
 
 def _costs_without_each_mode(prob, proj):
@@ -393,13 +394,22 @@ def _add_missed(
     fit = state.fit
     if not (fit.proj.ok and np.isfinite(fit.cost)):
         return False
-    peaks = _residual_candidates(prob, fit)
+    peaks, power, level = _residual_candidates(prob, fit)
     ref0 = np.where(state.free, state.lam0, fit.lam + decay)
     trials = [
         (np.append(fit.lam, c), np.append(ref0, c + decay), 1, np.empty(0, int)) for c in peaks
     ]
-    # frozen modes first: a mode that could not be refined marks what the model misses
-    centres = [c.imag for c in peaks] + list(fit.lam.imag[np.argsort(state.free, kind="stable")])
+    # Clusters are refitted around the peaks, around frozen modes (a mode that could not be
+    # refined marks what the model misses) and around modes whose band holds residual
+    # structure above the screening level (a pole hidden in a cluster leaves no peak of its own)
+    width = np.maximum(2.0 * np.abs(fit.lam.real), min_width)
+    busy = [
+        np.max(power[np.abs(prob.omega - fit.lam[k].imag) <= 3.0 * width[k]], initial=0.0) > level
+        for k in range(fit.lam.size)
+    ]
+    suspect = ~state.free | np.array(busy, bool)
+    order = np.argsort(state.free, kind="stable")  # frozen modes first
+    centres = [c.imag for c in peaks] + list(fit.lam.imag[order][suspect[order]])
     trials += _cluster_starts(prob, state, decay, min_width, centres)
     best, best_score = None, 0.0
     for start, ref, n_add, removed in trials:
