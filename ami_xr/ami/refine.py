@@ -61,7 +61,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import common as c
-from ami_xr.ami.global_fit import RESIDUAL_KIND, mode_vector_units, residue_units
+from ami_xr.ami.global_fit import RESIDUAL_KIND, receptance_mode_vectors, residue_units
 from ami_xr.ami.settings import (
     FrfAttributes,
     GlobalFitSettings,
@@ -221,12 +221,14 @@ def refine(
         A mode that moves farther than this many half-power bandwidths ``2 |Re lam|`` from its
         AMI eigenvalue is frozen at the AMI value (flag ``refine_fallback``).
     add_modes : int
-        At most this many modes AMI missed are added (0: never). After the fit, the peaks of the
-        noise-normalised residual power, smoothed over a typical bandwidth, are tried as extra
-        modes; one is kept when the likelihood-ratio statistic ``2 (f_K - f_K+1)`` exceeds the
-        chi-square quantile with ``2 + 2 P`` degrees of freedom at ``add_pfa / L`` (a false
-        alarm probability ``add_pfa`` over ``L`` lines). Added modes come last, flagged
-        ``added_by_refine``, with NaN AMI values.
+        Safety cap on the completion steps (0: none). Each step tries one extra pole at the
+        peaks of the noise-normalised residual power and local multi-pole refits of the
+        clusters where the residual shows structure (:mod:`ami_xr.core.order`), and keeps the
+        trial whose likelihood-ratio gain less the chi-square quantile (``2 + 2 P`` degrees
+        of freedom at ``add_pfa / L``) per added mode is largest and positive; steps stop when
+        none gains (noise-free data: when the fit is exact). Reaching the cap is reported
+        (``ami_capped``: ``refine:add_modes``, ConvergenceWarning). Added modes come last,
+        flagged ``added_by_refine``, with NaN AMI values.
     add_pfa : float
         False-alarm probability of that test, in (0, 1).
     drop_modes : bool
@@ -376,16 +378,25 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
         {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
     )
     res_units = residue_units(units_frf or "")
-    phi_units = mode_vector_units(units_frf or "", drive_index is not None)
     new[names.RESIDUE] = r.residue.transpose(P, M).assign_attrs(res_units)
-    new[names.MODE_VECTOR] = r.mode_vector.transpose(P, M).assign_attrs(phi_units)
+    # one mode-vector convention (displacement) whatever the FRF type: global_fit's helper
+    phi, phi_attrs = receptance_mode_vectors(
+        r.residue.transpose(P, M).values, lam.values, drive_index, ds.attrs, units_frf or ""
+    )
+    new[names.MODE_VECTOR] = r.mode_vector.transpose(P, M).copy(data=phi).assign_attrs(phi_attrs)
+    phi_units = {k: v for k, v in phi_attrs.items() if k == names.ATTR_UNITS}
     new[names.EIGENVALUE_STD] = r.eig_std.assign_attrs({names.ATTR_UNITS: names.ANGULAR_UNITS})
     new[names.NATURAL_FREQUENCY_STD] = r.fn_std.assign_attrs(hz)
     new[names.DAMPING_RATIO_STD] = r.zeta_std.assign_attrs(
         {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
     )
     new[names.RESIDUE_STD] = r.residue_std.transpose(P, M).assign_attrs(res_units)
-    new[names.MODE_VECTOR_STD] = r.mode_vector_std.transpose(P, M).assign_attrs(phi_units)
+    # the convention scales each mode by one complex factor; the std follows its magnitude
+    old = np.linalg.norm(r.mode_vector.transpose(P, M).values, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(old > 0, np.linalg.norm(phi, axis=0) / old, 1.0)
+    phi_std = r.mode_vector_std.transpose(P, M) * ratio[None, :]
+    new[names.MODE_VECTOR_STD] = phi_std.assign_attrs(phi_units)
     new[names.FRF_NOISE_STD] = r.noise_std.assign_attrs(
         {names.ATTR_UNITS: units_frf} if units_frf else {}
     )
