@@ -72,12 +72,8 @@ def isolate_batch(
 
     Parameters
     ----------
-    data : ndarray of complex, shape (P, F)
-        FRFs.
-    omega : ndarray of float, shape (F,)
-        Angular frequencies in rad/s, strictly increasing.
-    dt, n_samples : float or None, int or None
-        Discrete model; None (or 0) for the continuous one.
+    data, omega, dt, n_samples
+        FRFs (P, F), their lines and data model: see :func:`~.peak.check_inputs`.
     lam0, res0 : ndarray of complex, shape (P, S)
         Starting eigenvalues and residues (the Subtraction Phase's candidates).
     n0 : ndarray of int, shape (P,)
@@ -194,12 +190,8 @@ def point_estimates(
 
     Parameters
     ----------
-    data : ndarray of complex, shape (P, F)
-        FRFs.
-    omega : ndarray of float, shape (F,)
-        Angular frequencies in rad/s, strictly increasing.
-    dt, n_samples : float or None, int or None
-        Discrete model; None (or 0) for the continuous one.
+    data, omega, dt, n_samples
+        FRFs (P, F), their lines and data model: see :func:`~.peak.check_inputs`.
     lam : ndarray of complex, shape (K,)
         System eigenvalues.
     res : ndarray of complex, shape (P, K)

@@ -171,8 +171,19 @@ def peak_trial(y, power, scene, peak, delta, min_points, wts, res_out, masked):
 def check_inputs(
     data: np.ndarray, omega: np.ndarray, dt: float | None, n_samples: int | None
 ) -> tuple[np.ndarray, np.ndarray, float, int]:
-    """``(data, omega, dt, n_samples)`` as the kernels take them: FRFs (P, F) complex, F strictly
-    increasing frequencies, ``dt`` finite and >= 0 (0: continuous model), ``n_samples`` >= 0."""
+    """``(data, omega, dt, n_samples)`` as the kernels take them (contiguous complex data, ``dt``
+    a float, ``n_samples`` an int), checked.
+
+    Parameters
+    ----------
+    data : ndarray of complex, shape (P, F)
+        The FRFs, one a row.
+    omega : ndarray of float, shape (F,)
+        Their angular frequencies (rad/s), strictly increasing.
+    dt, n_samples : float or None, int or None
+        Discrete model (sampling interval and record length, finite and >= 0); None (or 0) for
+        the continuous one.
+    """
     omega = checked_omega(omega)
     data = np.ascontiguousarray(data, dtype=np.complex128)
     if data.ndim != 2 or data.shape[1] != omega.size:

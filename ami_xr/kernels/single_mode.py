@@ -27,8 +27,8 @@ the partial-fraction residue ``r = (e1 v1 + e0) / (v1 - v2)`` gives ``A = ws r``
 The two-mode analogue of (*) is in :mod:`.two_mode`. Jitted, unchecked helpers for the other
 kernel modules: ``fit_single`` (one eigenvalue from one or many FRFs: the fit step of the
 isolation engine, :mod:`.isolate`, and of the peak trial, :mod:`.peak`) and ``pole_code``.
-Checked wrappers: :func:`single_mode_rows`, :func:`fit_single_mode`,
-:func:`fit_single_mode_simo`. A fit returns one of the ``FIT_*`` codes below; ``FitLimits``
+Checked wrappers: :func:`single_mode_rows`, :func:`fit_single_mode` (one FRF or many).
+A fit returns one of the ``FIT_*`` codes below; ``FitLimits``
 holds the limits a pole must meet.
 """
 
@@ -275,13 +275,15 @@ def fit_single_mode(
     *,
     zeta_max: float = 1.0,
     prev: complex | None = None,
-) -> tuple[complex, complex, int]:
-    """Linear least-squares single-mode fit of one FRF over all given lines.
+) -> tuple[complex, complex | np.ndarray, int]:
+    """Linear least-squares single-mode fit over all given lines: of one FRF, or (global SIMO
+    fit) one eigenvalue from all rows of ``data`` with one residue each (each row scaled by its
+    largest magnitude, so the rows weigh alike).
 
     Parameters
     ----------
-    data : ndarray of complex, shape (F,)
-        One FRF on the fit band.
+    data : ndarray of complex, shape (F,) or (P, F)
+        One FRF, or P FRFs, on the fit band.
     omega : ndarray of float, shape (F,)
         Angular frequencies in rad/s, strictly increasing.
     dt, n_samples : optional
@@ -293,52 +295,27 @@ def fit_single_mode(
 
     Returns
     -------
-    lam, residue : complex
+    lam : complex
+    residue : complex, or ndarray of complex of shape (P,) for 2-D ``data``
     code : int
         ``FIT_OK`` (0) for a physical fit, else a ``FIT_*`` rejection code.
     """
     omega = checked_omega(omega)
     data = check_frf(data, omega)
-    if data.ndim != 1:
-        raise AmiXrValueError(f"data: expected one FRF of shape {omega.shape}, got {data.shape}")
-    lam, res, code = fit_single_mode_simo(
-        data[None, :], omega, dt, n_samples, zeta_max=zeta_max, prev=prev
-    )
-    return lam, res[0], code
-
-
-def fit_single_mode_simo(
-    data: np.ndarray,
-    omega: np.ndarray,
-    dt: float | None = None,
-    n_samples: int | None = None,
-    *,
-    zeta_max: float = 1.0,
-    prev: complex | None = None,
-) -> tuple[complex, np.ndarray, int]:
-    """Global SIMO single-mode fit: one eigenvalue from all rows of ``data``, one residue each
-    (each row scaled by its largest magnitude, so the rows weigh alike).
-
-    Parameters are those of :func:`fit_single_mode`, with ``data`` of shape (P, F).
-
-    Returns
-    -------
-    lam : complex
-    residues : ndarray of complex, shape (P,)
-    code : int
-    """
-    omega = checked_omega(omega)
-    data = check_frf(np.atleast_2d(data), omega)
-    if data.ndim != 2:
-        raise AmiXrValueError(f"data: expected shape (P, {omega.size}), got {data.shape}")
+    one = data.ndim == 1
+    if data.ndim not in (1, 2):
+        raise AmiXrValueError(
+            f"data: expected shape ({omega.size},) or (P, {omega.size}), got {data.shape}"
+        )
+    rows = data[None, :] if one else data
     dt = as_dt(dt)
-    res = np.full(data.shape[0], complex(np.nan, np.nan))
-    peak = np.max(np.abs(data), axis=1) if data.size else np.zeros(data.shape[0])
-    if not np.all(peak > 0.0):  # an all-zero row: nothing to fit
-        return complex(np.nan, np.nan), res, FIT_SINGULAR
-    ws = float(np.mean(omega)) or 1.0
-    limits = FitLimits(check_zeta_max(zeta_max), 0.0, np.inf)
-    grid = Grid(omega, line_variable(omega, dt), dt, int(n_samples or 0))
-    prev = complex(np.nan, np.nan) if prev is None else complex(prev)
-    lam, code = fit_single(data, grid, 0, omega.size, ws, limits, prev, 1.0 / peak, res)
-    return lam, res, code
+    res = np.full(rows.shape[0], complex(np.nan, np.nan))
+    peak = np.max(np.abs(rows), axis=1) if rows.size else np.zeros(rows.shape[0])
+    lam, code = complex(np.nan, np.nan), FIT_SINGULAR
+    if np.all(peak > 0.0):  # an all-zero row: nothing to fit
+        ws = float(np.mean(omega)) or 1.0
+        limits = FitLimits(check_zeta_max(zeta_max), 0.0, np.inf)
+        grid = Grid(omega, line_variable(omega, dt), dt, int(n_samples or 0))
+        prev = complex(np.nan, np.nan) if prev is None else complex(prev)
+        lam, code = fit_single(rows, grid, 0, omega.size, ws, limits, prev, 1.0 / peak, res)
+    return lam, (res[0] if one else res), code

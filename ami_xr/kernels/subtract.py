@@ -138,18 +138,9 @@ def subtract_batch(
     n_samples: int | None,
     params: SubtractParams,
 ) -> SubtractResult:
-    """Subtraction Phase on every FRF.
-
-    Parameters
-    ----------
-    data : ndarray of complex, shape (P, F)
-        FRFs.
-    omega : ndarray of float, shape (F,)
-        Angular frequencies in rad/s, strictly increasing.
-    dt, n_samples : float or None, int or None
-        Discrete model; None (or 0) for the continuous one.
-    params : SubtractParams
-        Settings.
+    """Subtraction Phase on every FRF (rows of ``data``; ``data``, ``omega``, ``dt`` and
+    ``n_samples`` as :func:`~.peak.check_inputs` takes them), with the settings ``params``
+    (a :class:`SubtractParams`).
 
     Returns
     -------

@@ -111,7 +111,7 @@ def test_simo_single_mode_exact(dt, n):
     res = np.array([1e-3 + 2e-3j, -3e-3 + 1e-3j, 5e-4 - 1e-4j])
     sel = _band(46, 50)
     g = np.stack([mode_contribution(OMEGA, lam, r, dt, n)[sel] for r in res])
-    est, r_est, code = k.fit_single_mode_simo(g, OMEGA[sel], dt, n)
+    est, r_est, code = k.fit_single_mode(g, OMEGA[sel], dt, n)
     assert code == k.FIT_OK
     # exact data: the linear least squares is consistent, so only rounding remains (measured 2e-16);
     # 1e-12 leaves room for other CPUs and BLAS

@@ -231,10 +231,10 @@ def test_fit_single_mode_recovers_a_noise_free_mode_and_scales(data, n_lines, c)
 
 @_SETTINGS
 @given(data=st.data(), n_lines=st.integers(6, 40))
-def test_fit_single_mode_simo_recovers_one_eigenvalue_and_every_residue(data, n_lines):
+def test_fit_single_mode_on_many_frfs_recovers_one_eigenvalue_and_every_residue(data, n_lines):
     lam, res, dt, n, omega = _single_mode_case(data, n_lines)
     frf = np.array([contribution_ref(omega, lam, a, dt, n) for a in res])
-    lam_fit, res_fit, code = single_mode.fit_single_mode_simo(frf, omega, dt, n)
+    lam_fit, res_fit, code = single_mode.fit_single_mode(frf, omega, dt, n)
     assert code == single_mode.FIT_OK
     # as for the per-FRF fit: exact model, rounding times the condition number
     assert abs(lam_fit - lam) <= FIT_RTOL * abs(lam)
@@ -456,7 +456,7 @@ def test_mismatched_shapes_are_named(p, k, dp, dk):
     with pytest.raises(AmiXrValueError, match=r"^data: "):
         single_mode.fit_single_mode(np.ones(OMEGA.size + dk, complex), OMEGA)
     with pytest.raises(AmiXrValueError, match=r"^data: "):
-        single_mode.fit_single_mode_simo(np.ones((p, OMEGA.size - dk), complex), OMEGA)
+        single_mode.fit_single_mode(np.ones((p, OMEGA.size - dk), complex), OMEGA)
     with pytest.raises(AmiXrValueError, match=r"^coef: "):
         modal_basis.synthesize_residual_terms(OMEGA, np.ones((p, 2 + dk)), 0)
     with pytest.raises(AmiXrValueError, match=r"^nmat: "):
