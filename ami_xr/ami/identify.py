@@ -41,6 +41,7 @@ def identify(
     zeta_max: float = SubtractSettings.zeta_max,
     fmin: float | None = None,
     fmax: float | None = None,
+    compress: str | int = "auto",
     progress=False,
 ) -> xr.Dataset:
     """Identify modes: :func:`subtract`, :func:`isolate`, :func:`global_fit` and, by default,
@@ -71,6 +72,12 @@ def identify(
         ``AssumptionWarning``; otherwise every line. Only the band is analysed (the output
         holds its lines), no mode outside it is reported (dropped ones: attr
         ``analysis_band_dropped_modes``), and attrs ``analysis_band_*`` record it.
+    compress : "auto", "off" or int, default "auto"
+        Many points (:mod:`ami_xr.ami.scale`): the phases run on a few virtual FRFs (real,
+        noise-weighted combinations of the FRFs spanning their dominant subspace), which gives
+        the eigenvalues, then every point's residues are fitted at them in one pass. "auto"
+        does so to 48 virtual FRFs above 192 points, an int ``r`` to ``r`` virtual FRFs, "off"
+        never. What is exact and what approximate: :mod:`ami_xr.core.compress`.
     progress : bool or callable, default False
         True draws a bar of the phases (subtract, isolate, global_fit, refine) on stderr,
         labelled with the numbers of FRFs and lines, its elapsed time moving during a long phase
@@ -115,6 +122,7 @@ def identify(
         zeta_max=zeta_max,
         fmin=fmin,
         fmax=fmax,
+        compress=compress,
     )
     if mimo.is_multi_reference(ds):  # dims (reference, point, frequency)
         result = mimo.identify_multi_reference(ds, settings, progress)

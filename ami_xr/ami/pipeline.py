@@ -15,6 +15,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import common as c
+from ami_xr.ami import scale as scale_out
 from ami_xr.ami.global_fit import global_fit
 from ami_xr.ami.isolate import METHODS as ISOLATE_METHODS
 from ami_xr.ami.isolate import isolate
@@ -65,7 +66,11 @@ def identify_single(ds: xr.Dataset, settings: IdentifySettings, progress=False) 
     scale = float(power_of_two_scale(peak))
     work = ds if scale == 1.0 else ds.assign({names.FRF: ds[names.FRF] * scale})
     with nested_calls():  # the phases are identify's, which records itself
-        result = _phases(work, settings, refined, progress)
+        how = scale_out.uses_compression(work, settings)  # many points: poles on virtual FRFs
+        if how is None:
+            result = _phases(work, settings, refined, progress)
+        else:
+            result = scale_out.identify_compressed(work, settings, refined, progress, _phases, how)
     if scale != 1.0:
         result = unscale(result, ds, scale)
     result = _window_corrected(result, from_attrs(FrfAttributes, ds.attrs))

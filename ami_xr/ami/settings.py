@@ -109,6 +109,7 @@ class IdentifySettings:
     zeta_max: float = SubtractSettings.zeta_max
     fmin: float | None = None
     fmax: float | None = None
+    compress: str | int = "auto"  # ami_xr.ami.scale: pole work on virtual FRFs for many points
 
 
 def _encode(value: Any) -> Any:
