@@ -269,8 +269,11 @@ def _final_lines(ds: xr.Dataset, virtual: xr.Dataset, lam: np.ndarray, refined: 
     else:
         band = virtual.attrs.get(names.ATTR_AMI_BAND_USED, virtual.attrs.get(names.ATTR_AMI_BAND))
         use = _band_mask(omega, lam, band if band == "all" else float(band))
-        kind = RESIDUAL_KIND.get(frf_type, 0) if int(virtual.attrs.get(
-            names.ATTR_AMI_RESIDUAL_TERMS, 0)) else -1
+        kind = (
+            RESIDUAL_KIND.get(frf_type, 0)
+            if int(virtual.attrs.get(names.ATTR_AMI_RESIDUAL_TERMS, 0))
+            else -1
+        )
     if kind in (0, 1):
         use = use & (omega > 0)  # the lower residual is singular at 0 Hz
     if 2 * int(use.sum()) < 2 * lam.size + (4 if kind >= 0 else 0) + 1:

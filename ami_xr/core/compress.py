@@ -20,8 +20,10 @@ is ``O(r (P_chunk + L))`` and every pass over the data is one map over chunks an
 
 Weighting: each FRF is divided by its noise scale (:func:`noise_scale`) before compression, so
 that noise is about unit at every point and the compressed least-squares problem approximates
-the weighted one. What is exact: with unit, independent noise per point and orthonormal ``Q``,
-the noise of each virtual FRF is unit too; and for any poles, the weighted residual cost
+the weighted one (the noise of a virtual FRF is unit for a basis independent of the noise; the
+basis found from the data leans towards directions where the noise happens to be larger, by at
+most the Marchenko-Pastur factor ``(1 + sqrt(P / 2L))^2`` in energy). What is exact: for any
+poles, the weighted residual cost
 ``||Hr_w P_perp||^2`` (``P_perp`` projecting out the modal basis) equals
 ``||B P_perp||^2 + ||(I - Q Q^T) Hr_w P_perp||^2``. What is approximate: the second term (the
 part of the data outside the kept basis) is dropped; it holds noise, plus any signal whose
