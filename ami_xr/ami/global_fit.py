@@ -41,6 +41,56 @@ def mode_vector_units(frf_units: str, scaled: bool) -> dict:
     return {names.ATTR_UNITS: f"sqrt({frf_units})"} if frf_units else {}
 
 
+# --- the mode-vector convention: displacement (receptance) mode vectors whatever was measured ---
+ATTR_MODE_VECTOR_CONVENTION = "convention"  # on MODE_VECTOR
+MODE_VECTOR_CONVENTION = (
+    "displacement: Phi_j Phi_P = A_jP / lam with A the residues of the receptance (the FRF "
+    "residues divided by lam^k, k = 1 for mobility, 2 for accelerance); units sqrt(receptance "
+    "units), e.g. sqrt(m/N) = s/sqrt(kg); for a lightly damped normal mode with mass-normalised "
+    "real shape psi (1/sqrt(kg)), Phi = i psi / (sqrt(2) omega_d)"
+)
+
+
+def receptance_mode_vectors(
+    residue: np.ndarray, lam: np.ndarray, drive_index: int | None, attrs, frf_units: str
+) -> tuple[np.ndarray, dict]:
+    """Mode vectors (P, K) in the displacement convention, and their attributes.
+
+    The residue of ``(i w)^k G`` at a pole ``lam`` is ``lam^k A`` (``(i w)^k = (i w - lam +
+    lam)^k``; the polynomial rest is a residual term), so the receptance residues are the FRF's
+    residues over ``lam^k`` (times 9.80665 for accelerance in g). Eq. 8 on them gives the same
+    mode vectors whether receptance, mobility or accelerance was measured.
+    """
+    from ami_xr.dsp.quantity import _convert_units  # the one unit rule of convert_quantity
+
+    quantity = attrs.get(names.ATTR_QUANTITY)
+    if quantity not in names.QUANTITY_POWER:
+        quantity = names.FRF_TYPE_TO_QUANTITY.get(
+            from_attrs(FrfAttributes, attrs).frf_type, "displacement"
+        )
+    k = names.QUANTITY_POWER[quantity]
+    units, scale = frf_units, 1.0
+    ru, fu = attrs.get(names.ATTR_RESPONSE_UNITS), attrs.get(names.ATTR_FORCE_UNITS)
+    if k and ru and fu:
+        try:
+            base, scale = _convert_units(str(ru), k, 0)
+            units = names.frf_units(base, str(fu))
+        except ValueError:  # units that do not say their derivative: keep them, say so
+            units = f"({frf_units}) s^{k}" if frf_units else ""
+    elif k:
+        units = f"({frf_units}) s^{k}" if frf_units else ""
+    phi = mode_vectors(residue * scale / lam[None, :] ** k, lam, drive_index)
+    scaled = drive_index is not None
+    out = {
+        names.ATTR_SCALING: "eq. 8 at the drive point"
+        if scaled
+        else "unit largest entry (no drive point)",
+        ATTR_MODE_VECTOR_CONVENTION: MODE_VECTOR_CONVENTION,
+        **mode_vector_units(units, scaled),
+    }
+    return phi, out
+
+
 def _band_mask(omega: np.ndarray, lam: np.ndarray, band) -> np.ndarray:
     if isinstance(band, str):
         if band != "all":
@@ -99,7 +149,9 @@ def global_fit(
     for impulse-response FRFs, eq. 4 otherwise). The normal matrix depends only on the
     eigenvalues, so it is formed and factorised once and solved for all FRFs.
 
-    Mode vectors follow eq. 8 scaled at the drive point (the ``drive_point`` attribute); the
+    Mode vectors follow eq. 8 scaled at the drive point (the ``drive_point`` attribute), in the
+    displacement convention whatever the FRF type (:func:`receptance_mode_vectors`: mobility
+    and accelerance residues divided by ``lam`` and ``lam^2``; attribute ``convention``); the
     sign of the square root is the principal branch. If the drive point is not one of the
     points, each mode vector is normalised to a unit largest entry and flagged
     ``unscaled_no_drive_point``.
@@ -201,8 +253,8 @@ def global_fit(
     synth_da = synth_da.rename({names.FREQUENCY_OUT: names.FREQUENCY})
     res = np.asarray(res_da.transpose(names.POINT, names.MODE).values)
     drive_index = c.drive_index(ds)
-    phi = mode_vectors(res, lam, drive_index)
     units = frf.attrs.get(names.ATTR_UNITS, "")
+    phi, phi_attrs = receptance_mode_vectors(res, lam, drive_index, ds.attrs, units)
     # drive-point SNR: peak of the mode's fitted contribution over the drive point noise floor
     if names.SUB_NOISE_FLOOR in ds:
         sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, float)
@@ -231,16 +283,7 @@ def global_fit(
             res,
             {names.ATTR_UNITS: f"{units} {names.ANGULAR_UNITS}"},
         ),
-        names.MODE_VECTOR: (
-            (names.POINT, names.MODE),
-            phi,
-            {
-                names.ATTR_SCALING: "unit largest entry (no drive point)"
-                if drive_index is None
-                else "eq. 8 at the drive point",
-                **mode_vector_units(units, drive_index is not None),
-            },
-        ),
+        names.MODE_VECTOR: ((names.POINT, names.MODE), phi, phi_attrs),
         names.FRF_SYNTHESIZED: synth_da.transpose(*frf.dims).assign_attrs(
             {names.ATTR_UNITS: units}
         ),

@@ -120,6 +120,25 @@ def _refine_block(frf, freq, lam0, res0, *, settings, model, trace) -> tuple[np.
     return tuple(getattr(result, name) for name in _OUTPUTS)
 
 
+def _line_noise_shape(ds: xr.Dataset, frf: xr.DataArray) -> np.ndarray | None:
+    """Relative noise level of each line of ``frf`` from the stored per-line noise model
+    (``frf_line_noise_std`` of a measured FRF, from its coherence and averages): the median
+    over points of each point's noise relative to its median, scaled to median 1. None when
+    the FRF has no per-line noise model (the lines are then weighted alike)."""
+    if names.FRF_LINE_NOISE_STD not in ds:
+        return None
+    sd = ds[names.FRF_LINE_NOISE_STD].transpose(P, F).sel({F: frf[F].values})
+    sd = np.asarray(sd.values, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        shape = np.nanmedian(sd / np.nanmedian(sd, axis=1, keepdims=True), axis=0)
+    ok = np.isfinite(shape) & (shape > 0)
+    if ok.sum() < 2:
+        return None
+    shape = np.where(ok, shape, np.median(shape[ok]))  # lines without a level: a typical one
+    shape = np.clip(shape / np.median(shape), 1e-3, 1e3)  # no line ignored, none dominant
+    return shape
+
+
 def _as(da: xr.DataArray, dtype) -> xr.DataArray:
     """``da`` in ``dtype`` (no copy when it already is)."""
     return da if da.dtype == dtype else da.astype(dtype)
@@ -305,6 +324,7 @@ def refine(
         residual_kind=RESIDUAL_KIND.get(data.frf_type, 0),
         drive_index=c.drive_index(ds),
         decay=float(data.exponential_window_corrected),
+        line_noise=_line_noise_shape(ds, frf),
     )
     trace = Iterations() if active() else None  # counts on a progress bar, when one listens
     if n_mode == 0:

@@ -283,6 +283,17 @@ def _time_records(ds: xr.Dataset, binary: bool) -> list[dict]:
     return records
 
 
+def _convention_lines(ds: xr.Dataset) -> tuple[str, str]:
+    """ID lines 2 and 3 of dataset 55: the mode-vector convention and units (80 columns)."""
+    attrs = ds[names.MODE_VECTOR].attrs
+    units = attrs.get(names.ATTR_UNITS, "")
+    if str(attrs.get("convention", "")).startswith("displacement"):
+        line2 = "displacement mode vectors, eq. 8: A_jP = lam Phi_j Phi_P (receptance A)"
+    else:  # a file from before the convention: scaled on the FRF as measured
+        line2 = f"mode vectors of the {ds.attrs.get(names.ATTR_FRF_TYPE, 'FRF')} (eq. 8)"
+    return line2[:80], (f"units {units}" if units else "NONE")[:80]
+
+
 def _mode_records(ds: xr.Dataset) -> list[dict]:
     """One dataset 55 (complex eigenvalue, first order, displacement) per mode."""
     require_pyuff()  # the clear "install the uff extra" error before any work
@@ -295,6 +306,7 @@ def _mode_records(ds: xr.Dataset) -> list[dict]:
     records = []
     rotational = any(abs(dof[lab][1]) > 3 for lab in labels)
     ncomp = 6 if rotational else 3
+    id2, id3 = _convention_lines(ds)
     for k in range(eig.size):
         comps = np.zeros((ncomp, len(nodes)), dtype=np.complex128)
         for i, lab in enumerate(labels):
@@ -311,8 +323,8 @@ def _mode_records(ds: xr.Dataset) -> list[dict]:
             {
                 "type": 55,
                 "id1": "ami_xr mode shapes",
-                "id2": "NONE",
-                "id3": "NONE",
+                "id2": id2,
+                "id3": id3,
                 "id4": "NONE",
                 "id5": "NONE",
                 "model_type": 1,
