@@ -3,6 +3,7 @@
     pip install ami_xr[bench]                    # sdypy-EMA, only for this script
     python scripts/bench_peers.py                # 32 random systems, both methods
     python scripts/bench_peers.py --quick --no-peer   # 2 tiny systems, ami_xr only (smoke test)
+    python scripts/bench_peers.py --large        # 1000 points x 2048 lines, 12 modes (issue 21)
 
 The data: a fixed set of ``--systems`` (default 32) random lumped-mass systems from
 :func:`ami_xr.simulate.random_system`, the same for the same ``--seed`` (drawn from
@@ -300,6 +301,41 @@ def _warm(ema) -> None:
         run_sdypy(ema, frf, lam)
 
 
+LARGE = (1000, 2048, 12)  # points, lines, modes of the issue-21 case
+
+
+def large_case(ema, n_points: int, n_lines: int, n_modes: int, repeats: int = 3) -> int:
+    """The many-points case of issue 21: ``n_points`` x ``n_lines``, ``n_modes`` modes
+    (:func:`ami_xr.simulate.spread.many_points`, 2 % noise), both methods on the same data in
+    this run; the best of ``repeats`` timings of each (the machine may be shared), the ratio."""
+    from ami_xr.simulate.spread import many_points
+
+    frf, truth = many_points(n_points, n_lines, n_modes, noise=0.02, seed=0)
+    lam = truth["eigenvalue"].values
+    small, small_truth = many_points(250, 256, 5, noise=0.02, seed=1)
+    run_ami(small, small_truth["eigenvalue"].values)  # warm: compile the compressed path
+    amis = [run_ami(frf, lam) for _ in range(repeats)]
+    ami = min(amis, key=lambda r: r.seconds)
+    print(
+        f"large case: {n_points} points x {n_lines} lines, {n_modes} true modes, 2 % noise "
+        f"(best of {repeats})"
+    )
+    print(header(ema is not None), flush=True)
+    system = System(0, "spread", n_points, n_lines, n_modes, 0.02, 0)
+    auto = oracle = None
+    if ema is not None:
+        runs = [run_sdypy(ema, frf, lam) for _ in range(repeats)]
+        auto = min((r[0] for r in runs), key=lambda r: r.seconds)
+        oracle = min((r[1] for r in runs), key=lambda r: r.seconds)
+    print(row(system, ami, auto, oracle))
+    if auto is not None:
+        print(
+            f"  time ami_xr {ami.seconds:.2f} s, sdypy-EMA (auto) {auto.seconds:.2f} s, "
+            f"ratio {ami.seconds / auto.seconds:.2f}"
+        )
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__.splitlines()[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
@@ -308,6 +344,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the system set")
     parser.add_argument("--quick", action="store_true", help="2 tiny systems (unless --systems)")
     parser.add_argument("--no-peer", action="store_true", help="ami_xr only (no sdypy-EMA)")
+    parser.add_argument(
+        "--large",
+        action="store_true",
+        help="only the issue-21 case: 1000 points x 2048 lines, 12 modes (--points etc.)",
+    )
+    parser.add_argument("--points", type=int, default=LARGE[0], help="points of --large")
+    parser.add_argument("--lines", type=int, default=LARGE[1], help="lines of --large")
+    parser.add_argument("--modes", type=int, default=LARGE[2], help="modes of --large")
     args = parser.parse_args(argv)
     ema = None
     if not args.no_peer:
@@ -315,6 +359,8 @@ def main(argv: list[str] | None = None) -> int:
         if ema is None:
             print(PEER_MISSING, file=sys.stderr)
             return 2
+    if args.large:
+        return large_case(ema, args.points, args.lines, args.modes)
     n = args.systems if args.systems is not None else (2 if args.quick else N_SYSTEMS)
     if n < 1:
         parser.error(f"--systems: expected an integer >= 1, got {n}")
