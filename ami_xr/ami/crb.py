@@ -95,14 +95,6 @@ def cramer_rao_bound(
     frf_noise_std : float or array (point), optional
         Instead of eq. 15: the noise of one FRF line, ``sqrt(E |noise|^2)``, per point
         (per (reference, point) for multi-reference FRFs).
-
-    Multi-reference FRFs (``frf`` with dims (reference, point, frequency)): the truth needs
-    ``mode_vector`` (point, mode) on the measured points and the references (a reference need
-    not be measured); the residue of response ``p`` to a force at ``r`` is
-    ``lam phi_p phi_r``. The bound is that of the shared-pole model with a free residue per
-    (reference, point) FRF -- the model :func:`ami_xr.identify` fits to all references -- and
-    ``residue_std`` and ``frf_noise_std`` are on (reference, point); no mode-vector bound is
-    given (the mode vector of several references is a rank-one factorisation).
     band, residual_terms
         As in :func:`ami_xr.refine` (the bound is for that estimator's model).
 
@@ -116,6 +108,16 @@ def cramer_rao_bound(
         absolute relative errors ``natural_frequency_error``, ``damping_ratio_error`` (fractions,
         ``sqrt(2/pi) std / value``) and ``mode_vector_error`` (mode; ``E |dPhi| / |Phi|``),
         plus ``frf_noise_std`` (point).
+
+    Notes
+    -----
+    Multi-reference FRFs (``frf`` with dims (reference, point, frequency)): the truth needs
+    ``mode_vector`` (point, mode) on the measured points and the references (a reference need
+    not be measured); the residue of response ``p`` to a force at ``r`` is
+    ``lam phi_p phi_r``. The bound is that of the shared-pole model with a free residue per
+    (reference, point) FRF -- the model :func:`ami_xr.identify` fits to all references -- and
+    ``residue_std`` and ``frf_noise_std`` are on (reference, point); no mode-vector bound is
+    given (the mode vector of several references is a rank-one factorisation).
     """
     if names.REFERENCE in frf.dims:
         return _multi_reference_bound(
