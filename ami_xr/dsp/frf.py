@@ -32,6 +32,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.caller import warn
 from ami_xr.core import frf_noise as _fn
 from ami_xr.dsp.blocks import (
     check_live_channels,
@@ -185,6 +186,43 @@ def _noise_std(h, coh, gff, gyy, acc, s: _Setup, window) -> tuple[np.ndarray | N
     return std, model
 
 
+# Lines whose force cross-spectral matrix Gff has a condition number above this cannot be
+# inverted for H1 (inputs fully correlated, or a silent input at that line).
+MAX_INPUT_CONDITION = 1e10
+
+
+def _check_input_conditioning(gff: np.ndarray, frequency: np.ndarray, f_da) -> np.ndarray:
+    """Several inputs: the condition number of Gff (ref, ref, f) per line, before any FRF is
+    computed. Some lines singular: an AssumptionWarning naming them (their FRF is NaN); every
+    line singular: an error (the inputs are fully correlated, one MIMO FRF cannot be told
+    from another)."""
+    if gff.shape[0] < 2:
+        return np.zeros(frequency.size, bool)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cond = np.linalg.cond(np.moveaxis(gff, -1, 0))
+    bad = ~(cond <= MAX_INPUT_CONDITION)  # NaN and inf count as singular
+    if not bad.any():
+        return bad
+    refs = f_da[names.REFERENCE].values.tolist() if names.REFERENCE in f_da.coords else None
+    where = f"force channels {refs}" if refs is not None else "the force channels"
+    if bad.all():
+        raise AmiXrValueError(
+            f"force: {where} are fully correlated (the force cross-spectral matrix Gff is "
+            f"singular at every line, condition number > {MAX_INPUT_CONDITION:g}); the MIMO "
+            "FRFs cannot be separated. Drive the inputs with independent signals, or estimate "
+            "one reference at a time (select one force channel)"
+        )
+    lines = frequency[bad]
+    shown = ", ".join(f"{x:g}" for x in lines[:10]) + (" ..." if lines.size > 10 else "")
+    warn(
+        f"frf: the force cross-spectral matrix is singular (condition number > "
+        f"{MAX_INPUT_CONDITION:g}) at {lines.size} of {frequency.size} lines ({shown} Hz): "
+        f"{where} are correlated there, and the FRF is NaN at those lines",
+        AssumptionWarning,
+    )
+    return bad
+
+
 def _spectra_to_frf(
     ds: xr.Dataset,
     s: _Setup,
@@ -214,6 +252,7 @@ def _spectra_to_frf(
     )
     feed_all(acc, f_da, y_da, records, time_blocks(nt, y_da, s.chunk_samples))
     gff, gfy, gyy = acc.spectra()
+    singular = _check_input_conditioning(gff, acc.frequency, f_da)
 
     fdim = names.FREQUENCY
     ref_coord = f_da[names.REFERENCE].values if names.REFERENCE in f_da.coords else np.arange(nref)
@@ -236,6 +275,8 @@ def _spectra_to_frf(
         output_dtypes=[np.complex128, np.float64],
         keep_attrs=False,
     )
+    if singular.any():  # lines where Gff cannot be inverted: NaN, as the warning said
+        H = H.where(~xr.DataArray(singular, dims=[fdim]))
     ru = ds.attrs.get(names.ATTR_RESPONSE_UNITS, y_da.attrs.get(names.ATTR_UNITS, ""))
     fu = ds.attrs.get(names.ATTR_FORCE_UNITS, f_da.attrs.get(names.ATTR_UNITS, ""))
     std, noise_model = _noise_std(H.values, coh.values, gff, gyy, acc, s, windows[1])
