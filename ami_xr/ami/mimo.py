@@ -504,7 +504,11 @@ def _refit(stacked, result, lam, det_added, settings) -> xr.Dataset:
     start.attrs = {k: v for k, v in result.attrs.items() if not k.startswith("refine_")}
     out = global_fit(start, band=settings.band, residual_terms=settings.residual_terms)
     if pl.refines(settings):
-        out = refine_phase(out)
+        # no order tests on the stacked FRFs here: each added pole passed those of the
+        # reference that found it, and the stacked test is the one that lost it (the FRFs of
+        # references that do not see a mode dilute its likelihood ratio); the stacked poles
+        # passed theirs in the first run
+        out = refine_phase(out, drop_modes=False)
     if scale != 1.0:
         out = pl.unscale(out, ds, scale)
     out = pl._window_corrected(out, from_attrs(FrfAttributes, ds.attrs))
