@@ -9,6 +9,7 @@ wrapper is :func:`ami_xr.refine`; the method is described in :mod:`ami_xr.ami.re
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
@@ -44,7 +45,9 @@ class RefineModel(NamedTuple):
     """What the data say about the model: the basis (``dt = 0``: continuous; else the discrete
     basis of ``n_samples``), the residual terms (resolved) and their kind (0 receptance, 1
     mobility, 2 accelerance), the drive point's row (None: no drive point) and the decay rate
-    (1/s) of an exponential window already corrected in the starting eigenvalues."""
+    (1/s) of an exponential window already corrected in the starting eigenvalues;
+    ``line_noise``: the noise level of each line relative to the others (L,), from the per-line
+    noise model (None: the same on every line)."""
 
     dt: float
     n_samples: int
@@ -52,6 +55,7 @@ class RefineModel(NamedTuple):
     residual_kind: int
     drive_index: int | None
     decay: float
+    line_noise: np.ndarray | None = None
 
 
 class Trace(Protocol):
@@ -121,6 +125,8 @@ def refine_arrays(
         nyquist=np.pi / model.dt if model.dt else None,
         residual_kind=model.residual_kind,
     )
+    if model.line_noise is not None:
+        prob = _whitened(prob, model.line_noise)
     # An exponential window multiplies exp(lam t) by exp(-decay t): data poles are lam - decay.
     lam0 = np.asarray(lam0, dtype=np.complex128)
     min_width = 2.0 * (omega[1] - omega[0]) if omega.size > 1 else 0.0
@@ -154,6 +160,15 @@ def refine_arrays(
             state.at_ami = state.at_ami & ~polish[1]
     set_stage(trace, "standard errors")
     return _result(prob, state, n_ami, start_cost, model.drive_index, decay, min_width)
+
+
+def _whitened(prob: varpro.Problem, line_noise: np.ndarray) -> varpro.Problem:
+    """The problem with every line divided by its relative noise level (data and model alike,
+    through the line weights): the likelihood of noise whose level varies along frequency by
+    the same shape at every point (a per-point level times a per-line shape)."""
+    w = 1.0 / np.asarray(line_noise, dtype=np.float64)
+    y = prob.y * np.concatenate([w, w])[None, :]
+    return dataclasses.replace(prob, y=np.ascontiguousarray(y), line_weight=prob.line_weight * w)
 
 
 def _result(
