@@ -9,7 +9,7 @@ import pytest
 
 import ami_xr
 from ami_xr import names
-from ami_xr.app.batch import SUMMARY_NAME, STATUS_CAPPED, STATUS_OK, batch
+from ami_xr.app.batch import STATUS_CAPPED, STATUS_OK, SUMMARY_NAME, batch
 from ami_xr.app.cli import EXIT_BATCH_CAPPED, EXIT_BATCH_FAILURES, EXIT_OK, main
 
 
