@@ -38,6 +38,7 @@ _OUTPUTS = {
 def kernel_params(sub: SubtractSettings, settings: IsolateSettings) -> ki.IsolateParams:
     """The kernel's record of the subtraction's settings (read from the Dataset) and the
     isolation's (checked) settings."""
+    paper = settings.method == names.METHOD_PER_FRF
     return ki.IsolateParams(
         delta=sub.delta,
         tol=settings.tol,
@@ -48,8 +49,9 @@ def kernel_params(sub: SubtractSettings, settings: IsolateSettings) -> ki.Isolat
         merge_tol=sub.merge_tol,
         max_modes=sub.max_modes,
         reweight=settings.snr_weighting,
-        # the paper's per-FRF isolation stops on the relative change alone
-        se_fraction=0.0 if settings.method == names.METHOD_PER_FRF else ki.STOP_FRACTION,
+        # the paper's per-FRF isolation: its plain sweeps, stopped on the relative change alone
+        se_fraction=0.0 if paper else ki.STOP_FRACTION,
+        paper_sweeps=paper,
     )
 
 

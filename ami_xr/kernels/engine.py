@@ -12,12 +12,12 @@ significant peak (the peak trial of :mod:`.peak`), or a coherent residual inside
 
 The data are in units of each FRF's noise floor (SNR weighting of the FRFs), so one set of
 thresholds serves every group. The per-FRF and SIMO isolations differ in their groups and in
-``reweight`` (the fit step weighting each FRF by the mode's SNR in it) only.
+three settings of :class:`IsolateParams`: ``reweight`` (the fit step weighting each FRF by the
+mode's SNR in it), ``se_fraction`` (the stopping rule) and ``paper_sweeps``.
 
-Settings travel as an :class:`IsolateParams` record, the modes as a :class:`ModeSet` (arrays
-updated in place), the per-group arrays as a :class:`Work` record, the results as an
-:class:`IsolateResult`. Jitted, unchecked entry points: ``isolate_groups`` and
-``point_estimates_kernel``; their checked wrappers are in :mod:`.isolate`.
+Records: :class:`IsolateParams` (settings), :class:`ModeSet` (the modes, updated in place),
+:class:`Work` (per-group arrays), :class:`IsolateResult`. Jitted, unchecked entry points
+``isolate_groups`` and ``point_estimates_kernel``; checked wrappers in :mod:`.isolate`.
 """
 
 from __future__ import annotations
@@ -81,6 +81,9 @@ class IsolateParams(NamedTuple):
     se_fraction: float
     """A step below this fraction of the eigenvalue's standard error also counts as settled
     (:data:`STOP_FRACTION`); 0: the relative change ``tol`` alone (the paper's criterion)."""
+    paper_sweeps: bool
+    """The paper's plain sweeps (per-FRF): order fixed per restart, bands over all lines, no
+    cycle averaging, no pinning of re-added modes (the SIMO measures of :func:`_sweeps`)."""
 
 
 class ModeSet(NamedTuple):
@@ -145,8 +148,6 @@ class SweepState(NamedTuple):
     band_hi: np.ndarray
     frozen: np.ndarray
     """A settled mode keeps its band."""
-    failed: np.ndarray
-    """Sweeps in which a mode could not be updated (band too narrow, or the fit failed)."""
     fit_failed: np.ndarray
     """Sweeps in which its fit ran and failed."""
 
@@ -299,8 +300,8 @@ def _fit_mode(scene, params, modes, n, k, work, state, it):
     lam, res, fails = modes
     n_p = res.shape[0]
     lk = lam[k]
-    # isolated data only where the fit can look: +- max(20 |Re lam|, 40 lines) and the last band
-    wide = max(20.0 * abs(lk.real), 40.0 * scene.dw)
+    # isolated data where the fit looks: +- max(20 |Re lam|, 40 lines), the last band (paper: all)
+    wide = np.inf if params.paper_sweeps else max(20.0 * abs(lk.real), 40.0 * scene.dw)
     wlo = nearest_line(omega, lk.imag - wide)
     whi = nearest_line(omega, lk.imag + wide) + 1
     lo, hi = state.band_lo[k], state.band_hi[k]
@@ -337,11 +338,10 @@ def _fit_mode(scene, params, modes, n, k, work, state, it):
             state.fit_failed[k] += 1
     if code != FIT_OK:
         fails[k] += 1
-        state.failed[k] += 1
         return -1.0
     ch = max(abs(new.real - lk.real) / abs(new.real), abs(new.imag - lk.imag) / abs(new.imag))
     step = abs(new - lk)
-    cycle = abs(new - work.back[k]) < CYCLE_RATIO * step
+    cycle = abs(new - work.back[k]) < CYCLE_RATIO * step and not params.paper_sweeps
     score = ch / params.tol
     if params.se_fraction > 0.0:
         # standard error of the eigenvalue: 1 / sqrt(J), Fisher information J = sum_j c_j^2
@@ -372,16 +372,16 @@ def _sweeps(scene, params, modes, n, work):
     finds an insignificant mode. Returns ``(iterations, converged)``.
 
     Stopping rule: a mode has settled in a sweep when its Re and Im change less than ``tol``
-    (relative) or (``se_fraction > 0``) its step ``|lam_new - lam_old|`` is below
-    ``se_fraction`` of its standard error; the sweeps have converged when every mode has settled
-    in the same sweep. The standard error term makes the rule reachable at any noise level:
-    close modes converge only linearly (each isolation sees the other's error), and asking for a
+    (relative) or (``se_fraction > 0``) its step is below ``se_fraction`` of its standard error;
+    the sweeps have converged when every mode has settled in the same sweep. The standard error
+    term makes the rule reachable at any noise level: close modes converge only linearly, and a
     relative change of ``tol`` there costs tens of sweeps that move the eigenvalues by a small
     fraction of their uncertainty. A mode that steps back to where it was two sweeps before
     (``|lam_new - lam_back| < CYCLE_RATIO |lam_new - lam_old|``) is in a two-state cycle (its
-    fit band switching between two data-defined choices): it takes the mean of the two states
-    and keeps its band, which makes the iteration map continuous so the cycle dies out. Modes
-    flagged in ``work.pinned`` are not re-fitted.
+    band switching between two data-defined choices): it takes the mean of the two states and
+    keeps its band, so the cycle dies out. Modes in ``work.pinned`` are not re-fitted. With
+    ``paper_sweeps`` (the per-FRF isolation, measured against the paper's figures) the order
+    is fixed per restart and there is no cycle averaging.
     """
     omega, x, dt, n_samples = scene.grid
     lam, res, fails = modes
@@ -390,7 +390,6 @@ def _sweeps(scene, params, modes, n, work):
         band_lo=np.zeros(m, dtype=np.int64),
         band_hi=np.zeros(m, dtype=np.int64),
         frozen=np.zeros(m, dtype=np.bool_),
-        failed=np.zeros(m, dtype=np.int64),
         fit_failed=np.zeros(m, dtype=np.int64),
     )
     for k in range(n):
@@ -399,10 +398,12 @@ def _sweeps(scene, params, modes, n, work):
     it = 0
     converged = n == 0
     tot = np.empty(m)
+    order = np.arange(n)
     for it in range(1, params.max_iter + 1 if n > 0 else 1):
-        for k in range(n):
-            tot[k] = -_mode_snr(scene.grid, lam, res, k)[0]
-        order = np.argsort(tot[:n])  # by decreasing total SNR
+        if it == 1 or not params.paper_sweeps:  # the paper: the order of the restart's start
+            for k in range(n):
+                tot[k] = -_mode_snr(scene.grid, lam, res, k)[0]
+            order = np.argsort(tot[:n])  # by decreasing total SNR
         change = 0.0
         for k in order:
             if not work.pinned[k]:
@@ -411,17 +412,15 @@ def _sweeps(scene, params, modes, n, work):
             converged = True
             break
         if it == 3:
-            # early pruning: once residues have been fitted, leave the sweeps to drop
-            # insignificant modes (spurious candidates of single FRFs)
+            # early pruning: spurious candidates of single FRFs leave once residues are fitted
             weak = False
             for k in range(n):
                 weak = weak or _mode_snr(scene.grid, lam, res, k)[1] < scene.t_line
             if weak:
                 break
-    # a mode whose fit ran and failed in every one of (at least 2) sweeps gets the failure count
-    # that the merge-and-prune step drops. A band too narrow to fit is not counted: a lightly
-    # damped mode on a coarse grid spans only 1-3 lines in every sweep (measurement.uff loses 4
-    # of its 6 modes when it is); the significance test still removes it when it is noise
+    # a fit that ran and failed in every sweep (at least 2) marks the mode for merge-and-prune; a
+    # band too narrow to fit does not (a lightly damped mode on a coarse grid spans 1-3 lines:
+    # measurement.uff lost 4 of its 6 modes so); the significance test still removes noise
     for k in range(n if it >= 2 else 0):
         if state.fit_failed[k] >= it:
             fails[k] = max(fails[k], params.max_iter // 2 + 1)
@@ -514,8 +513,9 @@ def isolate_groups(data, lam0, res0, n0, scene, params):
     after its fits failed: a weak mode beside a strong one takes up the strong one's residual)
     is, when the check adds it again, kept at its order-check fit (pinned, not re-fitted) and
     the order check ends after the next sweeps (the residual next to a pinned mode holds the
-    error of its fit, not new modes): otherwise the loop cycles until the restart budget is
-    spent. ``converged``: the last sweeps met their stopping rule and no change is pending.
+    error of its fit, not new modes): otherwise (and with ``paper_sweeps``, as in the paper) the
+    loop cycles until the restart budget is spent. ``converged``: the last sweeps met their
+    stopping rule and no change is pending.
     """
     n_g, n_p, n_f = data.shape
     m = params.max_modes
@@ -557,7 +557,7 @@ def isolate_groups(data, lam0, res0, n0, scene, params):
                 continue
             # an added mode near one added before (and lost since: no mode is near that one)
             new = modes.lam[n - 1]
-            for t in range(n_tried):
+            for t in range(0 if params.paper_sweeps else n_tried):
                 again = nearest_within(tried[t : t + 1], 1, new, params.merge_tol, -1) >= 0
                 if again and nearest_within(modes.lam, n - 1, tried[t], params.merge_tol, -1) < 0:
                     work.pinned[n - 1] = True

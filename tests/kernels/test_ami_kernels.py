@@ -335,6 +335,7 @@ def _isolate_params(**kw):
         max_modes=6,
         reweight=True,
         se_fraction=ki.STOP_FRACTION,
+        paper_sweeps=False,
     )
     base.update(kw)
     return ki.IsolateParams(**base)
