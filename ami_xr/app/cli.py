@@ -42,6 +42,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from ami_xr.app.cluster import add_cluster_options
 from ami_xr.app.options import (
     BENCHMARK,
     RANDOM_SYSTEM,
@@ -223,18 +224,20 @@ def _frf_first(path: str) -> str:
 def _cmd_identify(args: argparse.Namespace) -> int:
     import ami_xr
     from ami_xr import names
-    from ami_xr.io.formats import LVM_SUFFIX, read_any, write_any
+    from ami_xr.app.cluster import cluster, read_frfs
+    from ami_xr.io.formats import LVM_SUFFIX, write_any
     from ami_xr.progress import on_terminal
     from ami_xr.tables import format_modal_table
 
     if Path(args.input).suffix.lower() == LVM_SUFFIX:  # always time histories: say so unread
         raise AmiXrValueError(_frf_first(args.input))
-    ds = read_any(args.input)
+    ds = read_frfs(args.input, args)  # lazy, chunked along point with --workers/--scheduler
     if names.FRF not in ds and names.TIME in ds.dims:
         raise AmiXrValueError(_frf_first(args.input))
     options = identify_options(args)
     # a phase bar on a terminal once the work takes more than a couple of seconds
-    result = ami_xr.identify(ds, progress=on_terminal(not args.quiet), **options)
+    with cluster(args):
+        result = ami_xr.identify(ds, progress=on_terminal(not args.quiet), **options)
     _say(format_modal_table(result))
     if args.stability:  # the variants take their own pfa and band; the other options stay
         others = {k: v for k, v in options.items() if k != "pfa"}
@@ -466,6 +469,7 @@ def _add_file_commands(add) -> None:
         "done or the refinement's modes and iterations)",
     )
     add_identify_options(p)
+    add_cluster_options(p)
     p.set_defaults(func=_cmd_identify)
 
     p = add(
