@@ -85,7 +85,8 @@ def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progres
     steps = [names.PHASE_SUBTRACT, names.PHASE_ISOLATE, names.PHASE_GLOBAL_FIT]
     steps += [names.PHASE_REFINE] if refined else []
     label = f"identify: {work.sizes.get(names.POINT, 0)} FRFs x {work.sizes[names.FREQUENCY]} lines"
-    with phases(progress, label, steps) as step:
+    with phases(progress, label, steps) as step, warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")  # held until the refinement says whether caps mattered
         step(names.PHASE_SUBTRACT)
         out = subtract(
             work,
@@ -103,14 +104,36 @@ def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progres
             method=names.METHOD_PER_FRF if paper else s.method,
             weighting=names.WEIGHTING_MEAN if paper else IsolateSettings.weighting,
         )
-        if out.sizes.get(names.MODE, 0) == 0:
-            return out
-        step(names.PHASE_GLOBAL_FIT)
-        out = global_fit(out, band=s.band, residual_terms=s.residual_terms)
-        if refined:
-            step(names.PHASE_REFINE)
-            out = refine_phase(out)
+        if out.sizes.get(names.MODE, 0) > 0:
+            step(names.PHASE_GLOBAL_FIT)
+            out = global_fit(out, band=s.band, residual_terms=s.residual_terms)
+            if refined:
+                step(names.PHASE_REFINE)
+                out = refine_phase(out)
+    superseded = _caps_superseded(out, refined)
+    for w in said:
+        if not (superseded and str(w.message).startswith("subtract: stopped at the cap")):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     return out
+
+
+# Caps of the Subtraction Phase: they end the list of candidate peaks, not the identification
+# when the refinement then completes the model until its statistics say stop.
+_SUBTRACT_CAPS = ("subtract:max_modes", "subtract:max_rejected_peaks")
+
+
+def _caps_superseded(out: xr.Dataset, refined: bool) -> bool:
+    """Drop the subtraction's caps from ``ami_capped`` when the refinement ran and completed
+    the model by its statistics (it was not stopped by its own cap): the residual it leaves
+    shows no further mode, so the candidate cap did not decide the mode count. They are kept
+    in ``ami_capped_superseded``. Returns whether they were superseded."""
+    caps = [e for e in str(out.attrs.get(names.ATTR_AMI_CAPPED, "")).split(",") if e]
+    hit = [e for e in caps if e in _SUBTRACT_CAPS]
+    if not (refined and hit) or "refine:add_modes" in caps or out.sizes.get(names.MODE, 0) == 0:
+        return False
+    out.attrs[names.ATTR_AMI_CAPPED] = ",".join(e for e in caps if e not in _SUBTRACT_CAPS)
+    out.attrs[names.ATTR_AMI_CAPPED_SUPERSEDED] = ",".join(hit)
+    return True
 
 
 def _window_corrected(result: xr.Dataset, data: FrfAttributes) -> xr.Dataset:

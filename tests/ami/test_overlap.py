@@ -91,3 +91,23 @@ def test_local_poles_recover_an_exact_cluster():
 def test_local_poles_need_enough_lines():
     omega = np.linspace(1.0, 2.0, 6)
     assert local_poles(np.ones((2, 6), complex), omega, 1.0, 2.0, order=3).size == 0
+
+
+def test_subtraction_cap_does_not_decide_the_mode_count():
+    # The candidate cap of the Subtraction Phase ends the list of peaks; the refinement then
+    # completes the model until its statistics say stop, so the cap is not what decides how
+    # many modes come out (issue 20 item 3) and the result is not reported as capped.
+    frf, truth = clustered_system(n_points=5, cluster_sizes=(3,), overlap=0.5, seed=5)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        modes = ami_xr.identify(frf, max_modes=2)
+    assert score_modes(modes, truth).n_found == truth.sizes[names.MODE]
+    assert "subtract:max_modes" not in modes.attrs.get(names.ATTR_AMI_CAPPED, "")
+    assert "subtract:max_modes" in modes.attrs[names.ATTR_AMI_CAPPED_SUPERSEDED]
+    assert not any("subtract: stopped at the cap" in str(w.message) for w in said)
+    # without the refinement the cap decides, and says so
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        paper = ami_xr.identify(frf, max_modes=2, refine=False)
+    assert "subtract:max_modes" in paper.attrs[names.ATTR_AMI_CAPPED]
+    assert any("subtract: stopped at the cap" in str(w.message) for w in said)
