@@ -13,6 +13,11 @@ One helper, :class:`Progress`, for both kinds of work:
   (:class:`Iterations`); e.g. ``identify: 1 FRFs x 25601 lines (refine: 15 modes,
   iteration 12): 75%|...| 3/4 [00:05<...]``.
 
+Every count is also a safe point for an interrupt (:func:`ami_xr.interrupt.checkpoint`): while
+the command line holds signals (:func:`ami_xr.interrupt.armed`), :func:`active` is true, so the
+kernels are called in pieces and a Ctrl-C or SIGTERM is raised between two of them, never
+inside numba's dispatcher.
+
 tqdm draws the bar when it is installed, a plain line otherwise. Leaving the ``with`` block,
 also by Ctrl-C or an error, stops the thread (it wakes every :data:`TICK_SECONDS`) and closes the
 bar, so an interrupt never waits on the indicator.
@@ -28,6 +33,7 @@ from contextvars import ContextVar
 from typing import Any
 
 from ami_xr.errors import AmiXrValueError
+from ami_xr.interrupt import checkpoint, is_armed
 
 __all__ = [
     "DELAY_SECONDS",
@@ -62,12 +68,16 @@ _DETAIL: ContextVar = ContextVar("ami_xr_progress_detail", default=None)
 
 
 def active() -> bool:
-    """Whether a progress bar listens for counts inside the running phase."""
-    return _DETAIL.get() is not None
+    """Whether a progress bar listens for counts inside the running phase, or signals are held
+    for the checkpoints (:func:`ami_xr.interrupt.is_armed`): either way, long kernel work is
+    done in pieces with a :func:`detail` call between them."""
+    return _DETAIL.get() is not None or is_armed()
 
 
 def detail(text: str) -> None:
-    """Show ``text`` (counts inside the running phase) on the bar; nothing when none listens."""
+    """Show ``text`` (counts inside the running phase) on the bar; nothing when none listens.
+    Also a safe point for a held interrupt (:func:`ami_xr.interrupt.checkpoint`)."""
+    checkpoint()
     report = _DETAIL.get()
     if report is not None:
         report(text)
@@ -343,6 +353,7 @@ class _Phases:
         self.report, self.names, self.done = report, list(names), 0
 
     def __call__(self, phase: str) -> None:
+        checkpoint()  # between two phases: a safe point for a held interrupt
         if self.report is not None:
             self.done = self.names.index(phase)
             self.report(phase, self.done, len(self.names))

@@ -9,10 +9,12 @@ Guarantees
 * **Atomic outputs.** Each result is written with :func:`ami_xr.to_netcdf` (temporary file in the
   target folder, then a rename), so an output file is either complete or absent; a crash,
   ``kill`` or Ctrl-C never leaves a partial result (temporary folders left by a killed run are
-  removed at the start of the next run). The first Ctrl-C lets the files in progress finish,
-  writes the summary and then raises ``KeyboardInterrupt``; a second one stops at once (with
-  ``--workers 1`` the file being written is rolled back, never partial) and SIGTERM likewise
-  (``SystemExit(143)``); the summary is written in every case.
+  removed at the start of the next run). A Ctrl-C or SIGTERM (also one sent to the whole
+  process group) stops the batch within about a second: queued files are not started, files in
+  progress stop at their next safe point (:mod:`ami_xr.interrupt`) with their output rolled
+  back, the summary is written and ``KeyboardInterrupt`` (SIGINT) or ``SystemExit(143)``
+  (SIGTERM) is raised. The summary lists exactly the outputs on disk: a file whose result was
+  written but not yet reported when the signal came is listed from its output.
 * **Resumable, incremental.** Each output records the SHA-256 of its input file, the input's size
   and mtime, and a hash of the pipeline parameters (attributes ``batch_input_sha256``,
   ``batch_parameters_sha256``). A re-run skips a file whose output matches both (the content
@@ -36,8 +38,6 @@ import hashlib
 import json
 import os
 import signal
-import sys
-import threading
 import time
 import traceback
 import warnings
@@ -46,10 +46,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ami_xr import names
+from ami_xr import interrupt, names
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import EXIT_TERMINATED, atomic_open, interrupts_deferred, remove_stale
-from ami_xr.io.formats import INPUT_SUFFIXES, read_any
+from ami_xr.io.formats import INPUT_SUFFIXES, check_input, read_any
 from ami_xr.progress import Progress
 
 __all__ = [
@@ -338,84 +338,92 @@ def _write_summary(rows: list[dict], path: Path) -> None:
         writer.writerows({k: _printable(v) for k, v in row.items()} for row in rows)
 
 
-class _GracefulInterrupt:
-    """While a batch runs: the first Ctrl-C lets the files in progress finish (so their outputs
-    are written completely) and starts no new one; a second Ctrl-C stops at once
-    (``KeyboardInterrupt``; a file being written is rolled back). SIGTERM stops at once too
-    (``SystemExit(143)``), after the same cleanup, instead of killing the process.
-
-    Only installed in the main thread and only over Python's default handlers; the previous
-    handlers are restored on exit, so nothing changes outside :func:`batch`.
-    """
-
-    def __init__(self):
-        self.requested = False
-        self._previous = None
-        self._previous_term = None
-
-    def __enter__(self):
-        if threading.current_thread() is not threading.main_thread():
-            return self
-        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-            self._previous = signal.signal(signal.SIGINT, self._handler)
-        if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
-            self._previous_term = signal.signal(signal.SIGTERM, self._terminate)
-        return self
-
-    @staticmethod
-    def _terminate(signum, frame):
-        raise SystemExit(EXIT_TERMINATED)
-
-    def _handler(self, signum, frame):
-        if self.requested:
-            raise KeyboardInterrupt
-        self.requested = True
-        sys.stderr.write(
-            "\nami-xr batch: interrupted: finishing the files in progress "
-            "(Ctrl-C again to stop at once)\n"
-        )
-        sys.stderr.flush()
-
-    def __exit__(self, *exc):
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-        if self._previous_term is not None:
-            signal.signal(signal.SIGTERM, self._previous_term)
-        return False
-
-
-def _ignore_sigint() -> None:
-    # Workers share the terminal's process group: Ctrl-C reaches them too. They finish their
-    # file; the parent decides what stops.
+def _worker_init(stop_event) -> None:
+    """In a worker process: Ctrl-C from the terminal is the parent's to decide (ignored here);
+    the parent's stop request (``stop_event``) and a SIGTERM sent to the process group are held
+    and raised at the worker's next checkpoint (:mod:`ami_xr.interrupt`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, interrupt.hold)
+    interrupt.use_event(stop_event)
 
 
-def _run_jobs(jobs: list[dict], workers: int, stop: _GracefulInterrupt) -> Iterator[dict]:
+def _process_in_worker(job: dict[str, Any]) -> dict[str, Any] | None:
+    """:func:`_process_one` in a worker; None when a stop request ended it (output rolled back)."""
+    try:
+        with interrupt.armed():
+            interrupt.checkpoint()  # stopped while queued in the worker: do not start
+            return _process_one(job)
+    except (KeyboardInterrupt, SystemExit):
+        return None
+
+
+def _run_jobs(jobs: list[dict], workers: int) -> Iterator[dict]:
+    """Rows of the files processed; a signal (held by :func:`ami_xr.interrupt.armed`) stops the
+    queued files at once and the running ones at their next checkpoint, then is raised."""
     if workers == 1 or len(jobs) <= 1:
         for job in jobs:
-            if stop.requested:
-                return
+            interrupt.checkpoint()
             yield _process_one(job)
+        interrupt.checkpoint()
         return
-    pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(jobs)), initializer=_ignore_sigint)
+    import multiprocessing
+
+    stop_event = multiprocessing.get_context().Event()
+    pool = cf.ProcessPoolExecutor(
+        max_workers=min(workers, len(jobs)), initializer=_worker_init, initargs=(stop_event,)
+    )
+    futures = {pool.submit(_process_in_worker, job): job for job in jobs}
     try:
-        futures = {pool.submit(_process_one, job): job for job in jobs}
-        for fut in cf.as_completed(futures):
-            if stop.requested:
-                for other in futures:
-                    other.cancel()  # queued files are not started; running ones finish
-            if fut.cancelled():
-                continue
-            try:
-                yield fut.result()
-            except cf.process.BrokenProcessPool as err:
-                # A worker died (e.g. killed for memory): report the files it did not finish.
-                job = futures[fut]
-                yield _row(job["rel"], job["out_rel"], STATUS_FAILED, f"worker process died: {err}")
+        waiting = set(futures)
+        while waiting:
+            # wake often: a signal held while this thread waits is acted on within POLL_SECONDS
+            done, waiting = cf.wait(waiting, timeout=POLL_SECONDS, return_when=cf.FIRST_COMPLETED)
+            if interrupt.pending() is not None and not stop_event.is_set():
+                stop_event.set()  # running files stop at their next checkpoint
+                for fut in waiting:
+                    fut.cancel()  # queued files are not started
+            for fut in done:
+                if fut.cancelled():
+                    continue
+                try:
+                    row = fut.result()
+                except cf.process.BrokenProcessPool as err:
+                    # A worker died (e.g. killed for memory): report the files it did not finish.
+                    job = futures[fut]
+                    row = _row(job["rel"], job["out_rel"], STATUS_FAILED, f"worker died: {err}")
+                if row is not None:
+                    yield row
+        interrupt.checkpoint()
     finally:
-        # An error or a second Ctrl-C: drop queued files; finished outputs are complete, the
-        # others absent (to_netcdf removes its temporary file).
+        # A signal or an error: workers stop at their next checkpoint, queued files are dropped;
+        # finished outputs are complete, the others absent (to_netcdf removes its temporary file).
+        stop_event.set()
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+#: Seconds between two looks of the batch parent at a held signal while workers run.
+POLL_SECONDS = 0.2
+
+
+def _reconcile(rows: dict[str, dict], jobs: list[dict]) -> None:
+    """Rows for outputs written but not reported (the parent stopped before a worker's result
+    came back): the summary lists exactly the outputs on disk."""
+    for job in jobs:
+        if rows.get(job["rel"]):
+            continue
+        out = Path(job["output"])
+        try:
+            if not _up_to_date(Path(job["input"]), out, job["params_sha"]):
+                continue
+        except OSError:
+            continue
+        count, freqs = _modal_summary_from_file(out)
+        caps = str((_output_attrs(out) or {}).get(names.ATTR_AMI_CAPPED, "") or "")
+        status = STATUS_CAPPED if caps else STATUS_OK
+        rows[job["rel"]] = _row(
+            job["rel"], job["out_rel"], status, "written; the batch stopped before its report",
+            modes=count, frequencies_hz=freqs,
+        )
 
 
 def _plan(
@@ -438,6 +446,11 @@ def _plan(
             )
             continue
         claimed[out] = rel
+        try:  # a named pipe would block the batch forever: refused before anything opens it
+            check_input(inp, name=rel)
+        except DataFileError as err:
+            rows[rel] = _row(rel, "", STATUS_FAILED, str(err))
+            continue
         if not force and _up_to_date(inp, out, shared["params_sha"]):
             count, freqs = _modal_summary_from_file(out)
             caps = str((_output_attrs(out) or {}).get(names.ATTR_AMI_CAPPED, "") or "")
@@ -535,24 +548,22 @@ def batch(
     rows, jobs = _plan(inputs, input_dir, output_dir, shared, force)
 
     summary = BatchSummary(csv_path=output_dir / SUMMARY_NAME)
-    stop = _GracefulInterrupt()
     try:
-        with Progress("ami-xr batch", total=len(jobs), unit="file", enabled=progress) as bar:
-            with stop:
-                for row in _run_jobs(jobs, workers, stop):
-                    rows[row["file"]] = row
-                    bar.update(1)
+        with interrupt.armed(), Progress(
+            "ami-xr batch", total=len(jobs), unit="file", enabled=progress
+        ) as bar:
+            for row in _run_jobs(jobs, workers):
+                rows[row["file"]] = row
+                bar.update(1)
     finally:
         # Also on Ctrl-C: the summary lists what is done; unfinished files have empty rows.
+        _reconcile(rows, jobs)
         summary.rows = [
             rows[inp.relative_to(input_dir).as_posix()]
             for inp in inputs
             if rows.get(inp.relative_to(input_dir).as_posix())
         ]
         _write_summary(summary.rows, summary.csv_path)
-    if stop.requested:
-        # The outputs written so far are complete; a re-run resumes with the rest.
-        raise KeyboardInterrupt
     return summary
 
 

@@ -89,7 +89,10 @@ def _say(*parts: Any) -> None:
     # a path that is not valid UTF-8 (surrogate-escaped by os) must not kill the output
     text = " ".join(str(p) for p in parts)
     encoding = getattr(sys.stdout, "encoding", None) or "utf-8"
-    print(text.encode(encoding, "backslashreplace").decode(encoding), flush=True)
+    try:
+        print(text.encode(encoding, "backslashreplace").decode(encoding), flush=True)
+    except BrokenPipeError:  # the reader quit (`| head -1`): the work itself goes on
+        _silence_stdout()
 
 
 class _CompileNotice(logging.Handler):
@@ -615,14 +618,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_ERROR
 
 
-_TERMINATED: list[int] = []  # SIGTERMs received by this process (see run)
-
-
-def _terminate(signum: int, frame: Any) -> None:
-    _TERMINATED.append(signum)
-    raise SystemExit(EXIT_TERMINATED)
-
-
 def _unraisable(hook):
     """A ``sys.unraisablehook`` that stays silent for the SystemExit/KeyboardInterrupt a signal
     raised inside a ``__del__`` or callback (Python cannot propagate those: no traceback for the
@@ -635,31 +630,101 @@ def _unraisable(hook):
     return quiet
 
 
+def _usable_streams() -> None:
+    """A closed stderr or stdout (``2>&-``: ``sys.stderr`` is None) writes to the null device,
+    so a good run is never turned into a failure by where its messages go."""
+    import os
+
+    for name in ("stdout", "stderr"):
+        if getattr(sys, name) is None:
+            setattr(sys, name, open(os.devnull, "w"))  # noqa: SIM115 - lives with the process
+
+
+def _silence_stdout() -> None:
+    """stdout is a broken pipe (``| head -1`` has quit): what is left to print goes nowhere,
+    also at interpreter exit (where Python would report the pipe again)."""
+    import os
+
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, sys.stdout.fileno())
+        os.close(null)
+    except (OSError, ValueError, AttributeError):
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - lives with the process
+
+
+def _matplotlib_config_dir() -> None:
+    """With a read-only HOME matplotlib complains that its config folder is not writable and
+    makes a temporary one itself: make it quietly (removed at exit) unless the user chose one."""
+    import os
+
+    if os.environ.get("MPLCONFIGDIR"):
+        return
+    home = Path(os.environ.get("XDG_CONFIG_HOME") or Path.home() / ".config")
+    folder = home / "matplotlib"
+    probe = folder if folder.exists() else home if home.exists() else Path.home()
+    if os.access(probe, os.W_OK | os.X_OK):
+        return
+    import atexit
+    import shutil
+    import tempfile
+
+    try:
+        tmp = tempfile.mkdtemp(prefix="ami_xr-matplotlib-")
+    except OSError:
+        return
+    os.environ["MPLCONFIGDIR"] = tmp
+    atexit.register(shutil.rmtree, tmp, True)
+
+
 def run() -> None:
     """Console-script entry point: :func:`main` with the process-wide signal handling.
 
-    SIGTERM becomes ``SystemExit(143)``, so ``finally`` blocks (rolling back a write in progress)
-    run and one line is printed; once :func:`main` has returned, SIGINT and SIGTERM are ignored
-    (a signal during interpreter shutdown would turn a finished run into a silent kill). Kept
-    out of :func:`main`, which tests and scripts call in-process.
+    SIGINT and SIGTERM are held for the safe points of :mod:`ami_xr.interrupt` (never raised
+    inside numba's dispatcher): Ctrl-C exits 130 (``KeyboardInterrupt``), SIGTERM 143
+    (``SystemExit(143)``, so ``finally`` blocks roll back a write in progress), each with one
+    line; a signal that came too late to stop the work (the output is complete) still sets the
+    exit code. Once :func:`main` has returned, both are ignored (a signal during interpreter
+    shutdown would turn the outcome into a silent kill). Closed or broken standard streams and
+    a read-only HOME (matplotlib's config folder) never fail a good run. Kept out of
+    :func:`main`, which tests and scripts call in-process.
     """
-    signal.signal(signal.SIGTERM, _terminate)
+    from ami_xr import interrupt
+
+    _usable_streams()
+    _matplotlib_config_dir()
     sys.unraisablehook = _unraisable(sys.unraisablehook)
+    with interrupt.armed():
+        try:
+            code = main()
+        except SystemExit as stop:
+            if stop.code != EXIT_TERMINATED:
+                raise
+            code = EXIT_TERMINATED
+        # The work is done (or stopped): a signal now could only turn the outcome into a silent
+        # kill during interpreter shutdown.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    late = interrupt.exit_code()
+    if late == EXIT_TERMINATED and code in (EXIT_OK, EXIT_TERMINATED):
+        _say_err("ami-xr: terminated")
+        code = EXIT_TERMINATED
+    elif late == EXIT_INTERRUPTED and code == EXIT_OK:
+        # the output was complete before the Ctrl-C could stop anything
+        _say_err("ami-xr: interrupted")
+        code = EXIT_INTERRUPTED
     try:
-        code = main()
-    except SystemExit as stop:
-        if stop.code != EXIT_TERMINATED:
-            raise
-        code = EXIT_TERMINATED
-    if _TERMINATED and code in (EXIT_OK, EXIT_TERMINATED):
-        # also when the SystemExit was raised where Python had to drop it (see _unraisable)
-        print("ami-xr: terminated", file=sys.stderr)
-        code = EXIT_TERMINATED
-    # The work is done (or stopped): a signal now could only turn the outcome into a silent
-    # kill during interpreter shutdown.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        sys.stdout.flush()
+    except (BrokenPipeError, OSError, ValueError):
+        _silence_stdout()
     sys.exit(code)
+
+
+def _say_err(text: str) -> None:
+    try:
+        print(text, file=sys.stderr, flush=True)
+    except (OSError, ValueError):  # stderr gone: the exit code says it
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -440,12 +440,16 @@ def check_paths(args: argparse.Namespace) -> None:
     Raises
     ------
     DataFileError
-        Naming the option, the output and, where it clashes with one, the input.
+        Naming the option, the output and, where it clashes with one, the input; or an input
+        that is missing or not a regular file (a folder for ``batch``).
     """
-    from ami_xr.io.formats import check_output
+    from ami_xr.io.formats import check_input, check_output
 
     reads, writes = PATHS[args.command]
     inputs = [value(getattr(args, a)) for a in reads]
+    for path in inputs:  # a FIFO or device would block or never end the reader: refuse it now
+        if path is not None:
+            check_input(path, folder=args.command == "batch")
     done: list[str] = []
     for attr, kind in writes:
         path = value(getattr(args, attr))

@@ -154,7 +154,69 @@ def check_output(
             raise DataFileError(f"{label}: folder {str(folder)!r} does not exist")
     if not folder.is_dir() or not _writable(folder):
         raise DataFileError(f"{label}: folder {str(folder)!r} is not writable")
+    _check_name_length(path, folder, label)
     return path
+
+
+#: Bytes the atomic writers add to a name for their temporary folder (``.<name>.<12 hex>.tmp``).
+TEMP_NAME_EXTRA = len(".") + len(".123456789abc.tmp")
+
+
+def _check_name_length(path: Path, folder: Path, label: str) -> None:
+    """A name the file system takes, but not with the writer's temporary name around it, would
+    fail only after the whole computation: refuse it now."""
+    try:
+        limit = os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError, AttributeError):
+        limit = 255
+    size = len(os.fsencode(path.name))
+    if size + TEMP_NAME_EXTRA > limit:
+        raise DataFileError(
+            f"{label}: the file name is {size} bytes long; at most {limit - TEMP_NAME_EXTRA} "
+            f"bytes here (the file system takes {limit}, and the atomic write needs "
+            f"{TEMP_NAME_EXTRA} for its temporary name)"
+        )
+
+
+def _kind_of(mode: int) -> str:
+    for test, what in (
+        (stat.S_ISFIFO, "a named pipe (FIFO)"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+        (stat.S_ISDIR, "a folder"),
+    ):
+        if test(mode):
+            return what
+    return "not a regular file"
+
+
+def check_input(path: str | os.PathLike, *, name: str = "input", folder: bool = False) -> Path:
+    """Refuse, before anything opens it, an input that is not a regular file (or a folder, with
+    ``folder=True``): a named pipe would block the reader forever, a device (``/dev/zero``,
+    also through a symlink) never ends. Names what the path is.
+
+    Raises
+    ------
+    DataFileError
+        The path is empty, missing, or of the wrong kind.
+    """
+    text = os.fspath(path)
+    if text == "":
+        raise DataFileError(f"{name}: the path is empty")
+    p = Path(text)
+    try:
+        mode = os.stat(p).st_mode  # follows symlinks: a link to /dev/zero is a device
+    except FileNotFoundError:
+        link = " (a symlink whose target is missing)" if os.path.islink(p) else ""
+        raise DataFileError(f"{name}: {text!r}: no such file{link}") from None
+    except OSError as err:
+        raise DataFileError(f"{name}: {text!r}: {err.strerror or err}") from None
+    wanted = stat.S_ISDIR(mode) if folder else stat.S_ISREG(mode)
+    if not wanted:
+        expected = "a folder" if folder else "a regular file"
+        raise DataFileError(f"{name}: {text!r} is {_kind_of(mode)}, expected {expected}")
+    return p
 
 
 def read_any(
@@ -185,9 +247,10 @@ def read_any(
     Raises
     ------
     DataFileError
-        The suffix is none of :data:`INPUT_SUFFIXES`, or the reader rejects the file.
+        The path is not a regular file (:func:`check_input`), the suffix is none of
+        :data:`INPUT_SUFFIXES`, or the reader rejects the file.
     """
-    path = Path(path)
+    path = check_input(path, name=str(path) or "input")
     suffix = path.suffix.lower()
     if suffix == LVM_SUFFIX:
         from ami_xr.io.lvm import read_lvm
