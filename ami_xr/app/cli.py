@@ -70,8 +70,10 @@ EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a Ctrl-C
 EXIT_TERMINATED = 143  # 128 + SIGTERM
 
 #: Errors a user can cause (bad file, bad value, missing optional package): their message is
-#: the whole story. Anything else escaping a command is a bug and says how to see its traceback.
-EXPECTED_ERRORS = (AmiXrError, ValueError, OSError, ImportError)
+#: the whole story. Anything else escaping a command is a bug and says how to see its traceback;
+#: a bare ValueError too (ami_xr's own bad-input errors are AmiXrError subclasses; a ValueError
+#: from inside xarray or numpy means a check is missing, e.g. issue 24 item 5).
+EXPECTED_ERRORS = (AmiXrError, OSError, ImportError)
 VERBOSE_HINT = "run with -v for the traceback"
 
 
@@ -613,7 +615,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             traceback.print_exc()
         text = _one_line(err)
         if not isinstance(err, EXPECTED_ERRORS):
-            text = f"unexpected {text}" + ("" if args.verbose else f" ({VERBOSE_HINT})")
+            text = f"unexpected {text} - a bug, please report it" + (
+                "" if args.verbose else f" ({VERBOSE_HINT})"
+            )
         print(f"{prefix}: error: {text}", file=sys.stderr)
         return EXIT_ERROR
 

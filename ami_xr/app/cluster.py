@@ -64,14 +64,17 @@ def read_frfs(path: str, args: argparse.Namespace):
     from ami_xr.io.formats import read_any
 
     if not _wanted(args):
-        return read_any(path)
+        return read_any(path, want="frf")
     if Path(path).suffix.lower() != ".nc":
         raise AmiXrValueError(f"--workers/--scheduler: expected a netCDF (.nc) file, got {path!r}")
     if args.chunk_points < 1:
         raise AmiXrValueError(f"--chunk-points: expected an integer >= 1, got {args.chunk_points}")
     import ami_xr
+    from ami_xr.io.kinds import refuse_other_kind
 
-    return ami_xr.open_dataset(path, chunks={"point": int(args.chunk_points)})
+    ds = ami_xr.open_dataset(path, chunks={"point": int(args.chunk_points)})
+    refuse_other_kind(ds, path, "frf")  # a modes file: say which command takes it
+    return ds
 
 
 @contextlib.contextmanager

@@ -225,6 +225,7 @@ def read_any(
     force_channel: int | str | None = None,
     points: list | None = None,
     drive_point: Any = None,
+    want: str | None = None,
 ):
     """Read a measurement file into a Dataset, choosing the reader by the file's suffix.
 
@@ -239,6 +240,10 @@ def read_any(
     drive_point : label, optional
         Passed to :func:`ami_xr.read_lvm`; for the other formats it must be one of the
         Dataset's points and replaces its ``drive_point`` attribute.
+    want : {"frf", "time"}, optional
+        What the caller needs: a modes file (identify's output) is then refused with a
+        message naming the commands that take it (:func:`ami_xr.io.kinds.refuse_other_kind`).
+        None (default) takes any kind.
 
     Returns
     -------
@@ -248,7 +253,9 @@ def read_any(
     ------
     DataFileError
         The path is not a regular file (:func:`check_input`), the suffix is none of
-        :data:`INPUT_SUFFIXES`, or the reader rejects the file.
+        :data:`INPUT_SUFFIXES`, or the reader rejects the file; a
+        :class:`~ami_xr.io.kinds.ModesFileError` for a modes file where ``want`` asks for
+        another kind.
     """
     path = check_input(path, name=str(path) or "input")
     suffix = path.suffix.lower()
@@ -273,6 +280,10 @@ def read_any(
         from ami_xr.io.uff import read_uff
 
         ds = read_uff(path)
+    if want is not None:
+        from ami_xr.io.kinds import refuse_other_kind
+
+        refuse_other_kind(ds, path, want)
     if drive_point is not None:
         labels = list(ds[names.POINT].values) if names.POINT in ds.coords else []
         as_text = [label for label in labels if str(label) == str(drive_point)]

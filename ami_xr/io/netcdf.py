@@ -136,7 +136,7 @@ def _decode_complex_variable(name: str, var: xr.Variable) -> xr.Variable:
         or var.shape[-1] != 2
         or not np.issubdtype(var.dtype, np.floating)
     ):
-        raise ValueError(
+        raise DataFileError(
             f"variable {name!r} is flagged {ATTR_COMPLEX!r} but is not float with a last dim "
             f"{names.COMPLEX!r} of length 2 (dims {var.dims}, dtype {var.dtype})"
         )
@@ -227,7 +227,7 @@ def _decode_attr(value: Any, tag: str) -> Any:
         return json.loads(value)
     if tag == "[1]":
         return np.atleast_1d(np.asarray(value))
-    raise ValueError(f"unknown attribute encoding tag {tag!r}")
+    raise DataFileError(f"unknown attribute encoding tag {tag!r}")
 
 
 def _encode_attrs(attrs: dict, owner: str) -> dict:
