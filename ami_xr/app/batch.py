@@ -48,7 +48,7 @@ from typing import Any
 
 from ami_xr import interrupt, names
 from ami_xr.errors import AmiXrValueError, DataFileError
-from ami_xr.io.atomic import EXIT_TERMINATED, atomic_open, interrupts_deferred, remove_stale
+from ami_xr.io.atomic import atomic_open, interrupts_deferred, remove_stale
 from ami_xr.io.formats import INPUT_SUFFIXES, check_input, read_any
 from ami_xr.progress import Progress
 
@@ -421,8 +421,12 @@ def _reconcile(rows: dict[str, dict], jobs: list[dict]) -> None:
         caps = str((_output_attrs(out) or {}).get(names.ATTR_AMI_CAPPED, "") or "")
         status = STATUS_CAPPED if caps else STATUS_OK
         rows[job["rel"]] = _row(
-            job["rel"], job["out_rel"], status, "written; the batch stopped before its report",
-            modes=count, frequencies_hz=freqs,
+            job["rel"],
+            job["out_rel"],
+            status,
+            "written; the batch stopped before its report",
+            modes=count,
+            frequencies_hz=freqs,
         )
 
 
@@ -549,9 +553,10 @@ def batch(
 
     summary = BatchSummary(csv_path=output_dir / SUMMARY_NAME)
     try:
-        with interrupt.armed(), Progress(
-            "ami-xr batch", total=len(jobs), unit="file", enabled=progress
-        ) as bar:
+        with (
+            interrupt.armed(),
+            Progress("ami-xr batch", total=len(jobs), unit="file", enabled=progress) as bar,
+        ):
             for row in _run_jobs(jobs, workers):
                 rows[row["file"]] = row
                 bar.update(1)

@@ -55,6 +55,7 @@ from ami_xr.app.options import (
     check_paths,
     frf_options,
     identify_options,
+    ranged,
     stability_table,
     value,
 )
@@ -333,12 +334,15 @@ def _add_demo(add) -> None:
     )
     p.add_argument(
         "--noise",
-        type=float,
+        type=ranged(float, 0.0),
         default=Default(BENCHMARK, "noise"),
         help="noise level alpha of eq. 15 (fraction of each signal's peak) when simulating",
     )
     p.add_argument(
-        "--seed", type=int, default=Default(BENCHMARK, "seed"), help="noise seed when simulating"
+        "--seed",
+        type=ranged(int, 0, 2**32 - 1),
+        default=Default(BENCHMARK, "seed"),
+        help="noise seed when simulating",
     )
     p.add_argument("--no-report", action="store_true", help="skip the report (no matplotlib)")
     add_identify_options(p)
@@ -359,13 +363,13 @@ def _add_simulate(add) -> None:
     _add_output(p, "FRF netCDF file to write")
     p.add_argument(
         "--noise",
-        type=float,
+        type=ranged(float, 0.0),
         default=Default(BENCHMARK, "noise"),
         help="noise level alpha of eq. 15 (fraction of each signal's peak; 0 = noise-free)",
     )
     p.add_argument(
         "--seed",
-        type=int,
+        type=ranged(int, 0, 2**32 - 1),
         default=Default(BENCHMARK, "seed"),
         help="seed of the noise (and of the random system) (reproducible)",
     )
@@ -377,10 +381,16 @@ def _add_simulate(add) -> None:
     )
     g = p.add_argument_group("beam-absorbers options")
     g.add_argument(
-        "--duration", type=float, default=Default(BENCHMARK, "duration"), help="record length [s]"
+        "--duration",
+        type=ranged(float, 0.0, low_open=True),
+        default=Default(BENCHMARK, "duration"),
+        help="record length [s]",
     )
     g.add_argument(
-        "--samples", type=int, default=Default(BENCHMARK, "n_samples"), help="samples per record"
+        "--samples",
+        type=ranged(int, 2),
+        default=Default(BENCHMARK, "n_samples"),
+        help="samples per record",
     )
     g.add_argument(
         "--time-output",
@@ -392,7 +402,7 @@ def _add_simulate(add) -> None:
     g = p.add_argument_group("random options")
     g.add_argument(
         "--points",
-        type=int,
+        type=ranged(int, 5, 50),
         default=Default(RANDOM_SYSTEM, "n_points"),
         help="measured points (5-50)",
     )
@@ -410,7 +420,7 @@ def _add_simulate(add) -> None:
     g.add_argument("--weak-mode", action="store_true", help="add a weakly excited mode")
     g.add_argument(
         "--max-frequency",
-        type=float,
+        type=ranged(float, 0.0, low_open=True),
         default=Default(RANDOM_SYSTEM, "max_frequency_hz"),
         help="top of the frequency grid [Hz]; the highest mode is at 0.8 x this",
     )
@@ -523,7 +533,7 @@ def _add_batch(add) -> None:
     _add_output(p, "output folder (mirrors DIR)")
     p.add_argument(
         "--workers",
-        type=int,
+        type=ranged(int, 1, 1024),
         default=Default("ami_xr.app.batch:batch", "workers"),
         help="files processed in parallel (processes)",
     )

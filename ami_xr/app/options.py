@@ -82,14 +82,69 @@ def non_default(args: argparse.Namespace, options: dict[str, Any]) -> dict[str, 
     }
 
 
+def ranged(
+    kind: type,
+    low: float | None = None,
+    high: float | None = None,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+):
+    """An argparse ``type`` for a finite number of ``kind`` (int or float) within
+    ``[low, high]`` (``low_open``/``high_open``: the bound itself excluded); argparse names the
+    option in its message and exits 2 (a value out of range would fail deep in the work, or
+    silently change what it means: ``--overload-samples -1`` rejects every hit)."""
+    import math
+
+    def parse(text: str):
+        try:
+            number = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected {'an integer' if kind is int else 'a number'}, got {text!r}"
+            ) from None
+        bad = not math.isfinite(number)
+        bad = bad or (low is not None and (number <= low if low_open else number < low))
+        bad = bad or (high is not None and (number >= high if high_open else number > high))
+        if bad:
+            raise argparse.ArgumentTypeError(
+                f"expected {_range_text(kind, low, high, low_open, high_open)}, got {text!r}"
+            )
+        return number
+
+    parse.__name__ = kind.__name__
+    return parse
+
+
+def _range_text(kind, low, high, low_open, high_open) -> str:
+    what = "an integer" if kind is int else "a finite number"
+
+    def num(x):
+        return f"{x:g}" if isinstance(x, float) else str(x)
+
+    if low is not None and high is not None:
+        left, right = "(" if low_open else "[", ")" if high_open else "]"
+        return f"{what} in {left}{num(low)}, {num(high)}{right}"
+    if low is not None:
+        return f"{what} {'>' if low_open else '>='} {num(low)}"
+    if high is not None:
+        return f"{what} {'<' if high_open else '<='} {num(high)}"
+    return what
+
+
 def _band(text: str) -> float | str:
     if text == "all":
         return text
     try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number or 'all', got {text!r}") from None
+        return ranged(float, 0.0, low_open=True)(text)
+    except argparse.ArgumentTypeError as err:
+        raise argparse.ArgumentTypeError(f"{err} (or 'all')") from None
 
+
+#: Largest --max-modes (the kernels count modes in int64 arrays sized by it).
+MAX_MODES_LIMIT = 10_000
+#: Largest --exponential-decay [1/s]: beyond, the window underflows to zero within a millisecond.
+MAX_DECAY = 1e5
 
 # --- options of ami_xr.identify and ami_xr.frf -------------------------------------------------
 # (flag, function, type or choices, help[, metavar]): the option's default is that of the
@@ -104,19 +159,24 @@ IDENTIFY_OPTIONS = (
         "averaged with SNR weights; paper: the paper's AMI exactly (plain mean, eq. 9 over "
         "bands, continuous basis, no refinement)",
     ),
-    ("--delta", IDENTIFY, float, "subtraction: fit the lines with |G| >= delta * peak, in (0, 1)"),
+    (
+        "--delta",
+        IDENTIFY,
+        ranged(float, 0.0, 1.0, low_open=True, high_open=True),
+        "subtraction: fit the lines with |G| >= delta * peak, in (0, 1)",
+    ),
     (
         "--pfa",
         IDENTIFY,
-        float,
+        ranged(float, 0.0, 1.0, low_open=True, high_open=True),
         "subtraction: false-alarm probability of the automatic stop (a noise peak is taken "
         "for a mode with this probability)",
     ),
-    ("--max-modes", IDENTIFY, int, "subtraction: most modes per FRF"),
+    ("--max-modes", IDENTIFY, ranged(int, 1, MAX_MODES_LIMIT), "subtraction: most modes per FRF"),
     (
         "--fmin",
         IDENTIFY,
-        float,
+        ranged(float, 0.0),
         "analysis band: lowest frequency [Hz] (default: where the excitation is valid for an "
         "FRF from ami-xr frf (force within 20 dB of its low-frequency level, coherence >= 0.8), "
         "else the first line)",
@@ -125,18 +185,18 @@ IDENTIFY_OPTIONS = (
     (
         "--fmax",
         IDENTIFY,
-        float,
+        ranged(float, 0.0),
         "analysis band: highest frequency [Hz] (default: as --fmin, the last line)",
         "HZ",
     ),
     (
         "--tol",
         IDENTIFY,
-        float,
+        ranged(float, 0.0, low_open=True),
         "isolation: relative change of Re and Im of every eigenvalue that ends the iteration "
         "(1e-4 = 0.01 %%)",
     ),
-    ("--max-iter", IDENTIFY, int, "isolation: iteration cap"),
+    ("--max-iter", IDENTIFY, ranged(int, 1, 10**6), "isolation: iteration cap"),
     (
         "--band",
         IDENTIFY,
@@ -162,17 +222,17 @@ FRF_OPTIONS = (
     (
         "--nperseg",
         None,
-        int,
+        ranged(int, 1),
         "segment length [samples] (default: that of ami_xr.frf (random), the whole record "
         "(impact))",
     ),
     (
         "--noverlap",
         None,
-        int,
+        ranged(int, 0),
         "segment overlap [samples] (default: nperseg // 2 (random), 0 (impact))",
     ),
-    ("--nfft", None, int, "FFT length [samples] (default: nperseg)"),
+    ("--nfft", None, ranged(int, 1), "FFT length [samples] (default: nperseg)"),
     (
         "--detrend",
         None,
@@ -186,18 +246,18 @@ FRF_OPTIONS = (
         "averaging over segments or hits: linear (plain mean) or exponential (running, time "
         "constant --n-average); not scipy.signal.csd's average, which means mean or median",
     ),
-    ("--n-average", FRF, int, "time constant of exponential averaging [segments]"),
+    ("--n-average", FRF, ranged(int, 1), "time constant of exponential averaging [segments]"),
     (
         "--force-window",
         IMPACT,
-        float,
+        ranged(float, 0.0, low_open=True),
         "impact: force window width [s] (default: from the force pulse)",
         "SECONDS",
     ),
     (
         "--exponential-decay",
         IMPACT,
-        float,
+        ranged(float, 0.0, MAX_DECAY, low_open=True),
         "impact: exponential window decay rate [1/s] (its damping is removed again by "
         "identification) (default: none)",
         "PER_SECOND",
@@ -205,7 +265,7 @@ FRF_OPTIONS = (
     (
         "--exponential-end-value",
         IMPACT,
-        float,
+        ranged(float, 0.0, 1.0, low_open=True, high_open=True),
         "impact: exponential window by its value at the record end [0-1], instead of "
         "--exponential-decay (default: none)",
         "FRACTION",
@@ -213,27 +273,27 @@ FRF_OPTIONS = (
     (
         "--double-impact-threshold",
         IMPACT,
-        float,
+        ranged(float, 0.0, 1.0, low_open=True),
         "impact: second force pulse above this fraction of the peak = double impact",
         "FRACTION",
     ),
     (
         "--overload-samples",
         IMPACT,
-        int,
+        ranged(int, 1),
         "impact: this many samples at the channel's extreme = overload",
     ),
     (
         "--min-force",
         IMPACT,
-        float,
+        ranged(float, 0.0),
         "impact: reject hits whose peak force is below this [force units] (default: no minimum)",
         "NEWTON",
     ),
     (
         "--weak-force-ratio",
         IMPACT,
-        float,
+        ranged(float, 0.0, 1.0, high_open=True),
         "impact: reject hits weaker than this fraction of the median peak",
         "FRACTION",
     ),

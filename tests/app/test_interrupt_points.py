@@ -45,8 +45,10 @@ def _kernel_module():
     return mod
 
 
-@pytest.mark.parametrize(("signum", "raised"), [(signal.SIGINT, KeyboardInterrupt),
-                                                (signal.SIGTERM, interrupt.Terminated)])
+@pytest.mark.parametrize(
+    ("signum", "raised"),
+    [(signal.SIGINT, KeyboardInterrupt), (signal.SIGTERM, interrupt.Terminated)],
+)
 def test_a_signal_inside_a_kernel_is_raised_at_the_next_checkpoint(signum, raised):
     mod = _kernel_module()
     interrupt.reset()
@@ -113,7 +115,10 @@ def test_identify_stops_between_kernel_pieces(tmp_path, signum):
     log, out = tmp_path / "log.txt", tmp_path / "m.nc"
     proc = subprocess.Popen(
         [sys.executable, "-c", CHILD, str(src), str(log), str(out)],
-        env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env=ENV,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and proc.poll() is None:
