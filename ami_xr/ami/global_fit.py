@@ -51,16 +51,12 @@ MODE_VECTOR_CONVENTION = (
 )
 
 
-def receptance_mode_vectors(
-    residue: np.ndarray, lam: np.ndarray, drive_index: int | None, attrs, frf_units: str
-) -> tuple[np.ndarray, dict]:
-    """Mode vectors (P, K) in the displacement convention, and their attributes.
-
-    The residue of ``(i w)^k G`` at a pole ``lam`` is ``lam^k A`` (``(i w)^k = (i w - lam +
-    lam)^k``; the polynomial rest is a residual term), so the receptance residues are the FRF's
-    residues over ``lam^k`` (times 9.80665 for accelerance in g). Eq. 8 on them gives the same
-    mode vectors whether receptance, mobility or accelerance was measured.
-    """
+def receptance_residues(
+    residue: np.ndarray, lam: np.ndarray, attrs, frf_units: str
+) -> tuple[np.ndarray, str]:
+    """The receptance residues (..., K) of FRF residues (..., K) at the poles ``lam`` (K,), and
+    the receptance units (see :func:`receptance_mode_vectors`; every path that turns residues
+    into mode vectors or participation factors goes through here)."""
     from ami_xr.dsp.quantity import _convert_units  # the one unit rule of convert_quantity
 
     quantity = attrs.get(names.ATTR_QUANTITY)
@@ -79,7 +75,21 @@ def receptance_mode_vectors(
             units = f"({frf_units}) s^{k}" if frf_units else ""
     elif k:
         units = f"({frf_units}) s^{k}" if frf_units else ""
-    phi = mode_vectors(residue * scale / lam[None, :] ** k, lam, drive_index)
+    return np.asarray(residue) * scale / np.asarray(lam) ** k, units
+
+
+def receptance_mode_vectors(
+    residue: np.ndarray, lam: np.ndarray, drive_index: int | None, attrs, frf_units: str
+) -> tuple[np.ndarray, dict]:
+    """Mode vectors (P, K) in the displacement convention, and their attributes.
+
+    The residue of ``(i w)^k G`` at a pole ``lam`` is ``lam^k A`` (``(i w)^k = (i w - lam +
+    lam)^k``; the polynomial rest is a residual term), so the receptance residues are the FRF's
+    residues over ``lam^k`` (times 9.80665 for accelerance in g). Eq. 8 on them gives the same
+    mode vectors whether receptance, mobility or accelerance was measured.
+    """
+    receptance, units = receptance_residues(residue, lam, attrs, frf_units)
+    phi = mode_vectors(receptance, lam, drive_index)
     scaled = drive_index is not None
     out = {
         names.ATTR_SCALING: "eq. 8 at the drive point"

@@ -28,7 +28,13 @@ from ami_xr import names
 from ami_xr.ami import common as c
 from ami_xr.ami import pipeline as pl
 from ami_xr.ami import repeated as rp
-from ami_xr.ami.global_fit import global_fit, mode_vector_units
+from ami_xr.ami.global_fit import (
+    ATTR_MODE_VECTOR_CONVENTION,
+    MODE_VECTOR_CONVENTION,
+    global_fit,
+    mode_vector_units,
+    receptance_residues,
+)
 from ami_xr.ami.pipeline import identify_single, with_quality
 from ami_xr.ami.refine import refine as refine_phase
 from ami_xr.ami.settings import FrfAttributes, GlobalFitSettings, IdentifySettings, from_attrs
@@ -171,13 +177,16 @@ def _drive_snr(a: np.ndarray, lam: np.ndarray, pairs: list, sigma) -> np.ndarray
 @dataclass
 class _Modes:
     """Per mode (K) what the residue matrices give: mode vectors ``phi`` (K, P), participation
-    ``part`` (K, R), residues ``a`` (K, P, R), eigenvalues, the scale's spread over the drive
-    points, the SNR at the drive point used, ``s2/s1``, the scaling reference and the flags
-    decided here."""
+    ``part`` (K, R), residues ``a`` (K, P, R) of the FRFs as measured, ``to_receptance`` (K,)
+    the factor that makes them receptance residues (the displacement convention of
+    :func:`ami_xr.ami.global_fit.receptance_residues`, in which ``phi`` and ``part`` are),
+    eigenvalues, the scale's spread over the drive points, the SNR at the drive point used,
+    ``s2/s1``, the scaling reference and the flags decided here."""
 
     phi: np.ndarray
     part: np.ndarray
     a: np.ndarray
+    to_receptance: np.ndarray
     lam: np.ndarray
     spread: np.ndarray
     best_snr: np.ndarray
@@ -273,13 +282,23 @@ def identify_multi_reference(
     return with_quality(out)
 
 
+def receptance_factor(out: xr.Dataset, lam: np.ndarray) -> tuple[np.ndarray, str]:
+    """Per mode (K,) the factor that turns the FRF residues of ``out`` into receptance
+    residues (1 for receptance, ``1 / lam`` for mobility, ``1 / lam^2`` for accelerance, with
+    the unit factor of g), and the receptance units."""
+    frf_units = str(out[names.FRF].attrs.get(names.ATTR_UNITS, "")) if names.FRF in out else ""
+    return receptance_residues(np.ones(lam.size), lam, out.attrs, frf_units)
+
+
 def _rank_one_modes(out: xr.Dataset, refs: list, pairs: list, sigma) -> _Modes:
     """Mode vectors, participation factors and the rank-one diagnostics of every mode, scaled
     by eq. 8 at the drive point of largest SNR (unit largest entry without a drive point)."""
     n_k = out.sizes[names.MODE]
     lam = np.asarray(out[names.EIGENVALUE].transpose(names.MODE).values, dtype=np.complex128)
     a = out[names.RESIDUE].transpose(names.MODE, names.POINT, names.REFERENCE).values
-    u, s1, w, ratio = cm.rank_one(a)
+    # mode vectors and participation in the displacement convention whatever the FRF type
+    conv = receptance_factor(out, lam)[0]
+    u, s1, w, ratio = cm.rank_one(a * conv[:, None, None])
     snr = _drive_snr(a, lam, pairs, sigma)
     if pairs:
         scales = cm.drive_point_scales(u, s1, w, lam, pairs)
@@ -296,7 +315,7 @@ def _rank_one_modes(out: xr.Dataset, refs: list, pairs: list, sigma) -> _Modes:
     noisy = np.zeros(n_k, bool)  # s2 within the residues' noise (known from the refinement)
     if names.RESIDUE_STD in out:
         std = out[names.RESIDUE_STD].transpose(names.MODE, names.POINT, names.REFERENCE).values
-        noise = np.sqrt(np.sum(np.abs(std) ** 2, axis=(1, 2)))
+        noise = np.abs(conv) * np.sqrt(np.sum(np.abs(std) ** 2, axis=(1, 2)))
         with np.errstate(invalid="ignore"):
             noisy = np.isfinite(noise) & ~(ratio * s1 > NOISE_FACTOR * noise)
     with np.errstate(invalid="ignore"):
@@ -305,6 +324,7 @@ def _rank_one_modes(out: xr.Dataset, refs: list, pairs: list, sigma) -> _Modes:
         phi=u * scale[:, None],
         part=cm.participation(s1, w, lam, scale),
         a=a,
+        to_receptance=conv,
         lam=lam,
         spread=spread,
         best_snr=best_snr,
@@ -322,7 +342,7 @@ def _separate_repeated(
     (flag ``repeated_root_separated``); ``out``'s modes and residues follow."""
     split = {}
     for k in np.flatnonzero(modes.repeated):
-        got = cm.split_repeated(modes.a[k], modes.lam[k], pairs)
+        got = cm.split_repeated(modes.a[k] * modes.to_receptance[k], modes.lam[k], pairs)
         if got is not None:
             split[int(k)] = got
     if not split:
@@ -335,7 +355,8 @@ def _separate_repeated(
         j = src.index(k)
         for m in (0, 1):
             modes.phi[j + m], modes.part[j + m] = phi2[:, m], part2[:, m]
-            modes.a[j + m] = modes.lam[j + m] * np.outer(phi2[:, m], part2[:, m])
+            rec = modes.lam[j + m] * np.outer(phi2[:, m], part2[:, m])
+            modes.a[j + m] = rec / modes.to_receptance[j + m]  # back to the FRF's residues
             modes.spread[j + m], modes.scaling_ref[j + m] = asym, both
             modes.separated[j + m], modes.repeated[j + m] = True, False
             snr = _drive_snr(modes.a[j + m][None], modes.lam[[j]], pairs, sigma)
@@ -364,8 +385,7 @@ def _separate_repeated(
 
 def _with_mode_outputs(out: xr.Dataset, modes: _Modes, ds: xr.Dataset, scaled: bool):
     """``out`` with the per-mode outputs of the residue matrices and their flags."""
-    frf_units = str(ds[names.FRF].attrs.get(names.ATTR_UNITS, ""))
-    units = mode_vector_units(frf_units, scaled)
+    units = mode_vector_units(receptance_factor(out, modes.lam)[1], scaled)
     one = {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
     scaling = (
         "eq. 8 at the drive point of largest SNR (rank-one residues)"
@@ -378,7 +398,11 @@ def _with_mode_outputs(out: xr.Dataset, modes: _Modes, ds: xr.Dataset, scaled: b
             names.MODE_VECTOR: (
                 (names.POINT, names.MODE),
                 modes.phi.T,
-                {names.ATTR_SCALING: scaling, **units},
+                {
+                    names.ATTR_SCALING: scaling,
+                    ATTR_MODE_VECTOR_CONVENTION: MODE_VECTOR_CONVENTION,
+                    **units,
+                },
             ),
             names.PARTICIPATION: (
                 (names.MODE, names.REFERENCE),
@@ -511,6 +535,6 @@ def _refit(stacked, result, lam, det_added, settings) -> xr.Dataset:
         out = refine_phase(out, drop_modes=False)
     if scale != 1.0:
         out = pl.unscale(out, ds, scale)
-    out = pl._window_corrected(out, from_attrs(FrfAttributes, ds.attrs))
-    out = pl._finish_modes(out, stacked, refined=pl.refines(settings))
+    out = pl.window_corrected(out, from_attrs(FrfAttributes, ds.attrs))
+    out = pl.finish_modes(out, stacked, refined=pl.refines(settings))
     return with_quality(out)

@@ -15,17 +15,18 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import common as c
+from ami_xr.ami import repeated as rp
 from ami_xr.ami import scale as scale_out
-from ami_xr.ami.global_fit import global_fit
+from ami_xr.ami.global_fit import global_fit, receptance_mode_vectors
 from ami_xr.ami.isolate import METHODS as ISOLATE_METHODS
 from ami_xr.ami.isolate import isolate
 from ami_xr.ami.refine import refine as refine_phase
 from ami_xr.ami.settings import FrfAttributes, IdentifySettings, IsolateSettings, from_attrs
 from ami_xr.ami.subtract import add_capped, band_of, power_of_two_scale, subtract
+from ami_xr.core import flags
 from ami_xr.core.modal import (
     complexity,
     damping_ratio,
-    mode_vectors,
     mpc,
     mpd,
     natural_frequency,
@@ -73,8 +74,9 @@ def identify_single(ds: xr.Dataset, settings: IdentifySettings, progress=False) 
             result = scale_out.identify_compressed(work, settings, refined, progress, _phases, how)
     if scale != 1.0:
         result = unscale(result, ds, scale)
-    result = _window_corrected(result, from_attrs(FrfAttributes, ds.attrs))
-    result = _finish_modes(result, whole, refined=refined)
+    result = repeated_flagged(result)
+    result = window_corrected(result, from_attrs(FrfAttributes, ds.attrs))
+    result = finish_modes(result, whole, refined=refined)
     return with_quality(result)
 
 
@@ -136,7 +138,22 @@ def _caps_superseded(out: xr.Dataset, refined: bool) -> bool:
     return True
 
 
-def _window_corrected(result: xr.Dataset, data: FrfAttributes) -> xr.Dataset:
+def repeated_flagged(result: xr.Dataset) -> xr.Dataset:
+    """``result`` with ``repeated_root_suspected`` set where one reference's band-rank
+    statistic sees two poles in a mode's band (:mod:`ami_xr.ami.repeated`; issue 22 item 2),
+    so that a SIMO Dataset and a one-reference multi-reference Dataset carry the same flags;
+    nothing without quality flags or modes."""
+    if names.QUALITY_FLAGS not in result or not result.sizes.get(names.MODE, 0):
+        return result
+    suspected = rp.suspected(*rp.band_rank_statistics(result))
+    if not np.any(suspected):
+        return result
+    mask = flags.set_where(c.flag_mask(result), names.FLAG_REPEATED_ROOT, suspected)
+    result[names.QUALITY_FLAGS] = result[names.QUALITY_FLAGS].copy(data=flags.encode(mask))
+    return result
+
+
+def window_corrected(result: xr.Dataset, data: FrfAttributes) -> xr.Dataset:
     """``result`` with its eigenvalues corrected for the exponential window of the data
     (``lam = lam_measured + beta``), natural frequencies, damping ratios and mode vectors
     following; attr ``exponential_window_corrected`` records beta."""
@@ -149,12 +166,19 @@ def _window_corrected(result: xr.Dataset, data: FrfAttributes) -> xr.Dataset:
         data=natural_frequency(lam)
     )
     result[names.DAMPING_RATIO] = result[names.DAMPING_RATIO].copy(data=damping_ratio(lam))
-    if names.RESIDUE in result:
+    if names.RESIDUE in result and names.MODE_VECTOR in result:
+        # the one displacement convention of global_fit (residues over lam^k), at the new lam
         res = result[names.RESIDUE].transpose(names.POINT, names.MODE).values
-        phi = mode_vectors(res, lam, c.drive_index(result))
-        result[names.MODE_VECTOR] = result[names.MODE_VECTOR].copy(
-            data=phi if result[names.MODE_VECTOR].dims[0] == names.POINT else phi.T
+        units = (
+            str(result[names.FRF].attrs.get(names.ATTR_UNITS, "")) if names.FRF in result else ""
         )
+        phi, phi_attrs = receptance_mode_vectors(
+            res, lam, c.drive_index(result), result.attrs, units
+        )
+        mv = result[names.MODE_VECTOR]
+        result[names.MODE_VECTOR] = mv.copy(
+            data=phi if mv.dims[0] == names.POINT else phi.T
+        ).assign_attrs(phi_attrs)
     result.attrs[names.ATTR_EXP_CORRECTED] = beta
     return result
 
@@ -239,7 +263,7 @@ def with_quality(result: xr.Dataset) -> xr.Dataset:
     )
 
 
-def _finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dataset:
+def finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dataset:
     """The modes as reported: none outside a restricted analysis band, sorted by frequency with
     labels 1..n; caps that ended a phase warned about and listed in attr ``ami_capped``."""
     band = bd.analysis_band(result)

@@ -34,15 +34,20 @@ def band_rank_statistics(result: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
     """``(ratio, excess)`` per mode of :func:`ami_xr.core.mimo.band_rank` on ``result`` (the
     output of the pipeline, dims (point, frequency) or (reference, point, frequency): each
     reference on its own, the largest excess kept); NaN where the residual, the residues or
-    the noise levels are missing."""
+    the noise levels are missing. The noise levels are ``frf_noise_std`` (the refinement's),
+    else the subtraction's ``subtraction_noise_floor`` (the same adjacent-line estimate,
+    present without the refinement)."""
     n_k = result.sizes.get(names.MODE, 0)
     nan = np.full(n_k, np.nan)
-    need = (names.FRF_RESIDUAL, names.RESIDUE, names.EIGENVALUE, names.FRF_NOISE_STD)
+    noise_var = names.FRF_NOISE_STD if names.FRF_NOISE_STD in result else names.SUB_NOISE_FLOOR
+    need = (names.FRF_RESIDUAL, names.RESIDUE, names.EIGENVALUE, noise_var)
     if n_k == 0 or any(v not in result for v in need):
         return nan, nan.copy()
     model = resolve_model(result.attrs, "auto")
     omega = 2 * np.pi * np.asarray(result[names.FREQUENCY].values, dtype=float)
     lam = np.asarray(result[names.EIGENVALUE].transpose(names.MODE).values, np.complex128)
+    # the data are the windowed FRFs: their poles are the measured ones, before the correction
+    lam = lam - float(result.attrs.get(names.ATTR_EXP_CORRECTED, 0.0) or 0.0)
     basis = np.array([pole_basis(omega, lk, model.dt, model.n_samples) for lk in lam])
     use = np.abs(omega[None, :] - lam.imag[:, None]) <= BAND_HALF_WIDTH * np.abs(lam.real)[:, None]
     refs = [None]
@@ -59,7 +64,7 @@ def band_rank_statistics(result: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
 
         rr, ee = cm.band_rank(
             block(names.FRF_RESIDUAL, names.POINT, names.FREQUENCY),
-            block(names.FRF_NOISE_STD, names.POINT),
+            block(noise_var, names.POINT),
             basis,
             block(names.RESIDUE, names.POINT, names.MODE),
             use,
