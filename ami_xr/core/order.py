@@ -26,6 +26,10 @@ FALLBACK_MESSAGE = "fallback: nothing could be fitted"  # FitResult.message of a
 EXACT_RSS = 1e-20
 # local fits try up to this many poles more than the refinable modes of a cluster
 EXTRA_POLES = 3
+# a cluster's band covers each of its modes with this many half-power bandwidths to spare
+CLUSTER_MARGIN = 1.5
+# false-alarm probability of the screen that picks where the residual shows structure
+SCREEN_PFA = 0.1
 
 
 @dataclass
@@ -135,7 +139,7 @@ def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=0.1):
     is smoothed over the typical bandwidth (in lines) of the modes found. Only peaks above the
     chi-square level of false-alarm probability ``screen_pfa`` over the band are returned (a cheap
     screen before the likelihood-ratio test): candidate data poles, damping the median of the
-    modes found. Also returns ``S`` smoothed and the level, ``(candidates, smooth, level)``.
+    modes found. Also returns ``S`` itself (unsmoothed): ``(candidates, S)``.
     """
     from scipy.stats import chi2  # lazy: scipy.stats is slow to import
 
@@ -155,7 +159,6 @@ def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=0.1):
     smooth[-m - 1 :] = 0.0
     n_point = prob.n_points
     level = chi2.isf(screen_pfa / n_line, 2 * n_point * m) / m
-    whole = smooth.copy()
     out = []
     for _ in range(n_candidates):
         i = int(np.argmax(smooth))
@@ -164,7 +167,7 @@ def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=0.1):
         w = omega[i]
         out.append(-zeta * w + 1j * w * np.sqrt(1.0 - zeta**2))
         smooth[max(i - 3 * m, 0) : i + 3 * m + 1] = 0.0
-    return out, whole, level
+    return out, power
 
 
 def _costs_without_each_mode(prob, proj):
@@ -313,13 +316,17 @@ def _remove_reference(state: State, removed: np.ndarray) -> None:
 
 
 def _cluster_band(lam, width, centre, half):
-    """The band around ``centre`` grown until it covers every mode within three half-power
-    bandwidths of it: ``(lo, hi, inside)``."""
+    """The band around ``centre`` grown to a cluster: every mode whose half-power band
+    (``Im lam +- width``, ``width = 2 |Re lam|``) reaches the band joins, and the band then
+    covers it with a margin of ``CLUSTER_MARGIN`` bandwidths: ``(lo, hi, inside)``. (Joining
+    at three bandwidths let one strongly damped mode pull far-off modes into a wide band, on
+    which the local fit's few poles no longer resolve the cluster.)"""
     lo, hi = centre - half, centre + half
     while True:
-        inside = (lam.imag + 3.0 * width >= lo) & (lam.imag - 3.0 * width <= hi)
-        new_lo = min(lo, float(np.min(lam.imag[inside] - 3.0 * width[inside], initial=lo)))
-        new_hi = max(hi, float(np.max(lam.imag[inside] + 3.0 * width[inside], initial=hi)))
+        inside = (lam.imag + width >= lo) & (lam.imag - width <= hi)
+        reach = CLUSTER_MARGIN * width[inside]
+        new_lo = min(lo, float(np.min(lam.imag[inside] - reach, initial=lo)))
+        new_hi = max(hi, float(np.max(lam.imag[inside] + reach, initial=hi)))
         if new_lo >= lo and new_hi <= hi:
             return lo, hi, inside
         lo, hi = new_lo, new_hi
@@ -394,20 +401,34 @@ def _add_missed(
     fit = state.fit
     if not (fit.proj.ok and np.isfinite(fit.cost)):
         return False
-    peaks, power, level = _residual_candidates(prob, fit)
+    peaks, power = _residual_candidates(prob, fit)
     ref0 = np.where(state.free, state.lam0, fit.lam + decay)
     trials = [
         (np.append(fit.lam, c), np.append(ref0, c + decay), 1, np.empty(0, int)) for c in peaks
     ]
     # Clusters are refitted around the peaks, around frozen modes (a mode that could not be
-    # refined marks what the model misses) and around modes whose band holds residual
-    # structure above the screening level (a pole hidden in a cluster leaves no peak of its own)
+    # refined marks what the model misses) and around modes whose band holds more residual
+    # power than noise would (a pole hidden in a cluster leaves no peak of its own): the sum of
+    # S over the band against the chi-square quantile of 2P per line, at false-alarm
+    # probability SCREEN_PFA over the modes
+    from scipy.stats import chi2  # lazy: scipy.stats is slow to import
+
     width = np.maximum(2.0 * np.abs(fit.lam.real), min_width)
-    busy = [
-        np.max(power[np.abs(prob.omega - fit.lam[k].imag) <= 3.0 * width[k]], initial=0.0) > level
-        for k in range(fit.lam.size)
-    ]
-    suspect = ~state.free | np.array(busy, bool)
+    busy = np.zeros(fit.lam.size, bool)
+    for k in range(fit.lam.size):
+        band = np.abs(prob.omega - fit.lam[k].imag) <= 3.0 * width[k]
+        dof = 2 * prob.n_points * int(band.sum())
+        busy[k] = dof > 0 and power[band].sum() > chi2.isf(SCREEN_PFA / fit.lam.size, dof)
+    suspect = ~state.free | busy
+    # a mode of a cluster (its half-power band reaches another's) may stand for two: split
+    gap = np.abs(fit.lam.imag[:, None] - fit.lam.imag[None, :])
+    np.fill_diagonal(gap, np.inf)
+    clustered = np.any(gap < width[:, None] + width[None, :], axis=1)
+    for k in np.flatnonzero(state.free & (clustered | busy)):
+        shift = 0.5 * abs(fit.lam[k].real)
+        start = np.append(fit.lam, fit.lam[k] + 1j * shift)
+        start[k] -= 1j * shift
+        trials.append((start, np.append(ref0, start[-1] + decay), 1, np.empty(0, int)))
     order = np.argsort(state.free, kind="stable")  # frozen modes first
     centres = [c.imag for c in peaks] + list(fit.lam.imag[order][suspect[order]])
     trials += _cluster_starts(prob, state, decay, min_width, centres)
