@@ -14,6 +14,7 @@ from ami_xr.ami import common as c
 from ami_xr.ami.settings import SubtractSettings, parameters, to_attrs
 from ami_xr.core.model import resolve_model
 from ami_xr.dsp import band as bd
+from ami_xr.dsp.convention import conjugate_error
 from ami_xr.errors import AssumptionWarning, ConvergenceWarning, NoModesWarning
 from ami_xr.kernels import noise as kn
 from ami_xr.kernels import subtract as ks
@@ -206,6 +207,12 @@ def subtract(
     to_attrs(settings, out.attrs)
     _warn_caps(out, settings.max_modes)
     if int(r.n_modes.sum()) == 0:
+        if _has_significant_peak(ds[names.FRF], r.sigma, settings):
+            # significant peaks, no fit accepted: the other sign convention? then say so
+            flipped = _run(np.conj(ds[names.FRF]), omega, data_model, settings)
+            if int(flipped.n_modes.sum()) > 0:
+                n_frfs = int(np.prod(r.n_modes.shape))
+                raise conjugate_error("subtract", n_frfs, int(flipped.n_modes.sum()))
         _explain_no_modes(out, ds[names.FRF], r.sigma, settings.pfa, settings.zeta_max, omega.size)
     return c.finish(out, "ami_xr.subtract", "subtract", parameters(settings))
 
@@ -315,6 +322,13 @@ def _warn_caps(out: xr.Dataset, max_modes: int) -> None:
             )
     out.attrs[names.ATTR_AMI_CAPPED] = ""
     add_capped(out.attrs, hit)
+
+
+def _has_significant_peak(frf, sigma, settings: SubtractSettings) -> bool:
+    """Some FRF's largest line passes the stop rule's threshold (see :func:`_explain_no_modes`)."""
+    t = float(kn.peak_threshold(frf.sizes[names.FREQUENCY], settings.pfa))
+    ratio = np.asarray((np.abs(frf).max(names.FREQUENCY) / sigma).values, dtype=np.float64)
+    return bool(np.any(ratio**2 >= t))
 
 
 def _explain_no_modes(out, frf, sigma, pfa, zeta_max, n_lines) -> None:

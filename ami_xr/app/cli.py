@@ -240,6 +240,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     ds = read_frfs(args.input, args)  # lazy, chunked along point with --workers/--scheduler
     if names.FRF not in ds and names.TIME in ds.dims:
         raise AmiXrValueError(_frf_first(args.input))
+    if args.conjugate:  # the other sign convention (ami_xr.dsp.convention)
+        ds = ds.assign({names.FRF: ds[names.FRF].conj()})
     options = identify_options(args)
     # a phase bar on a terminal once the work takes more than a couple of seconds
     with cluster(args):
@@ -476,6 +478,12 @@ def _add_file_commands(add) -> None:
     )
     add_stability_option(p)
     p.add_argument(
+    p.add_argument(
+        "--conjugate",
+        action="store_true",
+        help="use the complex conjugate of the FRFs read (data exported with the e^{-iwt} sign "
+        "convention; ami_xr's is e^{+iwt}, see ami_xr.dsp.convention)",
+    )
         "-q",
         "--quiet",
         action="store_true",
