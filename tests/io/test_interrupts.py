@@ -170,3 +170,28 @@ def test_remove_stale_removes_a_killed_writers_folder_with_its_file(tmp_path):
     (leftover / "r.modes.nc").write_bytes(b"\0" * 4096)
     assert remove_stale(tmp_path) == [leftover]
     assert not leftover.exists()
+
+
+def test_ctrl_c_inside_pyuff_is_not_swallowed_and_rolls_back(tmp_path, monkeypatch):
+    """pyuff's bare ``except:`` in ``refresh`` turned a KeyboardInterrupt into "Error refreshing
+    UFF file" (issue 25 item 3): signals are held while pyuff runs and raised between blocks,
+    so the interrupt is a KeyboardInterrupt and the old target stays."""
+    pyuff = pytest.importorskip("pyuff")
+    ds = ami_xr.open_dataset(REPO / "sample_data" / "benchmark_frf.nc").load()
+    target = tmp_path / "b.uff"
+    target.write_text("old\n")
+    calls = []
+
+    class SignalOnSecondUse:  # pyuff's numpy, inside refresh's try/bare except
+        def __getattr__(self, name):
+            if name == "asarray":
+                calls.append(1)
+                if len(calls) == 2:
+                    os.kill(os.getpid(), signal.SIGINT)
+            return getattr(np, name)
+
+    monkeypatch.setitem(pyuff.UFF.refresh.__globals__, "np", SignalOnSecondUse())
+    with pytest.raises(KeyboardInterrupt):
+        ami_xr.write_uff(ds, target)
+    assert target.read_text() == "old\n"
+    assert not list(tmp_path.glob(".*.tmp"))

@@ -16,7 +16,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, AssumptionWarning, SchemaError
-from ami_xr.io.atomic import atomic_path
+from ami_xr.io.atomic import atomic_path, interrupts_deferred
 from ami_xr.io.uff.codes import (
     FUNC_COHERENCE,
     FUNC_FRF,
@@ -473,6 +473,18 @@ def write_uff(
     with atomic_path(path) as tmp, warnings.catch_warnings():
         # pyuff warns about optional fields we leave at their defaults.
         warnings.simplefilter("ignore")
-        # tmp does not exist yet: pyuff refuses to "overwrite" a file it did not write.
-        pyuff.UFF(str(tmp)).write_sets(records, mode="add")
+        # pyuff's bare ``except:`` turns a KeyboardInterrupt raised inside it into "Error
+        # writing data-set": signals are held while pyuff runs and handed over between blocks
+        # of records (an interrupt then removes the temporary file, the target is untouched).
+        with interrupts_deferred() as held:
+            # tmp does not exist yet: pyuff refuses to "overwrite" a file it did not write;
+            # "add" creates it and appends the later blocks.
+            uff = pyuff.UFF(str(tmp))
+            for lo in range(0, len(records), RECORDS_PER_BLOCK):
+                uff.write_sets(records[lo : lo + RECORDS_PER_BLOCK], mode="add")
+                held.deliver()
     return path
+
+
+#: Records pyuff writes between two looks at a held Ctrl-C or SIGTERM.
+RECORDS_PER_BLOCK = 32
