@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,6 +11,7 @@ from ami_xr import names
 from ami_xr.ami import common as c
 from ami_xr.ami import subtract as sub_phase
 from ami_xr.ami.settings import IsolateSettings, SubtractSettings, from_attrs, parameters, to_attrs
+from ami_xr.caller import warn
 from ami_xr.core.matching import gather, match_modes, n_labels, weighted_average
 from ami_xr.core.model import resolve_model
 from ami_xr.errors import ConvergenceWarning, IdentificationError, NoModesWarning
@@ -337,12 +337,11 @@ def isolate(
     to_attrs(settings, out.attrs)
     if not np.all(res.converged):
         bad = points[~res.converged].tolist()
-        warnings.warn(
+        warn(  # at the user's line, also when reached through identify
             f"isolate: not converged within max_iter={max_iter} sweeps at point(s) "
             f"{bad} (tol={tol}); see isolation_converged",
             ConvergenceWarning,
-            stacklevel=2,
         )
     if res.n_modes == 0:
-        warnings.warn("isolate: no mode identified", NoModesWarning, stacklevel=2)
+        warn("isolate: no mode identified", NoModesWarning)
     return c.finish(out, "ami_xr.isolate", "isolate", parameters(settings))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import warnings
 
 import numpy as np
 import xarray as xr
@@ -12,6 +11,7 @@ from ami_xr import names
 from ami_xr import progress as pg
 from ami_xr.ami import common as c
 from ami_xr.ami.settings import SubtractSettings, parameters, to_attrs
+from ami_xr.caller import warn
 from ami_xr.core.model import resolve_model
 from ami_xr.dsp import band as bd
 from ami_xr.dsp.convention import conjugate_error
@@ -288,7 +288,7 @@ def band_of(ds: xr.Dataset, fmin, fmax, function: str) -> xr.Dataset:
     recorded = names.ATTR_BAND_FMIN in ds.attrs and fmin is None and fmax is None
     band = bd.analysis_band(ds, fmin, fmax)
     if not recorded and band.rule == bd.RULE_EXCITATION:
-        warnings.warn(f"{function}: {bd.band_message(band, ds)}", AssumptionWarning, stacklevel=3)
+        warn(f"{function}: {bd.band_message(band, ds)}", AssumptionWarning)
     return bd.apply_band(ds, band)
 
 
@@ -312,13 +312,12 @@ def _warn_caps(out: xr.Dataset, max_modes: int) -> None:
         at = points[reasons == reason]
         if at.size:
             hit.append(f"subtract:{reason}")
-            warnings.warn(
+            warn(
                 f"subtract: stopped at the cap of {what} at point(s) {c.shorten(at.tolist())}, "
                 "before the remaining peaks fell below the noise floor; modes may be missing "
                 "(raise max_modes, or narrow the band with fmin/fmax); see "
                 f"{names.SUB_STOP_REASON}",
                 ConvergenceWarning,
-                stacklevel=3,
             )
     out.attrs[names.ATTR_AMI_CAPPED] = ""
     add_capped(out.attrs, hit)
@@ -347,11 +346,10 @@ def _explain_no_modes(out, frf, sigma, pfa, zeta_max, n_lines) -> None:
     significant = ratio**2 >= t
     if not np.any(significant):
         out.attrs[names.ATTR_AMI_STOP_REASON] = names.STOP_NO_SIGNIFICANT_PEAK
-        warnings.warn(
+        warn(
             "subtract: no FRF has a peak significantly above its noise floor "
             f"(pfa={pfa}); zero modes found",
             NoModesWarning,
-            stacklevel=3,
         )
         return
     out.attrs[names.ATTR_AMI_STOP_REASON] = names.STOP_NO_ACCEPTED_FIT
@@ -360,12 +358,11 @@ def _explain_no_modes(out, frf, sigma, pfa, zeta_max, n_lines) -> None:
     out[names.SUB_STOP_REASON] = reason.copy(
         data=np.where(mask, names.STOP_NO_ACCEPTED_FIT, np.asarray(reason.values)).astype(str)
     )
-    warnings.warn(
+    warn(
         f"subtract: zero modes found, although {int(significant.sum())} of {significant.size} "
         f"FRF(s) have a peak significantly above the noise floor (pfa={pfa}): no single-mode "
         f"fit was accepted (damping ratio above zeta_max={zeta_max:g}, or the peak is wider "
         "than its fit band: heavily damped or overlapping modes?). If the modes are this "
         "heavily damped, raise zeta_max (e.g. ami_xr.identify(ds, zeta_max=0.6))",
         NoModesWarning,
-        stacklevel=3,
     )

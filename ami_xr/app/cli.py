@@ -201,7 +201,8 @@ def _cmd_frf(args: argparse.Namespace) -> int:
     options = frf_options(args)
     if "excitation" not in options:  # auto: the rule ami_xr.frf_from_options applies too
         options["excitation"] = excitation_of(ts)
-        why = "the force is a short pulse" if options["excitation"] == "impact" else "it is not"
+        impact = options["excitation"] == "impact"
+        why = "the force is a short pulse" if impact else "the force is not a short pulse"
         _say(f"excitation: {options['excitation']} ({why}; --excitation sets it)")
     g = frf_from_options(ts, options)
     if names.HIT_REJECTED in g:  # impact test: say which hits were left out and why
