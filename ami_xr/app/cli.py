@@ -272,6 +272,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
         title=args.title,
         figures=args.figures,
         frequency_range=args.frequency_range,
+        reference=args.reference,
     )
     _say(f"wrote report to {index}")
     return EXIT_OK
@@ -479,12 +480,12 @@ def _add_file_commands(add) -> None:
     )
     add_stability_option(p)
     p.add_argument(
-    p.add_argument(
         "--conjugate",
         action="store_true",
         help="use the complex conjugate of the FRFs read (data exported with the e^{-iwt} sign "
         "convention; ami_xr's is e^{+iwt}, see ami_xr.dsp.convention)",
     )
+    p.add_argument(
         "-q",
         "--quiet",
         action="store_true",
@@ -505,6 +506,14 @@ def _add_file_commands(add) -> None:
     p.add_argument("input", help="result file of 'ami-xr identify' (.nc)")
     _add_output(p, "report folder (created)")
     p.add_argument("--title", default=None, help="page title (default: from the source file)")
+    p.add_argument(
+        "--reference",
+        metavar="LABEL",
+        default=None,
+        help="multi-reference result: draw the FRFs of this reference only (default: every "
+        "reference, FRF figures once per reference; both show the participation per reference, "
+        "drive-point consistency and the MAC within close pairs)",
+    )
     add_report_options(p)
     p.set_defaults(func=_cmd_report)
 
@@ -716,6 +725,8 @@ def run() -> None:
 
     _usable_streams()
     _matplotlib_config_dir()
+    if hasattr(signal, "SIGXFSZ"):  # past a file-size limit a write fails (named as a full
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # disk) instead of killing the process
     sys.unraisablehook = _unraisable(sys.unraisablehook)
     with interrupt.armed():
         try:

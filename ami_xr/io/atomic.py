@@ -42,6 +42,8 @@ writing the same target) are left alone.
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import glob
 import os
 import shutil
@@ -194,6 +196,50 @@ def _sigterm_as_exit() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+# --- full disk -----------------------------------------------------------------------------------
+#: errno values that mean "no room": no space, quota exceeded, file-size limit (RLIMIT_FSIZE).
+NO_SPACE_ERRNOS = tuple(
+    getattr(errno, name) for name in ("ENOSPC", "EDQUOT", "EFBIG") if hasattr(errno, name)
+)
+#: Bytes a probe writes to tell a full disk from another write error.
+PROBE_BYTES = 1 << 20
+
+
+def no_space(folder: Path, err: BaseException | None = None) -> bool:
+    """Whether a failed write in ``folder`` ran out of room: the error (or one it was raised
+    from) says so, or the folder takes no :data:`PROBE_BYTES` more now."""
+    seen = err
+    while seen is not None:
+        if isinstance(seen, OSError) and seen.errno in NO_SPACE_ERRNOS:
+            return True
+        seen = seen.__cause__ or seen.__context__
+    try:
+        st = os.statvfs(folder)
+        if st.f_bavail * st.f_frsize < PROBE_BYTES:
+            return True
+    except (OSError, AttributeError):
+        pass
+    probe = Path(folder) / f".space-probe.{uuid.uuid4().hex[:8]}{TEMP_SUFFIX}"
+    try:
+        with open(probe, "wb") as fh:
+            fh.write(bytes(PROBE_BYTES))
+            fh.flush()
+            os.fsync(fh.fileno())
+    except OSError as probe_err:
+        return probe_err.errno in NO_SPACE_ERRNOS
+    finally:
+        with contextlib.suppress(OSError):
+            probe.unlink()
+    return False
+
+
+def _full_message(path: Path, err: BaseException) -> str:
+    return (
+        f"no space left on the device writing {path} ({type(err).__name__}: {err}); "
+        "nothing was written there (the previous file, if any, is unchanged)"
+    )
+
+
 # --- temporary folders: lock, create, remove leftovers -------------------------------------------
 def _lock(entry: Path, *, wait: bool) -> int | None:
     """An open descriptor of ``entry`` holding an exclusive ``flock``; None when another
@@ -292,6 +338,8 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
             _remove_stale_of(path)
             tmp_dir, lock = _new_temp_dir(path)
         except OSError as err:
+            if no_space(path.parent, err):
+                raise DataFileError(_full_message(path, err)) from err
             raise DataFileError(f"{path}: cannot write: {type(err).__name__}: {err}") from err
         tmp = tmp_dir / path.name
         try:
@@ -301,8 +349,20 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
             tmp_dir.rmdir()
         except OSError as err:
             with interrupts_deferred():  # a second Ctrl-C must not stop the cleanup half-way
+                full = no_space(tmp_dir, err)
                 _remove_tree(tmp_dir)
+            if full:
+                raise DataFileError(_full_message(path, err)) from err
             raise DataFileError(f"{path}: cannot write: {type(err).__name__}: {err}") from err
+        except Exception as err:
+            # netCDF ("NetCDF: HDF error") and pyuff ("Error writing data-set") hide the cause:
+            # a full disk is named as such.
+            with interrupts_deferred():
+                full = no_space(tmp_dir, err)
+                _remove_tree(tmp_dir)
+            if full:
+                raise DataFileError(_full_message(path, err)) from err
+            raise
         except BaseException:
             with interrupts_deferred():
                 _remove_tree(tmp_dir)

@@ -152,3 +152,30 @@ def test_batch_sigterm_to_the_group_leaves_a_summary_matching_the_outputs(tmp_pa
     assert listed == on_disk and on_disk
     assert not list(out.glob(".*.tmp"))
     assert time.monotonic() - sent < 120
+
+
+# --- full disk (item 7) --------------------------------------------------------------------------
+FULL_DISK = """
+import resource, sys
+resource.setrlimit(resource.RLIMIT_FSIZE, (40_000, 40_000))  # files past 40 kB: EFBIG
+from ami_xr.app.cli import run
+run()
+"""
+
+
+@pytest.mark.parametrize("suffix", [".nc", ".uff"])
+def test_a_full_disk_is_named_and_leaves_nothing(tmp_path, suffix):
+    out = tmp_path / f"b{suffix}"
+    out.write_text("old\n")
+    done = subprocess.run(
+        [sys.executable, "-c", FULL_DISK, "convert", str(SAMPLE), "-o", str(out)],
+        capture_output=True,
+        text=True,
+        env=ENV,
+        timeout=300,
+    )
+    assert done.returncode == 1, done.stderr
+    assert "no space left on the device writing" in done.stderr, done.stderr
+    assert "unexpected" not in done.stderr
+    assert out.read_text() == "old\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]
