@@ -475,9 +475,37 @@ def frf(
             AssumptionWarning,
             stacklevel=2,
         )
+    if nperseg is None:
+        _warn_few_lines(s.nperseg, s.nfft, s.force.sizes[names.TIME], s.fs)
     out = _spectra_to_frf(ds, s, (w, w), records, {}, {})
     label = window if isinstance(window, str) else "array"
     return _finish(out, s, "ami_xr.frf", label, {"n_records_used": records.size})
+
+
+#: Fewer lines than this from the default segment length is said (issue 24 item 8): the
+#: identification's bands then hold a handful of lines each.
+FEW_LINES = 257
+#: Welch segments the suggested ``nperseg`` keeps in a record (about twice that with the
+#: default half overlap), so the averages still tame the noise.
+SUGGESTED_SEGMENTS = 8
+
+
+def _warn_few_lines(nperseg: int, nfft: int, n_time: int, fs: float) -> None:
+    """The default ``nperseg`` leaves fewer than :data:`FEW_LINES` lines although the record
+    holds :data:`SUGGESTED_SEGMENTS` segments of a longer power of two: say so and what to
+    pass."""
+    lines = nfft // 2 + 1
+    suggested = 2 ** int(np.floor(np.log2(max(n_time / SUGGESTED_SEGMENTS, 1.0))))
+    if lines >= FEW_LINES or suggested <= nperseg:
+        return
+    warn(
+        f"frf: the default nperseg={nperseg} gives {lines} lines {fs / nfft:.4g} Hz apart from "
+        f"a record of {n_time} samples ({n_time / fs:.4g} s); identification wants a few "
+        f"hundred lines: pass nperseg={suggested} ({suggested // 2 + 1} lines "
+        f"{fs / suggested:.4g} Hz apart, {SUGGESTED_SEGMENTS} segments or more; "
+        "ami-xr frf --nperseg)",
+        AssumptionWarning,
+    )
 
 
 def impact_frf(
