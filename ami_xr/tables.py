@@ -18,6 +18,8 @@ __all__ = [
     "modal_table",
     "modal_table_csv_rows",
     "format_modal_table",
+    "participation_table",
+    "repeated_pairs",
     "STD_COLUMNS",
     "INDICATOR_COLUMNS",
 ]
@@ -115,6 +117,10 @@ INDICATOR_COLUMNS: dict[str, tuple[str, str]] = {
     "mpd_deg": (names.MPD, "MPD [deg]"),
     "complexity": (names.COMPLEXITY, "complexity [-]"),
     "stability_fraction": (names.STABILITY_FRACTION, "stability [-]"),
+    # multi-reference results (ami_xr.ami.mimo): how far from rank one the residue matrix is,
+    # and how far the drive points disagree on the mode vector's scale (reciprocity)
+    "rank_one_ratio": (names.RANK_ONE_RATIO, "s2/s1 [-]"),
+    "drive_point_consistency": (names.DRIVE_POINT_CONSISTENCY, "drive-point spread [-]"),
 }
 
 
@@ -218,3 +224,113 @@ def format_modal_table(
         "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in body
     ]
     return "\n".join(lines)
+
+
+def _references(ds: xr.Dataset) -> list:
+    if names.PARTICIPATION not in ds or names.REFERENCE not in ds[names.PARTICIPATION].dims:
+        raise AmiXrValueError(
+            f"participation_table: the Dataset has no {names.PARTICIPATION!r} (mode, reference) "
+            "(a multi-reference result of ami_xr.identify is needed)"
+        )
+    return list(ds[names.REFERENCE].values.tolist())
+
+
+def participation_table(ds: xr.Dataset) -> list[dict[str, Any]]:
+    """One row per mode of a multi-reference result: what each reference sees of it.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        Multi-reference result of :func:`ami_xr.identify` (``participation`` (mode,
+        reference); ``rank_one_ratio``, ``drive_point_consistency``, ``scaling_reference`` and
+        ``drive_point_snr`` are used when present).
+
+    Returns
+    -------
+    list of dict
+        Keys ``mode``, ``frequency_hz``, ``relative`` (dict reference -> ``|L_r| / max_r |L_r|``:
+        1 for the reference that excites the mode best, near 0 for one on its nodal line),
+        ``phase_deg`` (dict reference -> phase of ``L_r`` relative to the strongest reference,
+        degrees), ``rank_one_ratio``, ``drive_point_consistency``, ``drive_point_snr`` (NaN
+        when absent), ``scaling_reference`` and ``flags`` ("" when absent).
+    """
+    refs = _references(ds)
+    part = ds[names.PARTICIPATION].transpose(names.MODE, names.REFERENCE).values
+    part = np.asarray(part, dtype=np.complex128)
+    rows = modal_table(ds)
+
+    def per_mode(var: str) -> np.ndarray:
+        if var in ds and ds[var].dims == (names.MODE,):
+            return np.asarray(ds[var].values)
+        return np.full(part.shape[0], np.nan)
+
+    scaling = per_mode(names.SCALING_REFERENCE)
+    out = []
+    for k, row in enumerate(rows):
+        mag = np.abs(part[k])
+        best = int(np.nanargmax(mag)) if np.any(np.isfinite(mag)) else 0
+        top = mag[best]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rel = mag / top if top > 0 else np.full(mag.size, np.nan)
+            phase = np.degrees(np.angle(part[k] / part[k, best])) if top > 0 else rel
+        out.append(
+            {
+                "mode": row["mode"],
+                "frequency_hz": row["frequency_hz"],
+                "relative": {r: float(v) for r, v in zip(refs, rel, strict=True)},
+                "phase_deg": {r: float(v) for r, v in zip(refs, phase, strict=True)},
+                "rank_one_ratio": float(per_mode(names.RANK_ONE_RATIO)[k]),
+                "drive_point_consistency": float(per_mode(names.DRIVE_POINT_CONSISTENCY)[k]),
+                "drive_point_snr": float(per_mode(names.DRIVE_POINT_SNR)[k]),
+                "scaling_reference": _text(scaling[k]),
+                "flags": row["flags"],
+            }
+        )
+    return out
+
+
+def repeated_pairs(ds: xr.Dataset) -> list[dict[str, Any]]:
+    """Pairs of modes that may be one repeated root: adjacent in frequency and within each
+    other's half-power band (``|Im lam_1 - Im lam_2| <= |Re lam_1| + |Re lam_2|``; the two
+    modes of a separated repeated root share one eigenvalue), with the MAC of
+    their mode vectors (near 0: the references separated two shapes; near 1: one shape seen
+    twice, suspect).
+
+    Returns
+    -------
+    list of dict
+        Keys ``modes`` (the two labels), ``frequency_hz`` (the two), ``split_percent``
+        (``100 (f2 / f1 - 1)``), ``mac`` (NaN without mode vectors) and ``flags`` (the two).
+    """
+    rows = modal_table(ds)
+    if len(rows) < 2:
+        return []
+    mac = None
+    if names.MAC in ds and ds[names.MAC].ndim == 2:
+        mac = np.asarray(ds[names.MAC].values, dtype=float)
+    elif names.MODE_VECTOR in ds:
+        from ami_xr.core.modal import mac_matrix
+
+        mac = mac_matrix(ds[names.MODE_VECTOR].transpose(names.POINT, names.MODE).values)
+    order = np.argsort([r["frequency_hz"] for r in rows])
+    out = []
+    for i, j in zip(order[:-1], order[1:], strict=True):
+        a, b = rows[i], rows[j]
+        la, lb = a["eigenvalue"], b["eigenvalue"]
+        close = (
+            np.isfinite(la)
+            and np.isfinite(lb)
+            and (abs(la.imag - lb.imag) <= abs(la.real) + abs(lb.real))
+        )
+        if not close:
+            continue
+        out.append(
+            {
+                "modes": (a["mode"], b["mode"]),
+                "frequency_hz": (a["frequency_hz"], b["frequency_hz"]),
+                "split_percent": 100.0 * (b["frequency_hz"] / a["frequency_hz"] - 1.0),
+                "mac": float(mac[i, j]) if mac is not None else float("nan"),
+                "flags": (a["flags"], b["flags"]),
+            }
+        )
+    return out

@@ -306,12 +306,12 @@ def _rank_one_modes(out: xr.Dataset, refs: list, pairs: list, sigma) -> _Modes:
         scale = scales[np.arange(n_k), best]
         spread = cm.aligned_spread(scales, best)
         best_snr = snr[np.arange(n_k), best]
-        scaling_ref = np.array([str(refs[pairs[b][1]]) for b in best])
+        scaling_ref = np.array([str(refs[pairs[b][1]]) for b in best], dtype=object)
     else:
         scale = cm.unit_scales(u)
         spread = np.full(n_k, np.nan)
         best_snr = np.full(n_k, np.nan)
-        scaling_ref = np.array([""] * n_k)
+        scaling_ref = np.array([""] * n_k, dtype=object)  # "r1,r2" for a separated pair
     noisy = np.zeros(n_k, bool)  # s2 within the residues' noise (known from the refinement)
     if names.RESIDUE_STD in out:
         std = out[names.RESIDUE_STD].transpose(names.MODE, names.POINT, names.REFERENCE).values
@@ -423,7 +423,7 @@ def _with_mode_outputs(out: xr.Dataset, modes: _Modes, ds: xr.Dataset, scaled: b
                     "scale from the other drive points",
                 },
             ),
-            names.SCALING_REFERENCE: (k, modes.scaling_ref),
+            names.SCALING_REFERENCE: (k, modes.scaling_ref.astype(str)),
             names.DRIVE_POINT_SNR: (k, modes.best_snr, one),
             names.MAC: ((names.MODE, names.MODE_2), mac_matrix(modes.phi.T), one),
         }

@@ -154,6 +154,7 @@ def report(
     title: str | None = None,
     figures: tuple[str, ...] | None = None,
     frequency_range: tuple[float, float] | None = None,
+    reference: Any = None,
 ) -> Path:
     """Write the identification report: index.html, one PNG per figure and the table as CSV.
 
@@ -187,6 +188,11 @@ def report(
     frequency_range : (float, float), optional
         Band in Hz for the figures with a frequency axis (Bode, subtraction, coherence, force
         spectrum); default the whole band.
+    reference : label, optional
+        Multi-reference results only: report this reference's FRFs (the mode vectors and the
+        "References" section use every reference). Default: every reference, the FRF figures
+        drawn once per reference (:mod:`ami_xr.app.report_mimo`); both add the participation
+        per reference, the drive-point consistency and the MAC within close pairs.
 
     Returns
     -------
@@ -203,14 +209,16 @@ def report(
     outdir = Path(outdir)
     if outdir.exists() and not outdir.is_dir():
         raise DataFileError(f"report: output {str(outdir)!r} exists and is not a folder")
+    multi = None  # multi-reference: the figures below draw a view (ami_xr.app.report_mimo)
     if names.REFERENCE in ds.dims:
-        # the figures draw one FRF per point; multi-reference pages are not built yet (issue 13)
-        refs = ds[names.REFERENCE].values.tolist()
+        from ami_xr.app.report_mimo import MultiReferencePage
+
+        multi = MultiReferencePage(ds, reference)
+        ds = multi.view
+    elif reference is not None:
         raise AmiXrValueError(
-            f"ds: report draws one reference at a time, and this result has the "
-            f"{names.REFERENCE!r} dim ({refs}); select one first, e.g. "
-            f"ds.sel({names.REFERENCE}={refs[0]!r}) (the modal table of all references prints "
-            "with ami_xr.format_modal_table)"
+            f"reference: {reference!r} given, but ds has no {names.REFERENCE!r} dim "
+            "(a single-reference result)"
         )
     known = {**MEASUREMENT_FIGURES, **FIGURES, **STABILITY_FIGURES, **GEOMETRY_FIGURES}
     if figures is None:
@@ -223,6 +231,9 @@ def report(
     if unknown:
         raise AmiXrValueError(f"report: unknown figures {unknown}; choose from {list(known)}")
     frequency_range = _check_range(frequency_range, ds)
+    per_reference: tuple[str, ...] = ()
+    if multi is not None:
+        wanted, per_reference = multi.split(wanted, figures is None)
     outdir.mkdir(parents=True, exist_ok=True)
     made: list[tuple[str, str, bytes]] = []
     skipped: list[tuple[str, str]] = []
@@ -244,6 +255,11 @@ def report(
         made.append((stem, caption, png))
         if stem in GEOMETRY_FIGURES:
             made += _mode_animations(ds, outdir, skipped)
+    if multi is not None:
+        extra_made, extra_skipped = multi.figures(
+            outdir, per_reference, frequency_range, _drawn_png
+        )
+        made, skipped = made + extra_made, skipped + extra_skipped
     try:
         rows = modal_table(ds)
     except AmiXrValueError as err:
@@ -254,10 +270,21 @@ def report(
             fh.write(_csv_text(rows))
     summary = plot_measurement.measurement_summary(ds)
     page = _html(ds, rows, summary, made, skipped, title or f"ami_xr report: {_source_name(ds)}")
+    if multi is not None:  # the References section, just before the modal table
+        page = page.replace("<h2>Modal table</h2>", multi.html() + "<h2>Modal table</h2>", 1)
     index = outdir / "index.html"
     with atomic_open(index, "wb") as fh:
         fh.write(page.encode("utf-8"))
     return index
+
+
+def _drawn_png(func, data: xr.Dataset, kwargs: dict) -> bytes:
+    """The PNG of ``func(data, **kwargs)`` as the report draws every figure."""
+    from ami_xr.plot.common import gc_paused, png_bytes
+
+    with gc_paused():
+        fig = func(data, **kwargs)
+    return png_bytes(fig)
 
 
 #: Figures with a frequency axis: they take ``frequency_range``.

@@ -319,9 +319,10 @@ def test_rank_one_helpers_against_a_constructed_matrix():
     np.testing.assert_allclose(part, got[:, [0, 2]], rtol=1e-12)
 
 
-def test_report_refuses_a_multi_reference_result_before_writing(chain, tmp_path):
+def test_report_refuses_an_unknown_reference_before_writing(chain, tmp_path):
+    # multi-reference reports are built (tests/app/test_report_mimo.py); a wrong label is not
     pytest.importorskip("matplotlib")
     _, _, out = chain
-    with pytest.raises(ValueError, match=r"report draws one reference at a time.*sel\(reference="):
-        ami_xr.report(out, tmp_path / "rep")
+    with pytest.raises(ValueError, match=r"reference: 'nope' is not one of the references"):
+        ami_xr.report(out, tmp_path / "rep", reference="nope")
     assert not (tmp_path / "rep").exists()
