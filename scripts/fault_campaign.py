@@ -2,7 +2,8 @@
 
 Usage::
 
-    python scripts/fault_campaign.py                       # default: >= 1000 faults, 2 processes
+    python scripts/fault_campaign.py                       # default: 1600 faults, 2 processes
+    python scripts/fault_campaign.py --quick --points 60   # issue-25 categories, a few each
     python scripts/fault_campaign.py --cases 200 --seed 3 --categories truncate flip
     python scripts/fault_campaign.py --workers 4 --keep /tmp/campaign
 
@@ -18,6 +19,23 @@ Categories (each case is one injected fault):
 ``concurrent``  2-4 ``ami-xr convert`` processes writing one destination at the same time
 ``dataset``     hypothesis-generated Datasets (valid, or with one defect) through
                 ``ami_xr.validate`` and ``ami_xr.identify``
+
+Issue 25 (faults at scale; these run the console entry point ``ami_xr.app.cli.run`` with its
+signal handling):
+
+``phase``       SIGINT or SIGTERM at a random moment of ``ami-xr identify big.nc -o m.nc -q``
+                on the benchmark tiled to ``--points`` points (1000; subtraction, isolation,
+                global fit, refinement, write) or of ``ami-xr convert big.nc -o b.uff``: exit
+                130/143 (or 0 when it had finished), no crash, no bug-class message, output
+                absent or complete, nothing left over, honoured within :data:`HONOUR_S`
+``compile``     the same on a small file with an empty numba cache (first-run compilation)
+``special``     a FIFO, a symlink to /dev/zero, a folder as the input of every command, a FIFO
+                inside a batch folder: refused with a clear message, never a hang
+``fullfs``      convert/identify under an ``RLIMIT_FSIZE`` limit (a full filesystem): exit 0
+                with a complete file, or exit 1 naming the full device, the old target intact
+``readonly``    numba cache and HOME unwritable (read-only folders, a plain file): the run works
+``streams``     stderr closed (``2>&-``), stdout closed, stdout a pipe closed after one byte:
+                exit 0, output written
 
 Every outcome is classified as
 
@@ -68,7 +86,8 @@ import numpy as np
 
 CLEAN, CORRECT, OTHER = "clean error", "correct result", "anything else"
 OUTCOMES = (CLEAN, CORRECT, OTHER)
-CATEGORIES = ("truncate", "flip", "signal", "batch", "concurrent", "dataset")
+ISSUE25 = ("phase", "compile", "special", "fullfs", "readonly", "streams")
+CATEGORIES = ("truncate", "flip", "signal", "batch", "concurrent", "dataset", *ISSUE25)
 #: Share of the default case count per category (the write-interrupt cases are slow).
 DEFAULT_SHARE = {
     "truncate": 0.42,
@@ -77,7 +96,19 @@ DEFAULT_SHARE = {
     "batch": 0.015,
     "concurrent": 0.015,
     "dataset": 0.10,
+    "phase": 0.14,
+    "compile": 0.01,
+    "special": 0.03,
+    "fullfs": 0.03,
+    "readonly": 0.005,
+    "streams": 0.005,
 }
+#: --quick: a few cases of every issue-25 category (minutes, not hours).
+QUICK_COUNTS = {"phase": 8, "compile": 2, "special": 8, "fullfs": 6, "readonly": 2, "streams": 3}
+HONOUR_S = 2.0  # a SIGINT/SIGTERM must stop the run within this (issue 25 target)
+#: The console script as installed: run() holds signals for the safe points.
+AMI_XR_RUN = [sys.executable, "-c", "from ami_xr.app.cli import run; run()"]
+BUG_CLASS = ("Traceback (most recent call last)", "unexpected", "SystemError", "Segmentation")
 EXIT_CLEAN = (1, 2, 130)
 CASE_TIMEOUT_S = 60.0  # one forked CLI or in-process case
 STOP_BOUND_S = 15.0  # a process sent SIGINT/SIGTERM must be gone within this
@@ -842,6 +873,317 @@ def concurrent_case(seed: int, work: Path) -> Result:
 _WORKER: dict[str, Any] = {}
 
 
+# --- issue 25: faults at scale (the console entry point with its signal handling) ----------------
+def tiled_benchmark(folder: Path, n_points: int) -> Path:
+    """The shipped benchmark FRFs tiled to ``n_points`` points (1 % noise per copy)."""
+    import xarray as xr
+
+    import ami_xr
+
+    src = Path(__file__).resolve().parents[1] / "sample_data" / "benchmark_frf.nc"
+    ds = ami_xr.open_dataset(src).load()
+    reps = -(-n_points // ds.sizes["point"])
+    big = xr.concat([ds] * reps, dim="point").isel(point=slice(0, n_points))
+    big = big.assign_coords(point=["tip"] + [f"p{i}" for i in range(1, n_points)])
+    rng = np.random.default_rng(0)
+    big["frf"] = big["frf"] * (1 + 0.01 * rng.standard_normal(big["frf"].shape))
+    big.attrs.update(ds.attrs)
+    path = folder / f"big{n_points}.nc"
+    ami_xr.to_netcdf(big, path)
+    return path
+
+
+def _run_signalled(argv, cwd, delay, sig_name, env=None, bound=60.0):
+    """Start ``ami-xr`` (run()), signal it after ``delay`` s; (code or None, stderr, seconds from
+    the signal to the exit, whether it had exited before the signal)."""
+    proc = subprocess.Popen(
+        AMI_XR_RUN + argv,
+        cwd=cwd,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+        env=env,
+    )
+    try:
+        proc.wait(timeout=delay)
+        finished = True
+    except subprocess.TimeoutExpired:
+        finished = False
+        proc.send_signal(getattr(signal, sig_name))
+    sent = time.monotonic()
+    try:
+        _, err = proc.communicate(timeout=bound)
+        code: int | None = proc.returncode
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        _, err = proc.communicate()
+        code = None
+    return code, err.decode(errors="replace"), time.monotonic() - sent, finished
+
+
+def _signal_verdict(code, err, waited, finished, sig_name) -> list[str]:
+    expected = 128 + getattr(signal, sig_name)
+    problems = []
+    if code is None:
+        problems.append(f"hang: still running {waited:.0f} s after {sig_name}")
+    elif code < 0:
+        problems.append(f"crashed with signal {-code}")
+    elif code not in (expected, 0) or (code == 0 and not finished and waited > HONOUR_S):
+        problems.append(f"exit {code} after {sig_name} (ignored?)")
+    bug = [b for b in BUG_CLASS if b in err]
+    if bug:
+        problems.append(f"bug-class message {bug}: {err.strip().splitlines()[-1][:160]}")
+    if code is not None and not finished and waited > HONOUR_S:
+        problems.append(f"honoured after {waited:.1f} s (> {HONOUR_S} s)")
+    return problems
+
+
+def phase_case(seed: int, work: Path, big: Path, timings: dict, compile_: bool = False) -> Result:
+    """SIGINT/SIGTERM at a random moment of identify (or convert to UFF) on the tiled set; with
+    ``compile_``: identify of a small file on an empty numba cache."""
+    rng = random.Random(seed)
+    sig_name = rng.choice(("SIGINT", "SIGTERM"))
+    case_dir = Path(tempfile.mkdtemp(dir=work, prefix="phase"))
+    env = None
+    try:
+        if compile_:
+            src = case_dir / "small.nc"
+            import ami_xr
+
+            ami_xr.to_netcdf(small_frf(seed), src)
+            env = {**os.environ, "NUMBA_CACHE_DIR": str(case_dir / "empty-cache")}
+            argv, out, full = ["identify", src.name, "-o", "m.nc", "-q"], "m.nc", timings["compile"]
+        elif rng.random() < 0.8:
+            src = big
+            argv, out, full = (
+                ["identify", str(big), "-o", "m.nc", "-q"],
+                "m.nc",
+                timings["identify"],
+            )
+        else:
+            src = big
+            argv, out, full = ["convert", str(big), "-o", "b.uff"], "b.uff", timings["convert_uff"]
+        before = digest(src)
+        delay = rng.uniform(0.05, 1.0) * full
+        label = f"ami-xr {' '.join(argv[:1])} ({src.name}), {sig_name} at {delay:.2f} s"
+        label += " (empty numba cache)" if compile_ else ""
+        code, err, waited, finished = _run_signalled(argv, case_dir, delay, sig_name, env=env)
+        problems = _signal_verdict(code, err, waited, finished, sig_name)
+        lost = []
+        target = case_dir / out
+        if target.exists():
+            try:
+                if out.endswith(".nc"):
+                    read_result(target)
+                else:
+                    import ami_xr
+
+                    ami_xr.read_uff(target)
+            except Exception as exc:  # noqa: BLE001
+                lost.append(f"{label}: {out} partial ({type(exc).__name__})")
+            if code not in (0, None) and not finished:
+                pass  # complete output with exit 130/143: the signal came during the write
+        left = leftovers(case_dir)
+        if left:
+            lost.append(f"{label}: temporary files left: {left}")
+        if digest(src) != before:
+            lost.append(f"{label}: input changed")
+        detail = "; ".join(problems) + f" (exit {code}, stopped {waited:.2f} s after the signal)"
+        category = "compile" if compile_ else "phase"
+        return Result(category, label, OTHER if problems or lost else CORRECT, detail, lost)
+    finally:
+        shutil.rmtree(case_dir, ignore_errors=True)
+
+
+def special_case(i: int, work: Path) -> Result:
+    """A FIFO, a symlink to /dev/zero or a folder as the input of a command: a clear error."""
+    kinds = ("fifo", "devzero", "folder")
+    commands = ("identify", "convert", "report", "frf", "batch")
+    kind, command = kinds[i % len(kinds)], commands[(i // len(kinds)) % len(commands)]
+    case_dir = Path(tempfile.mkdtemp(dir=work, prefix="special"))
+    try:
+        import ami_xr
+
+        if command == "batch":
+            folder = case_dir / "in"
+            folder.mkdir()
+            ami_xr.to_netcdf(small_frf(i), folder / "good.nc")
+            bad = folder / "x.nc"
+            argv = ["batch", "in", "-o", "out", "-q", "--no-refine"]
+        else:
+            bad = case_dir / "x.nc"
+            out = {"identify": "m.nc", "convert": "b.uff", "report": "rep", "frf": "g.nc"}[command]
+            argv = [command, bad.name, "-o", out]
+        if kind == "fifo":
+            os.mkfifo(bad)
+        elif kind == "devzero":
+            bad.symlink_to("/dev/zero")
+        else:
+            bad.mkdir()
+        label = f"ami-xr {command} with {kind} input"
+        try:
+            done = subprocess.run(
+                AMI_XR_RUN + argv, cwd=case_dir, capture_output=True, text=True, timeout=120
+            )
+        except subprocess.TimeoutExpired:
+            return Result("special", label, OTHER, "hang (no exit within 120 s)")
+        problems = [b for b in BUG_CLASS if b in done.stderr]
+        if command == "batch" and kind != "folder":
+            rows = (case_dir / "out" / "batch_summary.csv").read_text().splitlines()
+            ok = done.returncode == 3 and any(r.startswith("good.nc,ok") for r in rows)
+            ok = ok and any(r.startswith("x.nc,failed") for r in rows)
+            outcome = CLEAN if ok and not problems else OTHER
+        elif command == "batch":  # a folder named x.nc inside the batch folder: not a file
+            outcome = CLEAN if done.returncode in (0, 3) and not problems else OTHER
+        else:
+            named = {"fifo": "named pipe", "devzero": "character device", "folder": "folder"}
+            ok = done.returncode == 1 and named[kind] in done.stderr
+            outcome = CLEAN if ok and not problems else OTHER
+        return Result("special", label, outcome, f"exit {done.returncode}: {done.stderr[-200:]}")
+    finally:
+        shutil.rmtree(case_dir, ignore_errors=True)
+
+
+FSIZE_CHILD = """
+import resource, sys
+limit = int(sys.argv.pop(1))
+resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+from ami_xr.app.cli import run
+run()
+"""
+
+
+def fullfs_case(seed: int, work: Path) -> Result:
+    """convert/identify writing under a random file-size limit: complete, or a named full disk."""
+    import ami_xr
+
+    rng = random.Random(seed)
+    case_dir = Path(tempfile.mkdtemp(dir=work, prefix="fullfs"))
+    try:
+        src = case_dir / "g.nc"
+        ami_xr.to_netcdf(small_frf(seed, n_points=3, n_frequency=512), src)
+        out = rng.choice(("b.nc", "b.uff", "m.nc"))
+        argv = (
+            ["identify", src.name, "-o", out, "-q", "--no-refine"]
+            if out == "m.nc"
+            else ["convert", src.name, "-o", out]
+        )
+        limit = rng.choice((1_000, 8_000, 30_000, 80_000, 400_000))
+        target = case_dir / out
+        old = rng.random() < 0.5
+        if old:
+            target.write_text("old\n")
+        label = f"ami-xr {argv[0]} -o {out} with files limited to {limit} bytes"
+        done = subprocess.run(
+            [sys.executable, "-c", FSIZE_CHILD, str(limit), *argv],
+            cwd=case_dir,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        problems = [b for b in BUG_CLASS if b in done.stderr]
+        lost = []
+        if done.returncode == 0:
+            outcome = CORRECT
+            try:
+                read_result(target) if out.endswith(".nc") else ami_xr.read_uff(target)
+            except Exception as exc:  # noqa: BLE001
+                lost.append(f"{label}: exit 0 but {out} unreadable ({type(exc).__name__})")
+        elif done.returncode == 1 and "no space left on the device" in done.stderr:
+            outcome = CLEAN
+            if old and target.read_text() != "old\n":
+                lost.append(f"{label}: old {out} changed")
+            if not old and target.exists():
+                lost.append(f"{label}: partial {out} left")
+        else:
+            outcome = OTHER
+            problems.append(f"exit {done.returncode}: {done.stderr.strip()[-200:]}")
+        left = leftovers(case_dir)
+        if left:
+            lost.append(f"{label}: temporary files left: {left}")
+        outcome = OTHER if problems else outcome
+        return Result("fullfs", label, outcome, "; ".join(problems), lost)
+    finally:
+        shutil.rmtree(case_dir, ignore_errors=True)
+
+
+def environment_case(category: str, i: int, work: Path) -> Result:
+    """``readonly``: numba cache / HOME unwritable; ``streams``: closed or broken stdout/stderr.
+    The run must succeed and write its output."""
+    import ami_xr
+
+    case_dir = Path(tempfile.mkdtemp(dir=work, prefix=category))
+    try:
+        src = case_dir / "g.nc"
+        ami_xr.to_netcdf(small_frf(i), src)
+        argv = ["identify", src.name, "-o", "m.nc", "-q", "--no-refine"]
+        env = dict(os.environ)
+        cmd = [*AMI_XR_RUN, *argv]
+        shell = None
+        if category == "readonly":
+            plain = case_dir / "cache-file"
+            plain.write_text("x")
+            variant = ("cache is a file", "cache under a file + HOME under a file")[i % 2]
+            env["NUMBA_CACHE_DIR"] = str(plain if i % 2 == 0 else plain / "sub")
+            if i % 2:
+                env["HOME"] = str(plain / "home")
+        else:
+            variant = ("2>&-", ">&-", "| head -c 1")[i % 3]
+            quoted = " ".join(f"'{a}'" for a in cmd)
+            shell = (
+                f"{quoted} {variant} >/dev/null"
+                if variant == "| head -c 1"
+                else (
+                    f"{quoted} >/dev/null {variant}" if variant == "2>&-" else f"{quoted} {variant}"
+                )
+            )
+            if variant == "| head -c 1":
+                shell = f"set -o pipefail; {quoted} | head -c 1 >/dev/null"
+        label = f"identify with {variant}"
+        if shell:
+            done = subprocess.run(
+                ["bash", "-c", shell],
+                cwd=case_dir,
+                capture_output=True,
+                text=True,
+                env=env,
+                timeout=600,
+            )
+        else:
+            done = subprocess.run(
+                cmd, cwd=case_dir, capture_output=True, text=True, env=env, timeout=600
+            )
+        ok = done.returncode == 0 and (case_dir / "m.nc").exists()
+        bug = [b for b in BUG_CLASS if b in done.stderr]
+        outcome = CORRECT if ok and not bug else OTHER
+        return Result(category, label, outcome, f"exit {done.returncode}: {done.stderr[-200:]}")
+    finally:
+        shutil.rmtree(case_dir, ignore_errors=True)
+
+
+def time_issue25(work: Path, big: Path) -> dict[str, float]:
+    """Wall time of an uninterrupted identify and UFF convert of the tiled set, and of a first
+    run on an empty numba cache (where to aim the signals)."""
+    import ami_xr
+
+    timings = {}
+    d = Path(tempfile.mkdtemp(dir=work))
+    for key, argv in (
+        ("identify", ["identify", str(big), "-o", str(d / "m.nc"), "-q"]),
+        ("convert_uff", ["convert", str(big), "-o", str(d / "b.uff")]),
+    ):
+        start = time.monotonic()
+        subprocess.run(AMI_XR_RUN + argv, capture_output=True)
+        timings[key] = time.monotonic() - start
+    ami_xr.to_netcdf(small_frf(0), d / "s.nc")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(d / "cache")}
+    start = time.monotonic()
+    subprocess.run(AMI_XR_RUN + ["identify", str(d / "s.nc"), "-q"], capture_output=True, env=env)
+    timings["compile"] = time.monotonic() - start
+    shutil.rmtree(d)
+    return timings
+
+
 def _init_worker(work: str, inputs: dict[str, str]) -> None:
     """Import what the children need once, so each forked case skips the start-up."""
     import xarray  # noqa: F401
@@ -892,6 +1234,15 @@ def run_case(spec: tuple) -> Result:
             return batch_case(seed, work, inputs, full_s)
         if category == "concurrent":
             return concurrent_case(rest[0], work)
+        if category in ("phase", "compile"):
+            seed, timings = rest
+            return phase_case(seed, work, inputs["tiled"], timings, category == "compile")
+        if category == "special":
+            return special_case(rest[0], work)
+        if category == "fullfs":
+            return fullfs_case(rest[0], work)
+        if category in ("readonly", "streams"):
+            return environment_case(category, rest[0], work)
     except Exception as exc:  # noqa: BLE001 - a harness failure is reported as such
         return Result(category, repr(spec), OTHER, f"harness error: {type(exc).__name__}: {exc}")
     raise ValueError(f"unknown category {category!r}")
@@ -900,7 +1251,7 @@ def run_case(spec: tuple) -> Result:
 def plan(counts: dict[str, int], seed: int, inputs: dict[str, Path], timings: dict) -> list:
     """Case specs per category, reproducible from ``seed``."""
     rng = random.Random(seed)
-    names = [n for n in inputs if n != "big.nc"]
+    names = [n for n in inputs if n not in ("big.nc", "tiled")]
     specs: list[tuple] = []
     for kind in ("truncate", "flip"):
         for i in range(counts.get(kind, 0)):
@@ -915,8 +1266,15 @@ def plan(counts: dict[str, int], seed: int, inputs: dict[str, Path], timings: di
         specs.append(("batch", rng.randrange(2**31), timings["batch"]))
     for _ in range(counts.get("concurrent", 0)):
         specs.append(("concurrent", rng.randrange(2**31)))
+    for kind in ("phase", "compile"):
+        for _ in range(counts.get(kind, 0)):
+            specs.append((kind, rng.randrange(2**31), timings))
+    for kind in ("special", "readonly", "streams"):
+        specs += [(kind, i) for i in range(counts.get(kind, 0))]
+    for _ in range(counts.get("fullfs", 0)):
+        specs.append(("fullfs", rng.randrange(2**31)))
     # slow cases first so the pool ends on short ones
-    order = {"signal": 0, "batch": 0, "concurrent": 1}
+    order = {"signal": 0, "batch": 0, "phase": 0, "compile": 0, "concurrent": 1}
     return sorted(specs, key=lambda s: order.get(s[0], 2))
 
 
@@ -945,7 +1303,12 @@ def time_commands(work: Path, big: Path, inputs: dict[str, Path]) -> dict[str, f
 
 
 def run_campaign(
-    counts: dict[str, int], seed: int, workers: int, work: Path, progress: bool = True
+    counts: dict[str, int],
+    seed: int,
+    workers: int,
+    work: Path,
+    progress: bool = True,
+    n_points: int = 1000,
 ) -> list[Result]:
     """Make the inputs, run every case in a process pool, return the results."""
     inputs = make_inputs(work / "inputs", seed)
@@ -953,6 +1316,15 @@ def run_campaign(
     if counts.get("signal") or counts.get("batch"):
         inputs["big.nc"] = big_file(work / "inputs", seed=seed)
         timings = time_commands(work, inputs["big.nc"], inputs)
+    if counts.get("phase") or counts.get("compile"):
+        inputs["tiled"] = tiled_benchmark(work / "inputs", n_points)
+        timings.update(time_issue25(work, inputs["tiled"]))
+        print(
+            f"  uninterrupted runs on {n_points} points: "
+            + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items()),
+            file=sys.stderr,
+            flush=True,
+        )
     specs = plan(counts, seed, inputs, timings)
     results = []
     init_args = (str(work), {k: str(v) for k, v in inputs.items()})
@@ -1001,20 +1373,30 @@ def default_counts(n: int, categories: list[str]) -> dict[str, int]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--cases", type=int, default=1100, help="injected faults in all")
+    parser.add_argument("--cases", type=int, default=1600, help="injected faults in all")
     parser.add_argument("--seed", type=int, default=0, help="seed of every random choice")
     parser.add_argument("--categories", nargs="+", choices=CATEGORIES, default=list(CATEGORIES))
     parser.add_argument("--workers", type=int, default=2, help="processes")
     parser.add_argument("--keep", type=Path, help="work folder to keep (default: a temp one)")
+    parser.add_argument(
+        "--points", type=int, default=1000, help="points of the tiled benchmark (phase cases)"
+    )
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help=f"only the issue-25 categories, a few cases each ({QUICK_COUNTS}) on --points",
+    )
     args = parser.parse_args(argv)
     counts = default_counts(args.cases, args.categories)
+    if args.quick:
+        counts = {k: v for k, v in QUICK_COUNTS.items() if k in args.categories}
     start = time.monotonic()
     if args.keep:
         args.keep.mkdir(parents=True, exist_ok=True)
-        results = run_campaign(counts, args.seed, args.workers, args.keep)
+        results = run_campaign(counts, args.seed, args.workers, args.keep, n_points=args.points)
     else:
         with tempfile.TemporaryDirectory(prefix="fault_campaign") as tmp:
-            results = run_campaign(counts, args.seed, args.workers, Path(tmp))
+            results = run_campaign(counts, args.seed, args.workers, Path(tmp), n_points=args.points)
     table, ok = summarize(results)
     print(table)
     print(f"{len(results)} cases in {time.monotonic() - start:.0f} s, seed {args.seed}")
