@@ -35,7 +35,15 @@ what is missing (attributes a function set are kept) and never changes a value:
   strictly monotonic), such as string point labels, ``residual_term`` or unsorted integer
   labels, is stored as the CF label (auxiliary coordinate) variable ``<dim>_label`` along the
   dim (:data:`LABEL_SUFFIX`; plain xarray: ``raw.set_xindex("point_label")`` selects by it).
-  Float axes (``time``, ``frequency``) are data and stay as they are.
+  Float axes (``time``, ``frequency``) are data and stay as they are;
+* a ``time`` dimension that is an elapsed time (units ``s`` counted from the start of the
+  record, no date: simulated impulse responses, LVM records) is stored as the dimension and
+  coordinate variable ``elapsed_time`` (:data:`ELAPSED_TIME`), units ``s``, long_name "time since
+  the start of the record", no ``standard_name``. CF names a dimension ``time`` only for a
+  time coordinate with a reference date (units ``<unit> since <epoch>``, standard_name
+  ``time``); ami_xr's axis has no date, and inventing one (``s since 1970-01-01``) would state
+  a false acquisition time. A ``time`` coordinate that does have a date (datetime64, or units
+  with ``since``) keeps its name.
 
 These are an on-disk encoding, like the complex pairs: the global attribute ``ami_xr_cf_added``
 (JSON) lists what :func:`annotate` added, moved or renamed, and :func:`strip` (run by
@@ -69,6 +77,8 @@ __all__ = [
     "annotate",
     "strip",
     "ATTR_CF_ADDED",
+    "ELAPSED_TIME",
+    "on_disk_name",
     "ATTR_UNITS_LOWER",
     "ATTR_UNITS_UPPER",
     "flag_mask",
@@ -88,6 +98,8 @@ REFERENCES = (
 ATTR_UNITS_OF_SQUARE = "units_of_square"
 _SQRT_UNITS = re.compile(r"^sqrt\((.+)\)$")
 LABEL_SUFFIX = "_label"  # a dim coordinate CF cannot hold is stored as <dim>_label
+# on disk, a time axis without a date (s from the record start): CF's "time" needs an epoch
+ELAPSED_TIME = "elapsed_time"
 QUALITY_FLAG_MASK = "quality_flag_mask"  # int32 bit field of quality_flags (CF flag_masks)
 ATTR_FLAG_MASKS = "flag_masks"
 ATTR_FLAG_MEANINGS = "flag_meanings"
@@ -134,7 +146,7 @@ LONG_NAMES = {
     names.RESPONSE: "response time history",
     names.FORCE: "force time history",
     names.FREQUENCY: "frequency",
-    names.TIME: "time",
+    names.TIME: "time since the start of the record",
     names.POINT: "measurement point (response degree of freedom)",
     names.MODE: "mode number",
     names.MODE_2: "mode number (second index of the MAC matrix)",
@@ -305,6 +317,30 @@ def _labels_to_aux(out: xr.Dataset, added: dict) -> xr.Dataset:
     return out
 
 
+def _is_elapsed(ds: xr.Dataset) -> bool:
+    """Whether ``ds`` has a ``time`` dim without a date (see the module docstring)."""
+    if names.TIME not in ds.dims or ELAPSED_TIME in ds.variables or ELAPSED_TIME in ds.dims:
+        return False
+    if names.TIME not in ds.variables:
+        return True
+    var = ds.variables[names.TIME]
+    return var.dtype.kind not in "mM" and " since " not in str(var.attrs.get(names.ATTR_UNITS))
+
+
+def on_disk_name(marker: object, name: str) -> str:
+    """The name a variable or dim ``name`` has in a file whose ``ami_xr_cf_added`` global
+    attribute is ``marker`` (``"time"`` -> ``"elapsed_time"`` where :func:`annotate` renamed it;
+    ``name`` for files without the marker)."""
+    try:
+        renamed = json.loads(str(marker)).get("renamed", {})
+    except (TypeError, ValueError, AttributeError):
+        return name
+    found = (
+        [disk for disk, own in renamed.items() if own == name] if isinstance(renamed, dict) else []
+    )
+    return str(found[0]) if found else name
+
+
 def annotate(ds: xr.Dataset) -> xr.Dataset:
     """``ds`` with CF metadata added where missing (see the module docstring); a shallow copy."""
     from ami_xr import __version__
@@ -349,6 +385,9 @@ def annotate(ds: xr.Dataset) -> xr.Dataset:
     if moved:
         added["units_of_square"] = moved
     out = _labels_to_aux(out, added)
+    if _is_elapsed(out):  # CF's dim "time" must have a date; this axis has none
+        out = out.rename({names.TIME: ELAPSED_TIME})
+        added["renamed"] = {ELAPSED_TIME: names.TIME}
     previous = out.attrs.get(ATTR_CONVENTIONS)
     conventions = str(previous or "").replace(",", " ").split()
     kept = [c for c in conventions if not c.startswith("CF-")]
@@ -380,6 +419,9 @@ def strip(ds: xr.Dataset) -> xr.Dataset:
         added = json.loads(raw)
         variables = [v for v in added["variables"] if v in ds.variables]
         out = ds.drop_vars(variables).copy()  # new Variable objects: ds keeps its attrs
+        for disk, own in added.get("renamed", {}).items():
+            if disk in out.dims and own not in out.dims and own not in out.variables:
+                out = out.rename({disk: own})
         for label, dim in added.get("labels", {}).items():
             if label in out.variables and dim not in out.variables:
                 var = out.variables[label]

@@ -46,7 +46,7 @@ from ami_xr import names
 from ami_xr.coords import uniform_coords
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_path, interrupts_deferred
-from ami_xr.io.cf import annotate, strip
+from ami_xr.io.cf import ATTR_CF_ADDED, annotate, on_disk_name, strip
 from ami_xr.provenance import add_history
 
 __all__ = [
@@ -353,8 +353,10 @@ def _uniform_time_axis(path: Path) -> xr.Coordinates | None:
     """
     import netCDF4
 
-    dim = names.TIME
     with netCDF4.Dataset(path, "r") as nc:
+        # an epoch-less time axis is "elapsed_time" on disk (ami_xr.io.cf); strip renames it
+        marker = nc.getncattr(ATTR_CF_ADDED) if ATTR_CF_ADDED in nc.ncattrs() else None
+        dim = on_disk_name(marker, names.TIME)
         var = nc.variables.get(dim)
         if var is None or var.dimensions != (dim,) or var.dtype != np.float64:
             return None
@@ -387,6 +389,19 @@ def _uniform_time_axis(path: Path) -> xr.Coordinates | None:
     if np.max(np.abs(grid - probes)) > tol:
         return None
     return coords
+
+
+def _disk_chunks(path: Path, chunks):
+    """``chunks`` with a ``time`` key under the dim's on-disk name (``elapsed_time`` for an
+    epoch-less time axis, see :mod:`ami_xr.io.cf`)."""
+    if not isinstance(chunks, dict) or names.TIME not in chunks:
+        return chunks
+    import netCDF4
+
+    with netCDF4.Dataset(path, "r") as nc:
+        marker = nc.getncattr(ATTR_CF_ADDED) if ATTR_CF_ADDED in nc.ncattrs() else None
+    disk = on_disk_name(marker, names.TIME)
+    return {(disk if k == names.TIME else k): v for k, v in chunks.items()}
 
 
 def _check_utf8_name(path: Path) -> None:
@@ -469,9 +484,9 @@ def open_dataset(
             raw = xr.open_dataset(
                 path,
                 engine=ENGINE,
-                chunks=chunks if lazy else None,
+                chunks=_disk_chunks(path, chunks) if lazy else None,
                 decode_timedelta=False,
-                drop_variables=[names.TIME] if time_axis is not None else None,
+                drop_variables=list(time_axis) if time_axis is not None else None,
             )
             if not lazy:
                 with raw:

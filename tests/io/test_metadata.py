@@ -248,7 +248,7 @@ def test_a_taken_label_name_and_float_axes_keep_the_coordinate():
     out = cf.annotate(ds)
     assert out[names.POINT].values.tolist() == ["a", "b"]  # point_label taken: left alone
     axis = xr.Dataset(coords={names.TIME: [0.0, 1.0, np.nan]})  # a float axis is data
-    assert names.TIME in cf.annotate(axis).indexes
+    assert cf.ELAPSED_TIME in cf.annotate(axis).indexes  # renamed (no date), not a label
 
 
 # --- history lists only the calls the user made (issue 23) -------------------------------------
@@ -335,3 +335,47 @@ def test_nested_calls_and_public_call_record_only_the_outermost():
         quiet = outer(ds)
     assert quiet.attrs == ds.attrs and quiet is not ds
     assert provenance.recording()
+
+
+# --- time histories: an epoch-less time axis is elapsed_time on disk (issue 23) -----------------
+
+
+def test_elapsed_time_axis_on_disk_and_back(tmp_path):
+    from ami_xr.io import cf
+
+    ts, _, _ = ami_xr.simulate.benchmark(noise=0.0, n_samples=64)
+    path = to_netcdf(ts, tmp_path / "ts.nc")
+    with xr.open_dataset(path, engine="netcdf4") as raw:
+        assert names.TIME not in raw.dims and names.TIME not in raw.variables
+        axis = raw[cf.ELAPSED_TIME]
+        assert raw[names.RESPONSE].dims[-1] == cf.ELAPSED_TIME
+        assert axis.attrs["units"] == "s" and "standard_name" not in axis.attrs
+        assert axis.attrs["long_name"] == "time since the start of the record"
+        assert cf.on_disk_name(raw.attrs[cf.ATTR_CF_ADDED], names.TIME) == cf.ELAPSED_TIME
+    back = open_dataset(path)
+    xr.testing.assert_identical(back.drop_attrs(deep=False), ts.drop_attrs(deep=False))
+    lazy = open_dataset(path, chunks={names.TIME: 16})  # chunks by the in-memory name
+    assert lazy[names.RESPONSE].chunks[-1][0] == 16
+    assert isinstance(lazy.xindexes[names.TIME], xr.indexes.RangeIndex)
+    np.testing.assert_allclose(lazy[names.TIME].values, ts[names.TIME].values, rtol=1e-12)
+    assert cf.on_disk_name(None, names.TIME) == names.TIME  # files of other tools
+
+
+def test_dated_time_and_a_taken_name_keep_time_on_disk(tmp_path):
+    from ami_xr.io import cf
+
+    t = np.datetime64("2019-03-11T08:42:44", "ns") + np.arange(4) * np.timedelta64(1, "ms")
+    dated = xr.Dataset({"v": ((names.TIME,), np.arange(4.0))}, coords={names.TIME: t})
+    since = xr.Dataset(
+        {"v": ((names.TIME,), np.arange(4.0))},
+        coords={names.TIME: (names.TIME, np.arange(4.0), {"units": "s since 2019-03-11"})},
+    )
+    taken = xr.Dataset(
+        {"v": ((names.TIME,), np.arange(4.0)), cf.ELAPSED_TIME: ((), 1.0)},
+        coords={names.TIME: np.arange(4.0)},
+    )
+    for i, ds in enumerate((dated, since, taken)):
+        assert names.TIME in cf.annotate(ds).dims
+        back = open_dataset(to_netcdf(ds, tmp_path / f"{i}.nc"), lazy=False)
+        assert names.TIME in back.dims
+        np.testing.assert_array_equal(back["v"].values, ds["v"].values)

@@ -43,8 +43,11 @@ def _record(n: int, *, t0: float = 0.0, seed: int = 0) -> xr.Dataset:
 
 
 def _stored_time(path) -> np.ndarray:
+    from ami_xr.io import cf
+
     with netCDF4.Dataset(path) as nc:
-        return np.asarray(nc.variables[names.TIME][:], np.float64)
+        disk = cf.on_disk_name(nc.getncattr(cf.ATTR_CF_ADDED), names.TIME)  # elapsed_time
+        return np.asarray(nc.variables[disk][:], np.float64)
 
 
 @pytest.fixture
