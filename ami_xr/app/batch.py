@@ -38,6 +38,7 @@ import hashlib
 import json
 import os
 import signal
+import sys
 import time
 import traceback
 import warnings
@@ -48,7 +49,7 @@ from typing import Any
 
 from ami_xr import interrupt, names
 from ami_xr.errors import AmiXrValueError, DataFileError
-from ami_xr.io.atomic import atomic_open, interrupts_deferred, remove_stale
+from ami_xr.io.atomic import atomic_folder, atomic_open, interrupts_deferred, remove_stale
 from ami_xr.io.formats import INPUT_SUFFIXES, check_input, read_any
 from ami_xr.progress import Progress
 
@@ -305,7 +306,9 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
                 from ami_xr.app.report import report
 
                 # Report first: the netCDF output appearing marks the whole file as done.
-                report(result, out.with_name(out.name[: -len(OUTPUT_SUFFIX)] + ".report"))
+                folder = out.with_name(out.name[: -len(OUTPUT_SUFFIX)] + ".report")
+                with atomic_folder(folder) as tmp:  # swapped in whole: never a partial report
+                    report(result, tmp)
             ami_xr.to_netcdf(result, out, function="ami_xr.batch", parameters=job["parameters"])
         row["modes"], row["frequencies_hz"] = _modal_summary(result)
         caps = str(result.attrs.get(names.ATTR_AMI_CAPPED, "") or "")
@@ -380,6 +383,12 @@ def _run_jobs(jobs: list[dict], workers: int) -> Iterator[dict]:
             done, waiting = cf.wait(waiting, timeout=POLL_SECONDS, return_when=cf.FIRST_COMPLETED)
             if interrupt.pending() is not None and not stop_event.is_set():
                 stop_event.set()  # running files stop at their next checkpoint
+                print(
+                    "\nami-xr batch: stopping: files in progress are rolled back, queued ones "
+                    "not started",
+                    file=sys.stderr,
+                    flush=True,
+                )
                 for fut in waiting:
                     fut.cancel()  # queued files are not started
             for fut in done:

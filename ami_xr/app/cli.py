@@ -20,8 +20,8 @@ One rule holds for every subcommand (:func:`main`):
   (:data:`EXIT_ERROR`); 2 a usage error (argparse, :data:`EXIT_USAGE`); 3 ``batch`` finished but
   some files failed (:data:`EXIT_BATCH_FAILURES`); 4 ``batch`` finished, none failed, but some
   identifications stopped at a cap (status ``capped``, :data:`EXIT_BATCH_CAPPED`); 130
-  interrupted by Ctrl-C (:data:`EXIT_INTERRUPTED`, one line ``ami-xr <command>: interrupted``); 143 terminated by
-  SIGTERM (:data:`EXIT_TERMINATED`, one line ``ami-xr: terminated``; a write in progress is
+  interrupted by Ctrl-C (:data:`EXIT_INTERRUPTED`, one line ``ami-xr <command>:
+  interrupted``); 143 terminated by SIGTERM (:data:`EXIT_TERMINATED`, one line ``ami-xr: terminated``; a write in progress is
   rolled back first).
 
 Option defaults are read from the signatures of the functions they feed, only when a help text
@@ -264,17 +264,21 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
 def _cmd_report(args: argparse.Namespace) -> int:
     from ami_xr.app.report import report
+    from ami_xr.io.atomic import atomic_folder
     from ami_xr.io.formats import read_any
 
-    index = report(
-        read_any(args.input),
-        args.output,
-        title=args.title,
-        figures=args.figures,
-        frequency_range=args.frequency_range,
-        reference=args.reference,
-    )
-    _say(f"wrote report to {index}")
+    ds = read_any(args.input)
+    # written into a temporary folder and swapped in whole: never a partial or mixed report
+    with atomic_folder(args.output) as tmp:
+        index = report(
+            ds,
+            tmp,
+            title=args.title,
+            figures=args.figures,
+            frequency_range=args.frequency_range,
+            reference=args.reference,
+        )
+    _say(f"wrote report to {Path(args.output) / Path(index).name}")
     return EXIT_OK
 
 

@@ -373,6 +373,56 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
 
 
 @contextmanager
+def atomic_folder(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a fresh empty folder; on a clean exit it replaces the folder ``path`` whole.
+
+    For outputs made of several files (a report): the body writes into the yielded folder (a
+    hidden temporary folder next to ``path``); then, with signals held, an existing ``path`` is
+    moved aside and the new folder renamed into place, so ``path`` is the old folder or the
+    complete new one, never a mix. On an error or an interrupt the temporary folder is removed
+    and ``path`` is untouched; a full disk is named as such.
+
+    Raises
+    ------
+    DataFileError
+        ``path`` exists and is not a folder, or an ``OSError`` occurred while writing or
+        renaming (the message names ``path``).
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise DataFileError(f"{path}: exists and is not a folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        _remove_stale_of(path)
+        tmp_dir, lock = _new_temp_dir(path)
+    except OSError as err:
+        if no_space(path.parent, err):
+            raise DataFileError(_full_message(path, err)) from err
+        raise DataFileError(f"{path}: cannot write: {type(err).__name__}: {err}") from err
+    new = tmp_dir / path.name
+    try:
+        new.mkdir()
+        yield new
+        with interrupts_deferred():  # the two renames are not split by a Ctrl-C
+            if path.exists():
+                os.rename(path, tmp_dir / f"{path.name}.old")
+            os.rename(new, path)
+            _remove_tree(tmp_dir)
+    except BaseException as err:
+        with interrupts_deferred():
+            full = isinstance(err, Exception) and no_space(tmp_dir, err)
+            _remove_tree(tmp_dir)
+        if full:
+            raise DataFileError(_full_message(path, err)) from err
+        if isinstance(err, OSError):
+            raise DataFileError(f"{path}: cannot write: {type(err).__name__}: {err}") from err
+        raise
+    finally:
+        if lock is not None:
+            os.close(lock)
+
+
+@contextmanager
 def atomic_open(
     path: str | os.PathLike,
     mode: str = "w",
