@@ -16,10 +16,10 @@ from ami_xr.dsp.windows import (
     window_attrs,
 )
 from ami_xr.errors import AmiXrValueError
-from ami_xr.io.schema import validate
 from ami_xr.kernels import fft as _kfft
 from ami_xr.kernels import windows as _kw
 from ami_xr.provenance import add_history
+from ami_xr.schema import validate
 
 _WINDOW_ATTRS = (
     ATTR_WINDOW,
