@@ -40,6 +40,80 @@ def _is_lazy(ds: xr.Dataset) -> bool:
     return any(ds[v].chunks is not None for v in (names.RESPONSE, names.FORCE) if v in ds.data_vars)
 
 
+def _check_input(ds: xr.Dataset) -> bool:
+    """Raise on a Dataset impulse_to_frf cannot take; whether it has a ``force`` variable."""
+    if not isinstance(ds, xr.Dataset):
+        raise AmiXrValueError(
+            f"ds: impulse_to_frf expects an xarray.Dataset, got {type(ds).__name__}"
+        )
+    validate(
+        ds,
+        kind="time",
+        require_drive_point=names.ATTR_DRIVE_POINT in ds.attrs,
+        check_values=not _is_lazy(ds),
+    )
+    resp = ds[names.RESPONSE]
+    if set(resp.dims) != {names.POINT, names.TIME}:
+        raise AmiXrValueError(
+            f"{names.RESPONSE}: impulse_to_frf needs dims ({names.POINT}, {names.TIME}), got "
+            f"{resp.dims}; select or average the {names.RECORD!r} dim first "
+            f"(e.g. ds.isel({names.RECORD}=0))"
+        )
+    has_force = names.FORCE in ds.data_vars
+    if has_force and ds[names.FORCE].dims != (names.TIME,):
+        raise AmiXrValueError(
+            f"{names.FORCE}: impulse_to_frf needs dims ({names.TIME},), got {ds[names.FORCE].dims}"
+        )
+    return has_force
+
+
+def _window(ds: xr.Dataset, window, decay, end_value, sym: bool, dt: float, n: int):
+    """The window applied before the FFT (None: none), the window attributes of ``frf`` and
+    the total exponential decay (1/s; this one plus one applied before, None when neither)."""
+    resp = ds[names.RESPONSE]
+    w = None
+    frf_attrs: dict = {k: resp.attrs[k] for k in _WINDOW_ATTRS if k in resp.attrs}
+    decay_total = ds.attrs.get(names.ATTR_EXP_DECAY)
+    if window is not None:
+        if _kw.window_name(window) == "force":
+            raise AmiXrValueError(
+                "window: the force window belongs on the force record only; use "
+                "apply_window(ds, 'force', width=..., variables=['force']) before impulse_to_frf"
+            )
+        w, record = window_and_record(
+            window,
+            n,
+            fs=1.0 / dt,
+            decay=decay,
+            end_value=end_value,
+            width=None,
+            taper=None,
+            sym=sym,
+        )
+        attrs = window_attrs(resp.attrs, names.RESPONSE, w, record)
+        frf_attrs = {k: attrs[k] for k in _WINDOW_ATTRS}
+        if record["name"] == "exponential":
+            decay_total = float(decay_total or 0.0) + record["decay"]
+    elif decay is not None or end_value is not None:
+        raise AmiXrValueError("decay, end_value: only used with window='exponential'")
+    return w, frf_attrs, decay_total
+
+
+def _with_attrs(out: xr.Dataset, has_force: bool, dt: float, n: int) -> xr.Dataset:
+    """``out`` with the FRF type and source attributes (and dt, N for impulse responses)."""
+    quantity = out.attrs[names.ATTR_QUANTITY]
+    out.attrs[names.ATTR_FRF_TYPE] = names.QUANTITY_TO_FRF_TYPE[quantity]
+    if has_force:
+        out.attrs[names.ATTR_SOURCE] = names.SOURCE_ESTIMATED
+        out.attrs.pop(names.ATTR_DT, None)
+        out.attrs.pop(names.ATTR_NSAMPLES, None)
+    else:
+        out.attrs[names.ATTR_SOURCE] = names.SOURCE_IMPULSE
+        out.attrs[names.ATTR_DT] = dt
+        out.attrs[names.ATTR_NSAMPLES] = n
+    return out
+
+
 def impulse_to_frf(
     ds: xr.Dataset,
     *,
@@ -61,9 +135,6 @@ def impulse_to_frf(
 
     Sample 0 is taken as the instant of the impulse (``t = 0``) whatever the origin of the
     ``time`` coordinate: trim any pre-trigger first.
-
-    Long because it checks the Dataset, applies the optional windows and writes every attribute the
-    schema requires around one ``apply_ufunc`` call; 97 lines of code.
 
     Parameters
     ----------
@@ -92,56 +163,11 @@ def impulse_to_frf(
         applied here or before (Dataset attribute), ``exponential_window_decay`` (1/s, summed).
         Window attributes of ``response`` are copied to ``frf``.
     """
-    if not isinstance(ds, xr.Dataset):
-        raise AmiXrValueError(
-            f"ds: impulse_to_frf expects an xarray.Dataset, got {type(ds).__name__}"
-        )
-    validate(
-        ds,
-        kind="time",
-        require_drive_point=names.ATTR_DRIVE_POINT in ds.attrs,
-        check_values=not _is_lazy(ds),
-    )
-    resp = ds[names.RESPONSE]
-    if set(resp.dims) != {names.POINT, names.TIME}:
-        raise AmiXrValueError(
-            f"{names.RESPONSE}: impulse_to_frf needs dims ({names.POINT}, {names.TIME}), got "
-            f"{resp.dims}; select or average the {names.RECORD!r} dim first "
-            f"(e.g. ds.isel({names.RECORD}=0))"
-        )
-    has_force = names.FORCE in ds.data_vars
-    if has_force and ds[names.FORCE].dims != (names.TIME,):
-        raise AmiXrValueError(
-            f"{names.FORCE}: impulse_to_frf needs dims ({names.TIME},), got {ds[names.FORCE].dims}"
-        )
+    has_force = _check_input(ds)
     dt = sample_interval(ds, names.TIME)
     n = int(ds.sizes[names.TIME])
-    w = None
-    frf_attrs: dict = {k: resp.attrs[k] for k in _WINDOW_ATTRS if k in resp.attrs}
-    decay_total = ds.attrs.get(names.ATTR_EXP_DECAY)
-    if window is not None:
-        if _kw.window_name(window) == "force":
-            raise AmiXrValueError(
-                "window: the force window belongs on the force record only; use "
-                "apply_window(ds, 'force', width=..., variables=['force']) before impulse_to_frf"
-            )
-        w, record = window_and_record(
-            window,
-            n,
-            fs=1.0 / dt,
-            decay=decay,
-            end_value=end_value,
-            width=None,
-            taper=None,
-            sym=sym,
-        )
-        attrs = window_attrs(resp.attrs, names.RESPONSE, w, record)
-        frf_attrs = {k: attrs[k] for k in _WINDOW_ATTRS}
-        if record["name"] == "exponential":
-            decay_total = float(decay_total or 0.0) + record["decay"]
-    elif decay is not None or end_value is not None:
-        raise AmiXrValueError("decay, end_value: only used with window='exponential'")
-
+    resp = ds[names.RESPONSE]
+    w, frf_attrs, decay_total = _window(ds, window, decay, end_value, sym, dt, n)
     n_freq = n // 2 + 1
     inputs = [resp] + ([ds[names.FORCE]] if has_force else [])
     frf = xr.apply_ufunc(
@@ -166,17 +192,7 @@ def impulse_to_frf(
     force_units = ds.attrs[names.ATTR_FORCE_UNITS]
     frf.attrs = {**frf_attrs, names.ATTR_UNITS: names.frf_units(resp_units, force_units)}
 
-    out = xr.Dataset({names.FRF: frf}, attrs=dict(ds.attrs))
-    quantity = ds.attrs[names.ATTR_QUANTITY]
-    out.attrs[names.ATTR_FRF_TYPE] = names.QUANTITY_TO_FRF_TYPE[quantity]
-    if has_force:
-        out.attrs[names.ATTR_SOURCE] = names.SOURCE_ESTIMATED
-        out.attrs.pop(names.ATTR_DT, None)
-        out.attrs.pop(names.ATTR_NSAMPLES, None)
-    else:
-        out.attrs[names.ATTR_SOURCE] = names.SOURCE_IMPULSE
-        out.attrs[names.ATTR_DT] = dt
-        out.attrs[names.ATTR_NSAMPLES] = n
+    out = _with_attrs(xr.Dataset({names.FRF: frf}, attrs=dict(ds.attrs)), has_force, dt, n)
     if decay_total is not None:
         out.attrs[names.ATTR_EXP_DECAY] = float(decay_total)
     parameters = {
