@@ -219,6 +219,59 @@ def _mode_steps(step: np.ndarray, idx: np.ndarray, h_full: np.ndarray) -> np.nda
     return out
 
 
+def _scaled_model(h: np.ndarray, g: np.ndarray, s_corr: np.ndarray, previous):
+    """The Levenberg-Marquardt model of one iteration, scaled by ``d = sqrt(diag(h))``.
+
+    ``h``, ``g``: Gauss-Newton Hessian and gradient over the free parameters; ``previous``:
+    the last accepted step and gradient (None at the first iteration), for the secant update of
+    ``s_corr``. Returns the updated ``s_corr``, ``d``, the scaled Gauss-Newton Hessian ``hs``
+    and gradient ``gs``, and the scaled model Hessian ``hq`` (with the secant term when that
+    keeps it positive definite, else ``hs``)."""
+    if previous is not None:
+        s_prev, g_prev = previous
+        s_corr = _secant_update(s_corr, s_prev, (g - g_prev) - h @ s_prev)
+    d = np.sqrt(np.maximum(np.diag(h), np.finfo(float).tiny))
+    hs = h / np.outer(d, d)
+    gs = g / d
+    hq = (h + s_corr) / np.outer(d, d)
+    try:
+        np.linalg.cholesky(hq + 1e-8 * np.eye(g.size))
+    except np.linalg.LinAlgError:
+        hq = hs  # the secant term made the model non-convex: plain Gauss-Newton
+    return s_corr, d, hs, gs, hq
+
+
+def _damped_step(prob: Problem, lam: np.ndarray, idx: np.ndarray, model, cost: float, mu, nu):
+    """Raise the damping ``mu`` until a step of the scaled ``model = (hq, gs, d)`` lowers the
+    objective below ``cost``.
+
+    Returns ``((step, lam_new, proj_new, cost_new) or None, mu, nu)``: None when no step lowers
+    it before ``mu`` reaches 1e12; ``mu`` and ``nu`` updated as in Nielsen's rule.
+    """
+    hq, gs, d = model
+    while mu < 1e12:
+        try:
+            step_s = -np.linalg.solve(hq + mu * np.eye(idx.size), gs)
+        except np.linalg.LinAlgError:
+            mu *= nu
+            nu *= 2.0
+            continue
+        step = step_s / d
+        theta = _theta(lam)
+        theta[idx] += step
+        lam_new = _lam(theta)
+        proj_new = project(prob, lam_new)
+        cost_new = objective(prob, proj_new)
+        pred = -(gs @ step_s) - 0.5 * step_s @ (hq @ step_s)
+        if np.isfinite(cost_new) and cost_new < cost:
+            rho = (cost - cost_new) / pred if pred > 0 else 0.0
+            mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+            return (step, lam_new, proj_new, cost_new), mu, 2.0
+        mu *= nu
+        nu *= 2.0
+    return None, mu, nu
+
+
 def levenberg_marquardt(
     prob: Problem,
     lam0: np.ndarray,
@@ -244,8 +297,8 @@ def levenberg_marquardt(
     ``FitResult.bad`` set as soon as a mode is impossible or has been outside its region for
     ``patience`` accepted steps in a row (a far start may overshoot for a step or two).
 
-    Long because one loop holds the step, the acceptance test and the four stopping rules, which
-    share their state; the code is 103 lines.
+    The loop holds the stopping rules; :func:`_scaled_model` builds the scaled quadratic model
+    and :func:`_damped_step` finds the damped step that lowers the objective.
     """
     lam = np.asarray(lam0, dtype=np.complex128).copy()
     n_mode = lam.shape[0]
@@ -277,19 +330,8 @@ def levenberg_marquardt(
         n_iter += 1
         w = ml_weight(prob, proj)
         h_full, g_full = gauss_newton(prob, proj, w)
-        h = h_full[np.ix_(idx, idx)]
         g = g_full[idx]
-        if previous is not None:
-            s_prev, g_prev = previous
-            s_corr = _secant_update(s_corr, s_prev, (g - g_prev) - h @ s_prev)
-        d = np.sqrt(np.maximum(np.diag(h), np.finfo(float).tiny))
-        hs = h / np.outer(d, d)
-        gs = g / d
-        hq = (h + s_corr) / np.outer(d, d)
-        try:
-            np.linalg.cholesky(hq + 1e-8 * np.eye(idx.size))
-        except np.linalg.LinAlgError:
-            hq = hs  # the secant term made the model non-convex: plain Gauss-Newton
+        s_corr, d, hs, gs, hq = _scaled_model(h_full[np.ix_(idx, idx)], g, s_corr, previous)
         try:
             decrement = float(gs @ np.linalg.solve(hs, gs))
         except np.linalg.LinAlgError:
@@ -304,34 +346,13 @@ def levenberg_marquardt(
             converged = True
             message = "step below 1e-2 standard errors"
             break
-        accepted = False
-        while mu < 1e12:
-            try:
-                step_s = -np.linalg.solve(hq + mu * np.eye(idx.size), gs)
-            except np.linalg.LinAlgError:
-                mu *= nu
-                nu *= 2.0
-                continue
-            step = step_s / d
-            theta = _theta(lam)
-            theta[idx] += step
-            lam_new = _lam(theta)
-            proj_new = project(prob, lam_new)
-            cost_new = objective(prob, proj_new)
-            pred = -(gs @ step_s) - 0.5 * step_s @ (hq @ step_s)
-            if np.isfinite(cost_new) and cost_new < cost:
-                rho = (cost - cost_new) / pred if pred > 0 else 0.0
-                mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-                nu = 2.0
-                accepted = True
-                break
-            mu *= nu
-            nu *= 2.0
-        if not accepted:
+        trial, mu, nu = _damped_step(prob, lam, idx, (hq, gs, d), cost, mu, nu)
+        if trial is None:
             # No descent direction at rounding level: we are at the minimum the arithmetic allows.
             converged = decrement < 1e-6 * max(prob.n_points, 1)
             message = "no further decrease possible" if converged else "step rejected"
             break
+        step, lam_new, proj_new, cost_new = trial
         previous = (step, g)
         rel = np.max(np.abs(lam_new - lam)[free] / np.abs(lam[free]))
         mode_step = _mode_steps(step, idx, h_full)
