@@ -144,6 +144,91 @@ def _fit_block(g, use, omega, lam, dt, n_samples, residual_kind):
     )
 
 
+def _fit_lines(ds: xr.Dataset, omega, lam, band, residual_terms: bool):
+    """The lines of the residue fit, the residual-term kind (-1: none) and the band used
+    (``band``, or widened with a warning when too few lines lie in it)."""
+    n_k = lam.size
+    use = _band_mask(omega, lam, band)
+    kind = -1
+    if residual_terms:
+        kind = RESIDUAL_KIND.get(from_attrs(FrfAttributes, ds.attrs).frf_type, 0)
+        if kind in (0, 1):
+            use &= omega > 0  # the lower residual is singular at 0 Hz
+    n_unknown = 2 * n_k + (4 if kind >= 0 else 0)
+    band_used = band
+    if 2 * int(use.sum()) < n_unknown + 1 and not isinstance(band, str):
+        # Modes damped below the line spacing leave too few lines in their bands: widen the band
+        # (doubling) just enough for the fit, and say so, rather than fail.
+        band_used, use = _widened_band(omega, lam, float(band), use, n_unknown, kind)
+        if band_used != band:
+            warnings.warn(
+                f"global_fit: only {int(_band_mask(omega, lam, band).sum())} lines lie within "
+                f"band={band} half-power bandwidths of the {n_k} modes (damping below the line "
+                f"spacing); widened to band={band_used:g} ({int(use.sum())} lines) for the "
+                f"residue fit; see attribute {names.ATTR_AMI_BAND_USED}",
+                AssumptionWarning,
+                stacklevel=3,
+            )
+    if 2 * int(use.sum()) < n_unknown + 1:
+        raise IdentificationError(
+            f"band: {int(use.sum())} lines selected, the residue fit needs at least "
+            f"{n_unknown // 2 + 1} ({n_k} modes{', residual terms' if kind >= 0 else ''}); "
+            "widen band or use band='all'"
+        )
+    return use, kind, band_used
+
+
+def _fit(frf: xr.DataArray, use, omega, lam, data_model, kind: int):
+    """Residues, synthesised FRFs and residual coefficients of every FRF (one apply_ufunc)."""
+    dt, n_samples = data_model.dt, data_model.n_samples
+    n_k = lam.size
+    outs = xr.apply_ufunc(
+        _fit_block,
+        frf,
+        kwargs=dict(use=use, omega=omega, lam=lam, dt=dt, n_samples=n_samples, residual_kind=kind),
+        input_core_dims=[[names.FREQUENCY]],
+        output_core_dims=[[names.MODE], [names.FREQUENCY_OUT], [names.RESIDUAL_TERM]],
+        exclude_dims={names.FREQUENCY},
+        dask="parallelized",
+        output_dtypes=[np.complex128, np.complex128, np.complex128],
+        dask_gufunc_kwargs={
+            "output_sizes": {
+                names.MODE: n_k,
+                names.FREQUENCY_OUT: omega.size,
+                names.RESIDUAL_TERM: 2,
+            }
+        },
+        keep_attrs=False,
+    )
+    return outs
+
+
+def _quality(ds: xr.Dataset, data_model, omega, lam, res, drive_index, drive_snr_min: float):
+    """Drive-point SNR per mode and the quality-flag bits decided here."""
+    n_k = lam.size
+    dt, n_samples = data_model.dt, data_model.n_samples
+    # drive-point SNR: peak of the mode's fitted contribution over the drive point noise floor
+    if names.SUB_NOISE_FLOOR in ds:
+        sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, float)
+    else:
+        sigma = kn.noise_floor(c.frf_values(ds))
+    peaks = kb.contribution_peaks(omega, dt, n_samples, lam[None, :], np.ascontiguousarray(res))
+    mask = np.zeros(n_k, np.int32)
+    if drive_index is None:
+        snr_drive = np.full(n_k, np.nan)
+        mask = flags.set_where(mask, names.FLAG_UNSCALED, True)
+    else:
+        snr_drive = peaks[drive_index] / sigma[drive_index]
+        mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, ~(snr_drive >= drive_snr_min))
+    if names.DETECTED in ds and names.ISO_CONVERGED in ds:
+        det = np.asarray(ds[names.DETECTED].transpose(names.POINT, names.MODE).values, bool)
+        conv = np.asarray(ds[names.ISO_CONVERGED].transpose(names.POINT).values, bool)
+        capped = np.any(det & ~conv[:, None], axis=0) | (~np.any(det, axis=0) & ~np.all(conv))
+        mask = flags.set_where(mask, names.FLAG_NOT_CONVERGED, capped)
+        mask = flags.set_where(mask, names.FLAG_SINGLE_FRF, det.sum(axis=0) == 1)
+    return snr_drive, mask
+
+
 def global_fit(
     ds: xr.Dataset,
     *,
@@ -172,9 +257,6 @@ def global_fit(
     unreliable, the paper's modes 1 and 2), ``unscaled_no_drive_point``, ``not_converged``
     (isolation did not converge at a point that detected it), ``single_frf`` (detected in one
     FRF only).
-
-    Long because it is checks, one ``apply_ufunc`` call, the quality flags above and the output
-    variables in sequence (119 lines of code); split, each part would be used once.
 
     Parameters
     ----------
@@ -207,83 +289,21 @@ def global_fit(
         )
     drive_snr_min = c.check_positive(drive_snr_min, "drive_snr_min")
     data_model = resolve_model(ds.attrs, "auto")
-    dt, n_samples = data_model.dt, data_model.n_samples
     omega = c.omega_of(ds)
     lam = np.ascontiguousarray(ds[names.EIGENVALUE].values, dtype=np.complex128)
     n_k = lam.size
     if n_k == 0:
         raise IdentificationError(f"{names.EIGENVALUE}: no modes to fit (isolate found none)")
-    use = _band_mask(omega, lam, band)
-    kind = -1
-    if residual_terms:
-        kind = RESIDUAL_KIND.get(from_attrs(FrfAttributes, ds.attrs).frf_type, 0)
-        if kind in (0, 1):
-            use &= omega > 0  # the lower residual is singular at 0 Hz
-    n_unknown = 2 * n_k + (4 if kind >= 0 else 0)
-    band_used = band
-    if 2 * int(use.sum()) < n_unknown + 1 and not isinstance(band, str):
-        # Modes damped below the line spacing leave too few lines in their bands: widen the band
-        # (doubling) just enough for the fit, and say so, rather than fail.
-        band_used, use = _widened_band(omega, lam, float(band), use, n_unknown, kind)
-        if band_used != band:
-            warnings.warn(
-                f"global_fit: only {int(_band_mask(omega, lam, band).sum())} lines lie within "
-                f"band={band} half-power bandwidths of the {n_k} modes (damping below the line "
-                f"spacing); widened to band={band_used:g} ({int(use.sum())} lines) for the "
-                f"residue fit; see attribute {names.ATTR_AMI_BAND_USED}",
-                AssumptionWarning,
-                stacklevel=2,
-            )
-    if 2 * int(use.sum()) < n_unknown + 1:
-        raise IdentificationError(
-            f"band: {int(use.sum())} lines selected, the residue fit needs at least "
-            f"{n_unknown // 2 + 1} ({n_k} modes{', residual terms' if kind >= 0 else ''}); "
-            "widen band or use band='all'"
-        )
+    use, kind, band_used = _fit_lines(ds, omega, lam, band, residual_terms)
     frf = ds[names.FRF]
-    outs = xr.apply_ufunc(
-        _fit_block,
-        frf,
-        kwargs=dict(use=use, omega=omega, lam=lam, dt=dt, n_samples=n_samples, residual_kind=kind),
-        input_core_dims=[[names.FREQUENCY]],
-        output_core_dims=[[names.MODE], [names.FREQUENCY_OUT], [names.RESIDUAL_TERM]],
-        exclude_dims={names.FREQUENCY},
-        dask="parallelized",
-        output_dtypes=[np.complex128, np.complex128, np.complex128],
-        dask_gufunc_kwargs={
-            "output_sizes": {
-                names.MODE: n_k,
-                names.FREQUENCY_OUT: omega.size,
-                names.RESIDUAL_TERM: 2,
-            }
-        },
-        keep_attrs=False,
-    )
+    outs = _fit(frf, use, omega, lam, data_model, kind)
     res_da, synth_da, rc_da = (o.compute() for o in outs)
     synth_da = synth_da.rename({names.FREQUENCY_OUT: names.FREQUENCY})
     res = np.asarray(res_da.transpose(names.POINT, names.MODE).values)
     drive_index = c.drive_index(ds)
     units = frf.attrs.get(names.ATTR_UNITS, "")
     phi, phi_attrs = receptance_mode_vectors(res, lam, drive_index, ds.attrs, units)
-    # drive-point SNR: peak of the mode's fitted contribution over the drive point noise floor
-    if names.SUB_NOISE_FLOOR in ds:
-        sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, float)
-    else:
-        sigma = kn.noise_floor(c.frf_values(ds))
-    peaks = kb.contribution_peaks(omega, dt, n_samples, lam[None, :], np.ascontiguousarray(res))
-    mask = np.zeros(n_k, np.int32)
-    if drive_index is None:
-        snr_drive = np.full(n_k, np.nan)
-        mask = flags.set_where(mask, names.FLAG_UNSCALED, True)
-    else:
-        snr_drive = peaks[drive_index] / sigma[drive_index]
-        mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, ~(snr_drive >= drive_snr_min))
-    if names.DETECTED in ds and names.ISO_CONVERGED in ds:
-        det = np.asarray(ds[names.DETECTED].transpose(names.POINT, names.MODE).values, bool)
-        conv = np.asarray(ds[names.ISO_CONVERGED].transpose(names.POINT).values, bool)
-        capped = np.any(det & ~conv[:, None], axis=0) | (~np.any(det, axis=0) & ~np.all(conv))
-        mask = flags.set_where(mask, names.FLAG_NOT_CONVERGED, capped)
-        mask = flags.set_where(mask, names.FLAG_SINGLE_FRF, det.sum(axis=0) == 1)
+    snr_drive, mask = _quality(ds, data_model, omega, lam, res, drive_index, drive_snr_min)
     residual = frf - synth_da.transpose(*frf.dims)
     out = c.drop_results(ds, (c.GLOBAL_VARS,))
     out = out.assign_coords({names.MODE_2: out[names.MODE].values})
