@@ -200,6 +200,66 @@ def _check_inputs(ds, max_iter, tol, band, residual_terms, max_shift):
             )
 
 
+def _start_values(ds: xr.Dataset, band, n_terms: int):
+    """The FRFs in ``band`` and the starting eigenvalues and residues, in memory (the
+    eigenvalues are shared by all points: this step gathers, so dask data are loaded); raises
+    when the band has too few lines for the modes."""
+    frf = ds[names.FRF].transpose(P, F)
+    if band != "all":
+        frf = frf.sel({F: slice(float(band[0]), float(band[1]))})
+    frf = frf.compute() if frf.chunks else frf
+    lam0 = ds[names.EIGENVALUE]
+    lam0 = lam0.compute() if lam0.chunks else lam0
+    n_mode = lam0.sizes[M]
+    n_line = frf.sizes[F]
+    n_coef = 2 * n_mode + 2 * n_terms
+    if 2 * n_line <= n_coef + 2 * n_mode:
+        raise IdentificationError(
+            f"band: {n_line} frequency lines, but refining {n_mode} modes needs more than "
+            f"{(n_coef + 2 * n_mode) // 2 + 1}"
+        )
+    if names.RESIDUE in ds:
+        res0 = ds[names.RESIDUE].transpose(P, M)
+        res0 = res0.compute() if res0.chunks else res0
+    else:
+        res0 = xr.zeros_like(frf.isel({F: 0}, drop=True)) * xr.zeros_like(lam0, dtype=np.complex128)
+        res0 = res0.transpose(P, M)
+    return frf, lam0, res0
+
+
+def _refined(ds: xr.Dataset, start, settings: RefineSettings, model, data_model) -> xr.Dataset:
+    """``ds`` with the refined values of one apply_ufunc over the start values ``start``
+    (FRFs, eigenvalues, residues); a capped mode completion is recorded and warned about."""
+    frf, lam0, res0 = start
+    trace = Iterations() if active() else None  # counts on a progress bar, when one listens
+    result = xr.apply_ufunc(
+        _refine_block,
+        frf,
+        _as(frf[F], np.float64),
+        _as(lam0, np.complex128),
+        _as(res0, np.complex128),
+        kwargs=dict(settings=settings, model=model, trace=trace),
+        input_core_dims=[[P, F], [F], [M], [P, M]],
+        output_core_dims=[dims for dims, _ in _OUTPUTS.values()],
+        exclude_dims={M},  # modes may be added
+        dask="parallelized",
+        output_dtypes=[dtype for _, dtype in _OUTPUTS.values()],
+        dask_gufunc_kwargs={"allow_rechunk": True, "output_sizes": {names.RESIDUAL_TERM: 2}},
+        keep_attrs=False,
+    )
+    fields = {k: o.compute() if o.chunks else o for k, o in zip(_OUTPUTS, result, strict=True)}
+    out = _with_results(ds, fields, model, data_model)
+    if bool(fields["capped"]):
+        add_capped(out.attrs, ["refine:add_modes"])
+        warnings.warn(
+            f"refine: stopped adding modes at the cap add_modes={settings.add_modes} while "
+            "the residual still showed structure; raise add_modes to go on",
+            ConvergenceWarning,
+            stacklevel=3,
+        )
+    return out
+
+
 def refine(
     ds: xr.Dataset,
     *,
@@ -213,9 +273,6 @@ def refine(
     drop_modes: bool = RefineSettings.drop_modes,
 ) -> xr.Dataset:
     """Maximum-likelihood joint refinement of all eigenvalues and residues over all FRFs.
-
-    Long because the docstring documents eight settings; the code (71 lines) is checks, one
-    ``apply_ufunc`` call and the output attributes.
 
     Parameters
     ----------
@@ -293,27 +350,8 @@ def refine(
         add_pfa=float(add_pfa),
         drop_modes=bool(drop_modes),
     )
-    frf = ds[names.FRF].transpose(P, F)
-    if band != "all":
-        frf = frf.sel({F: slice(float(band[0]), float(band[1]))})
-    # The eigenvalues are shared by all points: this step gathers, so dask data are loaded.
-    frf = frf.compute() if frf.chunks else frf
-    lam0 = ds[names.EIGENVALUE]
-    lam0 = lam0.compute() if lam0.chunks else lam0
+    frf, lam0, res0 = _start_values(ds, band, len(terms))
     n_mode = lam0.sizes[M]
-    n_line = frf.sizes[F]
-    n_coef = 2 * n_mode + 2 * len(terms)
-    if 2 * n_line <= n_coef + 2 * n_mode:
-        raise IdentificationError(
-            f"band: {n_line} frequency lines, but refining {n_mode} modes needs more than "
-            f"{(n_coef + 2 * n_mode) // 2 + 1}"
-        )
-    if names.RESIDUE in ds:
-        res0 = ds[names.RESIDUE].transpose(P, M)
-        res0 = res0.compute() if res0.chunks else res0
-    else:
-        res0 = xr.zeros_like(frf.isel({F: 0}, drop=True)) * xr.zeros_like(lam0, dtype=np.complex128)
-        res0 = res0.transpose(P, M)
     data = from_attrs(FrfAttributes, ds.attrs)
     # identify() corrects the eigenvalues for an exponential window after refine; if they were
     # corrected already (attr set), the data's poles are lam - beta.
@@ -326,35 +364,10 @@ def refine(
         decay=float(data.exponential_window_corrected),
         line_noise=_line_noise_shape(ds, frf),
     )
-    trace = Iterations() if active() else None  # counts on a progress bar, when one listens
     if n_mode == 0:
         out = ds.assign_coords({names.RESIDUAL_TERM: _LOWER_UPPER}) if terms else ds.copy()
     else:
-        result = xr.apply_ufunc(
-            _refine_block,
-            frf,
-            _as(frf[F], np.float64),
-            _as(lam0, np.complex128),
-            _as(res0, np.complex128),
-            kwargs=dict(settings=settings, model=model, trace=trace),
-            input_core_dims=[[P, F], [F], [M], [P, M]],
-            output_core_dims=[dims for dims, _ in _OUTPUTS.values()],
-            exclude_dims={M},  # modes may be added
-            dask="parallelized",
-            output_dtypes=[dtype for _, dtype in _OUTPUTS.values()],
-            dask_gufunc_kwargs={"allow_rechunk": True, "output_sizes": {names.RESIDUAL_TERM: 2}},
-            keep_attrs=False,
-        )
-        fields = {k: o.compute() if o.chunks else o for k, o in zip(_OUTPUTS, result, strict=True)}
-        out = _with_results(ds, fields, model, data_model)
-        if bool(fields["capped"]):
-            add_capped(out.attrs, ["refine:add_modes"])
-            warnings.warn(
-                f"refine: stopped adding modes at the cap add_modes={settings.add_modes} while "
-                "the residual still showed structure; raise add_modes to go on",
-                ConvergenceWarning,
-                stacklevel=2,
-            )
+        out = _refined(ds, (frf, lam0, res0), settings, model, data_model)
     out.attrs[names.ATTR_REFINE_MODEL] = data_model.name
     to_attrs(settings, out.attrs)
     out = c.restore_coordinate_attrs(out, coord_attrs)
