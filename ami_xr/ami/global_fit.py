@@ -57,7 +57,7 @@ def receptance_residues(
     """The receptance residues (..., K) of FRF residues (..., K) at the poles ``lam`` (K,), and
     the receptance units (see :func:`receptance_mode_vectors`; every path that turns residues
     into mode vectors or participation factors goes through here)."""
-    from ami_xr.dsp.quantity import _convert_units  # the one unit rule of convert_quantity
+    from ami_xr.dsp.quantity import convert_units  # the one unit rule of convert_quantity
 
     quantity = attrs.get(names.ATTR_QUANTITY)
     if quantity not in names.QUANTITY_POWER:
@@ -69,7 +69,7 @@ def receptance_residues(
     ru, fu = attrs.get(names.ATTR_RESPONSE_UNITS), attrs.get(names.ATTR_FORCE_UNITS)
     if k and ru and fu:
         try:
-            base, scale = _convert_units(str(ru), k, 0)
+            base, scale = convert_units(str(ru), k, 0)
             units = names.frf_units(base, str(fu))
         except ValueError:  # units that do not say their derivative: keep them, say so
             units = f"({frf_units}) s^{k}" if frf_units else ""
@@ -101,7 +101,7 @@ def receptance_mode_vectors(
     return phi, out
 
 
-def _band_mask(omega: np.ndarray, lam: np.ndarray, band) -> np.ndarray:
+def band_mask(omega: np.ndarray, lam: np.ndarray, band) -> np.ndarray:
     if isinstance(band, str):
         if band != "all":
             raise IdentificationError(f"band: expected a positive number or 'all', got {band!r}")
@@ -117,7 +117,7 @@ def _widened_band(omega, lam, band, use, n_unknown, kind):
     """The smallest ``band * 2**k`` (k <= 20) whose lines suffice for the fit, and its mask."""
     for k in range(1, 21):
         wider = band * 2.0**k
-        use = _band_mask(omega, lam, wider)
+        use = band_mask(omega, lam, wider)
         if kind in (0, 1):
             use &= omega > 0
         if 2 * int(use.sum()) >= n_unknown + 1:
@@ -148,7 +148,7 @@ def _fit_lines(ds: xr.Dataset, omega, lam, band, residual_terms: bool):
     """The lines of the residue fit, the residual-term kind (-1: none) and the band used
     (``band``, or widened with a warning when too few lines lie in it)."""
     n_k = lam.size
-    use = _band_mask(omega, lam, band)
+    use = band_mask(omega, lam, band)
     kind = -1
     if residual_terms:
         kind = RESIDUAL_KIND.get(from_attrs(FrfAttributes, ds.attrs).frf_type, 0)
@@ -162,7 +162,7 @@ def _fit_lines(ds: xr.Dataset, omega, lam, band, residual_terms: bool):
         band_used, use = _widened_band(omega, lam, float(band), use, n_unknown, kind)
         if band_used != band:
             warnings.warn(
-                f"global_fit: only {int(_band_mask(omega, lam, band).sum())} lines lie within "
+                f"global_fit: only {int(band_mask(omega, lam, band).sum())} lines lie within "
                 f"band={band} half-power bandwidths of the {n_k} modes (damping below the line "
                 f"spacing); widened to band={band_used:g} ({int(use.sum())} lines) for the "
                 f"residue fit; see attribute {names.ATTR_AMI_BAND_USED}",

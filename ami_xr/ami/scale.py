@@ -35,7 +35,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import common as c
-from ami_xr.ami.global_fit import RESIDUAL_KIND, _band_mask, mode_vector_units, residue_units
+from ami_xr.ami.global_fit import RESIDUAL_KIND, band_mask, mode_vector_units, residue_units
 from ami_xr.ami.settings import FrfAttributes, IdentifySettings, from_attrs
 from ami_xr.core import compress as cz
 from ami_xr.core import flags
@@ -268,7 +268,7 @@ def _final_lines(ds: xr.Dataset, virtual: xr.Dataset, lam: np.ndarray, refined: 
         kind = RESIDUAL_KIND.get(frf_type, 0) if terms else -1
     else:
         band = virtual.attrs.get(names.ATTR_AMI_BAND_USED, virtual.attrs.get(names.ATTR_AMI_BAND))
-        use = _band_mask(omega, lam, band if band == "all" else float(band))
+        use = band_mask(omega, lam, band if band == "all" else float(band))
         kind = (
             RESIDUAL_KIND.get(frf_type, 0)
             if int(virtual.attrs.get(names.ATTR_AMI_RESIDUAL_TERMS, 0))

@@ -84,7 +84,7 @@ def resolve_quantity(
     return quantity, response_units, assumed
 
 
-def _convert_units(units: str, k_from: int, k_to: int) -> tuple[str, float]:
+def convert_units(units: str, k_from: int, k_to: int) -> tuple[str, float]:
     """Response units after converting by ``(i w)^(k_to - k_from)``, and a scale (g -> m/s^2)."""
     scale = 1.0
     base = units
@@ -137,7 +137,7 @@ def convert_quantity(ds: xr.Dataset, to: str, *, dc: str = "nan") -> xr.Dataset:
         )
     k = names.QUANTITY_POWER[to] - names.QUANTITY_POWER[src]
     ru = ds.attrs.get(names.ATTR_RESPONSE_UNITS, "")
-    new_units, scale = _convert_units(ru, names.QUANTITY_POWER[src], names.QUANTITY_POWER[to])
+    new_units, scale = convert_units(ru, names.QUANTITY_POWER[src], names.QUANTITY_POWER[to])
     f = ds[names.FREQUENCY]
     iw = xr.DataArray(2j * np.pi * f.values, dims=[names.FREQUENCY])
     with np.errstate(divide="ignore", invalid="ignore"):
