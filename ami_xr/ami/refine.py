@@ -85,7 +85,7 @@ from ami_xr.core.refine import (
     synthesize,
 )
 from ami_xr.errors import ConvergenceWarning, IdentificationError
-from ami_xr.progress import Iterations, active
+from ami_xr.progress import Iterations, active, detail
 from ami_xr.provenance import add_history
 
 _LOWER_UPPER = list(names.RESIDUAL_TERM_LABELS)  # coordinate of the residual_term dim
@@ -117,6 +117,8 @@ _OUTPUTS = {
 def _refine_block(frf, freq, lam0, res0, *, settings, model, trace) -> tuple[np.ndarray, ...]:
     """:func:`refine_arrays` with its result as a tuple in the order of ``_OUTPUTS``."""
     result = refine_arrays(frf, freq, lam0, res0, settings, model, trace)
+    if trace is not None:
+        detail(f"standard errors, {result.lam.size} modes, {int(result.n_iter)} iterations")
     return tuple(getattr(result, name) for name in _OUTPUTS)
 
 

@@ -17,17 +17,13 @@ import numpy as np
 
 from ami_xr.core import varpro
 from ami_xr.core.matching import match_by_distance
-from ami_xr.core.proposals import local_poles
+from ami_xr.core.proposals import cluster_starts
 from ami_xr.kernels.projection import project_points
 
 TRIAL_ITERATIONS = 10  # cap of the trial fits of the model-order tests
 FALLBACK_MESSAGE = "fallback: nothing could be fitted"  # FitResult.message of a fit given up
 # residual power over data power of an exact fit (noise-free data with a complete model)
 EXACT_RSS = 1e-20
-# local fits try up to this many poles more than the refinable modes of a cluster
-EXTRA_POLES = 3
-# a cluster's band covers each of its modes with this many half-power bandwidths to spare
-CLUSTER_MARGIN = 1.5
 # false-alarm probability of the screen that picks where the residual shows structure
 SCREEN_PFA = 0.1
 
@@ -47,7 +43,6 @@ class State:
     supported: np.ndarray | None = None  # (K,) bool: kept by the close-pair test
     merged_fn: np.ndarray | None = None  # (K,) Hz of a duplicate merged into the mode
     capped: bool = False  # the mode additions stopped at add_modes, not by the statistics
-
 
 
 def _mode_codes(lam: np.ndarray, lam0: np.ndarray, max_shift: float, min_width: float):
@@ -74,9 +69,7 @@ def _mode_codes(lam: np.ndarray, lam0: np.ndarray, max_shift: float, min_width: 
     return code
 
 
-def fit_modes(
-    prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width, free=None, trace=None
-):
+def fit_modes(prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width, free=None, trace=None):
     """Levenberg-Marquardt from ``mu0`` (data poles); a mode that leaves its region around
     ``ref`` (physical eigenvalues) is frozen at its start and the fit goes on without it.
     ``trace``: an :class:`ami_xr.progress.Iterations` counting the iterations (or None).
@@ -128,7 +121,6 @@ def fit_modes(
         free &= ~fit.bad
         start_mu = np.where(free, fit.lam, mu0)
     return fit, free, n_iter, start_cost
-
 
 
 def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=0.1):
@@ -194,13 +186,10 @@ def _residual_rows(prob, proj):
     return prob.y - qty @ proj.q.T
 
 
-
 def set_stage(trace, stage: str) -> None:
     """Name the stage on the progress counter (when one listens)."""
     if trace is not None:
-        trace.stage = stage
-        trace.show()
-
+        trace.stage = stage  # shown with the next iteration's count
 
 
 def order_tests(prob, state: State, settings, opts, n_point, chi2, min_width):
@@ -315,81 +304,6 @@ def _remove_reference(state: State, removed: np.ndarray) -> None:
     state.changed = True
 
 
-def _cluster_band(lam, width, centre, half):
-    """The band around ``centre`` grown to a cluster: every mode whose half-power band
-    (``Im lam +- width``, ``width = 2 |Re lam|``) reaches the band joins, and the band then
-    covers it with a margin of ``CLUSTER_MARGIN`` bandwidths: ``(lo, hi, inside)``. (Joining
-    at three bandwidths let one strongly damped mode pull far-off modes into a wide band, on
-    which the local fit's few poles no longer resolve the cluster.)"""
-    lo, hi = centre - half, centre + half
-    while True:
-        inside = (lam.imag + width >= lo) & (lam.imag - width <= hi)
-        reach = CLUSTER_MARGIN * width[inside]
-        new_lo = min(lo, float(np.min(lam.imag[inside] - reach, initial=lo)))
-        new_hi = max(hi, float(np.max(lam.imag[inside] + reach, initial=hi)))
-        if new_lo >= lo and new_hi <= hi:
-            return lo, hi, inside
-        lo, hi = new_lo, new_hi
-
-
-def _cluster_starts(prob, state: State, decay: float, min_width: float, centres):
-    """Start vectors that refit the modes of a cluster with a local multi-pole fit.
-
-    Around each centre the band is grown to cover every mode within three half-power
-    bandwidths (a cluster), and the data on that band, all points jointly, are refitted by a
-    common-denominator rational fit (:func:`ami_xr.core.proposals.local_poles`) with one pole
-    fewer than the cluster's refinable modes up to ``EXTRA_POLES`` more. The stable in-band
-    poles of each fit replace the cluster's modes: each old mode (refinable ones first) takes
-    the nearest new pole, old modes left over are removed, new poles left over appended.
-    Returns ``(start data poles, reference eigenvalues, net modes added, removed indices)``.
-    """
-    lam = state.fit.lam
-    width = np.maximum(2.0 * np.abs(lam.real), min_width)
-    # the typical bandwidth of the modes that could be refined (a frozen mode may be a spike)
-    ok = state.free if state.free.any() else np.ones(lam.size, bool)
-    typical = max(float(np.median(width[ok])), 4.0 * min_width) if lam.size else 8 * min_width
-    data = _complex_rows(prob.y) / prob.line_weight[None, :]
-    omega = prob.omega
-    out, seen = [], set()
-    for w0 in centres:
-        lo, hi, inside = _cluster_band(lam, width, w0, 3.0 * typical)
-        lo, hi = max(lo, omega[0]), min(hi, omega[-1])
-        if (round(lo, 6), round(hi, 6)) in seen:
-            continue
-        seen.add((round(lo, 6), round(hi, 6)))
-        idx = np.flatnonzero(inside)
-        idx = idx[np.argsort(~state.free[idx], kind="stable")]  # refinable modes first
-        n_ok = int(np.sum(state.free[idx]))
-        counts = set()
-        for order in range(max(n_ok - 1, 1), n_ok + EXTRA_POLES + 1):
-            poles = local_poles(data, omega, lo, hi, order)
-            good = poles[
-                (poles.real < 0)
-                & (poles.imag > lo)
-                & (poles.imag < hi)
-                & (-poles.real < 0.5 * np.abs(poles))
-            ]
-            if good.size == 0 or good.size in counts:
-                continue
-            counts.add(good.size)
-            start = lam.copy()
-            ref = np.where(state.free, state.lam0, lam + decay)
-            left = list(range(good.size))
-            removed = []
-            for k in idx:
-                if not left:
-                    removed.append(k)
-                    continue
-                j = min(left, key=lambda i, k=k: abs(good[i] - lam[k]))
-                left.remove(j)
-                start[k], ref[k] = good[j], good[j] + decay
-            extra = good[left]
-            start = np.append(np.delete(start, removed), extra)
-            ref = np.append(np.delete(ref, removed), extra + decay)
-            out.append((start, ref, extra.size - len(removed), np.array(removed, int)))
-    return out
-
-
 def _add_missed(
     prob, state: State, threshold: float, decay: float, trial_opts: dict, min_width: float
 ) -> bool:
@@ -431,7 +345,10 @@ def _add_missed(
         trials.append((start, np.append(ref0, start[-1] + decay), 1, np.empty(0, int)))
     order = np.argsort(state.free, kind="stable")  # frozen modes first
     centres = [c.imag for c in peaks] + list(fit.lam.imag[order][suspect[order]])
-    trials += _cluster_starts(prob, state, decay, min_width, centres)
+    data = _complex_rows(prob.y) / prob.line_weight[None, :]
+    trials += cluster_starts(
+        data, prob.omega, fit.lam, state.free, state.lam0, decay, min_width, centres
+    )
     best, best_score = None, 0.0
     for start, ref, n_add, removed in trials:
         trial = fit_modes(prob, start, ref, **trial_opts)
@@ -604,5 +521,3 @@ def _merge_split_pairs(prob, state: State, pfa: float, decay: float, trial_opts,
 def _pair_key(lam: np.ndarray, pair: tuple[int, int]) -> tuple[float, float]:
     """A pair identified by its eigenvalues (indices shift when a mode is merged)."""
     return tuple(sorted(round(abs(lam[k]), 6) for k in pair))
-
-

@@ -9,6 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
+# local fits try up to this many poles more than the refinable modes of a cluster
+EXTRA_POLES = 3
+# a cluster's band covers each of its modes with this many half-power bandwidths to spare
+CLUSTER_MARGIN = 1.5
+
 
 def local_poles(frf, omega, lo, hi, order, extra=2):
     """Eigenvalues of a rational fit of ``frf`` (P, L) on the lines ``lo <= omega <= hi``.
@@ -42,3 +47,77 @@ def local_poles(frf, omega, lo, hi, order, extra=2):
         return np.empty(0, complex)
     roots = np.roots(np.append(d, 1.0)[::-1])
     return 1j * (centre + half * roots)
+
+
+def cluster_band(lam, width, centre, half):
+    """The band around ``centre`` grown to a cluster: every mode whose half-power band
+    (``Im lam +- width``, ``width = 2 |Re lam|``) reaches the band joins, and the band then
+    covers it with a margin of ``CLUSTER_MARGIN`` bandwidths: ``(lo, hi, inside)``. (Joining
+    at three bandwidths let one strongly damped mode pull far-off modes into a wide band, on
+    which the local fit's few poles no longer resolve the cluster.)"""
+    lo, hi = centre - half, centre + half
+    while True:
+        inside = (lam.imag + width >= lo) & (lam.imag - width <= hi)
+        reach = CLUSTER_MARGIN * width[inside]
+        new_lo = min(lo, float(np.min(lam.imag[inside] - reach, initial=lo)))
+        new_hi = max(hi, float(np.max(lam.imag[inside] + reach, initial=hi)))
+        if new_lo >= lo and new_hi <= hi:
+            return lo, hi, inside
+        lo, hi = new_lo, new_hi
+
+
+def cluster_starts(data, omega, lam, free, lam0, decay: float, min_width: float, centres):
+    """Start vectors that refit the modes of a cluster with a local multi-pole fit.
+
+    Around each centre the band is grown to cover every mode within three half-power
+    bandwidths (a cluster), and the data on that band, all points jointly, are refitted by a
+    common-denominator rational fit (:func:`ami_xr.core.proposals.local_poles`) with one pole
+    fewer than the cluster's refinable modes up to ``EXTRA_POLES`` more. The stable in-band
+    poles of each fit replace the cluster's modes: each old mode (refinable ones first) takes
+    the nearest new pole, old modes left over are removed, new poles left over appended.
+    ``data`` (P, L) complex FRFs on the lines ``omega``; ``lam`` (K,) the present data poles,
+    ``free`` which of them could be refined, ``lam0`` their reference eigenvalues.
+    Returns ``(start data poles, reference eigenvalues, net modes added, removed indices)``.
+    """
+    width = np.maximum(2.0 * np.abs(lam.real), min_width)
+    # the typical bandwidth of the modes that could be refined (a frozen mode may be a spike)
+    ok = free if free.any() else np.ones(lam.size, bool)
+    typical = max(float(np.median(width[ok])), 4.0 * min_width) if lam.size else 8 * min_width
+    out, seen = [], set()
+    for w0 in centres:
+        lo, hi, inside = cluster_band(lam, width, w0, 3.0 * typical)
+        lo, hi = max(lo, omega[0]), min(hi, omega[-1])
+        if (round(lo, 6), round(hi, 6)) in seen:
+            continue
+        seen.add((round(lo, 6), round(hi, 6)))
+        idx = np.flatnonzero(inside)
+        idx = idx[np.argsort(~free[idx], kind="stable")]  # refinable modes first
+        n_ok = int(np.sum(free[idx]))
+        counts = set()
+        for order in range(max(n_ok - 1, 1), n_ok + EXTRA_POLES + 1):
+            poles = local_poles(data, omega, lo, hi, order)
+            good = poles[
+                (poles.real < 0)
+                & (poles.imag > lo)
+                & (poles.imag < hi)
+                & (-poles.real < 0.5 * np.abs(poles))
+            ]
+            if good.size == 0 or good.size in counts:
+                continue
+            counts.add(good.size)
+            start = lam.copy()
+            ref = np.where(free, lam0, lam + decay)
+            left = list(range(good.size))
+            removed = []
+            for k in idx:
+                if not left:
+                    removed.append(k)
+                    continue
+                j = min(left, key=lambda i, k=k: abs(good[i] - lam[k]))
+                left.remove(j)
+                start[k], ref[k] = good[j], good[j] + decay
+            extra = good[left]
+            start = np.append(np.delete(start, removed), extra)
+            ref = np.append(np.delete(ref, removed), extra + decay)
+            out.append((start, ref, extra.size - len(removed), np.array(removed, int)))
+    return out

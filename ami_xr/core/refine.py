@@ -158,7 +158,6 @@ def refine_arrays(
             # a mode the polish froze stays at its start: at AMI's value only if it was there
             state.fit, state.free = polish[0], free & polish[1]
             state.at_ami = state.at_ami & ~polish[1]
-    set_stage(trace, "standard errors")
     return _result(prob, state, n_ami, start_cost, model.drive_index, decay, min_width)
 
 
