@@ -87,7 +87,8 @@ class BatchSummary:
     ----------
     rows : list of dict
         Keys ``file`` (path relative to the input folder), ``status`` ("ok", "up to date",
-        "capped": identified but stopped at a cap listed in ``message``, or "failed"), ``modes`` (number found, "" when failed), ``frequencies_hz`` (space-separated
+        "capped": identified but stopped at a cap listed in ``message``, or "failed"),
+        ``modes`` (number found, "" when failed), ``frequencies_hz`` (space-separated
         natural frequencies), ``output`` (relative to the output folder), ``seconds``,
         ``message`` (error or warnings).
     csv_path : pathlib.Path

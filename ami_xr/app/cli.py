@@ -21,8 +21,8 @@ One rule holds for every subcommand (:func:`main`):
   some files failed (:data:`EXIT_BATCH_FAILURES`); 4 ``batch`` finished, none failed, but some
   identifications stopped at a cap (status ``capped``, :data:`EXIT_BATCH_CAPPED`); 130
   interrupted by Ctrl-C (:data:`EXIT_INTERRUPTED`, one line ``ami-xr <command>:
-  interrupted``); 143 terminated by SIGTERM (:data:`EXIT_TERMINATED`, one line ``ami-xr: terminated``; a write in progress is
-  rolled back first).
+  interrupted``); 143 terminated by SIGTERM (:data:`EXIT_TERMINATED`, one line
+  ``ami-xr: terminated``; a write in progress is rolled back first).
 
 Option defaults are read from the signatures of the functions they feed, only when a help text
 shows them (:mod:`ami_xr.app.options`, which also declares the options shared by several
@@ -340,21 +340,27 @@ def _add_demo(add) -> None:
         action="store_true",
         help="simulate the benchmark even when sample data are present",
     )
+    _add_noise_seed(
+        p,
+        "noise level alpha of eq. 15 (fraction of each signal's peak) when simulating",
+        "noise seed when simulating",
+    )
+    p.add_argument("--no-report", action="store_true", help="skip the report (no matplotlib)")
+    add_identify_options(p)
+    p.set_defaults(func=_cmd_demo)
+
+
+def _add_noise_seed(p, noise_help: str, seed_help: str) -> None:
+    """``--noise`` and ``--seed`` of the simulated benchmark (defaults from ``benchmark``)."""
     p.add_argument(
-        "--noise",
-        type=ranged(float, 0.0),
-        default=Default(BENCHMARK, "noise"),
-        help="noise level alpha of eq. 15 (fraction of each signal's peak) when simulating",
+        "--noise", type=ranged(float, 0.0), default=Default(BENCHMARK, "noise"), help=noise_help
     )
     p.add_argument(
         "--seed",
         type=ranged(int, 0, 2**32 - 1),
         default=Default(BENCHMARK, "seed"),
-        help="noise seed when simulating",
+        help=seed_help,
     )
-    p.add_argument("--no-report", action="store_true", help="skip the report (no matplotlib)")
-    add_identify_options(p)
-    p.set_defaults(func=_cmd_demo)
 
 
 def _add_simulate(add) -> None:
@@ -369,17 +375,10 @@ def _add_simulate(add) -> None:
     )
     p.add_argument("system", choices=("beam-absorbers", "random"), help="which system")
     _add_output(p, "FRF netCDF file to write")
-    p.add_argument(
-        "--noise",
-        type=ranged(float, 0.0),
-        default=Default(BENCHMARK, "noise"),
-        help="noise level alpha of eq. 15 (fraction of each signal's peak; 0 = noise-free)",
-    )
-    p.add_argument(
-        "--seed",
-        type=ranged(int, 0, 2**32 - 1),
-        default=Default(BENCHMARK, "seed"),
-        help="seed of the noise (and of the random system) (reproducible)",
+    _add_noise_seed(
+        p,
+        "noise level alpha of eq. 15 (fraction of each signal's peak; 0 = noise-free)",
+        "seed of the noise (and of the random system) (reproducible)",
     )
     p.add_argument(
         "--truth-output",

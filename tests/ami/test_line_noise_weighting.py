@@ -34,7 +34,9 @@ def test_line_noise_shape_is_relative_and_robust():
         {names.FRF_LINE_NOISE_STD: ((names.POINT, names.FREQUENCY), sd)},
         coords={names.FREQUENCY: f},
     )
-    frf = xr.DataArray(np.zeros((2, 6)), dims=(names.POINT, names.FREQUENCY), coords={names.FREQUENCY: f})
+    frf = xr.DataArray(
+        np.zeros((2, 6)), dims=(names.POINT, names.FREQUENCY), coords={names.FREQUENCY: f}
+    )
     shape = _line_noise_shape(ds, frf)
     # per-point levels divided out (1 and 10), median over points, median scaled to 1
     np.testing.assert_allclose(shape, [1, 1, 2, 2, 1, 1], rtol=1e-12)

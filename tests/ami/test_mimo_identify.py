@@ -15,8 +15,8 @@ from ami_xr.core import mimo as cm
 from ami_xr.core.modal import mac_matrix
 from ami_xr.errors import AssumptionWarning
 from ami_xr.io.datasets import select_reference
-from ami_xr.tables import format_modal_table
 from ami_xr.simulate import modal
+from ami_xr.tables import format_modal_table
 
 POINTS = [1, 2, 3, 4, 5]
 REFS = [1, 4]

@@ -1,4 +1,5 @@
-"""Modes sorted by frequency with contiguous labels; no silent cap (the flags the refinement supersedes: tests/ami/test_flags.py)
+"""Modes sorted by frequency with contiguous labels; no silent cap (the flags the refinement
+supersedes: tests/ami/test_flags.py)
 (issue 10, items 2 and 5)."""
 
 from __future__ import annotations
@@ -98,5 +99,7 @@ def test_measurement_uff_sorted_contiguous():
     assert np.all(np.diff(out[names.NATURAL_FREQUENCY].values) > 0)
     # the subtraction ends on its cap of examined peaks there; the refinement then completes
     # the model by its statistics, so the cap is recorded as superseded, not silent
-    caps = out.attrs.get(names.ATTR_AMI_CAPPED_SUPERSEDED, "") + "," + out.attrs[names.ATTR_AMI_CAPPED]
+    caps = (
+        out.attrs.get(names.ATTR_AMI_CAPPED_SUPERSEDED, "") + "," + out.attrs[names.ATTR_AMI_CAPPED]
+    )
     assert "subtract:max_rejected_peaks" in caps.split(",")

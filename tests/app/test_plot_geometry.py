@@ -12,10 +12,10 @@ import xarray as xr
 
 import ami_xr
 from ami_xr import names
+from ami_xr.app.report import report
 from ami_xr.core.modal import phase_normalised
 from ami_xr.errors import AmiXrValueError
 from ami_xr.plot.geometry import animate_mode_shape, plot_mode_shapes
-from ami_xr.app.report import report
 
 pytest.importorskip("matplotlib")
 Image = pytest.importorskip("PIL.Image")

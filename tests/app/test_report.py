@@ -11,8 +11,8 @@ import xarray as xr
 import ami_xr
 from ami_xr import names
 from ami_xr.ami import identify
-from ami_xr.errors import AmiXrValueError
 from ami_xr.app.report import FIGURES, format_modal_table, modal_table, report
+from ami_xr.errors import AmiXrValueError
 
 from ..reference import normal_file_mode
 

@@ -89,7 +89,21 @@ def test_time_history_files_pass(tmp_path):
     from .test_lvm_assumptions import hit_rows
 
     g, ts = tmp_path / "g.nc", tmp_path / "ts.nc"
-    assert main(["simulate", "beam-absorbers", "-o", str(g), "--time-output", str(ts), "--samples", "256"]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "beam-absorbers",
+                "-o",
+                str(g),
+                "--time-output",
+                str(ts),
+                "--samples",
+                "256",
+            ]
+        )
+        == 0
+    )
     assert_cf_compliant(ts)
     lvm = _write(tmp_path / "hits.lvm", [hit_rows(p) for p in (100.0, 110.0)])
     converted = tmp_path / "t.nc"
