@@ -24,6 +24,8 @@ TRIAL_ITERATIONS = 10  # cap of the trial fits of the model-order tests
 FALLBACK_MESSAGE = "fallback: nothing could be fitted"  # FitResult.message of a fit given up
 # residual power over data power of an exact fit (noise-free data with a complete model)
 EXACT_RSS = 1e-20
+# the one-pole model error at a close pair must exceed every other peak's by this factor
+PAIR_EXCESS = 2.0
 # false-alarm probability of the screen that picks where the residual shows structure
 SCREEN_PFA = 0.1
 
@@ -493,7 +495,9 @@ def _merge_split_pairs(prob, state: State, pfa: float, decay: float, trial_opts,
         r1 = np.abs(_complex_rows(_residual_rows(prob, one.proj))[:, band]) ** 2 / var
         r2 = np.abs(_complex_rows(_residual_rows(prob, fit.proj))[:, band]) ** 2 / var
         # the one-pole fit is no better there than at the worst single-pole peak
-        excess = rho[kept] >= rho_max
+        # by a factor PAIR_EXCESS: measured peaks' model errors spread over a decade
+        # (measurement.uff), and one peak just above the others is no evidence of a second mode
+        excess = rho[kept] >= PAIR_EXCESS * rho_max
         gain_j = 2.0 * (r1.sum(axis=1) - r2.sum(axis=1))
         gain = gain_j.sum() > chi2.isf(pfa, 2 + 2 * n_point)
         consistent = np.sum(gain_j > chi2.isf(pfa, 4)) >= min(2, n_point)

@@ -111,3 +111,24 @@ def test_subtraction_cap_does_not_decide_the_mode_count():
         paper = ami_xr.identify(frf, max_modes=2, refine=False)
     assert "subtract:max_modes" in paper.attrs[names.ATTR_AMI_CAPPED]
     assert any("subtract: stopped at the cap" in str(w.message) for w in said)
+
+
+def test_measured_modes_are_not_split_into_pairs():
+    # measurement.uff (three measured accelerances, model error at the peaks): the completion
+    # must not leave a split duplicate (two modes within 1 % with MAC > 0.9), issue 20's target
+    from pathlib import Path
+
+    from ami_xr.core.modal import mac_matrix
+    from ami_xr.io.formats import read_any
+
+    path = Path(__file__).resolve().parents[2] / "sample_data" / "measurement.uff"
+    pytest.importorskip("pyuff")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        modes = ami_xr.identify(read_any(path))
+    fn = modes[names.NATURAL_FREQUENCY].values
+    phi = modes[names.MODE_VECTOR].transpose(names.POINT, names.MODE).values
+    mac = mac_matrix(phi)
+    for i in range(fn.size):
+        for j in range(i + 1, fn.size):
+            assert not (abs(fn[i] - fn[j]) < 0.01 * fn[i] and mac[i, j] > 0.9), (fn[i], fn[j])
