@@ -14,6 +14,7 @@ import contextlib
 from collections.abc import Iterator
 from pathlib import Path
 
+from ami_xr.app.options import ranged
 from ami_xr.errors import AmiXrValueError
 
 __all__ = ["add_cluster_options", "cluster", "read_frfs"]
@@ -25,27 +26,29 @@ def add_cluster_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("scale-out (dask.distributed)")
     g.add_argument(
         "--workers",
-        type=int,
+        type=ranged(int, 1, 1024),
         metavar="N",
-        help="run on a local dask.distributed cluster of N single-threaded workers",
+        help="run on a local dask.distributed cluster of N single-threaded workers "
+        "(default: none, in this process)",
     )
     g.add_argument(
         "--scheduler",
         metavar="ADDRESS",
-        help="run on the existing dask.distributed scheduler at ADDRESS (e.g. tcp://host:8786)",
+        help="run on the existing dask.distributed scheduler at ADDRESS (e.g. tcp://host:8786) "
+        "(default: none)",
     )
     g.add_argument(
         "--chunk-points",
-        type=int,
+        type=ranged(int, 1),
         default=1000,
         metavar="P",
-        help="FRFs per chunk when running on a cluster",
+        help="FRFs per chunk when running on a cluster (default: %(default)s)",
     )
     g.add_argument(
         "--worker-memory",
         default="2GB",
         metavar="SIZE",
-        help="memory limit of each local worker (--workers)",
+        help="memory limit of each local worker (--workers) (default: %(default)s)",
     )
 
 

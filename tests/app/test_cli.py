@@ -106,10 +106,12 @@ def test_verbose_shows_the_traceback(tmp_path, capsys):
 
 
 def test_bad_option_value_is_a_clear_error(tmp_path, capsys):
-    code = main(["simulate", "beam-absorbers", "-o", str(tmp_path / "x.nc"), "--noise", "-1"])
-    assert code == EXIT_ERROR
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "alpha" in err[0]
+    # an out-of-range option is a usage error that names the option, before any work
+    with pytest.raises(SystemExit) as exit_info:
+        main(["simulate", "beam-absorbers", "-o", str(tmp_path / "x.nc"), "--noise", "-1"])
+    assert exit_info.value.code == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "--noise" in err and ">= 0" in err
     assert not (tmp_path / "x.nc").exists()
 
 
@@ -369,6 +371,7 @@ def test_formats_choose_by_suffix_and_name_the_file(tmp_path):
     from ami_xr.errors import AmiXrValueError, DataFileError
     from ami_xr.io.formats import read_any, write_any
 
+    (tmp_path / "data.csv").write_text("1,2\n")  # a regular file: the suffix decides
     with pytest.raises(DataFileError, match=r"data\.csv.*unknown file type"):
         read_any(tmp_path / "data.csv")
     with pytest.raises(AmiXrValueError, match=r"out\.txt"):
