@@ -15,9 +15,8 @@ thresholds serves every group. The per-FRF and SIMO isolations differ in their g
 three settings of :class:`IsolateParams`: ``reweight`` (the fit step weighting each FRF by the
 mode's SNR in it), ``se_fraction`` (the stopping rule) and ``paper_sweeps``.
 
-Records: :class:`IsolateParams` (settings), :class:`ModeSet` (the modes, updated in place),
-:class:`Work` (per-group arrays), :class:`IsolateResult`. Jitted, unchecked entry points
-``isolate_groups`` and ``point_estimates_kernel``; checked wrappers in :mod:`.isolate`.
+Records: :class:`IsolateParams`, :class:`ModeSet` (updated in place), :class:`Work`,
+:class:`IsolateResult`. Jitted entry points; checked wrappers in :mod:`.isolate`.
 """
 
 from __future__ import annotations
@@ -439,7 +438,7 @@ def _order_check(scene, params, modes, n, work, masked):
     n_p, n_f = work.data.shape
     for k in range(n):
         mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
-    _isolated_lines(work, res, n, -1, 0, n_f)
+    _isolated_lines(work, res, n, np.int64(-1), np.int64(0), n_f)
     stat = np.zeros(n_f)
     for j in range(n_p):
         env = tolerance_envelope(omega, lam, res[j], n, params.tol)
@@ -467,7 +466,7 @@ def _order_check(scene, params, modes, n, work, masked):
             masked[wl:wh] = True
             iso = work.xn.copy()
             for j in range(n_p):
-                add_mode(iso[j], x, lam[ks], res[j, ks], dt, n_samples, 1.0, 0, n_f)
+                add_mode(iso[j], x, lam[ks], res[j, ks], dt, n_samples, 1.0, np.int64(0), n_f)
                 work.wts[j] = work.wts_all[ks, j] if params.reweight else 1.0
             l2 = np.empty(2, dtype=np.complex128)
             r2 = np.empty((n_p, 2), dtype=np.complex128)
@@ -557,9 +556,10 @@ def isolate_groups(data, lam0, res0, n0, scene, params):
                 continue
             # an added mode near one added before (and lost since: no mode is near that one)
             new = modes.lam[n - 1]
+            one, none = np.int64(1), np.int64(-1)  # typed ints: one specialisation each
             for t in range(0 if params.paper_sweeps else n_tried):
-                again = nearest_within(tried[t : t + 1], 1, new, params.merge_tol, -1) >= 0
-                if again and nearest_within(modes.lam, n - 1, tried[t], params.merge_tol, -1) < 0:
+                again = nearest_within(tried[t : t + 1], one, new, params.merge_tol, none) >= 0
+                if again and nearest_within(modes.lam, n - 1, tried[t], params.merge_tol, none) < 0:
                     work.pinned[n - 1] = True
                     last = True
                     break
@@ -586,7 +586,8 @@ def point_estimates_kernel(data, lam, res, scene, delta, min_points):
     for j in range(n_p):
         work.data[0] = data[j]
         for k in range(n_k):
-            peak, lo, hi = _mode_band(work, res[j : j + 1], n_k, k, scene, lam[k], delta, 0, n_f)
+            at = np.int64(0)
+            peak, lo, hi = _mode_band(work, res[j : j + 1], n_k, k, scene, lam[k], delta, at, n_f)
             if hi - lo < min_points:
                 continue
             ws = omega[peak] if omega[peak] > 0.0 else scene.dw

@@ -112,7 +112,7 @@ def _subtract_batch(data, scene, params):
             )
             if code != FIT_OK:
                 continue
-            k = nearest_within(lam_j, n, lam, params.merge_tol, -1)
+            k = nearest_within(lam_j, n, lam, params.merge_tol, np.int64(-1))
             if k >= 0:
                 # a duplicate of an earlier candidate: the residual left near that pole; fold the
                 # residue into the earlier candidate (poles this close add their residues)
@@ -126,7 +126,7 @@ def _subtract_batch(data, scene, params):
             # the residual recomputed from the data (eq. 6 with the current candidates)
             y[0] = data[j]
             for k in range(n):
-                add_mode(y[0], x, lam_j[k], res_j[k], dt, n_samples, -1.0, 0, n_f)
+                add_mode(y[0], x, lam_j[k], res_j[k], dt, n_samples, -1.0, np.int64(0), n_f)
         out.n_modes[j] = n
     return out
 

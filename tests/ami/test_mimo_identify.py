@@ -120,7 +120,9 @@ def test_analysis_band_is_kept(chain):
     np.testing.assert_allclose(
         out[names.EIGENVALUE].values, truth[names.EIGENVALUE].values[1:], rtol=1e-4
     )
-    assert not any(out[names.QUALITY_FLAGS].values.astype(str))
+    # no quality flag; a mode the refinement's completion found instead of AMI says so
+    flags = [f for f in out[names.QUALITY_FLAGS].values.astype(str) if f != "added_by_refine"]
+    assert not any(flags)
 
 
 def test_written_and_read_back(chain, tmp_path):
