@@ -742,6 +742,10 @@ def run() -> None:
         # kill during interpreter shutdown.
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    # leaving armed() restored Python's own handlers: a late Ctrl-C would kill the process
+    # silently while it exits (seen as -SIGINT with nothing said); keep both ignored
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     late = interrupt.exit_code()
     if late == EXIT_TERMINATED and code in (EXIT_OK, EXIT_TERMINATED):
         _say_err("ami-xr: terminated")
