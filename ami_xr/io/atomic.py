@@ -309,6 +309,19 @@ def _remove_stale_of(path: Path) -> None:
             _remove_abandoned(entry, unlocked_ok=False)
 
 
+def _open_temp_dir(path: Path):
+    """Clear the leftovers of killed writes of ``path`` and open a fresh temporary folder next
+    to it: ``(folder, lock)``; a failure is a DataFileError naming ``path`` (a full disk as
+    such)."""
+    try:
+        _remove_stale_of(path)
+        return _new_temp_dir(path)
+    except OSError as err:
+        if no_space(path.parent, err):
+            raise DataFileError(_full_message(path, err)) from err
+        raise DataFileError(f"{path}: cannot write: {type(err).__name__}: {err}") from err
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary file path; on a clean exit it replaces ``path`` in one rename.
@@ -334,13 +347,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """
     path = _checked_target(path)
     with _sigterm_as_exit():
-        try:
-            _remove_stale_of(path)
-            tmp_dir, lock = _new_temp_dir(path)
-        except OSError as err:
-            if no_space(path.parent, err):
-                raise DataFileError(_full_message(path, err)) from err
-            raise DataFileError(f"{path}: cannot write: {type(err).__name__}: {err}") from err
+        tmp_dir, lock = _open_temp_dir(path)
         tmp = tmp_dir / path.name
         try:
             yield tmp
@@ -392,13 +399,7 @@ def atomic_folder(path: str | os.PathLike) -> Iterator[Path]:
     if path.exists() and not path.is_dir():
         raise DataFileError(f"{path}: exists and is not a folder")
     path.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        _remove_stale_of(path)
-        tmp_dir, lock = _new_temp_dir(path)
-    except OSError as err:
-        if no_space(path.parent, err):
-            raise DataFileError(_full_message(path, err)) from err
-        raise DataFileError(f"{path}: cannot write: {type(err).__name__}: {err}") from err
+    tmp_dir, lock = _open_temp_dir(path)
     new = tmp_dir / path.name
     try:
         new.mkdir()
