@@ -274,3 +274,19 @@ def two_point_time_dataset(force, response, fs: float = 256.0, **attrs):
         force_units="N",
         **attrs,
     )
+
+
+def damped_chain(point_labels=(1, 2, 3, 4, 5)):
+    """A damped 5-DOF chain (truth Dataset), modes near 8.4, 22.7, 39.2, 45.8 and 52.3 Hz
+    (zeta 1-3.4 %): the multi-reference tests' system."""
+    from ami_xr.simulate import modal
+
+    m = np.diag([1.0, 1.3, 0.9, 1.1, 0.8])
+    springs = [4e4, 3e4, 3.5e4, 2.5e4, 3e4]
+    k = np.zeros((5, 5))
+    for i, s in enumerate(springs):
+        k[i, i] += s
+        if i + 1 < 5:
+            k[i, i] += springs[i + 1]
+            k[i, i + 1] = k[i + 1, i] = -springs[i + 1]
+    return modal.modal_model(m, 2e-4 * k + 0.5 * m, k, point_labels=list(point_labels))

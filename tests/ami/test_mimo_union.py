@@ -7,7 +7,6 @@ import warnings
 
 import numpy as np
 import pytest
-import xarray as xr
 
 import ami_xr
 from ami_xr import names
@@ -19,19 +18,13 @@ from ami_xr.errors import AmiXrValueError
 from ami_xr.io.datasets import select_reference
 from ami_xr.simulate import modal
 
+from ..reference import damped_chain
+
 POINTS = [1, 2, 3, 4, 5]
 
 
-def _chain() -> xr.Dataset:
-    m = np.diag([1.0, 1.3, 0.9, 1.1, 0.8])
-    springs = [4e4, 3e4, 3.5e4, 2.5e4, 3e4]
-    k = np.zeros((5, 5))
-    for i, s in enumerate(springs):
-        k[i, i] += s
-        if i + 1 < 5:
-            k[i, i] += springs[i + 1]
-            k[i, i + 1] = k[i + 1, i] = -springs[i + 1]
-    return modal.modal_model(m, 2e-4 * k + 0.5 * m, k, point_labels=POINTS)
+def _chain():
+    return damped_chain(POINTS)
 
 
 def test_a_pole_the_stacked_detection_missed_is_added_from_a_single_reference():

@@ -16,7 +16,8 @@ from ami_xr import names, simulate
 from ami_xr.ami import mimo, pipeline
 from ami_xr.core import flags
 from ami_xr.io.datasets import make_frf_dataset, select_reference
-from ami_xr.simulate import modal
+
+from ..reference import damped_chain
 
 F = np.linspace(0.05, 50.0, 1000)
 
@@ -65,15 +66,7 @@ def test_mimo_uses_no_private_name_of_the_pipeline():
 
 
 def _chain():
-    m = np.diag([1.0, 1.3, 0.9, 1.1, 0.8])
-    springs = [4e4, 3e4, 3.5e4, 2.5e4, 3e4]
-    k = np.zeros((5, 5))
-    for i, s in enumerate(springs):
-        k[i, i] += s
-        if i + 1 < 5:
-            k[i, i] += springs[i + 1]
-            k[i, i + 1] = k[i + 1, i] = -springs[i + 1]
-    return modal.modal_model(m, 2e-4 * k + 0.5 * m, k, point_labels=[1, 2, 3, 4, 5])
+    return damped_chain()
 
 
 def _windowed(truth, power, beta, f, references=None):
