@@ -180,7 +180,7 @@ def small_frf(seed: int = 0, n_points: int = 3, n_frequency: int = 256, scale: f
         wn = 2 * np.pi * fn[k]
         h += np.outer(phi[k] * phi[k, 0], 1.0 / (wn**2 - w**2 + 2j * zeta[k] * wn * w))
     h += 1e-3 * np.abs(h).max() * (rng.standard_normal(h.shape) + 1j * rng.standard_normal(h.shape))
-    return ami_xr.make_frf_dataset(scale * h, f, drive_point=0)
+    return ami_xr.make_frf_dataset(scale * h, f, drive_point=0, frf_type="receptance")
 
 
 def small_time(seed: int = 0, n_records: int = 3, n_time: int = 512, fs: float = 256.0):
@@ -670,7 +670,9 @@ def big_file(folder: Path, megabytes: float = 24.0, seed: int = 0) -> Path:
     rng = np.random.default_rng(seed)
     h = rng.standard_normal((n_points, n_freq)) + 1j * rng.standard_normal((n_points, n_freq))
     path = folder / "big.nc"
-    ami_xr.to_netcdf(ami_xr.make_frf_dataset(h, np.linspace(0, 1000, n_freq)), path)
+    ami_xr.to_netcdf(
+        ami_xr.make_frf_dataset(h, np.linspace(0, 1000, n_freq), frf_type="receptance"), path
+    )
     return path
 
 
@@ -684,6 +686,19 @@ def _spawn(argv: list[str], cwd: Path) -> subprocess.Popen:
     )
 
 
+def _finish(proc: subprocess.Popen, bound: float) -> tuple[int | None, str]:
+    """Wait up to ``bound`` s for ``proc``: ``(exit code, stderr)``; a hang (None) is killed
+    with its process group."""
+    try:
+        _, err = proc.communicate(timeout=bound)
+        code: int | None = proc.returncode
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        _, err = proc.communicate()
+        code = None
+    return code, err.decode(errors="replace")
+
+
 def _stop(proc: subprocess.Popen, sig_name: str, bound: float) -> tuple[int | None, str, float]:
     """Send the signal(s); wait up to ``bound`` s; (exit code or None if hung, stderr, s)."""
     start = time.monotonic()
@@ -695,14 +710,8 @@ def _stop(proc: subprocess.Popen, sig_name: str, bound: float) -> tuple[int | No
                 proc.send_signal(signal.SIGINT)
         else:
             proc.send_signal(getattr(signal, sig_name))
-    try:
-        _, err = proc.communicate(timeout=bound)
-        code: int | None = proc.returncode
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        _, err = proc.communicate()
-        code = None
-    return code, err.decode(errors="replace"), time.monotonic() - start
+    code, err = _finish(proc, bound)
+    return code, err, time.monotonic() - start
 
 
 def _interrupt_problems(code: int | None, err: str, sig_name: str, waited: float) -> list[str]:
@@ -911,14 +920,8 @@ def _run_signalled(argv, cwd, delay, sig_name, env=None, bound=60.0):
         finished = False
         proc.send_signal(getattr(signal, sig_name))
     sent = time.monotonic()
-    try:
-        _, err = proc.communicate(timeout=bound)
-        code: int | None = proc.returncode
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        _, err = proc.communicate()
-        code = None
-    return code, err.decode(errors="replace"), time.monotonic() - sent, finished
+    code, err = _finish(proc, bound)
+    return code, err, time.monotonic() - sent, finished
 
 
 def _signal_verdict(code, err, waited, finished, sig_name) -> list[str]:
