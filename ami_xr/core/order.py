@@ -129,7 +129,7 @@ def fit_modes(prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width, fre
     return fit, free, n_iter, start_cost
 
 
-def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=0.1):
+def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=SCREEN_PFA):
     """Where a missing mode would be: peaks of the noise-normalised residual power.
 
     ``S(w) = sum_j |r_j(w)|^2 / s_j^2`` is chi-square with 2P degrees of freedom per line when
