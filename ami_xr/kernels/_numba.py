@@ -112,13 +112,16 @@ def _is_kernel_module(module: Any) -> bool:
 
 def _kernel_imports(module: Any) -> set[Any]:
     """The already imported kernel modules that ``module`` uses: modules it holds, and the
-    modules of the jitted functions it holds (so a re-export is followed to its source)."""
+    modules of the functions (jitted or not) it holds (so a re-export is followed to its
+    source)."""
     found = set()
     for value in list(vars(module).values()):
         owner = value
         if not isinstance(value, type(sys)):
-            py_func = getattr(value, "py_func", None)
-            owner = sys.modules.get(getattr(py_func, "__module__", None) or "")
+            # a dispatcher's Python function; with NUMBA_DISABLE_JIT the kernel is that function
+            func = getattr(value, "py_func", value)
+            name = getattr(func, "__module__", None) if callable(func) else None
+            owner = sys.modules.get(name or "")
         if owner is not None and owner is not module and _is_kernel_module(owner):
             found.add(owner)
     return found
