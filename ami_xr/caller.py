@@ -21,9 +21,7 @@ def stacklevel(extra: int = 0) -> int:
     function (plus ``extra`` frames the caller adds before it calls ``warnings.warn``)."""
     frame = sys._getframe(1)  # the function that will warn
     level = 1
-    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(
-        _PACKAGE_DIR
-    ):
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(_PACKAGE_DIR):
         frame = frame.f_back
         level += 1
     return level + extra

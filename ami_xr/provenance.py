@@ -17,6 +17,11 @@ inside :func:`nested_calls`, or is decorated with :func:`public_call` as are the
 calls: a record is added only by the outermost public call (a context variable counts the
 depth, so threads and asyncio tasks each have their own).
 
+A command (``ami-xr frf``, ``ami-xr identify``, one file of a batch) is one call of the user's
+too: it runs inside :func:`command`, and its output's record, named after the command, holds
+the public calls it made (the read, the FRF estimate, identify, the write) as its ``steps``
+(each ``{"function", "parameters"[, "source_file"]}``) instead of as records of their own.
+
 No machine path is recorded: ``source_file`` (record and attribute) holds the file name only,
 and a string parameter that is an absolute path is stored as its file name, so a file can be
 handed to a colleague without telling where it lay on the author's machine.
@@ -41,18 +46,53 @@ from ami_xr.names import ATTR_FUNCTION  # kept importable from here, defined in 
 
 __all__ = [
     "add_history",
+    "command",
     "history",
     "cf_history",
     "file_name",
     "nested_calls",
     "public_call",
     "recording",
+    "running_command",
     "ATTR_FUNCTION",
 ]
 
 # How many public calls enclose the code running now: 0 outside any, 1 in the body of the
 # outermost one, more inside calls it makes. add_history records only at depth 0 or 1.
 _DEPTH: contextvars.ContextVar[int] = contextvars.ContextVar("ami_xr_call_depth", default=0)
+
+
+# The command running now (see command()); records added inside are its steps.
+_COMMAND: contextvars.ContextVar[str | None] = contextvars.ContextVar(
+    "ami_xr_command", default=None
+)
+_STEP_OF = "step_of"  # the marker of a record that is a step of a command, until gathered
+
+
+@contextlib.contextmanager
+def command(name: str) -> Iterator[None]:
+    """Records added inside are steps of the command ``name``: the record
+    ``add_history(ds, name, ...)`` adds (the write of the command's output) gathers the step
+    records made before it into its ``"steps"``, so the history lists the command, not what it
+    called.
+
+    Examples
+    --------
+    >>> with command("ami-xr frf"):  # doctest: +SKIP
+    ...     ts = read_lvm(path)                      # a step
+    ...     g = impact_frf(ts)                       # a step
+    ...     to_netcdf(g, out, function="ami-xr frf") # the record, with both steps
+    """
+    token = _COMMAND.set(name)
+    try:
+        yield
+    finally:
+        _COMMAND.reset(token)
+
+
+def running_command() -> str | None:
+    """The name of the :func:`command` running now, ``None`` outside one."""
+    return _COMMAND.get()
 
 
 def recording() -> bool:
@@ -185,9 +225,24 @@ def add_history(
     }
     if source_file is not None:
         record[names.ATTR_SOURCE_FILE] = file_name(source_file)
+    records = history(ds)
+    running = _COMMAND.get()
+    if running is not None and function == running:  # the command's own record: gather
+        first = len(records)
+        while (
+            first
+            and isinstance(records[first - 1], dict)
+            and (records[first - 1].get(_STEP_OF) == running)
+        ):
+            first -= 1
+        keep = ("function", "parameters", names.ATTR_SOURCE_FILE)
+        record["steps"] = [{k: r[k] for k in keep if k in r} for r in records[first:]]
+        records = records[:first]
+    elif running is not None:
+        record[_STEP_OF] = running
     out = ds.copy()
     out.attrs = dict(ds.attrs)
-    out.attrs[names.ATTR_HISTORY] = json.dumps(history(ds) + [record])
+    out.attrs[names.ATTR_HISTORY] = json.dumps(records + [record])
     out.attrs[names.ATTR_VERSION] = __version__
     out.attrs[ATTR_FUNCTION] = function
     if source_file is not None:

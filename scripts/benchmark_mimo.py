@@ -210,7 +210,8 @@ def measured_like_seed(truth, clean, level: float, seed: int) -> dict:
 
 
 PLATE_HEADER = (
-    f"{'noise':>6}" + "".join(f"{'ref ' + str(r):>8}" for r in PLATE_REFERENCES)
+    f"{'noise':>6}"
+    + "".join(f"{'ref ' + str(r):>8}" for r in PLATE_REFERENCES)
     + f"{'all':>7}{'all>=best':>10}{'spur':>6}  errors over the multi-reference bound"
 )
 

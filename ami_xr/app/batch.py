@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ami_xr import interrupt, names
+from ami_xr import interrupt, names, provenance
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_folder, atomic_open, interrupts_deferred, remove_stale
 from ami_xr.io.formats import INPUT_SUFFIXES, check_input, read_any
@@ -270,6 +270,9 @@ def _row(rel: str, out_rel: str, status: str, message: str = "", modes="", frequ
     }
 
 
+BATCH_FUNCTION = "ami_xr.batch"  # the provenance record of each output
+
+
 def _process_one(job: dict[str, Any]) -> dict[str, Any]:
     """Run the pipeline on one file (in a worker process); never raises for a bad file."""
     import ami_xr
@@ -279,7 +282,8 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
     row = _row(job["rel"], job["out_rel"], STATUS_FAILED)
     start = time.perf_counter()
     try:
-        with warnings.catch_warnings(record=True) as caught:
+        # one record per output, the batch's, with the read and identify as its steps
+        with warnings.catch_warnings(record=True) as caught, provenance.command(BATCH_FUNCTION):
             warnings.simplefilter("always")
             input_sha = _sha256(inp)
             st = inp.stat()
@@ -310,7 +314,7 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
                 folder = out.with_name(out.name[: -len(OUTPUT_SUFFIX)] + ".report")
                 with atomic_folder(folder) as tmp:  # swapped in whole: never a partial report
                     report(result, tmp)
-            ami_xr.to_netcdf(result, out, function="ami_xr.batch", parameters=job["parameters"])
+            ami_xr.to_netcdf(result, out, function=BATCH_FUNCTION, parameters=job["parameters"])
         row["modes"], row["frequencies_hz"] = _modal_summary(result)
         caps = str(result.attrs.get(names.ATTR_AMI_CAPPED, "") or "")
         row["status"] = STATUS_CAPPED if caps else STATUS_OK

@@ -42,6 +42,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from ami_xr import provenance
 from ami_xr.app.cluster import add_cluster_options
 from ami_xr.app.options import (
     BENCHMARK,
@@ -152,12 +153,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.time_output and args.system != "beam-absorbers":
         raise AmiXrValueError("--time-output: only the beam-absorbers system has impulse responses")
     common = {"noise": value(args.noise), "seed": value(args.seed)}
+    function = "ami-xr simulate"  # the record holds the simulator's call as its step
     if args.system == "beam-absorbers":
-        function = "ami_xr.simulate.benchmark"
         kwargs = {**common, "duration": value(args.duration), "n_samples": value(args.samples)}
         ts, g, truth = ami_xr.simulate.benchmark(**kwargs)
     else:
-        function = "ami_xr.simulate.random_system"
         kwargs = {
             "n_points": value(args.points),
             "topology": value(args.topology),
@@ -253,8 +253,9 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         show = not args.quiet and sys.stderr.isatty()
         result = ami_xr.stability(ds, result, progress=show, **others)
         _say(stability_table(result))
-    if args.output:  # identify recorded itself in the history; the write adds its own record
-        write_any(result, args.output)
+    if args.output:  # one record, the command's, with identify as its step
+        given = {"input": args.input, **options}
+        write_any(result, args.output, function="ami-xr identify", parameters=given)
         _say(f"wrote modes to {args.output}")
     caps = str(result.attrs.get(names.ATTR_AMI_CAPPED, "") or "")
     if caps:  # the last line says the result is incomplete (batch: status "capped")
@@ -291,7 +292,7 @@ def _cmd_convert(args: argparse.Namespace) -> int:
         ds,
         args.output,
         binary=args.binary,
-        function="ami_xr.app.cli.convert",
+        function="ami-xr convert",
         parameters={"input": str(src)},
     )
     _say(f"converted {src} -> {out}")
@@ -637,7 +638,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings():
             warnings.showwarning = show_warning
             check_paths(args)
-            return int(args.func(args) or EXIT_OK)
+            # what the command calls are steps of its record in the files it writes
+            with provenance.command(prefix):
+                return int(args.func(args) or EXIT_OK)
     except KeyboardInterrupt:
         print(f"{prefix}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -71,8 +71,10 @@ def resolve_quantity(
         if response_units is not None:  # the units may tell the quantity
             hits = [q for q, us in names.RESPONSE_UNITS.items() if response_units in us]
             quantity = hits[0] if len(hits) == 1 else quantity
-        if response_units is None or quantity == DEFAULT_QUANTITY and response_units not in (
-            names.RESPONSE_UNITS[DEFAULT_QUANTITY]
+        if (
+            response_units is None
+            or quantity == DEFAULT_QUANTITY
+            and response_units not in (names.RESPONSE_UNITS[DEFAULT_QUANTITY])
         ):
             assumed = (
                 "response_quantity and frf_type not given: displacement (receptance, "

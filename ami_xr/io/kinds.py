@@ -56,8 +56,14 @@ def refuse_other_kind(ds: xr.Dataset, path: str | os.PathLike, want: str) -> Non
     if want == "modes" or file_kind(ds) != "modes":
         return
     name = os.fspath(path)
-    made_by = [str(r.get("function", "")) for r in history(ds) if isinstance(r, dict)]
-    origin = " (written by ami-xr identify)" if "ami_xr.identify" in made_by else ""
+    made_by = set()
+    for record in history(ds):  # a command's record holds identify as one of its steps
+        if isinstance(record, dict):
+            steps = record.get("steps")
+            inner = steps if isinstance(steps, list) else []
+            made_by |= {str(r.get("function", "")) for r in [record, *inner] if isinstance(r, dict)}
+    identified = made_by & {"ami_xr.identify", "ami-xr identify"}
+    origin = " (written by ami-xr identify)" if identified else ""
     wanted = {"frf": "an FRF file", "time": "a file of time histories"}.get(want, want)
     frf = (
         "; to identify again, give the FRF file it was made from"

@@ -47,7 +47,7 @@ from ami_xr.coords import uniform_coords
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_path, interrupts_deferred
 from ami_xr.io.cf import ATTR_CF_ADDED, annotate, on_disk_name, strip
-from ami_xr.provenance import add_history
+from ami_xr.provenance import add_history, running_command
 
 __all__ = [
     "open_dataset",
@@ -547,8 +547,8 @@ def to_netcdf(
     path : str or path-like
         Target file; its folder must exist.
     function : str, optional
-        Name of the function that produced the data, for the provenance record
-        (default ``"ami_xr.to_netcdf"``).
+        Name of the function that produced the data, for the provenance record (default: the
+        command running, see :func:`ami_xr.provenance.command`, else ``"ami_xr.to_netcdf"``).
     parameters : dict, optional
         Its parameters (JSON-serialised in the record).
 
@@ -571,7 +571,8 @@ def to_netcdf(
     recorded = annotate(
         add_history(
             ds,
-            function or "ami_xr.to_netcdf",
+            # inside a command (ami-xr ...) the write is the command's record
+            function or running_command() or "ami_xr.to_netcdf",
             parameters,
             source_file=ds.attrs.get(names.ATTR_SOURCE_FILE),
         )

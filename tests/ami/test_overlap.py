@@ -29,7 +29,11 @@ def _identify(frf):
 @pytest.mark.parametrize("seed", [1, 3])
 def test_noise_free_cluster_of_three_overlapping_modes(source, seed):
     frf, truth = clustered_system(
-        n_points=5, cluster_sizes=(3,), overlap=1.5, seed=seed, source=source,
+        n_points=5,
+        cluster_sizes=(3,),
+        overlap=1.5,
+        seed=seed,
+        source=source,
         n_frequencies=2048,
     )
     modes = _identify(frf)
@@ -44,7 +48,11 @@ def test_noise_free_cluster_of_three_overlapping_modes(source, seed):
 
 def test_noisy_close_pair_is_resolved_near_the_bound():
     frf, truth = clustered_system(
-        n_points=6, cluster_sizes=(3,), overlap=1.0, seed=2, noise=0.01,
+        n_points=6,
+        cluster_sizes=(3,),
+        overlap=1.0,
+        seed=2,
+        noise=0.01,
         source=names.SOURCE_IMPULSE,
     )
     modes = _identify(frf)

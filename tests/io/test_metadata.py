@@ -259,8 +259,8 @@ def _functions(ds) -> list[str]:
 
 
 def test_history_of_cli_frf_on_an_lvm_file_lists_only_the_users_calls(tmp_path):
-    """``ami-xr frf hits.lvm``: the read, the impact FRF and the command's write; no ``ami_xr.frf``
-    (never called) and nothing else."""
+    """``ami-xr frf hits.lvm``: one record, the command's, with the read and the impact FRF as
+    its steps; no ``ami_xr.frf`` (never called) and nothing else."""
     from ami_xr.app.cli import main
 
     from .test_lvm import _write
@@ -274,19 +274,19 @@ def test_history_of_cli_frf_on_an_lvm_file_lists_only_the_users_calls(tmp_path):
             main(["frf", str(lvm), "-o", str(out), "--drive-point", "Acceleration (Trigger)"]) == 0
         )
     records = provenance.history(open_dataset(out))
-    assert [r["function"] for r in records] == [
-        "ami_xr.read_lvm",
-        "ami_xr.impact_frf",
-        "ami-xr frf",
-    ]
+    assert [r["function"] for r in records] == ["ami-xr frf"]
+    steps = records[0]["steps"]
+    assert [s["function"] for s in steps] == ["ami_xr.read_lvm", "ami_xr.impact_frf"]
+    assert steps[0]["source_file"] == "hits.lvm" and steps[1]["parameters"]["n_records_used"] == 3
     assert records[-1]["parameters"]["excitation"] == "impact"
+    assert "step_of" not in json.dumps(records)  # every step was gathered
     with xr.open_dataset(out, engine="netcdf4") as raw:
         assert raw.attrs["history"].splitlines()[-1].split()[1:3] == ["ami-xr", "frf"]
 
 
 def test_identify_records_itself_not_its_phases(identified, tmp_path):
-    """identify runs subtract, isolate, global_fit and refine; only identify is recorded, also
-    through the CLI (then the write)."""
+    """identify runs subtract, isolate, global_fit and refine; only identify is recorded; through
+    the CLI the command is, with identify (and the write) as its steps."""
     from ami_xr.app.cli import main
 
     src = _functions(identified[0])
@@ -300,7 +300,10 @@ def test_identify_records_itself_not_its_phases(identified, tmp_path):
         warnings.simplefilter("ignore")
         assert main(["identify", str(frfs), "-o", str(tmp_path / "m.nc"), "-q"]) == 0
     after = _functions(open_dataset(tmp_path / "m.nc"))
-    assert after == [*before, "ami_xr.identify", "ami_xr.to_netcdf"]
+    assert after == [*before, "ami-xr identify"]
+    last = provenance.history(open_dataset(tmp_path / "m.nc"))[-1]
+    assert [s["function"] for s in last["steps"]] == ["ami_xr.identify"]
+    assert last["parameters"]["input"] == "g.nc"
 
 
 def test_simulated_identify_history_and_direct_phase_calls():
@@ -379,3 +382,23 @@ def test_dated_time_and_a_taken_name_keep_time_on_disk(tmp_path):
         back = open_dataset(to_netcdf(ds, tmp_path / f"{i}.nc"), lazy=False)
         assert names.TIME in back.dims
         np.testing.assert_array_equal(back["v"].values, ds["v"].values)
+
+
+def test_command_gathers_the_records_made_inside_as_its_steps():
+    ds = provenance.add_history(xr.Dataset(), "ami_xr.earlier")  # before the command: kept
+    with provenance.command("ami-xr thing"):
+        assert provenance.running_command() == "ami-xr thing"
+        ds = provenance.add_history(ds, "ami_xr.read", source_file="/lab/run1.lvm")
+        ds = provenance.add_history(ds, "ami_xr.estimate", {"n": 2})
+        ds = provenance.add_history(ds, "ami-xr thing", {"input": "run1.lvm"})
+    assert provenance.running_command() is None
+    records = provenance.history(ds)
+    assert [r["function"] for r in records] == ["ami_xr.earlier", "ami-xr thing"]
+    assert records[1]["steps"] == [
+        {"function": "ami_xr.read", "parameters": {}, "source_file": "run1.lvm"},
+        {"function": "ami_xr.estimate", "parameters": {"n": 2}},
+    ]
+    assert "steps" not in records[0]
+    # outside a command nothing is gathered and nothing is marked
+    plain = provenance.add_history(provenance.add_history(xr.Dataset(), "a"), "b")
+    assert provenance.history(plain)[1].keys() == provenance.history(plain)[0].keys()
