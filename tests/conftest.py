@@ -7,6 +7,8 @@ tolerance helpers live in ``tests/reference.py``.
 
 from __future__ import annotations
 
+import signal
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -22,6 +24,16 @@ FRF_FIXTURE_FN_HZ = np.array([12.0, 31.0])
 FRF_FIXTURE_ZETA = np.array([0.02, 0.035])
 FRF_FIXTURE_PHI = np.array([[0.6, 0.9], [1.0, -0.4], [0.8, -1.1]])  # rows: points 1, 2, 3
 FRF_FIXTURE_POINTS = [1, 2, 3]
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _ctrl_c_raises():
+    """Ctrl-C raises KeyboardInterrupt in this process and the commands it starts, also when the
+    suite was launched in the background (``nohup``, ``cmd &``): a shell ignores SIGINT for such
+    jobs, Python then installs no handler, and the interrupt tests would see nothing."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
 
 
 def _frf_fixture_modes():
