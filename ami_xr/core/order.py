@@ -18,6 +18,7 @@ import numpy as np
 from ami_xr.core import varpro
 from ami_xr.core.matching import match_by_distance
 from ami_xr.core.proposals import cluster_starts
+from ami_xr.kernels.modal_basis import model_columns
 from ami_xr.kernels.projection import project_points
 
 TRIAL_ITERATIONS = 10  # cap of the trial fits of the model-order tests
@@ -32,6 +33,13 @@ SCREEN_ITERATIONS, SCREEN_KEEP = 3, 3
 MAX_TRIALS = 3
 # false-alarm probability of the screen that picks where the residual shows structure
 SCREEN_PFA = 0.1
+# a trial is first fitted on the lines within this many half-power bandwidths (of the widest
+# mode it changes) of the modes it changes, the modes outside held at the present fit; a band
+# of more than LOCAL_MAX_SHARE of the lines is screened on all lines instead
+LOCAL_WIDTHS, LOCAL_MAX_SHARE = 6.0, 0.5
+# the band's likelihood ratio understates the full one (near the threshold by ~20 %): a trial
+# goes on to the full fit when its band score is above -LOCAL_SLACK thresholds
+LOCAL_SLACK = 0.5
 
 
 @dataclass
@@ -274,10 +282,7 @@ def _drop_insignificant(prob, state: State, threshold: float, trial_opts: dict) 
             break
         state.fit, state.free = trial[0], np.delete(state.free, k) & trial[1]
         state.at_ami = np.delete(state.at_ami, k) & ~trial[1]  # refitted unless frozen
-        state.changed = True
-        state.lam0 = np.delete(state.lam0, k)
-        state.origin = np.delete(state.origin, k)
-        state.res0 = np.delete(state.res0, k, 1)
+        _remove_reference(state, np.array([k]))  # k may be a mode the completion added
 
 
 def _drop_superfluous(prob, state: State, trial_opts: dict, tries: int = 3) -> None:
@@ -363,17 +368,32 @@ def _add_missed(
     trials += cluster_starts(
         data, prob.omega, fit.lam, state.free, state.lam0, decay, min_width, centres
     )[: 2 * MAX_TRIALS]
-    # Every trial is screened with a few iterations; the SCREEN_KEEP most promising are then
-    # fitted in full (a screened fit only understates the gain of a good start).
+    # Every trial is screened: fitted on its own band (the modes outside held; a fraction of
+    # the lines, so a 23-mode FRF of 24 000 lines no longer pays a full fit per trial), or, when
+    # its band is most of the data, with a few iterations on all lines (which only understates
+    # the gain of a good start). The SCREEN_KEEP most promising are then fitted in full, from
+    # where the screen left them (after one that is taken, the band-screened ones no more); a
+    # trial whose band score is below -LOCAL_SLACK thresholds is not.
     screened = []
-    for i, (start, _, n_add, _) in enumerate(trials):
-        quick = fit_modes(prob, start, trials[i][1], **dict(trial_opts, max_iter=SCREEN_ITERATIONS))
-        state.n_iter += quick[2]
-        screened.append((2.0 * (fit.cost - quick[0].cost) - n_add * threshold, i))
-    keep = [i for _, i in sorted(screened, reverse=True)[:SCREEN_KEEP]]
+    for i, (start, ref, n_add, _) in enumerate(trials):
+        local = _local_fit(prob, fit, trials[i], trial_opts, min_width)
+        if local is None:
+            quick = fit_modes(prob, start, ref, **dict(trial_opts, max_iter=SCREEN_ITERATIONS))
+            state.n_iter += quick[2]
+            gain = 2.0 * (fit.cost - quick[0].cost)
+            screened.append((gain - n_add * threshold, i, start, False))
+            continue
+        gain, refined, n_it = local
+        state.n_iter += n_it
+        if gain - n_add * threshold > -LOCAL_SLACK * threshold:
+            screened.append((gain - n_add * threshold, i, refined, True))
+    screened.sort(key=lambda s: s[0], reverse=True)
     best, best_score = None, 0.0
-    for start, ref, n_add, removed in (trials[i] for i in keep):
-        trial = fit_modes(prob, start, ref, **trial_opts)
+    for _, i, begin, on_band in screened[:SCREEN_KEEP]:
+        if best is not None and on_band:  # the band fits rank the trials well: the first taken
+            break
+        start, ref, n_add, removed = trials[i]
+        trial = fit_modes(prob, begin, ref, **trial_opts)
         state.n_iter += trial[2]
         score = 2.0 * (fit.cost - trial[0].cost) - n_add * threshold
         # the modes tried (new or restarted) must stay free; a mode already frozen may stay so
@@ -391,6 +411,67 @@ def _add_missed(
     _remove_reference(state, removed)
     state.free, state.lam0 = free, ref
     return True
+
+
+def _local_fit(prob, fit, trial, opts: dict, min_width: float):
+    """Fit one completion trial on its own band: the lines within ``LOCAL_WIDTHS`` half-power
+    bandwidths of the modes it changes (moved, added or removed), the data less the present
+    fit's far modes (residues held), the modes in the band free.
+
+    Returns ``(likelihood-ratio gain on the band, the trial's start with its band modes at
+    their fitted values, iterations)``; ``None`` when the band holds more than
+    ``LOCAL_MAX_SHARE`` of the lines or too few for its modes (then screen on all lines), and a
+    gain of ``-inf`` when the fit fails or freezes a mode the trial changes.
+    """
+    start, ref, _, removed = trial
+    lam, omega = fit.lam, prob.omega
+    kept = np.delete(np.arange(lam.size), removed)
+    n_old = kept.size
+    changed = np.append(start[:n_old] != lam[kept], np.ones(start.size - n_old, bool))
+    if not (changed.any() or removed.size):
+        return None
+    poles = np.concatenate([start[changed], lam[removed]])
+    margin = LOCAL_WIDTHS * float(np.max(np.maximum(2.0 * np.abs(poles.real), min_width)))
+    lo, hi = poles.imag.min() - margin, poles.imag.max() + margin
+    sel = np.flatnonzero((omega >= lo) & (omega <= hi))
+    # the old modes the band model holds: inside the band, changed or removed by the trial
+    near = (lam.imag >= lo) & (lam.imag <= hi)
+    near[kept[changed[:n_old]]] = True
+    near[removed] = True
+    entry = np.append(near[kept], np.ones(start.size - n_old, bool))  # trial entries in band
+    n_col = 2 * max(int(entry.sum()), int(near.sum())) + 2 * len(prob.residual_terms)
+    if sel.size > LOCAL_MAX_SHARE * omega.size or 2 * sel.size < 3 * n_col:
+        return None
+    n_line = omega.size
+    far = np.flatnonzero(~near)
+    y = prob.y[:, np.concatenate([sel, n_line + sel])]
+    if far.size:  # the far modes at the present fit, residues held
+        kind = prob.residual_kind
+        phi = model_columns(omega[sel], lam[far], prob.dt, prob.n_samples, (), kind)[0]
+        cols = np.ravel(np.column_stack([2 * far, 2 * far + 1]))
+        model = phi * prob.line_weight[sel, None]
+        y = y - fit.proj.coef[:, cols] @ np.concatenate([model.real, model.imag]).T
+    band = varpro.Problem(
+        np.ascontiguousarray(y),
+        omega[sel],
+        prob.line_weight[sel],
+        prob.dt,
+        prob.n_samples,
+        prob.residual_terms,
+        prob.residual_kind,
+    )
+    if near.any() or band.residual_terms:
+        before = varpro.objective(band, varpro.project(band, lam[near]))
+    else:  # nothing modelled on the band yet: the data are the residual
+        rss = np.maximum(np.sum(band.y**2, axis=1), (varpro.RSS_FLOOR**2) * band.y_norm2)
+        before = 0.5 * band.n_rows * float(np.sum(np.log(rss)))
+    local = fit_modes(band, start[entry], ref[entry], **opts)
+    refined = start.copy()
+    refined[entry] = local[0].lam
+    tried = changed[entry]
+    if not (np.isfinite(before) and np.isfinite(local[0].cost) and local[1][tried].all()):
+        return -np.inf, refined, local[2]
+    return 2.0 * (before - local[0].cost), refined, local[2]
 
 
 def _complex_rows(z: np.ndarray) -> np.ndarray:
