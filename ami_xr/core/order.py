@@ -371,9 +371,10 @@ def _add_missed(
     # Every trial is screened: fitted on its own band (the modes outside held; a fraction of
     # the lines, so a 23-mode FRF of 24 000 lines no longer pays a full fit per trial), or, when
     # its band is most of the data, with a few iterations on all lines (which only understates
-    # the gain of a good start). The SCREEN_KEEP most promising are then fitted in full, from
-    # where the screen left them (after one that is taken, the band-screened ones no more); a
-    # trial whose band score is below -LOCAL_SLACK thresholds is not.
+    # the gain of a good start). The SCREEN_KEEP most promising are then fitted in full from
+    # their starts (a band fit's end point, its far modes held, was a worse start in clusters);
+    # after one that is taken, the band-screened ones no more; a trial whose band score is
+    # below -LOCAL_SLACK thresholds is not fitted in full.
     screened = []
     for i, (start, ref, n_add, _) in enumerate(trials):
         local = _local_fit(prob, fit, trials[i], trial_opts, min_width)
@@ -386,7 +387,7 @@ def _add_missed(
         gain, refined, n_it = local
         state.n_iter += n_it
         if gain - n_add * threshold > -LOCAL_SLACK * threshold:
-            screened.append((gain - n_add * threshold, i, refined, True))
+            screened.append((gain - n_add * threshold, i, start, True))
     screened.sort(key=lambda s: s[0], reverse=True)
     best, best_score = None, 0.0
     for _, i, begin, on_band in screened[:SCREEN_KEEP]:
@@ -419,9 +420,9 @@ def _local_fit(prob, fit, trial, opts: dict, min_width: float):
     fit's far modes (residues held), the modes in the band free.
 
     Returns ``(likelihood-ratio gain on the band, the trial's start with its band modes at
-    their fitted values, iterations)``; ``None`` when the band holds more than
-    ``LOCAL_MAX_SHARE`` of the lines or too few for its modes (then screen on all lines), and a
-    gain of ``-inf`` when the fit fails or freezes a mode the trial changes.
+    their fitted values, iterations)``; ``None`` (then screen on all lines) when the band holds
+    more than ``LOCAL_MAX_SHARE`` of the lines or too few for its modes, or when the band fit
+    fails or freezes a mode the trial changes.
     """
     start, ref, _, removed = trial
     lam, omega = fit.lam, prob.omega
@@ -470,7 +471,7 @@ def _local_fit(prob, fit, trial, opts: dict, min_width: float):
     refined[entry] = local[0].lam
     tried = changed[entry]
     if not (np.isfinite(before) and np.isfinite(local[0].cost) and local[1][tried].all()):
-        return -np.inf, refined, local[2]
+        return None  # the band alone cannot tell (a far mode's tail, a frozen neighbour)
     return 2.0 * (before - local[0].cost), refined, local[2]
 
 
