@@ -42,7 +42,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ami_xr import provenance
 from ami_xr.app.cluster import add_cluster_options
 from ami_xr.app.options import (
     BENCHMARK,
@@ -638,6 +637,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings():
             warnings.showwarning = show_warning
             check_paths(args)
+            from ami_xr import provenance  # here, not at the top: --help imports no numpy
+
             # what the command calls are steps of its record in the files it writes
             with provenance.command(prefix):
                 return int(args.func(args) or EXIT_OK)
