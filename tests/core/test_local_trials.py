@@ -1,4 +1,4 @@
-"""Model-completion trials are screened on their own band (ami_xr.core.order._local_fit): the
+"""Model-completion trials are screened on their own band (ami_xr.core.regions.band_fit): the
 band fit finds a missed mode, its gain is close to the full fit's, and a trial whose band is
 most of the data is left to the screen on all lines."""
 
@@ -10,7 +10,7 @@ from scipy.stats import chi2
 
 from ami_xr.ami.settings import RefineSettings
 from ami_xr.core import varpro
-from ami_xr.core.order import _local_fit, fit_modes
+from ami_xr.core.regions import band_fit, fit_modes
 
 from ..reference import frf_from_residues
 
@@ -54,7 +54,7 @@ def test_a_missed_mode_is_found_on_its_band_with_the_full_fits_gain(noise, missi
     fit = fit_modes(prob, rest, rest, **opts)[0]
     start = lam[missing] * (1 + 0.002j)  # a residual peak's guess, a little off
     trial = (np.append(fit.lam, start), np.append(rest, start), 1, np.empty(0, int))
-    local = _local_fit(prob, fit, trial, opts, opts["min_width"])
+    local = band_fit(prob, fit, trial, opts, opts["min_width"])
     assert local is not None  # the band is a fraction of the lines
     gain, refined, n_iter = local
     assert n_iter > 0
@@ -77,7 +77,7 @@ def test_nothing_to_gain_on_a_band_of_noise():
     fit = fit_modes(prob, lam, lam, **opts)[0]  # complete model
     spurious = 2 * np.pi * 70.0 * (-0.01 + 1j)  # between two modes, only noise there
     trial = (np.append(fit.lam, spurious), np.append(lam, spurious), 1, np.empty(0, int))
-    gain = _local_fit(prob, fit, trial, opts, opts["min_width"])[0]
+    gain = band_fit(prob, fit, trial, opts, opts["min_width"])[0]
     threshold = chi2.isf(1e-3 / omega.size, 2 + 2 * prob.n_points)
     assert gain < threshold
 
@@ -90,6 +90,6 @@ def test_a_trial_spanning_most_of_the_band_is_not_fitted_locally():
     start[0] *= 1 + 1e-3j  # the first and the last mode restarted: the band is everything
     start[-1] *= 1 - 1e-3j
     trial = (start, lam.copy(), 0, np.empty(0, int))
-    assert _local_fit(prob, fit, trial, opts, opts["min_width"]) is None
+    assert band_fit(prob, fit, trial, opts, opts["min_width"]) is None
     unchanged = (fit.lam.copy(), lam.copy(), 0, np.empty(0, int))
-    assert _local_fit(prob, fit, unchanged, opts, opts["min_width"]) is None
+    assert band_fit(prob, fit, unchanged, opts, opts["min_width"]) is None

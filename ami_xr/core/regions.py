@@ -1,0 +1,162 @@
+"""Levenberg-Marquardt inside regions, and the band screen of a model-completion trial (plain
+arrays, no xarray).
+
+:func:`fit_modes` runs the variable-projection Levenberg-Marquardt of the refinement and freezes
+a mode that leaves its region around its reference eigenvalue. :func:`band_fit` fits a trial
+of the model completion (:mod:`ami_xr.core.order`) on the lines around the modes it changes
+only, the modes outside held at the present fit: a fraction of the lines of an FRF with tens of
+modes, so that the trials are ranked cheaply before the best are fitted on all lines.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ami_xr.core import varpro
+from ami_xr.core.matching import match_by_distance
+from ami_xr.kernels.modal_basis import model_columns
+
+FALLBACK_MESSAGE = "fallback: nothing could be fitted"  # FitResult.message of a fit given up
+# a trial is first fitted on the lines within this many half-power bandwidths (of the widest
+# mode it changes) of the modes it changes, the modes outside held at the present fit; a band
+# of more than LOCAL_MAX_SHARE of the lines is screened on all lines instead
+LOCAL_WIDTHS, LOCAL_MAX_SHARE = 6.0, 0.5
+
+
+def _mode_codes(lam: np.ndarray, lam0: np.ndarray, max_shift: float, min_width: float):
+    """0: fine; 1: outside its region; 2: impossible (unstable, not finite, merged).
+
+    The region of a mode, around the AMI eigenvalue it matches: within ``max_shift`` half-power
+    bandwidths, and a decay rate not below ``1 / (1 + max_shift)`` of AMI's (a damping that
+    collapses means the mode is fitting a noise spike: the likelihood has no bound there).
+    """
+    width = np.maximum(2.0 * np.abs(lam0.real), min_width)
+    code = np.zeros(lam.size, dtype=int)
+    finite = np.isfinite(lam)
+    code[~finite | (lam.real >= 0) | (lam.imag <= 0)] = 2
+    if not finite.all():
+        return code
+    ref = lam0[match_by_distance(lam, lam0, width)]
+    w = np.maximum(2.0 * np.abs(ref.real), min_width)
+    outside = (np.abs(lam - ref) > max_shift * w) | (-lam.real < -ref.real / (1.0 + max_shift))
+    code[(code == 0) & outside] = 1
+    for k in range(lam.size):
+        others = np.delete(lam, k)
+        if others.size and np.min(np.abs(others - lam[k])) < 1e-6 * np.abs(lam[k]):
+            code[k] = 2
+    return code
+
+
+def fit_modes(prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width, free=None, trace=None):
+    """Levenberg-Marquardt from ``mu0`` (data poles); a mode that leaves its region around
+    ``ref`` (physical eigenvalues) is frozen at its start and the fit goes on without it.
+    ``trace``: an :class:`ami_xr.progress.Iterations` counting the iterations (or None).
+
+    Returns ``(fit, free, n_iter, start_cost)``.
+    """
+    n_mode = mu0.size
+    free = np.ones(n_mode, bool) if free is None else np.array(free, bool)
+
+    def check(mu):
+        return _mode_codes(mu + decay, ref, max_shift, min_width)
+
+    start_mu = mu0.copy()
+    start_cost = None
+    n_iter = 0
+    if trace is not None:
+        trace.modes = n_mode
+    while True:
+        fit = varpro.levenberg_marquardt(
+            prob,
+            start_mu,
+            max_iter=max(max_iter - n_iter, 1),
+            tol=tol,
+            free=free,
+            check=check,
+            trace=trace,
+        )
+        n_iter += fit.n_iter
+        start_cost = fit.start_cost if start_cost is None else start_cost
+        if not np.isfinite(fit.cost):
+            # nothing to fit: every mode stays at its start
+            free[:] = False
+            fit = varpro.levenberg_marquardt(prob, mu0, max_iter=0, free=free)
+            fit.message = FALLBACK_MESSAGE
+            break
+        if fit.cost > start_cost:
+            # Freezing a mode at its start made the others' fit worse than the start: refit
+            # them from their starts with only the frozen modes held (a descent from the start
+            # is never worse than it). The other modes keep their freedom: only the modes that
+            # really left their region fall back (formerly every mode was frozen here).
+            start_mu = mu0.copy()
+            continue
+        if fit.bad is None:  # the optimum must lie inside every free mode's region too
+            final = np.where(free, _mode_codes(fit.lam + decay, ref, max_shift, min_width), 0)
+            if not final.any():
+                break
+            fit.bad = final > 0
+        # freeze the offending modes at their start values, go on from where the others are
+        free &= ~fit.bad
+        start_mu = np.where(free, fit.lam, mu0)
+    return fit, free, n_iter, start_cost
+
+
+def band_fit(prob, fit, trial, opts: dict, min_width: float):
+    """Fit one completion trial on its own band: the lines within ``LOCAL_WIDTHS`` half-power
+    bandwidths of the modes it changes (moved, added or removed), the data less the present
+    fit's far modes (residues held), the modes in the band free.
+
+    Returns ``(likelihood-ratio gain on the band, the trial's start with its band modes at
+    their fitted values, iterations)``; ``None`` (then screen on all lines) when the band holds
+    more than ``LOCAL_MAX_SHARE`` of the lines or too few for its modes, or when the band fit
+    fails or freezes a mode the trial changes.
+    """
+    start, ref, _, removed = trial
+    lam, omega = fit.lam, prob.omega
+    kept = np.delete(np.arange(lam.size), removed)
+    n_old = kept.size
+    changed = np.append(start[:n_old] != lam[kept], np.ones(start.size - n_old, bool))
+    if not (changed.any() or removed.size):
+        return None
+    poles = np.concatenate([start[changed], lam[removed]])
+    margin = LOCAL_WIDTHS * float(np.max(np.maximum(2.0 * np.abs(poles.real), min_width)))
+    lo, hi = poles.imag.min() - margin, poles.imag.max() + margin
+    sel = np.flatnonzero((omega >= lo) & (omega <= hi))
+    # the old modes the band model holds: inside the band, changed or removed by the trial
+    near = (lam.imag >= lo) & (lam.imag <= hi)
+    near[kept[changed[:n_old]]] = True
+    near[removed] = True
+    entry = np.append(near[kept], np.ones(start.size - n_old, bool))  # trial entries in band
+    n_col = 2 * max(int(entry.sum()), int(near.sum())) + 2 * len(prob.residual_terms)
+    if sel.size > LOCAL_MAX_SHARE * omega.size or 2 * sel.size < 3 * n_col:
+        return None
+    n_line = omega.size
+    far = np.flatnonzero(~near)
+    y = prob.y[:, np.concatenate([sel, n_line + sel])]
+    if far.size:  # the far modes at the present fit, residues held
+        kind = prob.residual_kind
+        phi = model_columns(omega[sel], lam[far], prob.dt, prob.n_samples, (), kind)[0]
+        cols = np.ravel(np.column_stack([2 * far, 2 * far + 1]))
+        model = phi * prob.line_weight[sel, None]
+        y = y - fit.proj.coef[:, cols] @ np.concatenate([model.real, model.imag]).T
+    band = varpro.Problem(
+        np.ascontiguousarray(y),
+        omega[sel],
+        prob.line_weight[sel],
+        prob.dt,
+        prob.n_samples,
+        prob.residual_terms,
+        prob.residual_kind,
+    )
+    if near.any() or band.residual_terms:
+        before = varpro.objective(band, varpro.project(band, lam[near]))
+    else:  # nothing modelled on the band yet: the data are the residual
+        rss = np.maximum(np.sum(band.y**2, axis=1), (varpro.RSS_FLOOR**2) * band.y_norm2)
+        before = 0.5 * band.n_rows * float(np.sum(np.log(rss)))
+    local = fit_modes(band, start[entry], ref[entry], **opts)
+    refined = start.copy()
+    refined[entry] = local[0].lam
+    tried = changed[entry]
+    if not (np.isfinite(before) and np.isfinite(local[0].cost) and local[1][tried].all()):
+        return None  # the band alone cannot tell (a far mode's tail, a frozen neighbour)
+    return 2.0 * (before - local[0].cost), refined, local[2]
