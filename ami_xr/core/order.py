@@ -32,7 +32,7 @@ SCREEN_ITERATIONS, SCREEN_KEEP = 3, 3
 MAX_TRIALS = 3
 # false-alarm probability of the screen that picks where the residual shows structure
 SCREEN_PFA = 0.1
-# the band's likelihood ratio understates the full one (near the threshold by ~20 %): a trial
+# the band's likelihood ratio understates the full one (near the threshold by ~10 %): a trial
 # goes on to the full fit when its band score is above -LOCAL_SLACK thresholds
 LOCAL_SLACK = 0.5
 
@@ -294,22 +294,25 @@ def _add_missed(
     # below -LOCAL_SLACK thresholds is not fitted in full.
     screened = []
     for i, (start, ref, n_add, _) in enumerate(trials):
-        local = band_fit(prob, fit, trials[i], trial_opts, min_width)
-        if local is None:
+        gain, _, n_it = band_fit(prob, fit, trials[i], trial_opts, min_width)
+        state.n_iter += n_it
+        if gain is None:
             quick = fit_modes(prob, start, ref, **dict(trial_opts, max_iter=SCREEN_ITERATIONS))
             state.n_iter += quick[2]
             gain = 2.0 * (fit.cost - quick[0].cost)
             screened.append((gain - n_add * threshold, i, start, False))
             continue
-        gain, refined, n_it = local
-        state.n_iter += n_it
         if gain - n_add * threshold > -LOCAL_SLACK * threshold:
             screened.append((gain - n_add * threshold, i, start, True))
     screened.sort(key=lambda s: s[0], reverse=True)
     best, best_score = None, 0.0
-    for _, i, begin, on_band in screened[:SCREEN_KEEP]:
+    for n, (_, i, begin, on_band) in enumerate(screened[: 2 * SCREEN_KEEP]):
         if best is not None and on_band:  # the band fits rank the trials well: the first taken
             break
+        # beyond SCREEN_KEEP only band-screened trials, while none is taken: a band's gain
+        # does not tell whether the full fit keeps every mode it tries free
+        if n >= SCREEN_KEEP and (best is not None or not on_band):
+            continue
         start, ref, n_add, removed = trials[i]
         trial = fit_modes(prob, begin, ref, **trial_opts)
         state.n_iter += trial[2]

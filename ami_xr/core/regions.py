@@ -107,7 +107,8 @@ def band_fit(prob, fit, trial, opts: dict, min_width: float):
     fit's far modes (residues held), the modes in the band free.
 
     Returns ``(likelihood-ratio gain on the band, the trial's start with its band modes at
-    their fitted values, iterations)``; ``None`` (then screen on all lines) when the band holds
+    their fitted values, iterations of the band fit)``; the gain is ``None`` (then screen on
+    all lines) when the band holds
     more than ``LOCAL_MAX_SHARE`` of the lines or too few for its modes, or when the band fit
     fails or freezes a mode the trial changes.
     """
@@ -117,7 +118,7 @@ def band_fit(prob, fit, trial, opts: dict, min_width: float):
     n_old = kept.size
     changed = np.append(start[:n_old] != lam[kept], np.ones(start.size - n_old, bool))
     if not (changed.any() or removed.size):
-        return None
+        return None, start, 0
     poles = np.concatenate([start[changed], lam[removed]])
     margin = LOCAL_WIDTHS * float(np.max(np.maximum(2.0 * np.abs(poles.real), min_width)))
     lo, hi = poles.imag.min() - margin, poles.imag.max() + margin
@@ -129,7 +130,7 @@ def band_fit(prob, fit, trial, opts: dict, min_width: float):
     entry = np.append(near[kept], np.ones(start.size - n_old, bool))  # trial entries in band
     n_col = 2 * max(int(entry.sum()), int(near.sum())) + 2 * len(prob.residual_terms)
     if sel.size > LOCAL_MAX_SHARE * omega.size or 2 * sel.size < 3 * n_col:
-        return None
+        return None, start, 0
     n_line = omega.size
     far = np.flatnonzero(~near)
     y = prob.y[:, np.concatenate([sel, n_line + sel])]
@@ -149,14 +150,18 @@ def band_fit(prob, fit, trial, opts: dict, min_width: float):
         prob.residual_kind,
     )
     if near.any() or band.residual_terms:
-        before = varpro.objective(band, varpro.project(band, lam[near]))
+        before = varpro.project(band, lam[near]).rss
     else:  # nothing modelled on the band yet: the data are the residual
-        rss = np.maximum(np.sum(band.y**2, axis=1), (varpro.RSS_FLOOR**2) * band.y_norm2)
-        before = 0.5 * band.n_rows * float(np.sum(np.log(rss)))
+        before = np.sum(band.y**2, axis=1)
     local = fit_modes(band, start[entry], ref[entry], **opts)
     refined = start.copy()
     refined[entry] = local[0].lam
     tried = changed[entry]
-    if not (np.isfinite(before) and np.isfinite(local[0].cost) and local[1][tried].all()):
-        return None  # the band alone cannot tell (a far mode's tail, a frozen neighbour)
-    return 2.0 * (before - local[0].cost), refined, local[2]
+    fine = np.all(np.isfinite(before)) and np.isfinite(local[0].cost) and local[1][tried].all()
+    if not fine:
+        return None, refined, local[2]  # the band cannot tell (a far mode's tail, a neighbour)
+    # the full likelihood's gain to first order: the band's drop of |r_j|^2 over the noise
+    # variance of the present fit on all lines (a noise level profiled on the band alone holds
+    # the misfit the trial removes: it understated strong modes several times)
+    noise = np.maximum(fit.proj.rss, (varpro.RSS_FLOOR**2) * prob.y_norm2) / prob.n_rows
+    return float(np.sum((before - local[0].proj.rss) / noise)), refined, local[2]

@@ -55,8 +55,8 @@ def test_a_missed_mode_is_found_on_its_band_with_the_full_fits_gain(noise, missi
     start = lam[missing] * (1 + 0.002j)  # a residual peak's guess, a little off
     trial = (np.append(fit.lam, start), np.append(rest, start), 1, np.empty(0, int))
     local = band_fit(prob, fit, trial, opts, opts["min_width"])
-    assert local is not None  # the band is a fraction of the lines
     gain, refined, n_iter = local
+    assert gain is not None  # the band is a fraction of the lines
     assert n_iter > 0
     assert abs(refined[-1] - lam[missing]) < 2e-3 * abs(lam[missing])
     far = np.abs(fit.lam.imag - lam[missing].imag) > 2 * np.pi * 25.0
@@ -90,6 +90,7 @@ def test_a_trial_spanning_most_of_the_band_is_not_fitted_locally():
     start[0] *= 1 + 1e-3j  # the first and the last mode restarted: the band is everything
     start[-1] *= 1 - 1e-3j
     trial = (start, lam.copy(), 0, np.empty(0, int))
-    assert band_fit(prob, fit, trial, opts, opts["min_width"]) is None
+    assert band_fit(prob, fit, trial, opts, opts["min_width"])[0] is None
     unchanged = (fit.lam.copy(), lam.copy(), 0, np.empty(0, int))
-    assert band_fit(prob, fit, unchanged, opts, opts["min_width"]) is None
+    gain, start, n_iter = band_fit(prob, fit, unchanged, opts, opts["min_width"])
+    assert gain is None and n_iter == 0 and start is unchanged[0]
