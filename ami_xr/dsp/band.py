@@ -247,7 +247,9 @@ def apply_band(ds: xr.Dataset, band: Band) -> xr.Dataset:
         ds = ds.isel({names.FREQUENCY: ((f >= band.fmin) & (f <= band.fmax)).values})
     else:
         ds = ds.copy(deep=False)
-    ds.attrs.update(band.attrs())
+    # a new dict: isel shares the attrs dict with its source, and updating it in place wrote
+    # this band into the caller's Dataset (a later identify of it then kept the band)
+    ds.attrs = {**ds.attrs, **band.attrs()}
     return ds
 
 
