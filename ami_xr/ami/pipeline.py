@@ -33,7 +33,7 @@ from ami_xr.core.modal import (
     phase_normalised,
 )
 from ami_xr.dsp import band as bd
-from ami_xr.errors import ConvergenceWarning, IdentificationError
+from ami_xr.errors import AssumptionWarning, ConvergenceWarning, IdentificationError
 from ami_xr.progress import phases
 from ami_xr.provenance import nested_calls
 
@@ -263,6 +263,22 @@ def with_quality(result: xr.Dataset) -> xr.Dataset:
     )
 
 
+def _drop_beyond_lines(result: xr.Dataset, whole: xr.Dataset) -> tuple[xr.Dataset, np.ndarray]:
+    """``result`` without the modes more than one half-power bandwidth (``2 zeta f_n``) beyond
+    the first or the last line of ``whole``: none of their resonance is in the data (a mode
+    whose peak the first or last line cuts stays), and the natural frequencies dropped."""
+    if result.sizes.get(names.MODE, 0) == 0 or names.DAMPING_RATIO not in result:
+        return result, np.zeros(0)
+    lines = np.asarray(whole[names.FREQUENCY].values, dtype=float)
+    fn = np.asarray(result[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
+    zeta = np.asarray(result[names.DAMPING_RATIO].transpose(names.MODE).values, dtype=float)
+    width = 2.0 * np.abs(zeta) * fn
+    beyond = (fn - lines[-1] > width) | (lines[0] - fn > width)
+    if not beyond.any():
+        return result, np.zeros(0)
+    return c.select_modes(result, np.flatnonzero(~beyond)), fn[beyond]
+
+
 def finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dataset:
     """The modes as reported: none outside a restricted analysis band, sorted by frequency with
     labels 1..n; caps that ended a phase warned about and listed in attr ``ami_capped``."""
@@ -270,6 +286,19 @@ def finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dat
     if not bd.is_whole(whole, band):
         result, dropped = c.drop_outside_band(result, band.fmin, band.fmax)
         result.attrs[names.ATTR_BAND_DROPPED] = ",".join(f"{f:.6g}" for f in dropped)
+    else:  # the whole band: still no mode whose resonance lies beyond the measured lines
+        result, dropped = _drop_beyond_lines(result, whole)
+        if dropped.size:
+            lines = whole[names.FREQUENCY].values
+            result.attrs[names.ATTR_BAND_DROPPED] = ",".join(f"{f:.6g}" for f in dropped)
+            warnings.warn(
+                f"identify: {dropped.size} mode(s) fitted outside the measured lines "
+                f"{lines[0]:g}-{lines[-1]:g} Hz not reported "
+                f"({', '.join(f'{x:.6g}' for x in dropped)} Hz): only the tail of such a mode "
+                f"is in the data; attr {names.ATTR_BAND_DROPPED}",
+                AssumptionWarning,
+                stacklevel=3,
+            )
     result = c.sort_modes(result)
     caps = []
     if names.ISO_CONVERGED in result and not bool(np.all(result[names.ISO_CONVERGED].values)):

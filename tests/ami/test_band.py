@@ -160,3 +160,21 @@ def test_hammer_band_and_no_mode_above_it(tmp_path):
     assert 4800.0 < out.attrs[names.ATTR_BAND_FMAX] < 6500.0
     assert np.all(out[names.NATURAL_FREQUENCY].values <= out.attrs[names.ATTR_BAND_FMAX])
     assert out.sizes[names.MODE] >= 15
+
+
+def test_no_mode_beyond_the_measured_lines_on_the_whole_band():
+    """A system whose next mode lies just above the last line (system 6 of
+    scripts/bench_peers.py): its tail is in the data and the refinement fits it; it is not
+    reported, the user is told and the file records it."""
+    kw = {"seed": 47463575, "max_frequency_hz": 1000.0}
+    _, truth = ami_xr.simulate.random_system(43, "chain", n_frequencies=2, **kw)
+    fn = np.sort(truth[names.NATURAL_FREQUENCY].values)
+    last = 0.5 * (fn[3] + fn[4])  # between the 4th and the 5th mode
+    g, _ = ami_xr.simulate.random_system(
+        43, "chain", noise=0.05, frequency=np.linspace(0.0, last, 3527), **kw
+    )
+    with pytest.warns(AssumptionWarning, match="outside the measured lines"):
+        out = ami_xr.identify(g)
+    assert out[names.NATURAL_FREQUENCY].values.max() <= last
+    dropped = out.attrs[names.ATTR_BAND_DROPPED]
+    assert dropped and all(float(x) > last for x in dropped.split(","))

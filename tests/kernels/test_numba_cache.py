@@ -239,7 +239,9 @@ def test_two_first_runs_at_once_both_succeed_and_leave_a_good_cache(tmp_path):
         stdout, stderr = proc.communicate(timeout=600)
         assert proc.returncode == 0, stderr
         results.append(json.loads(stdout.strip().splitlines()[-1]))
-    assert all(r["misses"] >= 2 and r["hits"] == 0 for r in results)  # both really compiled
+    # at least one compiled into the empty folder; on a busy machine the other may start late
+    # enough to load some kernels the first already wrote (a hit is then right, not a fault)
+    assert any(r["misses"] >= 2 and r["hits"] == 0 for r in results)
     again = subprocess.run(
         cmd, env=environ, capture_output=True, text=True, timeout=300, check=True
     )
