@@ -238,10 +238,11 @@ def identify_multi_reference(
     refs, points = _check(ds)
     R, P = len(refs), len(points)
     stacked = _stacked(ds, refs, points)
-    result = identify_single(stacked, settings, progress)
+    result = identify_single(stacked, settings, progress, final=R == 1)
     added = np.zeros(0, np.complex128)
     if R > 1:
         result, added = _with_single_reference_poles(ds, stacked, result, refs, settings)
+        result = pl.drop_beyond_lines(result, stacked)
     out = _unstack(result, ds, R, P)
     pairs = [(points.index(r), i) for i, r in enumerate(refs) if r in points]
     out.attrs.pop(names.ATTR_DRIVE_POINT, None)
@@ -449,7 +450,7 @@ def _single_reference_poles(ds: xr.Dataset, refs: list, settings: IdentifySettin
     for r in refs:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the stacked run warns about what matters
-            one = identify_single(select_reference(ds, r), settings)
+            one = identify_single(select_reference(ds, r), settings, final=False)
         if one.sizes.get(names.MODE, 0) == 0:
             got.append((np.zeros(0, np.complex128), None))
             continue

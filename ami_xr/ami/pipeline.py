@@ -23,6 +23,7 @@ from ami_xr.ami.isolate import isolate
 from ami_xr.ami.refine import refine as refine_phase
 from ami_xr.ami.settings import FrfAttributes, IdentifySettings, IsolateSettings, from_attrs
 from ami_xr.ami.subtract import add_capped, band_of, power_of_two_scale, subtract
+from ami_xr.caller import warn
 from ami_xr.core import flags
 from ami_xr.core.modal import (
     complexity,
@@ -54,9 +55,12 @@ def refines(settings: IdentifySettings) -> bool:
     return settings.refine
 
 
-def identify_single(ds: xr.Dataset, settings: IdentifySettings, progress=False) -> xr.Dataset:
+def identify_single(
+    ds: xr.Dataset, settings: IdentifySettings, progress=False, final: bool = True
+) -> xr.Dataset:
     """The phases on the FRF Dataset ``ds`` (dims (point, frequency)) with ``settings``; see
-    :func:`ami_xr.identify` for what is returned (its provenance record is the caller's)."""
+    :func:`ami_xr.identify` for what is returned (its provenance record is the caller's).
+    ``final=False``: a result the caller goes on with (no mode dropped beyond the lines)."""
     c.check_frf(ds, "identify")
     check_settings(settings)
     whole = ds
@@ -77,6 +81,8 @@ def identify_single(ds: xr.Dataset, settings: IdentifySettings, progress=False) 
     result = repeated_flagged(result)
     result = window_corrected(result, from_attrs(FrfAttributes, ds.attrs))
     result = finish_modes(result, whole, refined=refined)
+    if final:
+        result = drop_beyond_lines(result, whole)
     return with_quality(result)
 
 
@@ -263,20 +269,37 @@ def with_quality(result: xr.Dataset) -> xr.Dataset:
     )
 
 
-def _drop_beyond_lines(result: xr.Dataset, whole: xr.Dataset) -> tuple[xr.Dataset, np.ndarray]:
-    """``result`` without the modes more than one half-power bandwidth (``2 zeta f_n``) beyond
-    the first or the last line of ``whole``: none of their resonance is in the data (a mode
-    whose peak the first or last line cuts stays), and the natural frequencies dropped."""
+def drop_beyond_lines(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
+    """The modes as reported: none more than one half-power bandwidth (``2 zeta f_n``) beyond
+    the first or the last line of ``whole`` (none of its resonance is in the data: the
+    refinement may fit the tail of a mode above the last line; a mode whose peak the edge cuts
+    stays). Dropped ones are warned about and listed in ``analysis_band_dropped_modes``; the
+    labels stay 1..n. Applied once to the final result (an intermediate result keeps such a
+    pole: a later joint fit needs it to model that tail)."""
     if result.sizes.get(names.MODE, 0) == 0 or names.DAMPING_RATIO not in result:
-        return result, np.zeros(0)
+        return result
     lines = np.asarray(whole[names.FREQUENCY].values, dtype=float)
     fn = np.asarray(result[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
     zeta = np.asarray(result[names.DAMPING_RATIO].transpose(names.MODE).values, dtype=float)
     width = 2.0 * np.abs(zeta) * fn
     beyond = (fn - lines[-1] > width) | (lines[0] - fn > width)
     if not beyond.any():
-        return result, np.zeros(0)
-    return c.select_modes(result, np.flatnonzero(~beyond)), fn[beyond]
+        return result
+    out = c.select_modes(result, np.flatnonzero(~beyond))
+    labels = np.arange(1, out.sizes[names.MODE] + 1)
+    out = out.assign_coords({names.MODE: labels})
+    if names.MODE_2 in out.dims:
+        out = out.assign_coords({names.MODE_2: labels})
+    listed = [x for x in str(result.attrs.get(names.ATTR_BAND_DROPPED, "")).split(",") if x]
+    out.attrs[names.ATTR_BAND_DROPPED] = ",".join(listed + [f"{f:.6g}" for f in fn[beyond]])
+    warn(
+        f"identify: {int(beyond.sum())} mode(s) fitted beyond the measured lines "
+        f"{lines[0]:g}-{lines[-1]:g} Hz not reported "
+        f"({', '.join(f'{x:.6g}' for x in fn[beyond])} Hz): only the tail of such a mode is in "
+        f"the data; attr {names.ATTR_BAND_DROPPED}",
+        AssumptionWarning,
+    )
+    return out
 
 
 def finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dataset:
@@ -286,19 +309,6 @@ def finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dat
     if not bd.is_whole(whole, band):
         result, dropped = c.drop_outside_band(result, band.fmin, band.fmax)
         result.attrs[names.ATTR_BAND_DROPPED] = ",".join(f"{f:.6g}" for f in dropped)
-    else:  # the whole band: still no mode whose resonance lies beyond the measured lines
-        result, dropped = _drop_beyond_lines(result, whole)
-        if dropped.size:
-            lines = whole[names.FREQUENCY].values
-            result.attrs[names.ATTR_BAND_DROPPED] = ",".join(f"{f:.6g}" for f in dropped)
-            warnings.warn(
-                f"identify: {dropped.size} mode(s) fitted outside the measured lines "
-                f"{lines[0]:g}-{lines[-1]:g} Hz not reported "
-                f"({', '.join(f'{x:.6g}' for x in dropped)} Hz): only the tail of such a mode "
-                f"is in the data; attr {names.ATTR_BAND_DROPPED}",
-                AssumptionWarning,
-                stacklevel=3,
-            )
     result = c.sort_modes(result)
     caps = []
     if names.ISO_CONVERGED in result and not bool(np.all(result[names.ISO_CONVERGED].values)):

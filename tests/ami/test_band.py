@@ -173,7 +173,7 @@ def test_no_mode_beyond_the_measured_lines_on_the_whole_band():
     g, _ = ami_xr.simulate.random_system(
         43, "chain", noise=0.05, frequency=np.linspace(0.0, last, 3527), **kw
     )
-    with pytest.warns(AssumptionWarning, match="outside the measured lines"):
+    with pytest.warns(AssumptionWarning, match="beyond the measured lines"):
         out = ami_xr.identify(g)
     assert out[names.NATURAL_FREQUENCY].values.max() <= last
     dropped = out.attrs[names.ATTR_BAND_DROPPED]
