@@ -32,7 +32,9 @@ subcommands); options left at their default are not passed on, so the library ap
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
+import os
 import re
 import signal
 import sys
@@ -762,6 +764,13 @@ def run() -> None:
         sys.stdout.flush()
     except (BrokenPipeError, OSError, ValueError):
         _silence_stdout()
+    netcdf = sys.modules.get("ami_xr.io.netcdf")
+    if netcdf is not None and netcdf.write_failed():
+        # HDF5 (netCDF4 1.6.5) crashed in its exit handler after a failed write: the output is
+        # rolled back and everything is said, so leave without the library's exit handlers
+        with contextlib.suppress(OSError, ValueError):
+            sys.stderr.flush()
+        os._exit(code)
     sys.exit(code)
 
 

@@ -583,8 +583,24 @@ def to_netcdf(
     # tried: with xarray 2025.4 / netCDF4 1.6.5 it deadlocked the workers on xarray's file lock.
     with atomic_path(path) as tmp, interrupts_deferred():
         with _drained_on_error(encoded):
-            encoded.to_netcdf(tmp, mode="w", format=FORMAT, engine=ENGINE)
+            try:
+                encoded.to_netcdf(tmp, mode="w", format=FORMAT, engine=ENGINE)
+            except Exception:
+                _WRITE_FAILED[0] = True
+                raise
     return path
+
+
+# Whether a netCDF write failed inside the library in this process. After one (a full disk,
+# a file-size limit) the HDF5 library of netCDF4 1.6.5 crashed in its exit handler (SIGSEGV
+# after the error message had been printed and the output rolled back): the command line then
+# leaves without the library's exit handlers (ami_xr.app.cli.run).
+_WRITE_FAILED = [False]
+
+
+def write_failed() -> bool:
+    """True when a netCDF write of this process failed inside the library."""
+    return _WRITE_FAILED[0]
 
 
 def _draining_threaded_get(dsk, keys, **kwargs):
