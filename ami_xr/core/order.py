@@ -300,13 +300,13 @@ def _add_missed(
             quick = fit_modes(prob, start, ref, **dict(trial_opts, max_iter=SCREEN_ITERATIONS))
             state.n_iter += quick[2]
             gain = 2.0 * (fit.cost - quick[0].cost)
-            screened.append((gain - n_add * threshold, i, start, False))
+            screened.append((gain - n_add * threshold, i, False))
             continue
         if gain - n_add * threshold > -LOCAL_SLACK * threshold:
-            screened.append((gain - n_add * threshold, i, start, True))
+            screened.append((gain - n_add * threshold, i, True))
     screened.sort(key=lambda s: s[0], reverse=True)
     best, best_score = None, 0.0
-    for n, (_, i, begin, on_band) in enumerate(screened[: 2 * SCREEN_KEEP]):
+    for n, (_, i, on_band) in enumerate(screened[: 2 * SCREEN_KEEP]):
         if best is not None and on_band:  # the band fits rank the trials well: the first taken
             break
         # beyond SCREEN_KEEP only band-screened trials, while none is taken: a band's gain
@@ -314,7 +314,7 @@ def _add_missed(
         if n >= SCREEN_KEEP and (best is not None or not on_band):
             continue
         start, ref, n_add, removed = trials[i]
-        trial = fit_modes(prob, begin, ref, **trial_opts)
+        trial = fit_modes(prob, start, ref, **trial_opts)
         state.n_iter += trial[2]
         score = 2.0 * (fit.cost - trial[0].cost) - n_add * threshold
         # the modes tried (new or restarted) must stay free; a mode already frozen may stay so
