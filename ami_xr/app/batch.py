@@ -314,7 +314,7 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
                 folder = out.with_name(out.name[: -len(OUTPUT_SUFFIX)] + ".report")
                 with atomic_folder(folder) as tmp:  # swapped in whole: never a partial report
                     report(result, tmp)
-            ami_xr.to_netcdf(result, out, function=BATCH_FUNCTION, parameters=job["parameters"])
+            ami_xr.to_netcdf(result, out, parameters=job["parameters"])  # BATCH_FUNCTION's
         row["modes"], row["frequencies_hz"] = _modal_summary(result)
         caps = str(result.attrs.get(names.ATTR_AMI_CAPPED, "") or "")
         row["status"] = STATUS_CAPPED if caps else STATUS_OK

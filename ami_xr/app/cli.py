@@ -154,7 +154,6 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.time_output and args.system != "beam-absorbers":
         raise AmiXrValueError("--time-output: only the beam-absorbers system has impulse responses")
     common = {"noise": value(args.noise), "seed": value(args.seed)}
-    function = "ami-xr simulate"  # the record holds the simulator's call as its step
     if args.system == "beam-absorbers":
         kwargs = {**common, "duration": value(args.duration), "n_samples": value(args.samples)}
         ts, g, truth = ami_xr.simulate.benchmark(**kwargs)
@@ -169,14 +168,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         }
         ts, (g, truth) = None, ami_xr.simulate.random_system(**kwargs)
     params = {"system": args.system, **kwargs}
-    ami_xr.to_netcdf(g, args.output, function=function, parameters=params)
+    # each write's record is the running command's (main), with the simulator's call as a step
+    ami_xr.to_netcdf(g, args.output, parameters=params)
     _say(_wrote_frfs(g, args.output))
     for data, path, what in (
         (ts, args.time_output, "impulse responses"),
         (truth, args.truth_output, "exact modal parameters"),
     ):
         if path:
-            ami_xr.to_netcdf(data, path, function=function, parameters=params)
+            ami_xr.to_netcdf(data, path, parameters=params)
             _say(f"wrote {what} to {path}")
     return EXIT_OK
 
@@ -215,8 +215,8 @@ def _cmd_frf(args: argparse.Namespace) -> int:
             if rejected[i]:
                 _say(f"  hit {i} rejected: {reasons[i]}")
     given = {k: v for k, v in reader.items() if v is not None}
-    # the record of the write names the command the user ran (no ami_xr.frf was called)
-    ami_xr.to_netcdf(g, args.output, function="ami-xr frf", parameters={**given, **options})
+    # the write's record is the running command's (main), the read and the FRF its steps
+    ami_xr.to_netcdf(g, args.output, parameters={**given, **options})
     _say(_wrote_frfs(g, args.output))
     return EXIT_OK
 
@@ -254,9 +254,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         show = not args.quiet and sys.stderr.isatty()
         result = ami_xr.stability(ds, result, progress=show, **others)
         _say(stability_table(result))
-    if args.output:  # one record, the command's, with identify as its step
-        given = {"input": args.input, **options}
-        write_any(result, args.output, function="ami-xr identify", parameters=given)
+    if args.output:  # one record, the running command's (main), with identify as its step
+        write_any(result, args.output, parameters={"input": args.input, **options})
         _say(f"wrote modes to {args.output}")
     caps = str(result.attrs.get(names.ATTR_AMI_CAPPED, "") or "")
     if caps:  # the last line says the result is incomplete (batch: status "capped")
@@ -293,8 +292,7 @@ def _cmd_convert(args: argparse.Namespace) -> int:
         ds,
         args.output,
         binary=args.binary,
-        function="ami-xr convert",
-        parameters={"input": str(src)},
+        parameters={"input": str(src)},  # the running command's record (main)
     )
     _say(f"converted {src} -> {out}")
     return EXIT_OK
