@@ -206,6 +206,7 @@ MODE_LABEL_UNSORTED = "mode_label_unsorted"  # (mode) label before sorting by fr
 ATTR_REFINE_MODEL = "refine_model"  # "discrete" | "continuous"
 ATTR_REFINE_RESIDUAL_TERMS = "refine_residual_terms"  # "", "lower", "upper" or "lower,upper"
 ATTR_REFINE_ITERATIONS = "refine_iterations"
+ATTR_REFINE_FULL_FITS = "refine_full_fits"  # fits on every line of the band (cost driver)
 ATTR_REFINE_CONVERGED = "refine_converged"  # 1 | 0
 ATTR_REFINE_COST_START = "refine_cost_start"  # objective sum_j (n/2) log |r_j|^2 at the start
 ATTR_REFINE_COST = "refine_cost"  # ... and at the optimum

@@ -106,6 +106,7 @@ _OUTPUTS = {
     "status": ([M], np.int8),
     "origin": ([M], np.int64),
     "n_iter": ([], np.int64),
+    "n_full_fits": ([], np.int64),
     "cost_start": ([], float),
     "cost": ([], float),
     "pair_supported": ([M], bool),
@@ -442,6 +443,7 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
     low_snr = _refresh_global_outputs(ds, new, r, lam.values - model.decay, model, data_model)
     new[names.QUALITY_FLAGS] = _merge_flags(ds, r.status.values, lam0, low_snr, added)
     attrs[names.ATTR_REFINE_ITERATIONS] = int(r.n_iter)
+    attrs[names.ATTR_REFINE_FULL_FITS] = int(r.n_full_fits)
     attrs[names.ATTR_REFINE_CONVERGED] = int(bool(np.all(r.status.values != STATUS_NOT_CONVERGED)))
     attrs[names.ATTR_REFINE_COST_START] = float(r.cost_start)
     attrs[names.ATTR_REFINE_COST] = float(r.cost)

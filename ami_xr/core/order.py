@@ -18,8 +18,7 @@ import numpy as np
 
 from ami_xr.core import varpro
 from ami_xr.core.proposals import cluster_starts
-from ami_xr.core.regions import band_fit, fit_modes
-from ami_xr.kernels.projection import project_points
+from ami_xr.core.regions import band_fit, complex_rows, fit_modes, residual_rows, weighted_gain
 
 TRIAL_ITERATIONS = 10  # cap of the trial fits of the model-order tests
 # residual power over data power of an exact fit (noise-free data with a complete model)
@@ -30,11 +29,11 @@ PAIR_EXCESS = 2.0
 SCREEN_ITERATIONS, SCREEN_KEEP = 3, 3
 # trials of one completion step: at most this many splits and twice as many cluster refits
 MAX_TRIALS = 3
+# the noise level of a line is the running median of the residual power over this many typical
+# half-power bandwidths (measured FRFs are noisier at some frequencies than at others)
+NOISE_WIDTHS = 20.0
 # false-alarm probability of the screen that picks where the residual shows structure
 SCREEN_PFA = 0.1
-# the band's likelihood ratio understates the full one (near the threshold by ~10 %): a trial
-# goes on to the full fit when its band score is above -LOCAL_SLACK thresholds
-LOCAL_SLACK = 0.5
 
 
 @dataclass
@@ -69,7 +68,7 @@ def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=SCREEN_PFA):
     proj = fit.proj
     omega = prob.omega
     n_line = omega.size
-    resid = _residual_rows(prob, proj)
+    resid = residual_rows(prob, proj)
     s2 = np.maximum(proj.rss, 1e-300) / max(prob.n_rows - proj.coef.shape[1], 1)
     power = np.sum((resid[:, :n_line] ** 2 + resid[:, n_line:] ** 2) / s2[:, None], axis=0)
     lam = fit.lam
@@ -109,12 +108,6 @@ def _costs_without_each_mode(prob, proj):
         extra = np.einsum("ja,ab,jb->j", a, np.linalg.inv(cov[c, c]), a)
         out[k] = 0.5 * prob.n_rows * np.sum(np.log(np.maximum(proj.rss + extra, floor)))
     return out
-
-
-def _residual_rows(prob, proj):
-    """Residuals ``y_j - Q Q' y_j`` of every point (P, 2L)."""
-    qty = project_points(prob.y, proj.q, proj.v)[0]
-    return prob.y - qty @ proj.q.T
 
 
 def set_stage(trace, stage: str) -> None:
@@ -281,48 +274,45 @@ def _add_missed(
     # frozen modes first, then the busiest
     order = np.lexsort((-excess, state.free))
     centres = [c.imag for c in peaks] + list(fit.lam.imag[order][suspect[order]])
-    data = _complex_rows(prob.y) / prob.line_weight[None, :]
+    data = complex_rows(prob.y) / prob.line_weight[None, :]
     trials += cluster_starts(
         data, prob.omega, fit.lam, state.free, state.lam0, decay, min_width, centres
     )[: 2 * MAX_TRIALS]
-    # Every trial is screened: fitted on its own band (the modes outside held; a fraction of
-    # the lines, so a 23-mode FRF of 24 000 lines no longer pays a full fit per trial), or, when
-    # its band is most of the data, with a few iterations on all lines (which only understates
-    # the gain of a good start). The SCREEN_KEEP most promising are then fitted in full from
-    # their starts (a band fit's end point, its far modes held, was a worse start in clusters);
-    # after one that is taken, the band-screened ones no more; a trial whose band score is
-    # below -LOCAL_SLACK thresholds is not fitted in full.
+    # One acceptance rule for every trial: the likelihood-ratio gain against the error
+    # variance of each line (noise plus the model error a typical measured peak shows,
+    # error_variance), less ``threshold`` per mode added. Every trial is screened on its own
+    # band (the modes outside held at the present fit); a trial whose band is most of the data
+    # is screened with a few iterations on all lines. Only trials that pass the screen are
+    # fitted on all lines, best first, the first that passes again is taken: one full fit per
+    # accepted change, at most SCREEN_KEEP in a step that changes nothing.
+    var = error_variance(prob, fit.proj, width, np.zeros(fit.lam.size, bool), local=True)[0]
+    r_now = complex_rows(residual_rows(prob, fit.proj))
     screened = []
+    starts = {}
     for i, (start, ref, n_add, _) in enumerate(trials):
-        gain, _, n_it = band_fit(prob, fit, trials[i], trial_opts, min_width)
+        gain, refined, n_it = band_fit(prob, fit, trials[i], trial_opts, min_width, var)
+        starts[i] = refined
         state.n_iter += n_it
         if gain is None:
             quick = fit_modes(prob, start, ref, **dict(trial_opts, max_iter=SCREEN_ITERATIONS))
             state.n_iter += quick[2]
-            gain = 2.0 * (fit.cost - quick[0].cost)
-            screened.append((gain - n_add * threshold, i, False))
-            continue
-        if gain - n_add * threshold > -LOCAL_SLACK * threshold:
-            screened.append((gain - n_add * threshold, i, True))
-    screened.sort(key=lambda s: s[0], reverse=True)
-    best, best_score = None, 0.0
-    for n, (_, i, on_band) in enumerate(screened[: 2 * SCREEN_KEEP]):
-        if best is not None and on_band:  # the band fits rank the trials well: the first taken
-            break
-        # beyond SCREEN_KEEP only band-screened trials, while none is taken: a band's gain
-        # does not tell whether the full fit keeps every mode it tries free
-        if n >= SCREEN_KEEP and (best is not None or not on_band):
-            continue
+            gain = _full_gain(prob, r_now, quick[0], var)
+        if gain - n_add * threshold > 0:
+            screened.append((gain - n_add * threshold, i))
+    screened.sort(key=lambda s: (trials[s[1]][2], -s[0]))  # fewest modes added first
+    best = None
+    for _, i in screened[:SCREEN_KEEP]:
         start, ref, n_add, removed = trials[i]
-        trial = fit_modes(prob, start, ref, **trial_opts)
+        trial = fit_modes(prob, starts[i], ref, **trial_opts)
         state.n_iter += trial[2]
-        score = 2.0 * (fit.cost - trial[0].cost) - n_add * threshold
+        score = _full_gain(prob, r_now, trial[0], var) - n_add * threshold
         # the modes tried (new or restarted) must stay free; a mode already frozen may stay so
         kept_free = np.delete(state.free, removed)
         moved = start[: kept_free.size] != np.delete(fit.lam, removed)
         must = np.append(kept_free | moved, np.ones(start.size - kept_free.size, bool))
-        if trial[1][must].all() and score > best_score:
-            best, best_score = (trial, ref, removed, moved), score
+        if trial[1][must].all() and score > 0:
+            best = (trial, ref, removed, moved)
+            break
     if best is None:
         return False
     (state.fit, free, _, _), ref, removed, moved = best
@@ -334,10 +324,12 @@ def _add_missed(
     return True
 
 
-def _complex_rows(z: np.ndarray) -> np.ndarray:
-    """Complex (P, L) from real-stacked rows (P, 2L)."""
-    n_line = z.shape[1] // 2
-    return z[:, :n_line] + 1j * z[:, n_line:]
+def _full_gain(prob, r_now: np.ndarray, trial, var: np.ndarray) -> float:
+    """Gain of a trial fitted on all lines against the error variance ``var`` (P, L); the
+    present residual is ``r_now`` (P, L). -inf when the trial could not be fitted."""
+    if not (trial.proj.ok and np.isfinite(trial.cost)):
+        return -np.inf
+    return weighted_gain(r_now, complex_rows(residual_rows(prob, trial.proj)), var)
 
 
 def _peak_strength(proj, k: int) -> float:
@@ -346,7 +338,7 @@ def _peak_strength(proj, k: int) -> float:
     return float(np.sum(np.abs(a)) / max(abs(proj.lam[k].real), 1e-300))
 
 
-def _error_variance(prob, proj, width: np.ndarray, skip: np.ndarray):
+def error_variance(prob, proj, width: np.ndarray, skip: np.ndarray, local: bool = False):
     """Variance ``E|e|^2`` (P, L) of noise and model error on each line, from the residual.
 
     ``s_j^2 + eps^2 |H_j(w)|^2``: a noise level per FRF from the median of ``|r_j|^2`` (for
@@ -358,26 +350,40 @@ def _error_variance(prob, proj, width: np.ndarray, skip: np.ndarray):
     bandwidths ``width[k]`` of it; ``eps^2`` is the median of ``rho_k`` over the modes not in
     ``skip`` (the typical model error of a peak; robust to one peak with a missed mode). The
     nominal noise floor is not used; with white noise and an exact model ``eps^2`` is ~0.
+    ``local``: the noise level of each line is the running median of ``|r_j|^2`` over
+    ``NOISE_WIDTHS`` median bandwidths instead of one level per FRF (measured FRFs are noisier
+    near antiresonances and where the coherence drops; a missed mode's bump, a few bandwidths
+    wide, barely moves the running median).
 
     Returns ``(variance (P, L), rho (K,), largest rho over the modes not in skip)``.
     """
-    resid = _complex_rows(_residual_rows(prob, proj))
-    model = _complex_rows(prob.y) - resid
+    from scipy.ndimage import median_filter  # lazy: scipy.ndimage is slow to import
+
+    resid = complex_rows(residual_rows(prob, proj))
+    model = complex_rows(prob.y) - resid
     r2 = np.abs(resid) ** 2
     m2 = np.abs(model) ** 2
-    s2 = np.maximum(np.median(r2, axis=1), 1e-300) / np.log(2.0)
+    if local:
+        # the noise level along frequency: a running median over NOISE_WIDTHS typical
+        # bandwidths (a missed mode's bump, a few bandwidths wide, barely moves it)
+        dw = prob.omega[1] - prob.omega[0] if prob.omega.size > 1 else 1.0
+        size = int(np.clip(NOISE_WIDTHS * np.median(width) / dw, 21, prob.omega.size)) | 1
+        s2 = median_filter(r2, size=(1, size), mode="nearest")
+    else:
+        s2 = np.broadcast_to(np.median(r2, axis=1)[:, None], r2.shape)
+    s2 = np.maximum(s2, 1e-300) / np.log(2.0)
     rho = np.zeros(proj.lam.size)
     for k in range(proj.lam.size):
         band = np.abs(prob.omega - proj.lam[k].imag) <= 3.0 * width[k]
         if band.any():
             # excess over the noise beyond its own spread (|e|^2 exponential: std = mean),
             # three standard deviations: pure noise gives rho ~ 0
-            spread = np.sqrt(band.sum() * np.sum(s2**2))
-            excess = np.sum(r2[:, band] - s2[:, None]) - 3.0 * spread
+            spread = np.sqrt(np.sum(s2[:, band] ** 2))
+            excess = np.sum(r2[:, band] - s2[:, band]) - 3.0 * spread
             rho[k] = max(excess, 0.0) / max(np.sum(m2[:, band]), 1e-300)
     others = rho[~skip]
     eps2 = float(np.median(others)) if others.size else 0.0
-    return s2[:, None] + eps2 * m2, rho, float(np.max(others)) if others.size else 0.0
+    return s2 + eps2 * m2, rho, float(np.max(others)) if others.size else 0.0
 
 
 def _close_pairs(lam: np.ndarray, width: np.ndarray) -> list[tuple[int, int]]:
@@ -448,13 +454,13 @@ def _merge_split_pairs(prob, state: State, pfa: float, decay: float, trial_opts,
         half = 0.5 * abs(lam[i].imag - lam[j].imag) + 3.0 * max(width[i], width[j])
         band = np.abs(prob.omega - centre) <= half
         skip = np.abs(one.lam.imag - centre) <= half
-        var, rho, _ = _error_variance(prob, one.proj, np.delete(width, weak), skip)
+        var, rho, _ = error_variance(prob, one.proj, np.delete(width, weak), skip)
         # the other peaks' model error under the present model: with the weak pole removed the
         # neighbours in a cluster fit worse too and would hide the pair's excess
-        _, _, rho_max = _error_variance(prob, fit.proj, width, np.abs(lam.imag - centre) <= half)
+        _, _, rho_max = error_variance(prob, fit.proj, width, np.abs(lam.imag - centre) <= half)
         var = var[:, band]
-        r1 = np.abs(_complex_rows(_residual_rows(prob, one.proj))[:, band]) ** 2 / var
-        r2 = np.abs(_complex_rows(_residual_rows(prob, fit.proj))[:, band]) ** 2 / var
+        r1 = np.abs(complex_rows(residual_rows(prob, one.proj))[:, band]) ** 2 / var
+        r2 = np.abs(complex_rows(residual_rows(prob, fit.proj))[:, band]) ** 2 / var
         # the one-pole fit is no better there than at the worst single-pole peak
         # by a factor PAIR_EXCESS: measured peaks' model errors spread over a decade
         # (measurement.uff), and one peak just above the others is no evidence of a second mode

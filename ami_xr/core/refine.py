@@ -89,6 +89,7 @@ class RefineResult:
     status: np.ndarray  # (K',) int8: STATUS_OK, STATUS_NOT_CONVERGED or STATUS_FALLBACK
     origin: np.ndarray  # (K',) int64: AMI mode index of each output mode, -1 when added
     n_iter: np.int64  # Levenberg-Marquardt iterations in all
+    n_full_fits: np.int64  # fits on all lines (the local trial fits on a band not counted)
     cost_start: np.float64  # objective at the start
     cost: np.float64  # objective at the optimum
     pair_supported: np.ndarray  # (K',) bool: one of a close pair the order test kept
@@ -250,6 +251,7 @@ def _result(
         status=status,
         origin=origin,
         n_iter=np.int64(state.n_iter),
+        n_full_fits=np.int64(prob.n_fits),
         cost_start=np.float64(start_cost),
         cost=np.float64(fit.cost),
         pair_supported=supported,

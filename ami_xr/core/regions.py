@@ -15,6 +15,7 @@ import numpy as np
 from ami_xr.core import varpro
 from ami_xr.core.matching import match_by_distance
 from ami_xr.kernels.modal_basis import model_columns
+from ami_xr.kernels.projection import project_points
 
 FALLBACK_MESSAGE = "fallback: nothing could be fitted"  # FitResult.message of a fit given up
 # a trial is first fitted on the lines within this many half-power bandwidths (of the widest
@@ -60,6 +61,7 @@ def fit_modes(prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width, fre
     def check(mu):
         return _mode_codes(mu + decay, ref, max_shift, min_width)
 
+    prob.n_fits += 1
     start_mu = mu0.copy()
     start_cost = None
     n_iter = 0
@@ -101,10 +103,33 @@ def fit_modes(prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width, fre
     return fit, free, n_iter, start_cost
 
 
-def band_fit(prob, fit, trial, opts: dict, min_width: float):
+def residual_rows(prob, proj) -> np.ndarray:
+    """Residuals ``y_j - Q Q' y_j`` of every point (P, 2L), real-stacked."""
+    qty = project_points(prob.y, proj.q, proj.v)[0]
+    return prob.y - qty @ proj.q.T
+
+
+def complex_rows(z: np.ndarray) -> np.ndarray:
+    """Complex (P, L) from real-stacked rows (P, 2L)."""
+    n_line = z.shape[1] // 2
+    return z[:, :n_line] + 1j * z[:, n_line:]
+
+
+def weighted_gain(before: np.ndarray, after: np.ndarray, var: np.ndarray) -> float:
+    """Likelihood-ratio gain ``2 sum (|r_before|^2 - |r_after|^2) / v`` of complex residuals
+    (P, L) whose lines have complex error variance ``v = E|e|^2`` (P, L): each real component
+    has variance ``v / 2``."""
+    return float(2.0 * np.sum((np.abs(before) ** 2 - np.abs(after) ** 2) / var))
+
+
+def band_fit(prob, fit, trial, opts: dict, min_width: float, var: np.ndarray | None = None):
     """Fit one completion trial on its own band: the lines within ``LOCAL_WIDTHS`` half-power
     bandwidths of the modes it changes (moved, added or removed), the data less the present
     fit's far modes (residues held), the modes in the band free.
+
+    ``var`` (P, L): the error variance ``E|e|^2`` of every point and line (noise and the model
+    error of a peak, :func:`ami_xr.core.order.error_variance`) the gain is measured against;
+    None: white noise at the present fit's level on all lines.
 
     Returns ``(likelihood-ratio gain on the band, the trial's start with its band modes at
     their fitted values, iterations of the band fit)``; the gain is ``None`` (then screen on
@@ -150,16 +175,25 @@ def band_fit(prob, fit, trial, opts: dict, min_width: float):
         prob.residual_kind,
     )
     if near.any() or band.residual_terms:
-        before = varpro.project(band, lam[near]).rss
+        proj0 = varpro.project(band, lam[near])
+        before, r_before = proj0.rss, residual_rows(band, proj0) if proj0.ok else None
     else:  # nothing modelled on the band yet: the data are the residual
-        before = np.sum(band.y**2, axis=1)
+        before, r_before = np.sum(band.y**2, axis=1), band.y
     local = fit_modes(band, start[entry], ref[entry], **opts)
     refined = start.copy()
     refined[entry] = local[0].lam
     tried = changed[entry]
-    fine = np.all(np.isfinite(before)) and np.isfinite(local[0].cost) and local[1][tried].all()
-    if not fine:
+    fine = np.all(np.isfinite(before)) and np.isfinite(local[0].cost)
+    if fine and var is not None and not local[1][tried].all():
+        # a mode the trial tries leaves its region on the trial's own band: the data there do
+        # not hold it, and a fit on all lines would not either
+        return -np.inf, refined, local[2]
+    if not (fine and local[1][tried].all()):
         return None, refined, local[2]  # the band cannot tell (a far mode's tail, a neighbour)
+    if var is not None:
+        r_after = complex_rows(residual_rows(band, local[0].proj))
+        gain = weighted_gain(complex_rows(r_before), r_after, var[:, sel])
+        return gain, refined, local[2]
     # the full likelihood's gain to first order: the band's drop of |r_j|^2 over the noise
     # variance of the present fit on all lines (a noise level profiled on the band alone holds
     # the misfit the trial removes: it understated strong modes several times)

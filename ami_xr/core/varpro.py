@@ -36,6 +36,7 @@ class Problem:
     residual_terms: tuple[str, ...] = ()
     residual_kind: int = 0
     y_norm2: np.ndarray = field(init=False)
+    n_fits: int = field(init=False, default=0)  # Levenberg-Marquardt fits run on this problem
 
     def __post_init__(self):
         self.y_norm2 = np.maximum(np.sum(self.y**2, axis=1), np.finfo(float).tiny)
