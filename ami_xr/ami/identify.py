@@ -20,6 +20,7 @@ from ami_xr.ami.settings import (
     IsolateSettings,
     SubtractSettings,
 )
+from ami_xr.core.threads import single_blas_thread
 from ami_xr.provenance import public_call
 
 __all__ = ["identify", "METHODS"]
@@ -124,10 +125,12 @@ def identify(
         fmax=fmax,
         compress=compress,
     )
-    if mimo.is_multi_reference(ds):  # dims (reference, point, frequency)
-        result = mimo.identify_multi_reference(ds, settings, progress)
-    else:
-        result = identify_single(ds, settings, progress)
+    # small products only: one BLAS thread, which does not collapse when the cores are busy
+    with single_blas_thread():
+        if mimo.is_multi_reference(ds):  # dims (reference, point, frequency)
+            result = mimo.identify_multi_reference(ds, settings, progress)
+        else:
+            result = identify_single(ds, settings, progress)
     params = dict(
         dataclasses.asdict(settings),
         refine=refines(settings),

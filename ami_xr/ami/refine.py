@@ -84,6 +84,7 @@ from ami_xr.core.refine import (
     refine_arrays,
     synthesize,
 )
+from ami_xr.core.threads import single_blas_thread
 from ami_xr.errors import ConvergenceWarning, IdentificationError
 from ami_xr.progress import Iterations, active, detail
 from ami_xr.provenance import add_history
@@ -117,7 +118,8 @@ _OUTPUTS = {
 
 def _refine_block(frf, freq, lam0, res0, *, settings, model, trace) -> tuple[np.ndarray, ...]:
     """:func:`refine_arrays` with its result as a tuple in the order of ``_OUTPUTS``."""
-    result = refine_arrays(frf, freq, lam0, res0, settings, model, trace)
+    with single_blas_thread():  # also where a dask worker runs the block
+        result = refine_arrays(frf, freq, lam0, res0, settings, model, trace)
     if trace is not None:
         detail(f"standard errors, {result.lam.size} modes, {int(result.n_iter)} iterations")
     return tuple(getattr(result, name) for name in _OUTPUTS)
