@@ -101,9 +101,14 @@ def check_values(ds: xr.Dataset) -> None:
     """An all-zero FRF is an error naming the point (nothing to identify; the values are
     known finite from :func:`check_frf`)."""
     peak = np.asarray(np.abs(ds[names.FRF]).max(names.FREQUENCY).values)
-    zero = peak == 0
+    check_peaks(peak, np.asarray(ds[names.POINT].values))
+
+
+def check_peaks(peak: np.ndarray, points: np.ndarray) -> None:
+    """The check of :func:`check_values` on the largest magnitude ``peak`` (P,) of each FRF,
+    for a caller that has it from its own pass over the data."""
+    zero = np.asarray(peak) == 0
     if np.any(zero):
-        points = np.asarray(ds[names.POINT].values)
         raise IdentificationError(
             f"{names.FRF}: all-zero FRF at point(s) {shorten(points[zero])}; nothing to identify"
         )

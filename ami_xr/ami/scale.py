@@ -5,9 +5,11 @@ For a large number of points the AMI phases (subtract, isolate, global_fit, refi
 that span their dominant column space), which gives the eigenvalues; then one last pass over the
 points fits every FRF's residues at those eigenvalues by linear least squares (the fixed-pole
 solver of eq. 9, :func:`ami_xr.kernels.residues.residues_fixed`), with mode vectors (eq. 8 at the
-drive point), synthesized FRFs, residuals and a per-point noise estimate. The pole work does not
-grow with the number of points; the data are read ``power_iterations + 2`` times plus once for
-the power-of-two scale, whatever ``P``.
+drive point, in the displacement convention of the uncompressed path:
+:func:`ami_xr.ami.global_fit.receptance_mode_vectors`), synthesized FRFs, residuals and a
+per-point noise estimate. The pole work does not grow with the number of points; the data are
+read ``power_iterations + 2`` times plus once for the power-of-two scale, whatever ``P`` (the
+first pass also finds all-zero FRFs, an error as on the uncompressed path).
 
 Works on numpy- or dask-backed Datasets chunked along ``point``: each pass over the data is one
 small graph of one task per chunk and a tree sum of the (r, r + 2L) partial results, computed on
@@ -35,11 +37,16 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import common as c
-from ami_xr.ami.global_fit import RESIDUAL_KIND, band_mask, mode_vector_units, residue_units
-from ami_xr.ami.settings import FrfAttributes, IdentifySettings, from_attrs
+from ami_xr.ami.global_fit import (
+    RESIDUAL_KIND,
+    band_mask,
+    receptance_mode_vectors,
+    residue_units,
+)
+from ami_xr.ami.settings import FrfAttributes, GlobalFitSettings, IdentifySettings, from_attrs
 from ami_xr.core import compress as cz
 from ami_xr.core import flags
-from ami_xr.core.modal import mac_matrix, mode_vectors
+from ami_xr.core.modal import mac_matrix
 from ami_xr.core.model import resolve_model
 from ami_xr.errors import IdentificationError
 from ami_xr.kernels import modal_basis as kb
@@ -131,20 +138,29 @@ def _tree_sum(parts: list, split_every: int = 8):
     return parts[0]
 
 
-def _map_sum(data, z: np.ndarray) -> np.ndarray:
+def _row_peaks(h: np.ndarray) -> np.ndarray:
+    """The largest magnitude of each FRF of a chunk (p,)."""
+    return np.max(np.abs(np.asarray(h)), axis=-1)
+
+
+def _map_sum(data, z: np.ndarray, peaks: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
     """``sum over chunks of _weighted_terms(chunk, z)``: one graph (a task per chunk, a tree
-    sum, ``z`` sent once) for a dask array, a loop over row blocks for a numpy one."""
+    sum, ``z`` sent once) for a dask array, a loop over row blocks for a numpy one; with
+    ``peaks``, also every FRF's largest magnitude (P,) from the same read of each chunk."""
     if hasattr(data, "dask"):
         import dask
 
         z_task = dask.delayed(z, pure=True)
         term = dask.delayed(_weighted_terms, pure=True)
-        parts = [term(block, z_task) for block in data.to_delayed().ravel()]
-        return np.asarray(dask.compute(_tree_sum(parts))[0])
-    return sum(
-        _weighted_terms(data[lo : lo + CHUNK_POINTS], z)
-        for lo in range(0, data.shape[0], CHUNK_POINTS)
-    )
+        blocks = data.to_delayed().ravel()
+        parts = [term(block, z_task) for block in blocks]
+        tops = [dask.delayed(_row_peaks, pure=True)(block) for block in blocks] if peaks else []
+        total, tops = dask.compute(_tree_sum(parts), tops)
+        return np.asarray(total), np.concatenate(tops) if peaks else None
+    starts = range(0, data.shape[0], CHUNK_POINTS)
+    total = sum(_weighted_terms(data[lo : lo + CHUNK_POINTS], z) for lo in starts)
+    tops = [_row_peaks(data[lo : lo + CHUNK_POINTS]) for lo in starts] if peaks else []
+    return total, np.concatenate(tops) if peaks else None
 
 
 def compress(ds: xr.Dataset, settings: CompressSettings = CompressSettings()) -> xr.Dataset:
@@ -158,13 +174,22 @@ def compress(ds: xr.Dataset, settings: CompressSettings = CompressSettings()) ->
     ds : xarray.Dataset
         FRF Dataset (point, frequency), numpy- or dask-backed (chunked along ``point``).
     settings : CompressSettings
+
+    Raises
+    ------
+    IdentificationError
+        An all-zero FRF, naming its points (as :func:`ami_xr.subtract` does on every point;
+        found in the first pass, not by another read of the data).
     """
     data = _frf_array(ds)
     n_points, n_lines = data.shape
     rank = min(settings.rank, n_points)
     z = cz.start_matrix(n_lines, rank, settings.seed)
-    for _ in range(settings.power_iterations + 1):
-        total = _map_sum(data, z)
+    for i in range(settings.power_iterations + 1):
+        total, peak = _map_sum(data, z, peaks=i == 0)
+        if i == 0:
+            # as the phases on every point do; all-zero FRFs would leave no direction to keep
+            c.check_peaks(peak, np.asarray(ds[names.POINT].values))
         b = cz.orthonormal_rows(total)
         z = b.T
     virtual, s = cz.virtual_frfs(b)
@@ -309,8 +334,10 @@ def identify_compressed(
     )
     res = res.transpose(names.POINT, names.MODE).compute()
     drive = c.drive_index(work)
-    phi = mode_vectors(res.values, lam, drive)
     units = work[names.FRF].attrs.get(names.ATTR_UNITS, "")
+    # the displacement convention of every other path (residues over lam^k for mobility and
+    # accelerance), so compressed and uncompressed mode vectors are the same quantity
+    phi, phi_attrs = receptance_mode_vectors(res.values, lam, drive, work.attrs, units)
     synth = synth.rename({names.FREQUENCY_OUT: names.FREQUENCY}).transpose(
         names.POINT, names.FREQUENCY
     )
@@ -328,21 +355,12 @@ def identify_compressed(
             c.omega_of(work), dt_model.dt, dt_model.n_samples, lam[None, :], res.values[[drive]]
         )[0]
         snr = peaks / kn.noise_floor(g_drive)[0]
-        threshold = float(vres.attrs.get(names.ATTR_AMI_DRIVE_SNR_MIN, 3.0))
+        threshold = from_attrs(GlobalFitSettings, vres.attrs).drive_snr_min
         mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, ~(snr >= threshold))
     one = {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
     new = {
         names.RESIDUE: res.assign_attrs(residue_units(units)),
-        names.MODE_VECTOR: (
-            (names.POINT, names.MODE),
-            phi,
-            {
-                names.ATTR_SCALING: "unit largest entry (no drive point)"
-                if drive is None
-                else "eq. 8 at the drive point",
-                **mode_vector_units(units, drive is not None),
-            },
-        ),
+        names.MODE_VECTOR: ((names.POINT, names.MODE), phi, phi_attrs),
         names.FRF_SYNTHESIZED: synth.assign_attrs({names.ATTR_UNITS: units}),
         names.FRF_RESIDUAL: (frf - synth).assign_attrs({names.ATTR_UNITS: units}),
         names.FRF_NOISE_STD: rms.assign_attrs({names.ATTR_UNITS: units} if units else {}),

@@ -89,7 +89,8 @@ def orthonormal_rows(packed: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
     r = packed.shape[0]
     gram, s = packed[:, :r], packed[:, r:]
     d, v = np.linalg.eigh(0.5 * (gram + gram.T))
-    keep = d > rtol * max(float(d[-1]), np.finfo(float).tiny)
+    top = float(d[-1]) if d.size else 0.0  # no direction left (all-zero data): none kept
+    keep = d > rtol * max(top, np.finfo(float).tiny)
     m = v[:, keep] / np.sqrt(d[keep])[None, :]
     return m.T @ s
 
@@ -129,6 +130,8 @@ def compress_array(
     rank = int(rank)
     if rank < 1:
         raise AmiXrValueError(f"rank: expected an integer >= 1, got {rank}")
+    if not np.any(h):
+        raise AmiXrValueError(f"h: every FRF is zero (shape {h.shape}); nothing to compress")
     scale = noise_scale(h) if weighted else np.ones(h.shape[0])
     z = start_matrix(h.shape[1], min(rank, h.shape[0]), seed)
     for _ in range(int(power_iterations) + 1):

@@ -48,12 +48,29 @@ def encode(mask: np.ndarray) -> np.ndarray:
     return np.array(out, dtype=str).reshape(mask.shape)
 
 
-def decode(text: np.ndarray) -> np.ndarray:
+def decode(text: np.ndarray, *, unknown: str = "raise") -> np.ndarray:
     """The int32 mask of each flag text (the inverse of :func:`encode`; order and blanks
-    around a flag do not matter); an unknown flag is an error naming it."""
+    around a flag do not matter).
+
+    Parameters
+    ----------
+    text : array_like of str
+        Comma-joined flags, as in ``quality_flags``.
+    unknown : {"raise", "ignore"}
+        A flag not in :data:`MEANINGS`: an error naming it, or left out of the mask (the CF bit
+        field of a file, which has no bit for a flag it cannot name).
+
+    Returns
+    -------
+    numpy.ndarray
+        int32, the shape of ``text``.
+    """
+    if unknown not in ("raise", "ignore"):
+        raise AmiXrValueError(f"unknown: expected 'raise' or 'ignore', got {unknown!r}")
     text = np.asarray(text).astype(str)
     out = np.zeros(text.shape, np.int32)
     for index, value in np.ndenumerate(text):
         for flag in filter(None, (f.strip() for f in value.split(names.FLAG_SEPARATOR))):
-            out[index] |= bit(flag)
+            if unknown == "raise" or flag in _BIT:
+                out[index] |= bit(flag)
     return out

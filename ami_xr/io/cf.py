@@ -18,19 +18,21 @@ what is missing (attributes a function set are kept) and never changes a value:
   ``residual_coefficient`` holds two quantities of different units along ``residual_term``, so
   it carries ``units_lower`` and ``units_upper`` instead of ``units``;
 * ``quality_flag_mask`` (int32, dims ``mode``): the comma-joined ``quality_flags`` as a CF bit
-  field with ``flag_masks`` and ``flag_meanings`` (:data:`FLAG_MEANINGS`, one bit each, in that
-  order). ``quality_flags`` stays as it was, for compatibility; a flag CF cannot name (not in
-  :data:`FLAG_MEANINGS`) is only in ``quality_flags``.
+  field with ``flag_masks`` and ``flag_meanings``: the one table of :mod:`ami_xr.core.flags`
+  (:data:`FLAG_MEANINGS` and :data:`FLAG_MASKS` are its ``MEANINGS`` and ``MASKS``, every flag,
+  bit k = 2**k). ``quality_flags`` stays as it was, for compatibility; a flag CF cannot name (not
+  in :data:`FLAG_MEANINGS`) is only in ``quality_flags``.
 
 * the CF global attribute ``history``: one line per ``ami_xr_history`` record (UTC time,
   function, ami_xr version; :func:`ami_xr.provenance.cf_history`), after any ``history`` text
   the Dataset already had (from another tool);
-* mode vectors scaled at the drive point have units ``sqrt(<FRF units>)`` (eq. 8,
-  ``Phi_P = sqrt(A_P / lam)``; for accelerance in m/s^2/N that is kg^-1/2). UDUNITS has integer
-  powers only (it reads ``"m0.5"`` as ``0.25``, not as a square root), so no UDUNITS string
-  states them. On disk such a variable carries no ``units`` and instead ``units_of_square``
-  (:data:`ATTR_UNITS_OF_SQUARE`), the UDUNITS units of the square (of ``Phi_j Phi_k``), e.g.
-  ``"m/s^2/N"``; in memory ``units`` stays ``"sqrt(m/s^2/N)"``;
+* mode vectors scaled at the drive point have units ``sqrt(<receptance units>)`` (eq. 8 in the
+  displacement convention of :func:`ami_xr.ami.global_fit.receptance_mode_vectors`, whatever the
+  FRF type: ``sqrt(m/N)``, s/sqrt(kg)). UDUNITS has integer powers only (it reads ``"m0.5"`` as
+  ``0.25``, not as a square root), so no UDUNITS string states them. On disk such a variable
+  carries no ``units`` and instead ``units_of_square`` (:data:`ATTR_UNITS_OF_SQUARE`), the
+  UDUNITS units of the square (of ``Phi_j Phi_k``), e.g. ``"m/N"``; in memory ``units`` stays
+  ``"sqrt(m/N)"``;
 * a dimension coordinate that CF does not allow as a coordinate variable (CF 1.3: numeric and
   strictly monotonic), such as string point labels, ``residual_term`` or unsorted integer
   labels, is stored as the CF label (auxiliary coordinate) variable ``<dim>_label`` along the
@@ -61,6 +63,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.core import flags
 from ami_xr.provenance import cf_history
 
 __all__ = [
@@ -72,6 +75,7 @@ __all__ = [
     "title",
     "QUALITY_FLAG_MASK",
     "FLAG_MEANINGS",
+    "FLAG_MASKS",
     "LONG_NAMES",
     "UNITS",
     "annotate",
@@ -103,16 +107,9 @@ ELAPSED_TIME = "elapsed_time"
 QUALITY_FLAG_MASK = "quality_flag_mask"  # int32 bit field of quality_flags (CF flag_masks)
 ATTR_FLAG_MASKS = "flag_masks"
 ATTR_FLAG_MEANINGS = "flag_meanings"
-# one bit per flag, in this order (bit k = 2**k); never reorder, only append
-FLAG_MEANINGS = (
-    names.FLAG_LOW_DRIVE_SNR,
-    names.FLAG_UNSCALED,
-    names.FLAG_NOT_CONVERGED,
-    names.FLAG_SINGLE_FRF,
-    names.FLAG_REFINE_NOT_CONVERGED,
-    names.FLAG_REFINE_FALLBACK,
-    names.FLAG_ADDED_BY_REFINE,
-)
+# the bits of the one table (ami_xr.core.flags, bit k = 2**k for MEANINGS[k]), not a copy of it
+FLAG_MEANINGS = flags.MEANINGS
+FLAG_MASKS = flags.MASKS
 
 _ONE = names.DIMENSIONLESS_UNITS
 UNITS = {
@@ -193,14 +190,11 @@ for _axis in "xyz":
     LONG_NAMES[f"{names.POINT}_{_axis}"] = f"{_axis} coordinate of the measurement point"
 
 
-def flag_mask(flags: np.ndarray) -> np.ndarray:
-    """int32 bit field of comma-joined flag strings (bit k: :data:`FLAG_MEANINGS` [k])."""
-    bits = {name: np.int32(1 << k) for k, name in enumerate(FLAG_MEANINGS)}
-    out = np.zeros(np.shape(flags), np.int32)
-    for index, text in np.ndenumerate(np.asarray(flags, dtype=str)):
-        for flag in filter(None, text.split(names.FLAG_SEPARATOR)):
-            out[index] |= bits.get(flag.strip(), np.int32(0))
-    return out
+def flag_mask(text: np.ndarray) -> np.ndarray:
+    """int32 bit field of comma-joined flag strings (:func:`ami_xr.core.flags.decode`; a flag
+    not in :data:`FLAG_MEANINGS`, e.g. from a newer or foreign file, has no bit and is left out).
+    """
+    return flags.decode(text, unknown="ignore")
 
 
 def _base(name: str) -> str | None:
@@ -351,12 +345,12 @@ def annotate(ds: xr.Dataset) -> xr.Dataset:
     if names.QUALITY_FLAGS in ds and ds[names.QUALITY_FLAGS].dtype.kind in "US":
         if QUALITY_FLAG_MASK not in ds.variables:
             added["variables"].append(QUALITY_FLAG_MASK)
-        flags = ds[names.QUALITY_FLAGS]
+        text = ds[names.QUALITY_FLAGS]
         out[QUALITY_FLAG_MASK] = xr.Variable(
-            flags.dims,
-            flag_mask(flags.values),
+            text.dims,
+            flag_mask(text.values),
             {
-                ATTR_FLAG_MASKS: np.array([1 << k for k in range(len(FLAG_MEANINGS))], np.int32),
+                ATTR_FLAG_MASKS: FLAG_MASKS.copy(),
                 ATTR_FLAG_MEANINGS: " ".join(FLAG_MEANINGS),
             },
         )

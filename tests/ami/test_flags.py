@@ -7,12 +7,14 @@ import warnings
 
 import numpy as np
 import pytest
+import xarray as xr
 
 import ami_xr
 from ami_xr import names
 from ami_xr.core import flags
 from ami_xr.errors import AmiXrValueError
 from ami_xr.io import cf
+from ami_xr.io.netcdf import open_dataset, to_netcdf
 
 
 def test_encode_decode_round_trip_in_bit_order():
@@ -41,11 +43,48 @@ def test_unknown_flag_is_an_error_naming_it():
         flags.decode(["not_converged,bogus"])
 
 
+def test_every_flag_round_trips():
+    for k, flag in enumerate(names.FLAG_MEANINGS):
+        mask = np.array([1 << k], np.int32)
+        assert flags.encode(mask)[0] == flag
+        np.testing.assert_array_equal(flags.decode(flags.encode(mask)), mask)
+    every = np.arange(2 ** len(names.FLAG_MEANINGS), dtype=np.int32)
+    np.testing.assert_array_equal(flags.decode(flags.encode(every)), every)
+
+
 def test_the_file_bits_are_the_same_bits():
-    """The CF bit field on disk uses the bits of the one table (append-only)."""
-    assert tuple(cf.FLAG_MEANINGS) == names.FLAG_MEANINGS[: len(cf.FLAG_MEANINGS)]
-    text = flags.encode(np.arange(2 ** len(cf.FLAG_MEANINGS), dtype=np.int32))
-    np.testing.assert_array_equal(cf.flag_mask(text), np.arange(2 ** len(cf.FLAG_MEANINGS)))
+    """The CF bit field on disk uses the bits of the one table: every flag, none left out."""
+    assert tuple(cf.FLAG_MEANINGS) == names.FLAG_MEANINGS == flags.MEANINGS
+    np.testing.assert_array_equal(cf.FLAG_MASKS, flags.MASKS)
+    every = np.arange(2 ** len(names.FLAG_MEANINGS), dtype=np.int32)
+    np.testing.assert_array_equal(cf.flag_mask(flags.encode(every)), every)
+    # a flag the table cannot name has no bit in the file (and is an error in memory)
+    assert cf.flag_mask([f"{names.FLAG_SINGLE_FRF},from_the_future"]).tolist() == [8]
+    with pytest.raises(AmiXrValueError, match="unknown: expected 'raise' or 'ignore'"):
+        flags.decode([""], unknown="skip")
+
+
+def test_written_file_holds_every_flag(tmp_path):
+    """A file written by to_netcdf: flag_meanings/flag_masks are the core table, each mode's
+    bits decode to its flags, and open_dataset gives the flags back unchanged."""
+    n = len(names.FLAG_MEANINGS)
+    # one mode per flag, one with none and one with all
+    mask = np.array([1 << k for k in range(n)] + [0, 2**n - 1], np.int32)
+    text = flags.encode(mask)
+    ds = xr.Dataset(
+        {names.QUALITY_FLAGS: ((names.MODE,), text)},
+        coords={names.MODE: np.arange(1, mask.size + 1)},
+    )
+    path = to_netcdf(ds, tmp_path / "flags.nc")
+    with xr.open_dataset(path, engine="netcdf4") as raw:
+        var = raw[cf.QUALITY_FLAG_MASK]
+        assert var.attrs["flag_meanings"].split() == list(flags.MEANINGS)
+        np.testing.assert_array_equal(var.attrs["flag_masks"], flags.MASKS)
+        np.testing.assert_array_equal(var.values, mask)
+        np.testing.assert_array_equal(flags.decode(raw[names.QUALITY_FLAGS].values), mask)
+    back = open_dataset(path)
+    assert list(back[names.QUALITY_FLAGS].values) == list(text)
+    np.testing.assert_array_equal(flags.decode(back[names.QUALITY_FLAGS].values), mask)
 
 
 def _quiet(function, *args, **kwargs):
