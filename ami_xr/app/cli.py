@@ -474,7 +474,7 @@ def _add_file_commands(add) -> None:
         "(mode, natural frequency in Hz and rad/s, damping ratio in %, FRFs that detected "
         "the mode, quality flags).",
     )
-    p.add_argument("input", help="FRF file (.nc or .uff)")
+    p.add_argument("input", help="FRF file (.nc, .uff/.unv, or an FRF table: .csv/.txt/.dat, .mat)")
     _add_output(
         p,
         "result file to write (.nc: FRFs + modal results; .uff: FRFs as dataset "
@@ -524,10 +524,10 @@ def _add_file_commands(add) -> None:
         "convert",
         "convert between UFF and netCDF",
         "Convert a file by its suffixes: .uff/.unv (dataset 58 FRFs or time histories, 55 "
-        "mode shapes) or .lvm -> .nc, and .nc -> .uff (FRFs as 58, modes as 55, time "
-        "histories as 58).",
+        "mode shapes), .lvm or an FRF table (.csv/.txt/.dat, .mat) -> .nc, and .nc -> .uff "
+        "(FRFs as 58, modes as 55, time histories as 58).",
     )
-    p.add_argument("input", help="input file (.uff, .unv, .lvm or .nc)")
+    p.add_argument("input", help="input file (.uff, .unv, .lvm, .csv, .txt, .dat, .mat or .nc)")
     _add_output(p, "output file (.nc, .uff or .unv)")
     p.add_argument(
         "--binary",

@@ -1,4 +1,4 @@
-"""Read and write a measurement file by its suffix: netCDF, UFF or LabVIEW LVM.
+"""Read and write a measurement file by its suffix: netCDF, UFF, LabVIEW LVM, FRF tables.
 
 The one place that maps a file name to its reader or writer; the command line and
 :func:`ami_xr.batch.batch` go through it. Each reader is imported only when its format is used,
@@ -7,7 +7,12 @@ so the optional ``pyuff`` is needed for UFF files only.
 * ``.nc``: read with :func:`ami_xr.open_dataset`, written with :func:`ami_xr.to_netcdf`;
 * ``.uff``, ``.unv``: read with :func:`ami_xr.read_uff`, written with
   :func:`ami_xr.io.uff.write_uff`;
-* ``.lvm``: read with :func:`ami_xr.read_lvm` (not written).
+* ``.lvm``: read with :func:`ami_xr.read_lvm` (not written);
+* ``.csv``, ``.txt``, ``.dat`` (FRF tables as text) and ``.mat`` (MATLAB): read with
+  :func:`ami_xr.io.frf_tables.read_frf_csv` and :func:`~ami_xr.io.frf_tables.read_frf_mat`
+  (not written).
+
+:func:`open_frf` is the Python entry for FRFs in any of these formats.
 
 :func:`check_output` is the output rule every writing command applies before any work: an
 output never names one of the inputs (also through a symlink or a hard link), its suffix is
@@ -32,7 +37,9 @@ __all__ = [
     "OUTPUT_FOLDER",
     "OUTPUT_NETCDF",
     "OUTPUT_SUFFIXES",
+    "TABLE_SUFFIXES",
     "check_output",
+    "open_frf",
     "read_any",
     "write_any",
 ]
@@ -40,8 +47,14 @@ __all__ = [
 NETCDF_SUFFIX = ".nc"
 UFF_SUFFIXES = (".uff", ".unv")
 LVM_SUFFIX = ".lvm"
-#: File suffixes (lower case) :func:`read_any` reads.
+TEXT_SUFFIXES = (".csv", ".txt", ".dat")
+MATLAB_SUFFIX = ".mat"
+#: Suffixes (lower case) of measurement files: what ``batch`` looks for in a folder tree.
 INPUT_SUFFIXES = (NETCDF_SUFFIX, *UFF_SUFFIXES, LVM_SUFFIX)
+#: Suffixes (lower case) of FRF tables (text and MATLAB), which :func:`read_any` reads too;
+#: ``batch`` leaves them out (a folder of measurements holds other .txt and .csv files).
+TABLE_SUFFIXES = (*TEXT_SUFFIXES, MATLAB_SUFFIX)
+_READ_SUFFIXES = (*INPUT_SUFFIXES, *TABLE_SUFFIXES)
 #: File suffixes (lower case) :func:`write_any` writes.
 OUTPUT_SUFFIXES = (NETCDF_SUFFIX, *UFF_SUFFIXES)
 #: ``kind`` of :func:`check_output`: a file of any of :data:`OUTPUT_SUFFIXES` (:func:`write_any`),
@@ -232,14 +245,17 @@ def read_any(
     Parameters
     ----------
     path : str or path-like
-        A ``.nc`` (:func:`ami_xr.open_dataset`), ``.uff``/``.unv`` (:func:`ami_xr.read_uff`)
-        or ``.lvm`` (:func:`ami_xr.read_lvm`) file; the suffix is matched case-insensitively.
+        A ``.nc`` (:func:`ami_xr.open_dataset`), ``.uff``/``.unv`` (:func:`ami_xr.read_uff`),
+        ``.lvm`` (:func:`ami_xr.read_lvm`), ``.csv``/``.txt``/``.dat``
+        (:func:`~ami_xr.io.frf_tables.read_frf_csv`) or ``.mat``
+        (:func:`~ami_xr.io.frf_tables.read_frf_mat`) file; the suffix is matched
+        case-insensitively.
     force_channel, points : optional
         Passed to :func:`ami_xr.read_lvm`; the other formats name their channels themselves,
         so giving one for them raises.
     drive_point : label, optional
-        Passed to :func:`ami_xr.read_lvm`; for the other formats it must be one of the
-        Dataset's points and replaces its ``drive_point`` attribute.
+        Passed to :func:`ami_xr.read_lvm` and the table readers; for the other formats it must
+        be one of the Dataset's points and replaces its ``drive_point`` attribute.
     want : {"frf", "time"}, optional
         What the caller needs: a modes file (identify's output) is then refused with a
         message naming the commands that take it (:func:`ami_xr.io.kinds.refuse_other_kind`).
@@ -253,7 +269,7 @@ def read_any(
     ------
     DataFileError
         The path is not a regular file (:func:`check_input`), the suffix is none of
-        :data:`INPUT_SUFFIXES`, or the reader rejects the file; a
+        :data:`INPUT_SUFFIXES` and :data:`TABLE_SUFFIXES`, or the reader rejects the file; a
         :class:`~ami_xr.io.kinds.ModesFileError` for a modes file where ``want`` asks for
         another kind.
     """
@@ -263,15 +279,17 @@ def read_any(
         from ami_xr.io.lvm import read_lvm
 
         return read_lvm(path, force_channel=force_channel, points=points, drive_point=drive_point)
-    if suffix not in (NETCDF_SUFFIX, *UFF_SUFFIXES):
+    if suffix not in _READ_SUFFIXES:
         raise DataFileError(
-            f"{path}: unknown file type {suffix!r}; expected one of {INPUT_SUFFIXES}"
+            f"{path}: unknown file type {suffix!r}; expected one of {_READ_SUFFIXES}"
         )
     for name, given in (("force_channel", force_channel), ("points", points)):
         if given is not None:
             raise AmiXrValueError(
                 f"{name}: only for LabVIEW {LVM_SUFFIX} input; {path.name} names its channels"
             )
+    if suffix in TABLE_SUFFIXES:  # FRFs only: no other kind to refuse
+        return _read_table(path, drive_point=drive_point)
     if suffix == NETCDF_SUFFIX:
         from ami_xr.io.netcdf import open_dataset
 
@@ -294,6 +312,90 @@ def read_any(
             )
         ds.attrs[names.ATTR_DRIVE_POINT] = drive_point
         ds.attrs.pop(names.ATTR_DRIVE_POINT_ASSUMED, None)
+    return ds
+
+
+def _read_table(path: Path, **options: Any):
+    """An FRF table (:data:`TABLE_SUFFIXES`) with its reader's ``options``."""
+    if path.suffix.lower() == MATLAB_SUFFIX:
+        from ami_xr.io.frf_tables import read_frf_mat
+
+        return read_frf_mat(path, **options)
+    from ami_xr.io.frf_tables import read_frf_csv
+
+    return read_frf_csv(path, **options)
+
+
+def open_frf(
+    path: str | os.PathLike,
+    *,
+    drive_point: Any = None,
+    points: list | None = None,
+    response_quantity: str | None = None,
+    frf_type: str | None = None,
+    response_units: str | None = None,
+    force_units: str | None = None,
+):
+    """Read FRFs from a file of any format ami_xr reads, chosen by the suffix.
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``.nc``, ``.uff``/``.unv``, or an FRF table: ``.csv``/``.txt``/``.dat`` (a frequency
+        column and real/imaginary or magnitude/phase columns per point) or ``.mat`` (MATLAB
+        variables ``freq`` and ``H``); the accepted layouts are described in
+        :mod:`ami_xr.io.frf_tables`.
+    drive_point : label, optional
+        The point where the force acts: replaces the file's (it must be one of the points).
+    points : list, optional
+        Tables only: point labels in the file's order, replacing its own.
+    response_quantity, frf_type, response_units, force_units : str, optional
+        Tables only (netCDF and UFF files state them): as for :func:`ami_xr.make_frf_dataset`;
+        default what the file says, else receptance in m/N is assumed, with an
+        :class:`~ami_xr.errors.AssumptionWarning` and the attribute
+        ``response_quantity_assumed``.
+
+    Returns
+    -------
+    xarray.Dataset
+        FRF Dataset following the data model (built with :func:`ami_xr.make_frf_dataset` for
+        tables).
+
+    Raises
+    ------
+    DataFileError
+        The file is missing, of an unknown type, holds time histories or modes instead of FRFs,
+        or its reader rejects it (the message names the file and the column or variable).
+    AmiXrValueError
+        A table-only option given for a netCDF or UFF file.
+    """
+    path = check_input(path, name=str(path) or "input")
+    table = {
+        "points": points,
+        "response_quantity": response_quantity,
+        "frf_type": frf_type,
+        "response_units": response_units,
+        "force_units": force_units,
+    }
+    if path.suffix.lower() in TABLE_SUFFIXES:
+        return _read_table(path, drive_point=drive_point, **table)
+    for name, given in table.items():
+        if given is not None:
+            raise AmiXrValueError(
+                f"{name}: only for FRF tables ({', '.join(TABLE_SUFFIXES)}); {path.name} states "
+                "its points and units"
+            )
+    if path.suffix.lower() == LVM_SUFFIX:
+        raise DataFileError(
+            f"{path}: a LabVIEW file holds time histories; estimate FRFs with ami_xr.frf "
+            f"(ami-xr frf {path.name} -o frf.nc) first"
+        )
+    ds = read_any(path, drive_point=drive_point, want="frf")
+    if names.FRF not in ds:
+        raise DataFileError(
+            f"{path}: holds no FRFs (variable {names.FRF!r}); for time histories estimate them "
+            "with ami_xr.frf first"
+        )
     return ds
 
 

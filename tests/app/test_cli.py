@@ -371,9 +371,9 @@ def test_formats_choose_by_suffix_and_name_the_file(tmp_path):
     from ami_xr.errors import AmiXrValueError, DataFileError
     from ami_xr.io.formats import read_any, write_any
 
-    (tmp_path / "data.csv").write_text("1,2\n")  # a regular file: the suffix decides
-    with pytest.raises(DataFileError, match=r"data\.csv.*unknown file type"):
-        read_any(tmp_path / "data.csv")
+    (tmp_path / "data.xyz").write_text("1,2\n")  # a regular file: the suffix decides
+    with pytest.raises(DataFileError, match=r"data\.xyz.*unknown file type"):
+        read_any(tmp_path / "data.xyz")
     with pytest.raises(AmiXrValueError, match=r"out\.txt"):
         write_any(xr.Dataset(), tmp_path / "out.txt")
 
