@@ -33,6 +33,7 @@ __all__ = [
     "AXIS_CODES",
     "LABEL_RE",
     "ID_TAG",
+    "MODES_ID1",
     "KNOWN_UNIT_ALIASES",
 ]
 
@@ -50,6 +51,7 @@ AXES = {1: "X", 2: "Y", 3: "Z", 4: "RX", 5: "RY", 6: "RZ"}
 AXIS_CODES = {v: k for k, v in AXES.items()}
 LABEL_RE = re.compile(r"^\s*(\d+)\s*([+-])\s*(X|Y|Z|RX|RY|RZ)\s*$", re.IGNORECASE)
 ID_TAG = "ami_xr point="
+MODES_ID1 = "ami_xr mode shapes"  # ID line 1 of the dataset 55 write_uff writes
 KNOWN_UNIT_ALIASES = {
     "m/s2": "m/s^2",
     "m/s**2": "m/s^2",

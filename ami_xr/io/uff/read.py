@@ -6,8 +6,10 @@ See :mod:`ami_xr.io.uff` for the mapping to ami_xr Datasets.
 from __future__ import annotations
 
 import os
+import re
 import warnings
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -25,18 +27,29 @@ from ami_xr.io.uff.codes import (
     SI_UNITS,
     SPEC_FORCE,
     SPEC_TO_QUANTITY,
-    dof_map,
     parse_point_label,
     point_label,
-    require_pyuff,
 )
-from ami_xr.io.uff.completeness import check_complete, check_lengths
+from ami_xr.io.uff.modes import (
+    ATTR_MODES_SKIPPED,
+    MODE_ANALYSIS_TYPES,
+    read_modes,
+    with_modes,
+)
+from ami_xr.io.uff.sets import read_sets
 
-__all__ = ["read_uff", "ATTR_UNITS_ASSUMED", "ATTR_UNITS_SCALED", "ATTR_MODES_SKIPPED"]
+__all__ = [
+    "read_uff",
+    "ATTR_UNITS_ASSUMED",
+    "ATTR_UNITS_SCALED",
+    "ATTR_MODES_SKIPPED",
+    "ATTR_QUANTITY_FROM_LABEL",
+]
 
 ATTR_UNITS_ASSUMED = "uff_units_assumed"  # why SI units were assumed (no usable unit labels)
 ATTR_UNITS_SCALED = "uff_units_scaled"  # how values were converted to SI by dataset 164
-ATTR_MODES_SKIPPED = "uff_modes_skipped"  # why dataset-55 modes were not merged with the FRFs
+# the response quantity taken from the unit label (ordinate specific data type 0 or 1)
+ATTR_QUANTITY_FROM_LABEL = "uff_quantity_from_label"
 # the warning class for assumptions (AssumptionWarning where ami_xr.errors has it)
 _ASSUMPTION = errors.AssumptionWarning
 
@@ -54,14 +67,46 @@ def _label_of(record: dict, which: str) -> Any:
 
 
 # --- units -----------------------------------------------------------------------------------
+_SUPERSCRIPTS = {"²": "^2", "³": "^3", "**": "^"}
+_RESPONSE_UNIT_QUANTITY = {u: q for q, units in names.RESPONSE_UNITS.items() for u in units}
+# an FRF unit in one label: "m/s^2/N", "(m/s^2)/N", "(1/N)*(m/s^2)", "(m/s^2)*(1/N)"
+_FRF_LABELS = (
+    re.compile(r"^\(?1/(?P<f>[^()*/]+)\)?\*\(?(?P<r>[^()*]+?)\)?$"),
+    re.compile(r"^\(?(?P<r>[^()*]+?)\)?\*\(?1/(?P<f>[^()*/]+)\)?$"),
+    re.compile(r"^\((?P<r>[^()*]+)\)/\(?(?P<f>[^()*/]+?)\)?$"),
+    re.compile(r"^(?P<r>[^()*]+)/(?P<f>[^()*/]+)$"),
+)
+
+
 def _unit_label(raw: Any, allowed: Sequence[str]) -> str | None:
-    """The known unit a label names (case-insensitive: ``"G"`` is ``"g"``), else None."""
-    text = str(raw or "").strip()
+    """The known unit a label names (case-insensitive: ``"G"`` is ``"g"``; ``"m/s²"`` is
+    ``"m/s^2"``), else None."""
+    text = "".join(str(raw or "").split())
     if not text or text.upper() == "NONE":
         return None
+    for sign, plain in _SUPERSCRIPTS.items():
+        text = text.replace(sign, plain)
     text = KNOWN_UNIT_ALIASES.get(text.lower(), text)
     by_lower = {a.lower(): a for a in allowed}
     return text if text in allowed else by_lower.get(text.lower())
+
+
+def _ordinate_units(raw: Any) -> tuple[str | None, str | None]:
+    """(response unit, force unit) an ordinate label names: ``"m/s^2" -> ("m/s^2", None)``,
+    ``"(1/N)*(m/s²)" -> ("m/s^2", "N")``; None for what it does not name."""
+    response = _unit_label(raw, tuple(_RESPONSE_UNIT_QUANTITY))
+    if response is not None:
+        return response, None
+    text = "".join(str(raw or "").split())
+    for pattern in _FRF_LABELS:
+        match = pattern.match(text)
+        if match is None:
+            continue
+        response = _unit_label(match["r"], tuple(_RESPONSE_UNIT_QUANTITY))
+        force = _unit_label(match["f"], names.FORCE_UNITS)
+        if response is not None and force is not None:
+            return response, force
+    return None, None
 
 
 class _System:
@@ -81,6 +126,10 @@ class _System:
     def is_si(self) -> bool:
         return np.isclose(self.length, 1.0, rtol=1e-6) and np.isclose(self.force, 1.0, rtol=1e-6)
 
+    @property
+    def length_is_si(self) -> bool:
+        return bool(np.isclose(self.length, 1.0, rtol=1e-6))
+
     def scaled(self, length: bool) -> str:
         factor = self.length if length else self.force
         what = "length" if length else "force"
@@ -92,12 +141,12 @@ def _units_system(sets: list[dict]) -> _System:
     return _System(found[0] if found else None)
 
 
-def _part(raw: Any, allowed, si: str, is_length: bool, system: _System, part: str):
-    """(units, scale to SI, why assumed or "", how scaled or "") of one side of a record."""
-    raw = str(raw or "").strip()
-    label = _unit_label(raw, allowed)
+def _part(label: str | None, raw: Any, si: str, is_length: bool, system: _System, part: str):
+    """(units, scale to SI, why assumed or "", how scaled or "") of one side of a record whose
+    unit label names the known unit ``label`` (None: none)."""
     if label is not None:
         return label, 1.0, "", ""
+    raw = str(raw or "").strip()
     if system.given:
         factor = system.length if is_length else system.force
         how = "" if system.is_si else f"{part} {system.scaled(is_length)}"
@@ -106,49 +155,98 @@ def _part(raw: Any, allowed, si: str, is_length: bool, system: _System, part: st
     return si, 1.0, f"{part} in {si} ({shown})", ""
 
 
-def _quantity_and_units(record: dict, path: Path, system: _System | None = None):
-    """(quantity, response units, force units, why assumed or "", scale to SI of the response
-    and of the force, how they were scaled or "") of a dataset-58 record.
-
-    A known unit label wins; without one, dataset 164 (when present) gives the units and the
-    values are scaled to SI; without both, SI is assumed and the reason is returned."""
-    spec = int(record.get("ordinate_spec_data_type", 0))
-    if spec not in SPEC_TO_QUANTITY:
-        raise DataFileError(
-            f"{path}: UFF record for DOF {record.get('rsp_node')}/{record.get('rsp_dir')} has "
-            f"ordinate specific data type {spec}; expected 8 (displacement), 11 (velocity) or "
-            "12 (acceleration)"
-        )
-    quantity = SPEC_TO_QUANTITY[spec]
-    system = system or _System(None)
-    resp = _part(
-        record.get("ordinate_axis_units_lab"),
-        names.RESPONSE_UNITS[quantity],
-        SI_UNITS[quantity],
-        True,
-        system,
-        "response",
-    )
-    force = _part(
-        record.get("orddenom_axis_units_lab"), names.FORCE_UNITS, "N", False, system, "force"
-    )
-    out = {"response": resp[:2], "force": force[:2]}
-    assumed = [p[2] for p in (resp, force) if p[2]]
-    scaled = [p[3] for p in (resp, force) if p[3]]
-    why = ""
-    if assumed:
-        why = (
-            "the file gives no usable unit label and no units dataset (164); assumed SI: "
-            + ", ".join(assumed)
-        )
+def _assumed_si(parts: Sequence[tuple]) -> str:
+    """Why SI was assumed for the parts (from :func:`_part`) that found no units, or ""."""
+    assumed = [p[2] for p in parts if p[2]]
+    if not assumed:
+        return ""
     return (
+        "the file gives no usable unit label and no units dataset (164); assumed SI: "
+        + ", ".join(assumed)
+    )
+
+
+@dataclass(frozen=True)
+class _Units:
+    """Quantity and units of a dataset-58 record (see :func:`_record_units`)."""
+
+    quantity: str
+    response: tuple  # (units, scale to SI, why assumed or "", how scaled or "")
+    force: tuple  # the same for the force
+    from_label: str = ""  # how the quantity came from the unit label, or ""
+    key: tuple = field(init=False)  # what must agree between the records of one Dataset
+
+    def __post_init__(self):
+        key = (self.quantity, *self.response[:2], *self.force[:2])
+        object.__setattr__(self, "key", key)
+
+    @property
+    def assumed(self) -> str:
+        return _assumed_si((self.response, self.force))
+
+    @property
+    def scaled(self) -> str:
+        return "; ".join(p[3] for p in (self.response, self.force) if p[3])
+
+
+def _dof_text(record: dict) -> str:
+    return f"DOF {record.get('rsp_node')}/{record.get('rsp_dir')}"
+
+
+def _record_quantity(record: dict, path: Path, response: str | None) -> tuple[str, str]:
+    """Response quantity of a record and, when the unit label gave it, how."""
+    spec = int(record.get("ordinate_spec_data_type", 0))
+    if spec in SPEC_TO_QUANTITY:
+        return SPEC_TO_QUANTITY[spec], ""
+    if spec in (0, 1) and response is not None:
+        quantity = _RESPONSE_UNIT_QUANTITY[response]
+        how = (
+            f"ordinate specific data type {spec} ({'unknown' if spec == 0 else 'general'}): "
+            f"{quantity} from the unit label {response!r}"
+        )
+        return quantity, how
+    label = str(record.get("ordinate_axis_units_lab", "") or "").strip()
+    raise DataFileError(
+        f"{path}: dataset 58 record of {_dof_text(record)} has ordinate specific data type "
+        f"{spec} and unit label {label!r}, which name no response quantity; expected data type "
+        "8 (displacement), 11 (velocity) or 12 (acceleration), or type 0/1 with a unit label "
+        "such as m, m/s, m/s^2 or g (alone or over a force, as m/s^2/N)"
+    )
+
+
+def _record_units(record: dict, path: Path, system: _System | None = None) -> _Units:
+    """Quantity and units of a dataset-58 record.
+
+    The quantity comes from the ordinate's specific data type (8, 11, 12), or, for type 0
+    (unknown) or 1 (general), from a unit label that names one. A known unit label wins (the
+    ordinate label may hold the whole FRF unit, ``"(1/N)*(m/s²)"``); without one, dataset 164
+    (when present) gives the units and the values are scaled to SI; without both, SI is assumed
+    and the reason is kept."""
+    response, label_force = _ordinate_units(record.get("ordinate_axis_units_lab"))
+    quantity, from_label = _record_quantity(record, path, response)
+    if response is not None and _RESPONSE_UNIT_QUANTITY[response] != quantity:
+        response = None  # a unit of another quantity than the data type says: not usable
+    force = _unit_label(record.get("orddenom_axis_units_lab"), names.FORCE_UNITS)
+    if force is not None and label_force is not None and force != label_force:
+        raise DataFileError(
+            f"{path}: dataset 58 record of {_dof_text(record)}: the ordinate label "
+            f"{record.get('ordinate_axis_units_lab')!r} is per {label_force} but the denominator "
+            f"label is {force!r}; expected one force unit"
+        )
+    system = system or _System(None)
+    raw = record.get("ordinate_axis_units_lab")
+    return _Units(
         quantity,
-        out["response"][0],
-        out["force"][0],
-        why,
-        out["response"][1],
-        out["force"][1],
-        "; ".join(scaled),
+        _part(response, raw, SI_UNITS[quantity], True, system, "response"),
+        _part(
+            force or label_force,
+            record.get("orddenom_axis_units_lab"),
+            "N",
+            False,
+            system,
+            "force",
+        ),
+        from_label,
     )
 
 
@@ -177,53 +275,45 @@ def _abscissa(record: dict) -> np.ndarray:
 
 
 # --- reading ---------------------------------------------------------------------------------
-def _read_sets(path: Path) -> list[dict]:
-    pyuff = require_pyuff()
-    if not path.is_file():
-        raise DataFileError(f"UFF file {str(path)!r} does not exist")
-    try:
-        data = path.read_bytes()
-    except OSError as err:
-        raise DataFileError(f"{path}: cannot read the file: {err}") from err
-    check_complete(data, path)
-    del data
-    try:
-        uff = pyuff.UFF(str(path))
-        sets = uff.read_sets()
-    except Exception as err:  # pyuff raises bare Exceptions of many kinds on bad files
-        raise DataFileError(
-            f"{path}: not a readable UFF file ({type(err).__name__}: {err})"
-        ) from err
-    if isinstance(sets, dict):
-        sets = [sets]
-    if not sets:
-        raise DataFileError(f"{path}: the UFF file holds no datasets")
-    check_lengths(list(sets), path)
-    return list(sets)
+@dataclass(frozen=True)
+class _Nodes:
+    """Node coordinates of datasets 15 and 2411 in metres, and how they were converted."""
+
+    xyz: dict[int, tuple[float, float, float]]
+    scaled: str = ""  # "point coordinates length / 1000 (dataset 164: ...)", or ""
 
 
-def _node_coordinates(sets: list[dict]) -> dict[int, tuple[float, float, float]]:
-    coords: dict[int, tuple[float, float, float]] = {}
+def _node_coordinates(sets: list[dict], system: _System) -> _Nodes:
+    """The coordinates of every node, converted to metres by the length factor of dataset 164
+    (the units of the whole file, node coordinates included)."""
+    factor = 1.0 if system.length_is_si else system.length
+    xyz: dict[int, tuple[float, float, float]] = {}
     for s in sets:
         if s.get("type") in (15, 2411):
             for n, x, y, z in zip(s["node_nums"], s["x"], s["y"], s["z"], strict=False):
-                coords[int(n)] = (float(x), float(y), float(z))
-    return coords
+                xyz[int(n)] = (float(x) / factor, float(y) / factor, float(z) / factor)
+    scaled = f"point coordinates {system.scaled(True)}" if xyz and factor != 1.0 else ""
+    return _Nodes(xyz, scaled)
 
 
-def _attach_coordinates(ds: xr.Dataset, coords: dict, label_nodes: dict) -> xr.Dataset:
-    if not coords:
+def _attach_coordinates(ds: xr.Dataset, nodes: _Nodes, label_nodes: dict) -> xr.Dataset:
+    if not nodes.xyz:
         return ds
     labels = ds[names.POINT].values
-    if not all(label_nodes.get(lab) in coords for lab in labels):
+    if not all(label_nodes.get(lab) in nodes.xyz for lab in labels):
         return ds
-    xyz = np.array([coords[label_nodes[lab]] for lab in labels])
-    return ds.assign_coords(
-        {
-            f"{names.POINT}_{axis}": (names.POINT, xyz[:, i], {names.ATTR_UNITS: "m"})
-            for i, axis in enumerate("xyz")
-        }
+    xyz = np.array([nodes.xyz[label_nodes[lab]] for lab in labels])
+    attrs = {names.ATTR_UNITS: names.COORDINATE_UNITS}
+    if nodes.scaled:
+        attrs[ATTR_UNITS_SCALED] = nodes.scaled
+    ds = ds.assign_coords(
+        {coord: (names.POINT, xyz[:, i], dict(attrs)) for i, coord in enumerate(names.POINT_COORDS)}
     )
+    if not nodes.scaled:
+        return ds
+    before = ds.attrs.get(ATTR_UNITS_SCALED)
+    how = f"{before}; {nodes.scaled}" if before else f"values converted to SI: {nodes.scaled}"
+    return ds.assign_attrs({ATTR_UNITS_SCALED: how})
 
 
 def _single_reference(records: list[dict], path: Path) -> tuple[list, Any, str]:
@@ -305,7 +395,7 @@ def _multi_reference(records: list[dict], path: Path) -> tuple[list, list, list]
 
 
 def _read_frf(
-    frfs: list[dict], coh: list[dict], coords: dict, path: Path, system: _System
+    frfs: list[dict], coh: list[dict], nodes: _Nodes, path: Path, system: _System
 ) -> xr.Dataset:
     multi = _multi_reference(frfs, path)
     if multi is None:
@@ -314,27 +404,31 @@ def _read_frf(
             raise DataFileError(
                 f"{path}: the FRF records repeat a DOF ({labels}); expected one per point"
             )
-    units = [_quantity_and_units(r, path, system) for r in frfs]
-    quantities = {u[:3] + u[4:6] for u in units}
-    if len(quantities) != 1:
+    units = [_record_units(r, path, system) for r in frfs]
+    keys = {u.key for u in units}
+    if len(keys) != 1:
         raise DataFileError(
-            f"{path}: the FRFs mix response quantities or units {sorted(quantities)}; expected one"
+            f"{path}: the FRFs mix response quantities or units {sorted(keys)}; expected one"
         )
-    quantity, resp_units, force_units, resp_scale, force_scale = quantities.pop()
-    assumed = next((u[3] for u in units if u[3]), "")
-    scaled = next((u[6] for u in units if u[6]), "")
+    quantity, resp_units, resp_scale, force_units, force_scale = keys.pop()
+    assumed = next((u.assumed for u in units if u.assumed), "")
+    attrs = _unit_attrs(assumed, next((u.scaled for u in units if u.scaled), ""))
+    from_label = next((u.from_label for u in units if u.from_label), "")
+    if from_label:
+        attrs[ATTR_QUANTITY_FROM_LABEL] = from_label
     grids = [_abscissa(r) for r in frfs]
     _check_same_grid(frfs, grids, path, "FRF")
     freq = grids[0]
     data = np.stack([np.asarray(r["data"], dtype=np.complex128) for r in frfs])
     if resp_scale != 1.0 or force_scale != 1.0:
         data = data * (resp_scale / force_scale)
+    if assumed:
+        _tell_assumed(path, assumed)
     if multi is not None:
-        if assumed:
-            _tell_assumed(path, assumed)
-        return _read_multi_reference(
-            frfs, data, multi, freq, (quantity, resp_units, force_units), coh, coords, path
-        ).assign_attrs(_unit_attrs(assumed, scaled))
+        ds, label_nodes = _read_multi_reference(
+            frfs, data, multi, freq, (quantity, resp_units, force_units), coh, path
+        )
+        return _attach_coordinates(ds.assign_attrs(attrs), nodes, label_nodes)
     label_nodes = {}
     for r, lab in zip(frfs, labels, strict=True):
         key = "ref" if layout.startswith("roving") else "rsp"
@@ -364,13 +458,9 @@ def _read_frf(
             names.ATTR_SOURCE: names.SOURCE_MEASURED,
             names.ATTR_SOURCE_FILE: path.name,
             "uff_layout": layout,
+            **attrs,
         },
     )
-    if assumed:
-        ds.attrs[ATTR_UNITS_ASSUMED] = assumed
-        _tell_assumed(path, assumed)
-    if scaled:
-        ds.attrs[ATTR_UNITS_SCALED] = f"values converted to SI: {scaled}"
     if coh:
         coh_labels, _, _ = _single_reference(coh, path)
         coh_labels = _mixed_labels_to_str(coh_labels)
@@ -385,7 +475,7 @@ def _read_frf(
                     values,
                     {names.ATTR_UNITS: "1"},
                 )
-    return _attach_coordinates(ds, coords, label_nodes)
+    return _attach_coordinates(ds, nodes, label_nodes)
 
 
 def _unit_attrs(assumed: str, scaled: str) -> dict:
@@ -405,10 +495,10 @@ def _read_multi_reference(
     freq: np.ndarray,
     units: tuple[str, str, str],
     coh: list[dict],
-    coords: dict,
     path: Path,
-) -> xr.Dataset:
-    """FRF Dataset ``frf`` (reference, point, frequency) of multi-reference records."""
+) -> tuple[xr.Dataset, dict]:
+    """FRF Dataset ``frf`` (reference, point, frequency) of multi-reference records, and the
+    node of each point label."""
     points, refs, index = multi
     quantity, resp_units, force_units = units
     values = np.empty((len(refs), len(points), freq.size), dtype=np.complex128)
@@ -454,12 +544,22 @@ def _read_multi_reference(
                     coh_values,
                     {names.ATTR_UNITS: "1"},
                 )
-    return _attach_coordinates(ds, coords, label_nodes)
+    return ds, label_nodes
 
 
-def _read_time(records: list[dict], coords: dict, path: Path, system: _System) -> xr.Dataset:
-    force_recs = [r for r in records if int(r.get("ordinate_spec_data_type", 0)) in SPEC_FORCE]
-    resp_recs = [r for r in records if r not in force_recs]
+def _is_force(record: dict) -> bool:
+    """A force record: specific data type 13 or 9, or 0/1 (unknown, general) with a force unit
+    label."""
+    spec = int(record.get("ordinate_spec_data_type", 0))
+    if spec in SPEC_FORCE:
+        return True
+    label = _unit_label(record.get("ordinate_axis_units_lab"), names.FORCE_UNITS)
+    return spec in (0, 1) and label is not None
+
+
+def _read_time(records: list[dict], nodes: _Nodes, path: Path, system: _System) -> xr.Dataset:
+    force_recs = [r for r in records if _is_force(r)]
+    resp_recs = [r for r in records if not _is_force(r)]
     if not resp_recs:
         raise DataFileError(f"{path}: the time records hold no response channel (only force)")
     grids = [_abscissa(r) for r in records]
@@ -467,30 +567,17 @@ def _read_time(records: list[dict], coords: dict, path: Path, system: _System) -
     time = grids[0]
     cases = sorted({int(r.get("load_case_id", 0)) for r in records})
     labels = list(dict.fromkeys(_label_of(r, "rsp") for r in resp_recs))
-    quantities = {_quantity_and_units(r, path, system)[:2] for r in resp_recs}
+    units = [_record_units(r, path, system) for r in resp_recs]
+    quantities = {(u.quantity, *u.response[:2]) for u in units}
     if len(quantities) != 1:
         raise DataFileError(f"{path}: the responses mix quantities or units {sorted(quantities)}")
-    quantity, resp_units = quantities.pop()
-    resp_part = _part(
-        resp_recs[0].get("ordinate_axis_units_lab"),
-        names.RESPONSE_UNITS[quantity],
-        SI_UNITS[quantity],
-        True,
-        system,
-        "response",
-    )
-    force_part = (
-        _part(
-            force_recs[0].get("ordinate_axis_units_lab"),
-            names.FORCE_UNITS,
-            "N",
-            False,
-            system,
-            "force",
-        )
-        if force_recs
-        else ("N", 1.0, "", "")
-    )
+    quantity, resp_units, _ = quantities.pop()
+    resp_part = units[0].response
+    force_part = ("N", 1.0, "", "")
+    if force_recs:
+        raw = force_recs[0].get("ordinate_axis_units_lab")
+        label = _unit_label(raw, names.FORCE_UNITS)
+        force_part = _part(label, raw, "N", False, system, "force")
     force_units = force_part[0]
     resp = np.full((len(cases), len(labels), time.size), np.nan)
     for r in resp_recs:
@@ -539,114 +626,17 @@ def _read_time(records: list[dict], coords: dict, path: Path, system: _System) -
         )
         drive = drives.pop()
         ds.attrs[names.ATTR_DRIVE_POINT] = str(drive) if isinstance(labels_out[0], str) else drive
-    assumed = [p[2] for p in (resp_part, force_part) if p[2]]
+    assumed = _assumed_si((resp_part, force_part))
+    ds.attrs.update(_unit_attrs(assumed, "; ".join(p[3] for p in (resp_part, force_part) if p[3])))
     if assumed:
-        why = (
-            "the file gives no usable unit label and no units dataset (164); assumed SI: "
-            + ", ".join(assumed)
-        )
-        ds.attrs[ATTR_UNITS_ASSUMED] = why
-        _tell_assumed(path, why)
-    scaled = [p[3] for p in (resp_part, force_part) if p[3]]
-    if scaled:
-        ds.attrs[ATTR_UNITS_SCALED] = "values converted to SI: " + "; ".join(scaled)
+        _tell_assumed(path, assumed)
+    from_label = next((u.from_label for u in units if u.from_label), "")
+    if from_label:
+        ds.attrs[ATTR_QUANTITY_FROM_LABEL] = from_label
     if len(cases) == 1:
         ds = ds.isel({names.RECORD: 0}, drop=True)
     label_nodes = {lab: parse_point_label(lab)[0] for lab in labels_out if parse_point_label(lab)}
-    return _attach_coordinates(ds, coords, label_nodes)
-
-
-def _read_modes(modes: list[dict], coords: dict, path: Path) -> xr.Dataset:
-    # Collect every (node, direction) that carries data, in node order.
-    comp_keys = ("r1", "r2", "r3", "r4", "r5", "r6")
-    dofs: list[tuple[int, int]] = []
-    for m in modes:
-        for c, key in enumerate(comp_keys, start=1):
-            values = m.get(key)
-            if values is None:
-                continue
-            for node, v in zip(m["node_nums"], np.asarray(values), strict=True):
-                if v != 0 and (int(node), c) not in dofs:
-                    dofs.append((int(node), c))
-    dofs.sort()
-    labels = [point_label(n, d) for n, d in dofs]
-    vectors = np.zeros((len(dofs), len(modes)), dtype=np.complex128)
-    eig = np.zeros(len(modes), dtype=np.complex128)
-    for k, m in enumerate(modes):
-        eig[k] = complex(m.get("eig", np.nan))
-        nodes = [int(n) for n in m["node_nums"]]
-        for i, (node, c) in enumerate(dofs):
-            values = m.get(comp_keys[c - 1])
-            if values is not None and node in nodes:
-                vectors[i, k] = np.asarray(values)[nodes.index(node)]
-    wn = np.abs(eig)
-    ds = xr.Dataset(
-        {
-            names.EIGENVALUE: (names.MODE, eig, {names.ATTR_UNITS: "rad/s"}),
-            names.NATURAL_FREQUENCY: (names.MODE, wn / (2 * np.pi), {names.ATTR_UNITS: "Hz"}),
-            names.DAMPING_RATIO: (names.MODE, -eig.real / wn, {names.ATTR_UNITS: "1"}),
-            names.MODE_VECTOR: ((names.POINT, names.MODE), vectors),
-        },
-        coords={
-            names.POINT: labels,
-            names.MODE: [int(m.get("mode_n", k + 1)) for k, m in enumerate(modes)],
-        },
-        attrs={names.ATTR_SOURCE_FILE: path.name},
-    )
-    return _attach_coordinates(
-        ds, coords, {lab: n for lab, (n, _) in zip(labels, dofs, strict=True)}
-    )
-
-
-def _modal_variables(modes: list[dict], vectors: np.ndarray) -> dict:
-    eig = np.array([complex(m.get("eig", np.nan)) for m in modes], dtype=np.complex128)
-    wn = np.abs(eig)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        zeta = -eig.real / wn
-    return {
-        names.EIGENVALUE: (names.MODE, eig, {names.ATTR_UNITS: names.ANGULAR_UNITS}),
-        names.NATURAL_FREQUENCY: (
-            names.MODE,
-            wn / (2 * np.pi),
-            {names.ATTR_UNITS: names.FREQUENCY_UNITS},
-        ),
-        names.DAMPING_RATIO: (names.MODE, zeta, {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}),
-        names.MODE_VECTOR: ((names.POINT, names.MODE), vectors),
-    }
-
-
-def _with_modes(ds: xr.Dataset, modes: list[dict], path: Path) -> xr.Dataset:
-    """The FRF Dataset with the dataset-55 modes at its points (the mapping of
-    :func:`ami_xr.io.uff.write_uff`: component ``|direction|`` of the point's node, sign flipped
-    for a negative direction, Z for a scalar DOF). Modes that miss a point are not merged: a
-    warning and the attribute ``uff_modes_skipped`` say so."""
-    labels = ds[names.POINT].values.tolist()
-    dof = dof_map(labels)
-    vectors = np.zeros((len(labels), len(modes)), dtype=np.complex128)
-    missing = []
-    for k, m in enumerate(modes):
-        nodes = [int(n) for n in m["node_nums"]]
-        for i, lab in enumerate(labels):
-            node, direction, _ = dof[lab]
-            axis = abs(direction) if direction != 0 else 3
-            values = m.get(f"r{axis}")
-            if values is None or node not in nodes:
-                missing.append(lab)
-                continue
-            sign = -1.0 if direction < 0 else 1.0
-            vectors[i, k] = sign * np.asarray(values)[nodes.index(node)]
-    if missing:
-        why = (
-            f"{len(modes)} mode shape(s) (dataset 55) not merged with the FRFs: no value at "
-            f"point(s) {sorted(set(map(str, missing)))}; read them with read_uff(path, "
-            "kind='modes')"
-        )
-        warnings.warn(f"{path.name}: {why}", _ASSUMPTION, stacklevel=3)
-        return ds.assign_attrs({ATTR_MODES_SKIPPED: why})
-    mode_labels = [int(m.get("mode_n", k + 1)) for k, m in enumerate(modes)]
-    if len(set(mode_labels)) != len(mode_labels):
-        mode_labels = list(range(1, len(modes) + 1))
-    return ds.assign_coords({names.MODE: mode_labels}).assign(_modal_variables(modes, vectors))
+    return _attach_coordinates(ds, nodes, label_nodes)
 
 
 def read_uff(
@@ -673,26 +663,32 @@ def read_uff(
     xarray.Dataset
         FRF Dataset (``frf`` (point, frequency); ``(reference, point, frequency)`` when the
         FRFs have several responses and several references), time Dataset (``response``,
-        ``force``) or modal Dataset (``eigenvalue``, ``mode_vector``), following the ami_xr
-        data model. See the module docstring for the mapping of DOFs, references and units.
+        ``force``) or modal Dataset (``eigenvalue``, ``natural_frequency``,
+        ``damping_ratio``, ``mode_vector``; normal modes also ``modal_mass``), following the
+        ami_xr data model. See the package docstring (:mod:`ami_xr.io.uff`) for the mapping of
+        DOFs, references, mode types and units.
 
     Raises
     ------
     DataFileError
         Missing or unreadable file, no dataset of the requested kind, several references and
         several responses without exactly one FRF per (reference, response) pair, records on
-        different grids, unknown quantities.
+        different grids, unknown quantities, a dataset pyuff cannot read (named with its line),
+        normal modes with a damping ratio outside (-1, 1).
     """
     path = Path(path)
     if kind not in (None, "frf", "time", "modes"):
         raise AmiXrValueError(f"kind must be None, 'frf', 'time' or 'modes'; got {kind!r}")
-    sets = _read_sets(path)
-    coords = _node_coordinates(sets)
+    sets = read_sets(path)
     s58 = [s for s in sets if s.get("type") == 58]
     frfs = [s for s in s58 if int(s.get("func_type", 0)) == FUNC_FRF]
     times = [s for s in s58 if int(s.get("func_type", 0)) == FUNC_TIME]
     cohs = [s for s in s58 if int(s.get("func_type", 0)) == FUNC_COHERENCE]
-    modes = [s for s in sets if s.get("type") == 55 and int(s.get("analysis_type", 0)) in (2, 3)]
+    modes = [
+        s
+        for s in sets
+        if s.get("type") == 55 and int(s.get("analysis_type", 0)) in MODE_ANALYSIS_TYPES
+    ]
     found = {"frf": frfs, "time": times, "modes": modes}
     if kind is None:
         kind = next((k for k in ("frf", "time", "modes") if found[k]), None)
@@ -705,14 +701,16 @@ def read_uff(
     elif not found[kind]:
         raise DataFileError(f"{path}: the file holds no {kind} dataset")
     system = _units_system(sets)
+    nodes = _node_coordinates(sets, system)
     if kind == "frf":
-        ds = _read_frf(frfs, cohs, coords, path, system)
+        ds = _read_frf(frfs, cohs, nodes, path, system)
         if modes and merge_modes:
-            ds = _with_modes(ds, modes, path)
+            ds = with_modes(ds, modes, path)
     elif kind == "time":
-        ds = _read_time(times, coords, path, system)
+        ds = _read_time(times, nodes, path, system)
     else:
-        ds = _read_modes(modes, coords, path)
+        ds, label_nodes = read_modes(modes, path)
+        ds = _attach_coordinates(ds, nodes, label_nodes)
     return _validated(ds)
 
 

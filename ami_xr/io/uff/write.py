@@ -21,6 +21,7 @@ from ami_xr.io.uff.codes import (
     FUNC_COHERENCE,
     FUNC_FRF,
     FUNC_TIME,
+    MODES_ID1,
     QUANTITY_TO_SPEC,
     SPEC_FREQUENCY,
     SPEC_TIME,
@@ -322,7 +323,7 @@ def _mode_records(ds: xr.Dataset) -> list[dict]:
         records.append(
             {
                 "type": 55,
-                "id1": "ami_xr mode shapes",
+                "id1": MODES_ID1,
                 "id2": id2,
                 "id3": id3,
                 "id4": "NONE",
