@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ami_xr.core import varpro
+from ami_xr.core.model_error import eigenvalue_scatter, error_variance, within_scatter
 from ami_xr.core.proposals import cluster_starts
 from ami_xr.core.regions import band_fit, complex_rows, fit_modes, residual_rows, weighted_gain
 
@@ -29,16 +30,6 @@ PAIR_EXCESS = 2.0
 SCREEN_ITERATIONS, SCREEN_KEEP = 3, 3
 # trials of one completion step: at most this many splits and twice as many cluster refits
 MAX_TRIALS = 3
-# the noise level of a line is the running median of the residual power over this many typical
-# half-power bandwidths (measured FRFs are noisier at some frequencies than at others)
-NOISE_WIDTHS = 20.0
-# two poles closer than this many standard deviations of the FRF-to-FRF scatter of a peak's
-# eigenvalue are one mode seen at slightly different frequencies (mass loading, drift): the
-# range of n <= 12 draws from a spread of standard deviation sigma is below 4 sigma (uniform:
-# 2 sqrt(3) sigma; normal: ~3.3 sigma for 8 draws)
-SCATTER_RANGE = 4.0
-# points needed to estimate that scatter (two give one difference, no spread)
-SCATTER_POINTS = 3
 # false-alarm probability of the screen that picks where the residual shows structure
 SCREEN_PFA = 0.1
 
@@ -288,48 +279,37 @@ def _add_missed(
     # One acceptance rule for every trial: the likelihood-ratio gain against the error
     # variance of each line (noise plus the model error a typical measured peak shows,
     # error_variance), less ``threshold`` per mode added. Every trial is screened on its own
-    # band (the modes outside held at the present fit); a trial whose band is most of the data
-    # is screened with a few iterations on all lines. Only trials that pass the screen are
-    # fitted on all lines, best first, the first that passes again is taken: one full fit per
-    # accepted change, at most SCREEN_KEEP in a step that changes nothing.
+    # band (the modes outside held at the present fit). Only trials that pass the screen are
+    # fitted on all lines, the first that passes again is taken: one full fit per accepted
+    # change, at most SCREEN_KEEP in a step. Trials the band cannot judge (most of the lines,
+    # or a mode it tries froze there) are screened with a few iterations on all lines, only
+    # when no band-screened trial holds.
     var = error_variance(prob, fit.proj, width, np.zeros(fit.lam.size, bool), local=True)[0]
     r_now = complex_rows(residual_rows(prob, fit.proj))
     scatter = eigenvalue_scatter(prob, fit.proj, width)
-    screened = []
-    starts = {}
-    for i, (start, ref, n_add, _) in enumerate(trials):
+    screened, deferred, starts = [], [], {}
+    for i, (_, _, n_add, _) in enumerate(trials):
         gain, refined, n_it = band_fit(prob, fit, trials[i], trial_opts, min_width, var)
-        starts[i] = refined
         state.n_iter += n_it
-        if gain is not None and _within_scatter(refined, fit.lam, scatter):
-            continue  # a pair no wider than one mode's FRF-to-FRF scatter: model error
-        if gain is None:
+        if gain is None:  # the band cannot judge it: screened on all lines if need be
+            deferred.append(i)
+        elif gain - n_add * threshold > 0 and not within_scatter(refined, fit.lam, scatter):
+            screened.append((gain - n_add * threshold, i))
+            starts[i] = refined
+    judge = (prob, state, fit, trials, threshold, r_now, var, scatter, trial_opts)
+    best = _take(screened, starts, *judge)
+    if best is None and deferred:
+        # only when no band-screened trial holds: a few iterations on all lines each
+        screened = []
+        for i in deferred:
+            start, ref, n_add, _ = trials[i]
             quick = fit_modes(prob, start, ref, **dict(trial_opts, max_iter=SCREEN_ITERATIONS))
             state.n_iter += quick[2]
-            gain = _full_gain(prob, r_now, quick[0], var)
-        if gain - n_add * threshold > 0:
-            screened.append((gain - n_add * threshold, i))
-    # the best score first; then, should it fail on all lines, the fewest modes added first (a
-    # cluster refit that fails in full must not hide the single pole that explains a peak)
-    screened.sort(key=lambda s: -s[0])
-    screened = screened[:1] + sorted(screened[1:], key=lambda s: (trials[s[1]][2], -s[0]))
-    best = None
-    for _, i in screened[:SCREEN_KEEP]:
-        start, ref, n_add, removed = trials[i]
-        trial = fit_modes(prob, starts[i], ref, **trial_opts)
-        state.n_iter += trial[2]
-        score = _full_gain(prob, r_now, trial[0], var) - n_add * threshold
-        # the modes tried (new or restarted) must stay free; a mode already frozen may stay so
-        kept_free = np.delete(state.free, removed)
-        moved = start[: kept_free.size] != np.delete(fit.lam, removed)
-        must = np.append(kept_free | moved, np.ones(start.size - kept_free.size, bool))
-        if (
-            trial[1][must].all()
-            and score > 0
-            and not _within_scatter(trial[0].lam, fit.lam, scatter)
-        ):
-            best = (trial, ref, removed, moved)
-            break
+            score = _full_gain(prob, r_now, quick[0], var) - n_add * threshold
+            if score > 0:
+                screened.append((score, i))
+                starts[i] = start
+        best = _take(screened, starts, *judge)
     if best is None:
         return False
     (state.fit, free, _, _), ref, removed, moved = best
@@ -341,71 +321,30 @@ def _add_missed(
     return True
 
 
-def eigenvalue_scatter(prob, proj, width: np.ndarray) -> np.ndarray:
-    """FRF-to-FRF scatter of each mode's eigenvalue, relative to ``|lam_k|`` (K,): the model
-    error of a measured peak as a number, estimated the same way at every peak.
-
-    Each FRF ``j`` is let to shift mode ``k``'s eigenvalue on its own: the shift ``d_jk`` is the
-    least-squares fit of the residual ``r_j`` on the eigenvalue derivative of the mode's
-    contribution ``A_jk b(lam_k)``, over the lines within three half-power bandwidths. The
-    scatter is the weighted spread of ``d_jk`` over the points (weights: each shift's Fisher
-    information ``w_j``), less what the noise alone gives (``sum w |d - mean|^2`` is chi-square
-    with ``2 (P - 1)`` degrees of freedom for a mode every FRF sees at the same eigenvalue;
-    its mean and three standard deviations are taken off). NaN with fewer than
-    ``SCATTER_POINTS`` points.
-    """
-    n_point, n_mode = prob.n_points, proj.lam.size
-    out = np.full(n_mode, np.nan)
-    if n_point < SCATTER_POINTS or not proj.ok:
-        return out
-    resid = complex_rows(residual_rows(prob, proj))
-    s2 = np.maximum(np.median(np.abs(resid) ** 2, axis=1), 1e-300) / np.log(2.0)  # E|e|^2
-    deriv = complex_rows(proj.v.T).T  # (L, 2K): u_k, v_k of model_columns, line-weighted
-    for k in range(n_mode):
-        band = np.abs(prob.omega - proj.lam[k].imag) <= 3.0 * width[k]
-        if band.sum() < 4:
-            continue
-        u, v = deriv[band, 2 * k], deriv[band, 2 * k + 1]
-        a1, a2 = proj.coef[:, 2 * k], proj.coef[:, 2 * k + 1]
-        d_re = a1[:, None] * u + a2[:, None] * v  # (P, n): d model / d Re lam
-        d_im = a1[:, None] * v - a2[:, None] * u  # d model / d Im lam
-        r = resid[:, band]
-        g = np.empty((n_point, 2, 2))
-        g[:, 0, 0] = np.sum(np.abs(d_re) ** 2, axis=1)
-        g[:, 1, 1] = np.sum(np.abs(d_im) ** 2, axis=1)
-        g[:, 0, 1] = g[:, 1, 0] = np.sum((d_re.conj() * d_im).real, axis=1)
-        b = np.stack([np.sum((d_re.conj() * r).real, 1), np.sum((d_im.conj() * r).real, 1)], 1)
-        ok = np.linalg.det(g) > 1e-12 * np.maximum(g[:, 0, 0] * g[:, 1, 1], 1e-300)
-        if ok.sum() < SCATTER_POINTS:
-            continue
-        shift = np.linalg.solve(g[ok], b[ok][..., None])[..., 0]
-        d = shift[:, 0] + 1j * shift[:, 1]
-        w = 0.5 * (g[ok, 0, 0] + g[ok, 1, 1]) / (0.5 * s2[ok])  # information of one component
-        mean = np.sum(w * d) / np.sum(w)
-        stat = np.sum(w * np.abs(d - mean) ** 2)
-        dof = 2 * (d.size - 1)
-        excess = max(stat - dof - 3.0 * np.sqrt(2.0 * dof), 0.0)
-        out[k] = np.sqrt(excess / np.sum(w) * d.size / max(d.size - 1, 1)) / abs(proj.lam[k])
-    return out
-
-
-def _within_scatter(trial_lam, old_lam, scatter: np.ndarray) -> bool:
-    """Whether a trial puts a new or moved pole closer to another than ``SCATTER_RANGE`` times
-    the typical FRF-to-FRF scatter of a peak (``scatter`` of the present modes, the median over
-    the modes away from the pole): a split of one mode that no pole fits at every FRF."""
-    if not np.isfinite(scatter).any():
-        return False
-    fresh = ~np.isin(trial_lam, old_lam)
-    for k in np.flatnonzero(fresh):
-        others = np.delete(trial_lam, k)
-        if not others.size:
-            continue
-        gap = np.min(np.abs(others.imag - trial_lam[k].imag))
-        away = np.abs(old_lam.imag - trial_lam[k].imag) > gap + 1e-12
-        typical = scatter[away & np.isfinite(scatter)]
-        if typical.size and gap < SCATTER_RANGE * np.median(typical) * abs(trial_lam[k]):
-            return True
-    return False
+def _take(screened, starts, prob, state, fit, trials, threshold, r_now, var, scatter, opts):
+    """Fit the screened trials on all lines, at most ``SCREEN_KEEP``, and return the first that
+    holds (``(fit result, reference, removed, moved)``) or None. The best screen score first;
+    then, should it fail on all lines, the fewest modes added first (a cluster refit that
+    fails in full must not hide the single pole that explains a peak). A trial holds when its
+    gain against ``var`` is above ``threshold`` per mode added, every mode it tries stays free
+    (a mode already frozen may stay so) and it makes no pair within one mode's scatter."""
+    screened = sorted(screened, key=lambda s: -s[0])
+    screened = screened[:1] + sorted(screened[1:], key=lambda s: (trials[s[1]][2], -s[0]))
+    for _, i in screened[:SCREEN_KEEP]:
+        start, ref, n_add, removed = trials[i]
+        trial = fit_modes(prob, starts[i], ref, **opts)
+        state.n_iter += trial[2]
+        score = _full_gain(prob, r_now, trial[0], var) - n_add * threshold
+        kept_free = np.delete(state.free, removed)
+        moved = start[: kept_free.size] != np.delete(fit.lam, removed)
+        must = np.append(kept_free | moved, np.ones(start.size - kept_free.size, bool))
+        if (
+            trial[1][must].all()
+            and score > 0
+            and not within_scatter(trial[0].lam, fit.lam, scatter)
+        ):
+            return trial, ref, removed, moved
+    return None
 
 
 def _full_gain(prob, r_now: np.ndarray, trial, var: np.ndarray) -> float:
@@ -420,67 +359,6 @@ def _peak_strength(proj, k: int) -> float:
     """Size of mode ``k``'s resonance: sum over points of ``|A_jk| / |Re lam_k|``."""
     a = proj.coef[:, 2 * k] + 1j * proj.coef[:, 2 * k + 1]
     return float(np.sum(np.abs(a)) / max(abs(proj.lam[k].real), 1e-300))
-
-
-def _white_part(resid: np.ndarray) -> np.ndarray:
-    """``|e|^2`` estimates (P, L) from the second difference of complex residuals (P, L):
-    ``r_i - (r_(i-1) + r_(i+1)) / 2`` has 1.5 times the variance of white noise and removes
-    what is smooth from line to line (the edges repeat their neighbour)."""
-    if resid.shape[1] < 3:
-        return np.abs(resid) ** 2
-    d = resid[:, 1:-1] - 0.5 * (resid[:, :-2] + resid[:, 2:])
-    d2 = np.abs(d) ** 2 / 1.5
-    return np.concatenate([d2[:, :1], d2, d2[:, -1:]], axis=1)
-
-
-def error_variance(prob, proj, width: np.ndarray, skip: np.ndarray, local: bool = False):
-    """Variance ``E|e|^2`` (P, L) of noise and model error on each line, from the residual.
-
-    ``s_j^2 + eps^2 |H_j(w)|^2``: a noise level per FRF from the median of ``|r_j|^2`` (for
-    complex Gaussian noise ``|e|^2`` is exponential, its median ``ln 2 E|e|^2``: robust to the
-    model error at the peaks) plus a model error proportional to the model ``H`` (mass loading,
-    slight nonlinearity, leakage grow with the response). The model error of mode ``k`` is
-    ``rho_k``, the residual power in excess of the noise (beyond three standard deviations of
-    its sum, so that pure noise gives ~0) over the model power within three half-power
-    bandwidths ``width[k]`` of it; ``eps^2`` is the median of ``rho_k`` over the modes not in
-    ``skip`` (the typical model error of a peak; robust to one peak with a missed mode). The
-    nominal noise floor is not used; with white noise and an exact model ``eps^2`` is ~0.
-    ``local``: the noise level of each line is the running median of ``|r_j|^2`` over
-    ``NOISE_WIDTHS`` median bandwidths instead of one level per FRF (measured FRFs are noisier
-    near antiresonances and where the coherence drops; a missed mode's bump, a few bandwidths
-    wide, barely moves the running median).
-
-    Returns ``(variance (P, L), rho (K,), largest rho over the modes not in skip)``.
-    """
-    from scipy.ndimage import median_filter  # lazy: scipy.ndimage is slow to import
-
-    resid = complex_rows(residual_rows(prob, proj))
-    model = complex_rows(prob.y) - resid
-    r2 = np.abs(resid) ** 2
-    m2 = np.abs(model) ** 2
-    if local:
-        # the noise level along frequency: a running median over NOISE_WIDTHS typical
-        # bandwidths of the residual's second difference (noise is white from line to line,
-        # a missed mode or a peak's model error is smooth there and cancels; a missed mode's
-        # tails no longer count as noise on noise-free data)
-        dw = prob.omega[1] - prob.omega[0] if prob.omega.size > 1 else 1.0
-        size = int(np.clip(NOISE_WIDTHS * np.median(width) / dw, 21, prob.omega.size)) | 1
-        s2 = median_filter(_white_part(resid), size=(1, size), mode="nearest")
-    else:
-        s2 = np.broadcast_to(np.median(r2, axis=1)[:, None], r2.shape)
-    s2 = np.maximum(s2, 1e-300) / np.log(2.0)
-    rho = np.zeros(proj.lam.size)
-    for k in range(proj.lam.size):
-        band = np.abs(prob.omega - proj.lam[k].imag) <= 3.0 * width[k]
-        if band.any():
-            # excess over the noise beyond its own spread (|e|^2 exponential: std = mean),
-            # three standard deviations: pure noise gives rho ~ 0
-            spread = np.sqrt(np.sum(s2[:, band] ** 2))
-            excess = np.sum(r2[:, band] - s2[:, band]) - 3.0 * spread
-            rho[k] = max(excess, 0.0) / max(np.sum(m2[:, band]), 1e-300)
-    others = rho[~skip]
-    eps2 = float(np.median(others)) if others.size else 0.0
-    return s2 + eps2 * m2, rho, float(np.max(others)) if others.size else 0.0
 
 
 def _close_pairs(lam: np.ndarray, width: np.ndarray) -> list[tuple[int, int]]:
@@ -510,7 +388,8 @@ def _merge_split_pairs(prob, state: State, pfa: float, decay: float, trial_opts,
       ``1 / (n + 1)``). Without model error (all ``rho`` ~ 0) this test passes;
     * the second pole explains significantly more than noise and model error: on the lines
       within three bandwidths of the pair, with the variance ``v`` estimated from the one-pole
-      model's residual (:func:`_error_variance`, the pair's own peak left out of the
+      model's residual (:func:`~ami_xr.core.model_error.error_variance`, the pair's own peak left
+      out of the
       model-error estimate), ``2 sum (|r_1|^2 - |r_2|^2) / v`` exceeds the chi-square quantile
       with ``2 + 2P`` degrees of freedom (the second eigenvalue and its residues) at false-alarm
       probability ``pfa``;

@@ -183,12 +183,8 @@ def band_fit(prob, fit, trial, opts: dict, min_width: float, var: np.ndarray | N
     refined = start.copy()
     refined[entry] = local[0].lam
     tried = changed[entry]
-    fine = np.all(np.isfinite(before)) and np.isfinite(local[0].cost)
-    if fine and var is not None and not local[1][tried].all():
-        # a mode the trial tries leaves its region on the trial's own band: the data there do
-        # not hold it, and a fit on all lines would not either
-        return -np.inf, refined, local[2]
-    if not (fine and local[1][tried].all()):
+    fine = np.all(np.isfinite(before)) and np.isfinite(local[0].cost) and local[1][tried].all()
+    if not fine:
         return None, refined, local[2]  # the band cannot tell (a far mode's tail, a neighbour)
     if var is not None:
         r_after = complex_rows(residual_rows(band, local[0].proj))
