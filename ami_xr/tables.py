@@ -12,17 +12,37 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.core import flags as qf
 from ami_xr.errors import AmiXrValueError
 
 __all__ = [
     "modal_table",
     "modal_table_csv_rows",
     "format_modal_table",
+    "flag_legend",
+    "cap_notes",
     "participation_table",
     "repeated_pairs",
     "STD_COLUMNS",
     "INDICATOR_COLUMNS",
+    "CAP_DESCRIPTIONS",
+    "FOUND_BY_REFINEMENT",
 ]
+
+#: The "detected in" text of a mode no FRF detected that the refinement added (flag
+#: ``added_by_refine``), instead of "none".
+FOUND_BY_REFINEMENT = "found by the refinement"
+
+#: What each entry of the attributes ``ami_capped`` / ``ami_capped_superseded`` means, in words.
+CAP_DESCRIPTIONS: dict[str, str] = {
+    "subtract:max_modes": "the subtraction phase stopped at its limit of candidate modes per FRF "
+    "(max_modes)",
+    "subtract:max_rejected_peaks": "the subtraction phase stopped after examining its limit of "
+    "peaks (3 max_modes + 10)",
+    "isolate:max_iter": "the isolation phase reached its iteration limit (max_iter) at some FRF",
+    "refine:max_iter": "the refinement stopped at its iteration limit before converging",
+    "refine:add_modes": "the refinement stopped adding modes at its limit (add_modes)",
+}
 
 
 def _text(value: Any) -> str:
@@ -46,8 +66,9 @@ def modal_table(ds: xr.Dataset) -> list[dict[str, Any]]:
     -------
     list of dict
         Keys ``mode``, ``frequency_hz``, ``frequency_rad_s``, ``damping_percent``,
-        ``eigenvalue`` (complex rad/s or nan), ``detected_in`` (point labels joined by spaces, or
-        "-" when unknown) and ``flags`` ("" when none).
+        ``eigenvalue`` (complex rad/s or nan), ``detected_in`` (point labels joined by spaces;
+        :data:`FOUND_BY_REFINEMENT` for a mode no FRF detected that the refinement added, "none"
+        for another mode no FRF detected, "-" when unknown) and ``flags`` ("" when none).
     """
     if names.EIGENVALUE in ds:
         lam = np.atleast_1d(np.asarray(ds[names.EIGENVALUE].values, dtype=np.complex128))
@@ -71,19 +92,20 @@ def modal_table(ds: xr.Dataset) -> list[dict[str, Any]]:
         if names.MODE in ds.coords
         else list(range(1, fn.size + 1))
     )
-    detected: list[str] = ["-"] * fn.size
-    if names.DETECTED in ds and names.POINT in ds[names.DETECTED].dims:
-        det = ds[names.DETECTED].transpose(names.POINT, names.MODE).values.astype(bool)
-        pts = [str(p) for p in ds[names.POINT].values.tolist()]
-        detected = [
-            " ".join(p for p, d in zip(pts, det[:, k], strict=True) if d) or "none"
-            for k in range(fn.size)
-        ]
     flags = (
         [_text(f) for f in np.atleast_1d(ds[names.QUALITY_FLAGS].values)]
         if names.QUALITY_FLAGS in ds
         else [""] * fn.size
     )
+    detected: list[str] = ["-"] * fn.size
+    if names.DETECTED in ds and names.POINT in ds[names.DETECTED].dims:
+        det = ds[names.DETECTED].transpose(names.POINT, names.MODE).values.astype(bool)
+        pts = [str(p) for p in ds[names.POINT].values.tolist()]
+        detected = [
+            " ".join(p for p, d in zip(pts, det[:, k], strict=True) if d)
+            or (FOUND_BY_REFINEMENT if names.FLAG_ADDED_BY_REFINE in _split(flags[k]) else "none")
+            for k in range(fn.size)
+        ]
     stds = _std_columns(ds, fn.size)
     return [
         {
@@ -98,6 +120,75 @@ def modal_table(ds: xr.Dataset) -> list[dict[str, Any]]:
         }
         for k in range(fn.size)
     ]
+
+
+def _split(text: str) -> list[str]:
+    """The flags of one ``quality_flags`` text."""
+    return [f for f in (f.strip() for f in text.split(names.FLAG_SEPARATOR)) if f]
+
+
+def flag_legend(rows: list[dict[str, Any]]) -> list[tuple[str, str, list]]:
+    """The quality flags that appear in the modal table, each with what it means.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Rows of :func:`modal_table` (their ``flags`` and ``mode``).
+
+    Returns
+    -------
+    list of (flag, description, modes)
+        One entry per flag present, in bit order (:data:`ami_xr.names.FLAG_MEANINGS`), with the
+        one-line description of :data:`ami_xr.core.flags.DESCRIPTIONS` and the labels of the
+        modes that carry it; a flag this version does not know (a file from another version)
+        comes last, described as such.
+    """
+    carriers: dict[str, list] = {}
+    for r in rows:
+        for flag in _split(r["flags"]):
+            carriers.setdefault(flag, []).append(r["mode"])
+    known = [f for f in names.FLAG_MEANINGS if f in carriers]
+    unknown = [f for f in carriers if f not in names.FLAG_MEANINGS]
+    out = [(f, qf.describe(f), carriers[f]) for f in known]
+    out += [(f, "not a flag this version of ami_xr knows", carriers[f]) for f in unknown]
+    return out
+
+
+def cap_notes(ds: xr.Dataset) -> list[tuple[str, str]]:
+    """Sentences on the limits that ended a phase of the identification, for a reader.
+
+    Returns
+    -------
+    list of (kind, sentence)
+        ``("incomplete", ...)`` from the attribute ``ami_capped`` (modes may be missing) and
+        ``("superseded", ...)`` from ``ami_capped_superseded`` (the subtraction stopped at a
+        limit, but the refinement then completed the model by its statistics, so that limit
+        did not decide the mode count); empty when neither is set.
+    """
+
+    def entries(attr: str) -> list[str]:
+        return [e.strip() for e in str(ds.attrs.get(attr, "") or "").split(",") if e.strip()]
+
+    def words(caps: list[str]) -> str:
+        return "; ".join(f"{CAP_DESCRIPTIONS.get(e, e)} [{e}]" for e in caps)
+
+    notes = []
+    capped = entries(names.ATTR_AMI_CAPPED)
+    if capped:
+        text = (
+            f"Incomplete: {words(capped)}. Modes may be missing: raise the limit (e.g. "
+            "max_modes) or narrow the band (fmin/fmax)."
+        )
+        notes.append(("incomplete", text))
+    superseded = entries(names.ATTR_AMI_CAPPED_SUPERSEDED)
+    if superseded:
+        text = (
+            f"Limit superseded: {words(superseded)}, but the refinement then completed the "
+            "model until its statistics showed no further mode, so that limit did not decide "
+            f"the number of modes ({names.ATTR_AMI_CAPPED_SUPERSEDED})."
+        )
+        notes.append(("superseded", text))
+    return notes
 
 
 #: Standard deviations the table shows when the Dataset has them: row key -> (variable, part,
@@ -172,7 +263,7 @@ def modal_table_csv_rows(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def _short_points(detected: str, n_points: int, max_points: int) -> str:
-    labels = detected.split() if detected not in ("-", "none") else []
+    labels = detected.split() if detected not in ("-", "none", FOUND_BY_REFINEMENT) else []
     if not labels or len(labels) <= max_points:
         return detected
     return f"all {n_points}" if len(labels) == n_points else f"{len(labels)} of {n_points}"
@@ -183,6 +274,7 @@ def format_modal_table(
     *,
     extra: dict[str, list[str]] | None = None,
     max_points: int = 6,
+    legend: bool = False,
 ) -> str:
     """The modal table as aligned text, for terminals and logs.
 
@@ -195,6 +287,9 @@ def format_modal_table(
     max_points : int
         The "detected in" column lists point labels up to this many, then says "all N" or
         "k of N" (:func:`modal_table` and the report always list them all).
+    legend : bool
+        Follow the table with one line per flag present saying what it means
+        (:func:`flag_legend`) and the notes of :func:`cap_notes`.
     """
     rows = modal_table(ds)
     header = ["mode", "f [Hz]", "w [rad/s]", "zeta [%]"]
@@ -216,13 +311,17 @@ def format_modal_table(
     for row, r in zip(body, rows, strict=True):
         row += [_short_points(r["detected_in"], n_points, max_points), r["flags"] or "-"]
     if not body:
-        return "no modes identified"
+        notes = [text for _, text in cap_notes(ds)] if legend else []
+        return "\n".join(["no modes identified", *notes])
     widths = [max(len(h), *(len(row[i]) for row in body)) for i, h in enumerate(header)]
     lines = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)).rstrip()]
     lines.append("  ".join("-" * w for w in widths))
     lines += [
         "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in body
     ]
+    if legend:
+        lines += [f"{flag}: {text}" for flag, text, _ in flag_legend(rows)]
+        lines += [text for _, text in cap_notes(ds)]
     return "\n".join(lines)
 
 

@@ -25,6 +25,8 @@ from ami_xr.plot.common import PAGE_WIDTH_PX
 from ami_xr.tables import (
     INDICATOR_COLUMNS,
     STD_COLUMNS,
+    cap_notes,
+    flag_legend,
     format_modal_table,
     modal_table,
     modal_table_csv_rows,
@@ -166,7 +168,11 @@ def report(
     :func:`ami_xr.frf` or :func:`ami_xr.impact_frf`: the estimator and number of averages, the
     impact hits (rejected ones with their reason) and the coherence, force-spectrum and hits
     figures (:data:`MEASUREMENT_FIGURES`, drawn when their inputs are present). Then the modal
-    table (with the std columns when the Dataset has them) and the figures of :data:`FIGURES`.
+    table (with the std columns when the Dataset has them), a legend of the quality flags that
+    appear in it (:func:`ami_xr.tables.flag_legend`: one plain-language line each), the limits
+    that ended a phase (:func:`ami_xr.tables.cap_notes`: ``ami_capped``, and
+    ``ami_capped_superseded`` when the refinement made a subtraction cap moot) and the figures
+    of :data:`FIGURES`.
     Figures whose inputs are missing from ``ds`` (e.g. no subtraction outputs, no mode vectors)
     are skipped and listed in the page as "not produced" with the reason. Every file is written
     atomically; an existing report in ``outdir`` is overwritten file by file.
@@ -396,6 +402,39 @@ def _table_html(rows: list[dict[str, Any]]) -> str:
     return buf.getvalue()
 
 
+def _legend_html(rows: list[dict[str, Any]]) -> str:
+    """The flags present in the table, each with its one-line meaning and the modes carrying it."""
+    if not rows:
+        return ""
+    e = html.escape
+    legend = flag_legend(rows)
+    if not legend:
+        return "<p>No mode carries a quality flag.</p>\n"
+    buf = io.StringIO()
+    buf.write("<h3>Flags</h3>\n<table><tr><th>flag</th><th>modes</th><th>what it means</th></tr>\n")
+    for flag, text, modes in legend:
+        buf.write(
+            f"<tr><td class='l flag'>{e(flag)}</td>"
+            f"<td class='l'>{e(', '.join(str(m) for m in modes))}</td>"
+            f"<td class='l'>{e(text)}</td></tr>\n"
+        )
+    buf.write("</table>\n")
+    return buf.getvalue()
+
+
+def _caps_html(ds: xr.Dataset) -> str:
+    """The limits that ended a phase, in words (nothing when none was reached)."""
+    notes = cap_notes(ds)
+    if not notes:
+        return ""
+    e = html.escape
+    items = "".join(
+        f"<li{' class=flag' if kind == 'incomplete' else ''}>{e(text)}</li>\n"
+        for kind, text in notes
+    )
+    return f"<h3>Limits reached</h3>\n<ul>\n{items}</ul>\n"
+
+
 def _csv_text(rows: list[dict[str, Any]]) -> str:
     csv_rows = modal_table_csv_rows(rows)
     out = io.StringIO()
@@ -426,6 +465,8 @@ def _html(ds, rows, summary, made, skipped, title) -> str:
             buf.write(_figure_html(stem, caption, png))
     buf.write("<h2>Modal table</h2>\n")
     buf.write(_table_html(rows))
+    buf.write(_legend_html(rows))
+    buf.write(_caps_html(ds))
     for stem, caption, png in made:
         if stem not in MEASUREMENT_FIGURES:
             buf.write(_figure_html(stem, caption, png))

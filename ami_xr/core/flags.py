@@ -4,7 +4,9 @@ A phase decides each flag where it knows it and sets or clears its bit in an int
 (:func:`bit`, :func:`set_where`); :func:`encode` turns the mask into the text of
 ``quality_flags`` (the flags set, in the order of :data:`ami_xr.names.FLAG_MEANINGS`, joined by
 ``","``) and :func:`decode` reads it back. Bit ``k`` is ``2**k`` for ``FLAG_MEANINGS[k]``, as in
-the CF ``flag_masks``/``flag_meanings`` field written to files.
+the CF ``flag_masks``/``flag_meanings`` field written to files. :data:`DESCRIPTIONS` says in one
+line what each flag means, for a reader who has not read the docs (the report's legend; the flag
+table of docs/identification.md states the same texts).
 """
 
 from __future__ import annotations
@@ -20,6 +22,48 @@ MEANINGS = names.FLAG_MEANINGS
 MASKS = np.array([1 << k for k in range(len(MEANINGS))], dtype=np.int32)
 _BIT = dict(zip(MEANINGS, MASKS.tolist(), strict=True))
 
+#: One plain-language line per flag, in bit order: what it says about the mode and what to make
+#: of it. The report's flag legend shows these; docs/identification.md's flag table states the
+#: same texts (tests/ami/test_flags.py compares them).
+DESCRIPTIONS: dict[str, str] = {
+    names.FLAG_LOW_DRIVE_SNR: (
+        "The mode barely rises above the noise at the drive point (where the force acts), so "
+        "the scaling of its mode vector is unreliable; frequency and damping come from all FRFs."
+    ),
+    names.FLAG_UNSCALED: (
+        "No response was measured where the force acts (no drive point), so the mode vector "
+        "cannot be scaled: it is normalised to a largest entry of 1."
+    ),
+    names.FLAG_NOT_CONVERGED: (
+        "The isolation phase reached its iteration limit before this mode settled, and no "
+        "converged refinement replaced it: treat its frequency and damping with care."
+    ),
+    names.FLAG_SINGLE_FRF: (
+        "Only one FRF showed this mode above its noise: it may be a local mode, a mode the "
+        "other points barely see, or noise."
+    ),
+    names.FLAG_REFINE_NOT_CONVERGED: (
+        "The refinement stopped at its iteration limit while this mode was still moving: its "
+        "values are the last step, not a settled fit."
+    ),
+    names.FLAG_REFINE_FALLBACK: (
+        "The refinement could not fit this mode and kept its first (AMI) estimate: frequency "
+        "and damping are not refined."
+    ),
+    names.FLAG_ADDED_BY_REFINE: (
+        "Found by the refinement in what the other modes left unexplained; no FRF detected it "
+        "in the first pass, so it has no AMI estimate."
+    ),
+    names.FLAG_REPEATED_ROOT: (
+        "Two modes may lie at (nearly) this frequency: the response near it shows more than one "
+        "shape, which one mode cannot fit (within one reference's FRFs, or between references)."
+    ),
+    names.FLAG_REPEATED_ROOT_SEPARATED: (
+        "Multi-reference: one of two modes at the same frequency that the references told "
+        "apart; its partner is the neighbouring mode."
+    ),
+}
+
 
 def bit(flag: str) -> int:
     """The mask of ``flag`` (one of :data:`ami_xr.names.FLAG_MEANINGS`)."""
@@ -27,6 +71,12 @@ def bit(flag: str) -> int:
         return _BIT[flag]
     except KeyError:
         raise AmiXrValueError(f"quality flag: expected one of {MEANINGS}, got {flag!r}") from None
+
+
+def describe(flag: str) -> str:
+    """The one-line description of ``flag`` (:data:`DESCRIPTIONS`)."""
+    bit(flag)  # an unknown flag: the error naming the known ones
+    return DESCRIPTIONS[flag]
 
 
 def set_where(mask: np.ndarray, flag: str, where: Iterable[bool] | bool) -> np.ndarray:

@@ -3,6 +3,7 @@ from ``ami_xr.refine`` on the phases' output as from ``ami_xr.identify``."""
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import numpy as np
@@ -15,6 +16,8 @@ from ami_xr.core import flags
 from ami_xr.errors import AmiXrValueError
 from ami_xr.io import cf
 from ami_xr.io.netcdf import open_dataset, to_netcdf
+
+from ..reference import REPO
 
 
 def test_encode_decode_round_trip_in_bit_order():
@@ -126,3 +129,46 @@ def test_refine_supersedes_the_isolation_cap_where_it_converged(capped):
     # not_converged stays only on modes the refinement did not move to a converged estimate
     assert not np.any(flags.has(mask, names.FLAG_NOT_CONVERGED) & ~trouble)
     assert np.any(~trouble)
+
+
+# --- the words of each flag: one table in the code, the same in the docs (issue 29 item 4) -------
+def _docs_flag_table() -> dict[str, list[str]]:
+    """The rows of docs/identification.md's flag table: flag -> its cells after the name."""
+    page = (REPO / "docs" / "identification.md").read_text(encoding="utf-8")
+    table = page[page.index("| flag | means (the report's legend) |") :].split("\n\n")[0]
+    rows = {}
+    for line in table.splitlines()[2:]:
+        cells = [c.strip() for c in line.strip().strip("|").split(" | ")]
+        rows[cells[0].strip("`")] = cells[1:]
+    return rows
+
+
+def test_every_flag_has_one_line_in_words():
+    assert tuple(flags.DESCRIPTIONS) == names.FLAG_MEANINGS  # every flag, in bit order
+    for flag, text in flags.DESCRIPTIONS.items():
+        assert flags.describe(flag) == text
+        # one line a reader takes in at once, that a markdown table cell and HTML can hold
+        assert 20 < len(text) <= 200 and "\n" not in text and "|" not in text
+        assert text[0].isupper() and text.endswith(".")
+    with pytest.raises(AmiXrValueError, match="quality flag: expected one of .* got 'bogus'"):
+        flags.describe("bogus")
+
+
+def test_docs_flag_table_states_the_code_texts():
+    rows = _docs_flag_table()
+    assert set(rows) == set(names.FLAG_MEANINGS)
+    for flag, (means, _set_by) in rows.items():
+        assert means == flags.DESCRIPTIONS[flag], flag
+    # no other flag table on the page with other words for the same flags
+    page = (REPO / "docs" / "identification.md").read_text(encoding="utf-8")
+    for flag in names.FLAG_MEANINGS:
+        assert len(re.findall(rf"^\| `{flag}` \|", page, flags=re.M)) == 1, flag
+
+
+def test_docs_say_repeated_root_suspected_is_set_on_single_reference_data():
+    """The band-rank check (ami_xr.ami.repeated) runs at the end of every identification: the
+    docs must not call the flag multi-reference only (tests/ami/test_pipeline_hooks.py sets it
+    on a SIMO Dataset)."""
+    means, set_by = _docs_flag_table()[names.FLAG_REPEATED_ROOT]
+    assert not means.lower().startswith("multi-reference")
+    assert "single" in set_by and "ami_xr.ami.repeated" in set_by
