@@ -21,6 +21,7 @@ from ami_xr.ami.settings import (
     SubtractSettings,
 )
 from ami_xr.core.threads import single_blas_thread
+from ami_xr.errors import IdentificationError
 from ami_xr.provenance import public_call
 
 __all__ = ["identify", "METHODS"]
@@ -43,6 +44,7 @@ def identify(
     fmin: float | None = None,
     fmax: float | None = None,
     compress: str | int = "auto",
+    complete: bool = True,
     progress=False,
 ) -> xr.Dataset:
     """Identify modes: :func:`subtract`, :func:`isolate`, :func:`global_fit` and, by default,
@@ -79,6 +81,12 @@ def identify(
         the eigenvalues, then every point's residues are fitted at them in one pass. "auto"
         does so to 48 virtual FRFs above 192 points, an int ``r`` to ``r`` virtual FRFs, "off"
         never. What is exact and what approximate: :mod:`ami_xr.core.compress`.
+    complete : bool, default True
+        Let the refinement complete the model (:mod:`ami_xr.core.order`): add a mode the
+        residual shows and AMI missed, drop one that explains nothing, merge a split duplicate,
+        each accepted only when its likelihood gain beats the noise and the model error a
+        measured peak shows. False: the maximum-likelihood fit of AMI's modes as they are (the
+        mode count is AMI's; faster; attr ``refine_full_fits`` counts the fits on all lines).
     progress : bool or callable, default False
         True draws a bar of the phases (subtract, isolate, global_fit, refine) on stderr,
         labelled with the numbers of FRFs and lines, its elapsed time moving during a long phase
@@ -110,6 +118,8 @@ def identify(
     on the FRF scaled by a power of two and the results are scaled back, exactly, so they equal
     those of the FRF in ordinary units times the scale. Within that range nothing is scaled.
     """
+    if not isinstance(complete, bool):
+        raise IdentificationError(f"complete: expected True or False, got {complete!r}")
     settings = IdentifySettings(
         method=method,
         refine=refine,
@@ -124,6 +134,7 @@ def identify(
         fmin=fmin,
         fmax=fmax,
         compress=compress,
+        complete=complete,
     )
     # small products only: one BLAS thread, which does not collapse when the cores are busy
     with single_blas_thread():

@@ -117,7 +117,10 @@ def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progres
             out = global_fit(out, band=s.band, residual_terms=s.residual_terms)
             if refined:
                 step(names.PHASE_REFINE)
-                out = refine_phase(out)
+                # complete=False: the maximum-likelihood fit of AMI's modes only, no model-order
+                # step (no mode added, dropped or merged)
+                order = {} if s.complete else dict(add_modes=0, drop_modes=False)
+                out = refine_phase(out, **order)
     superseded = _caps_superseded(out, refined)
     for w in said:
         if not (superseded and str(w.message).startswith("subtract: stopped at the cap")):

@@ -110,6 +110,7 @@ class IdentifySettings:
     fmin: float | None = None
     fmax: float | None = None
     compress: str | int = "auto"  # ami_xr.ami.scale: pole work on virtual FRFs for many points
+    complete: bool = True  # the refinement's model-order step (ami_xr.core.order)
 
 
 def _encode(value: Any) -> Any:

@@ -23,6 +23,11 @@ NOISE_WIDTHS = 20.0
 # range of n <= 12 draws from a spread of standard deviation sigma is below 4 sigma (uniform:
 # 2 sqrt(3) sigma; normal: ~3.3 sigma for 8 draws)
 SCATTER_RANGE = 4.0
+# a peak's misfit is its eigenvalue's scatter only when per-FRF shifts explain this share of the
+# residual power beyond the noise there (a missed mode beside the peak leaves most unexplained)
+SHIFT_SHARE = 0.5
+# peaks with a scatter needed for a typical value (the median: robust to one unresolved pair)
+SCATTER_PEAKS = 3
 # points needed to estimate that scatter (two give one difference, no spread)
 SCATTER_POINTS = 3
 
@@ -98,12 +103,14 @@ def eigenvalue_scatter(prob, proj, width: np.ndarray) -> np.ndarray:
 
     Each FRF ``j`` is let to shift mode ``k``'s eigenvalue on its own: the shift ``d_jk`` is the
     least-squares fit of the residual ``r_j`` on the eigenvalue derivative of the mode's
-    contribution ``A_jk b(lam_k)``, over the lines within three half-power bandwidths. The
+    contribution ``A_jk b(lam_k)`` projected off the model's columns (the residual is
+    orthogonal to them), over the lines within three half-power bandwidths. The
     scatter is the weighted spread of ``d_jk`` over the points (weights: each shift's Fisher
     information ``w_j``), less what the noise alone gives (``sum w |d - mean|^2`` is chi-square
     with ``2 (P - 1)`` degrees of freedom for a mode every FRF sees at the same eigenvalue;
     its mean and three standard deviations are taken off). NaN with fewer than
-    ``SCATTER_POINTS`` points.
+    ``SCATTER_POINTS`` points, and where the shifts explain less than ``SHIFT_SHARE`` of the
+    residual power beyond the noise (that misfit is something else: a missed mode).
     """
     n_point, n_mode = prob.n_points, proj.lam.size
     out = np.full(n_mode, np.nan)
@@ -111,7 +118,9 @@ def eigenvalue_scatter(prob, proj, width: np.ndarray) -> np.ndarray:
         return out
     resid = complex_rows(residual_rows(prob, proj))
     s2 = np.maximum(np.median(np.abs(resid) ** 2, axis=1), 1e-300) / np.log(2.0)  # E|e|^2
-    deriv = complex_rows(proj.v.T).T  # (L, 2K): u_k, v_k of model_columns, line-weighted
+    # u_k, v_k of model_columns (line-weighted), less what the model's columns already
+    # represent: the fitted residues absorbed that part of any shift, the residual holds the rest
+    deriv = complex_rows((proj.v - proj.q @ proj.qtv).T).T  # (L, 2K)
     for k in range(n_mode):
         band = np.abs(prob.omega - proj.lam[k].imag) <= 3.0 * width[k]
         if band.sum() < 4:
@@ -130,6 +139,12 @@ def eigenvalue_scatter(prob, proj, width: np.ndarray) -> np.ndarray:
         if ok.sum() < SCATTER_POINTS:
             continue
         shift = np.linalg.solve(g[ok], b[ok][..., None])[..., 0]
+        # only a misfit that shifts explain is a peak's model error (a missed mode beside it is
+        # not): the shifts must explain SHIFT_SHARE of the residual power beyond the noise
+        explained = np.sum(shift * b[ok])
+        beyond = np.sum(np.abs(r) ** 2) - band.sum() * np.sum(s2)
+        if explained < SHIFT_SHARE * beyond:
+            continue
         d = shift[:, 0] + 1j * shift[:, 1]
         w = 0.5 * (g[ok, 0, 0] + g[ok, 1, 1]) / (0.5 * s2[ok])  # information of one component
         mean = np.sum(w * d) / np.sum(w)
@@ -143,7 +158,8 @@ def eigenvalue_scatter(prob, proj, width: np.ndarray) -> np.ndarray:
 def within_scatter(trial_lam, old_lam, scatter: np.ndarray) -> bool:
     """Whether a trial puts a new or moved pole closer to another than ``SCATTER_RANGE`` times
     the typical FRF-to-FRF scatter of a peak (``scatter`` of the present modes, the median over
-    the modes away from the pole): a split of one mode that no pole fits at every FRF."""
+    the modes away from the pole, at least ``SCATTER_PEAKS`` of them): a split of one mode that
+    no pole fits at every FRF."""
     if not np.isfinite(scatter).any():
         return False
     fresh = ~np.isin(trial_lam, old_lam)
@@ -154,6 +170,9 @@ def within_scatter(trial_lam, old_lam, scatter: np.ndarray) -> bool:
         gap = np.min(np.abs(others.imag - trial_lam[k].imag))
         away = np.abs(old_lam.imag - trial_lam[k].imag) > gap + 1e-12
         typical = scatter[away & np.isfinite(scatter)]
-        if typical.size and gap < SCATTER_RANGE * np.median(typical) * abs(trial_lam[k]):
+        # a typical value needs several peaks (one may be an unresolved pair: its "scatter")
+        if typical.size < SCATTER_PEAKS:
+            continue
+        if gap < SCATTER_RANGE * np.median(typical) * abs(trial_lam[k]):
             return True
     return False

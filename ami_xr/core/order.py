@@ -295,21 +295,16 @@ def _add_missed(
             deferred.append(i)
         elif gain - n_add * threshold > 0 and not within_scatter(refined, fit.lam, scatter):
             screened.append((gain - n_add * threshold, i))
-            starts[i] = refined
+            starts[i] = trials[i][0]  # the full fit starts where the trial does (see _take)
     judge = (prob, state, fit, trials, threshold, r_now, var, scatter, trial_opts)
+    # a trial that removes modes is screened on all lines at once (a simpler model that fits as
+    # well wins); the others the band could not judge only when no band-screened trial holds
+    fewer = [i for i in deferred if trials[i][2] < 0]
+    deferred = [i for i in deferred if trials[i][2] >= 0]
+    screened += _quick_screen(fewer, starts, *judge)
     best = _take(screened, starts, *judge)
     if best is None and deferred:
-        # only when no band-screened trial holds: a few iterations on all lines each
-        screened = []
-        for i in deferred:
-            start, ref, n_add, _ = trials[i]
-            quick = fit_modes(prob, start, ref, **dict(trial_opts, max_iter=SCREEN_ITERATIONS))
-            state.n_iter += quick[2]
-            score = _full_gain(prob, r_now, quick[0], var) - n_add * threshold
-            if score > 0:
-                screened.append((score, i))
-                starts[i] = start
-        best = _take(screened, starts, *judge)
+        best = _take(_quick_screen(deferred, starts, *judge), starts, *judge)
     if best is None:
         return False
     (state.fit, free, _, _), ref, removed, moved = best
@@ -321,13 +316,30 @@ def _add_missed(
     return True
 
 
+def _quick_screen(indices, starts, prob, state, fit, trials, threshold, r_now, var, scatter, opts):
+    """Screen trials with ``SCREEN_ITERATIONS`` iterations on all lines: ``(score, index)`` of
+    those whose gain against ``var`` beats ``threshold`` per mode added (their starts noted)."""
+    out = []
+    for i in indices:
+        start, ref, n_add, _ = trials[i]
+        quick = fit_modes(prob, start, ref, **dict(opts, max_iter=SCREEN_ITERATIONS))
+        state.n_iter += quick[2]
+        score = _full_gain(prob, r_now, quick[0], var) - n_add * threshold
+        if score > 0:
+            out.append((score, i))
+            starts[i] = start
+    return out
+
+
 def _take(screened, starts, prob, state, fit, trials, threshold, r_now, var, scatter, opts):
     """Fit the screened trials on all lines, at most ``SCREEN_KEEP``, and return the first that
     holds (``(fit result, reference, removed, moved)``) or None. The best screen score first;
     then, should it fail on all lines, the fewest modes added first (a cluster refit that
     fails in full must not hide the single pole that explains a peak). A trial holds when its
     gain against ``var`` is above ``threshold`` per mode added, every mode it tries stays free
-    (a mode already frozen may stay so) and it makes no pair within one mode's scatter."""
+    (a mode already frozen may stay so) and it makes no pair within one mode's scatter. The
+    full fit starts from the trial's own start, not from the band fit's end (the far modes held
+    there made it a worse start in clusters and below-band tails)."""
     screened = sorted(screened, key=lambda s: -s[0])
     screened = screened[:1] + sorted(screened[1:], key=lambda s: (trials[s[1]][2], -s[0]))
     for _, i in screened[:SCREEN_KEEP]:
@@ -338,8 +350,12 @@ def _take(screened, starts, prob, state, fit, trials, threshold, r_now, var, sca
         kept_free = np.delete(state.free, removed)
         moved = start[: kept_free.size] != np.delete(fit.lam, removed)
         must = np.append(kept_free | moved, np.ones(start.size - kept_free.size, bool))
+        changed = trial[0].lam.size != fit.lam.size or np.max(
+            np.abs(trial[0].lam - fit.lam) / np.abs(fit.lam)
+        ) > np.sqrt(opts["tol"])  # a restart that returns where it was changes nothing
         if (
-            trial[1][must].all()
+            changed
+            and trial[1][must].all()
             and score > 0
             and not within_scatter(trial[0].lam, fit.lam, scatter)
         ):

@@ -185,3 +185,18 @@ def test_full_fits_are_counted_and_few_on_a_complete_model(paper_benchmark_clean
     out = ami_xr.identify(paper_benchmark_clean[1])
     n_full = out.attrs[names.ATTR_REFINE_FULL_FITS]
     assert isinstance(n_full, int) and 1 <= n_full <= 4
+
+
+def test_complete_false_keeps_the_ami_mode_count():
+    """``complete=False``: the maximum-likelihood fit of AMI's modes only -- on the mass-loaded
+    beam the same five modes, without a single trial fitted; a bad value is refused."""
+    frf, freq, _ = _beam(5e-4, 1e-3, 0)
+    ds = _dataset(frf, freq)
+    out = ami_xr.identify(ds, complete=False)
+    fn = np.sort(out[names.NATURAL_FREQUENCY].values)
+    assert fn.size == FN.size
+    np.testing.assert_allclose(fn, FN, rtol=2e-3)
+    assert out.attrs[names.ATTR_REFINE_FULL_FITS] == 1  # the one joint fit
+    assert not any("added_by_refine" in str(f) for f in out[names.QUALITY_FLAGS].values)
+    with pytest.raises(ValueError, match="complete: expected True or False"):
+        ami_xr.identify(ds, complete="no")
