@@ -32,6 +32,24 @@ SCATTER_PEAKS = 3
 SCATTER_POINTS = 3
 
 
+def _block_median(x: np.ndarray, size: int) -> np.ndarray:
+    """A running median of the rows of ``x`` (P, L) over about ``size`` lines, cheaply: the
+    median of consecutive blocks of ``size`` lines, interpolated linearly between the block
+    centres (constant beyond the first and the last). O(L), where a sliding median is
+    O(L size)."""
+    n_line = x.shape[1]
+    n_block = max(n_line // max(size, 1), 1)
+    edges = np.linspace(0, n_line, n_block + 1).astype(int)
+    centres = 0.5 * (edges[:-1] + edges[1:] - 1)
+    med = np.stack(
+        [np.median(x[:, a:b], axis=1) for a, b in zip(edges[:-1], edges[1:], strict=True)], 1
+    )
+    if n_block == 1:
+        return np.repeat(med, n_line, axis=1)
+    lines = np.arange(n_line)
+    return np.stack([np.interp(lines, centres, m) for m in med])
+
+
 def _white_part(resid: np.ndarray) -> np.ndarray:
     """``|e|^2`` estimates (P, L) from the second difference of complex residuals (P, L):
     ``r_i - (r_(i-1) + r_(i+1)) / 2`` has 1.5 times the variance of white noise and removes
@@ -62,20 +80,18 @@ def error_variance(prob, proj, width: np.ndarray, skip: np.ndarray, local: bool 
 
     Returns ``(variance (P, L), rho (K,), largest rho over the modes not in skip)``.
     """
-    from scipy.ndimage import median_filter  # lazy: scipy.ndimage is slow to import
-
     resid = complex_rows(residual_rows(prob, proj))
     model = complex_rows(prob.y) - resid
     r2 = np.abs(resid) ** 2
     m2 = np.abs(model) ** 2
     if local:
-        # the noise level along frequency: a running median over NOISE_WIDTHS typical
+        # the noise level along frequency: a running (block) median over NOISE_WIDTHS typical
         # bandwidths of the residual's second difference (noise is white from line to line,
         # a missed mode or a peak's model error is smooth there and cancels; a missed mode's
         # tails no longer count as noise on noise-free data)
         dw = prob.omega[1] - prob.omega[0] if prob.omega.size > 1 else 1.0
         size = int(np.clip(NOISE_WIDTHS * np.median(width) / dw, 21, prob.omega.size)) | 1
-        s2 = median_filter(_white_part(resid), size=(1, size), mode="nearest")
+        s2 = _block_median(_white_part(resid), size)
         # never below the FRF's overall level: the fits minimise the residual with one weight
         # per FRF, and a gain weighted by levels far below it (noise-free data, where the
         # second difference is at rounding level) would not rank what they found
