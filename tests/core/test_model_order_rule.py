@@ -200,3 +200,42 @@ def test_complete_false_keeps_the_ami_mode_count():
     assert not any("added_by_refine" in str(f) for f in out[names.QUALITY_FLAGS].values)
     with pytest.raises(ValueError, match="complete: expected True or False"):
         ami_xr.identify(ds, complete="no")
+
+
+def _shifted_problem(shift_rel: float, n_point: int = 12, seed: int = 0):
+    """The beam at many lines as a varpro problem, and its one-pole-per-mode fit."""
+    frf, freq, lam = _beam(shift_rel, 1e-4, seed, n_point)
+    omega = 2 * np.pi * freq
+    prob = varpro.make_problem(frf, omega, None, None)
+    opts = _opts(omega)
+    fit = fit_modes(prob, lam, lam, **opts)[0]
+    width = np.maximum(2 * np.abs(fit.lam.real), opts["min_width"])
+    return prob, fit, width
+
+
+def test_eigenvalue_scatter_measures_the_frf_to_frf_shift():
+    """Shifts uniform in +-0.05 % (standard deviation 0.029 %): every peak's scatter is of that
+    order; without shifts it is zero (the noise alone is taken off)."""
+    from ami_xr.core.model_error import eigenvalue_scatter
+
+    prob, fit, width = _shifted_problem(5e-4)
+    scatter = eigenvalue_scatter(prob, fit.proj, width)
+    assert np.all(np.isfinite(scatter))
+    assert np.all((scatter > 0.3 * 2.9e-4) & (scatter < 2.0 * 2.9e-4)), scatter
+    prob0, fit0, width0 = _shifted_problem(0.0)
+    assert np.all(np.nan_to_num(eigenvalue_scatter(prob0, fit0.proj, width0)) < 2e-5)
+
+
+def test_within_scatter_needs_a_typical_value_from_three_other_peaks():
+    from ami_xr.core.model_error import within_scatter
+
+    lam = _lam(FN)
+    split = np.append(lam, lam[2] * (1 + 2e-4))  # 0.02 % from the mode at 932 Hz
+    wide = np.append(lam, lam[2] * (1 + 4e-3))  # 0.4 %
+    scatter = np.full(FN.size, 3e-4)
+    assert within_scatter(split, lam, scatter)
+    assert not within_scatter(wide, lam, scatter)
+    few = scatter.copy()
+    few[[0, 1, 3]] = np.nan  # two peaks away from the pole show a scatter: no typical value
+    assert not within_scatter(split, lam, few)
+    assert not within_scatter(split, lam, np.full(FN.size, np.nan))
