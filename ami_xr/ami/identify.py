@@ -82,11 +82,9 @@ def identify(
         does so to 48 virtual FRFs above 192 points, an int ``r`` to ``r`` virtual FRFs, "off"
         never. What is exact and what approximate: :mod:`ami_xr.core.compress`.
     complete : bool, default True
-        Let the refinement complete the model (:mod:`ami_xr.core.order`): add a mode the
-        residual shows and AMI missed, drop one that explains nothing, merge a split duplicate,
-        each accepted only when its likelihood gain beats the noise and the model error a
-        measured peak shows. False: the maximum-likelihood fit of AMI's modes as they are (the
-        mode count is AMI's; faster; attr ``refine_full_fits`` counts the fits on all lines).
+        The refinement's model-order step (:mod:`ami_xr.core.order`: add, drop or merge modes
+        when the likelihood gain beats noise and a measured peak's model error). False: the
+        maximum-likelihood fit of AMI's modes as they are.
     progress : bool or callable, default False
         True draws a bar of the phases (subtract, isolate, global_fit, refine) on stderr,
         labelled with the numbers of FRFs and lines, its elapsed time moving during a long phase

@@ -13,23 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ami_xr.core.policy import POLICY
 from ami_xr.core.regions import complex_rows, residual_rows
-
-# the noise level of a line is the running median of the residual power over this many typical
-# half-power bandwidths (measured FRFs are noisier at some frequencies than at others)
-NOISE_WIDTHS = 20.0
-# two poles closer than this many standard deviations of the FRF-to-FRF scatter of a peak's
-# eigenvalue are one mode seen at slightly different frequencies (mass loading, drift): the
-# range of n <= 12 draws from a spread of standard deviation sigma is below 4 sigma (uniform:
-# 2 sqrt(3) sigma; normal: ~3.3 sigma for 8 draws)
-SCATTER_RANGE = 4.0
-# a peak's misfit is its eigenvalue's scatter only when per-FRF shifts explain this share of the
-# residual power beyond the noise there (a missed mode beside the peak leaves most unexplained)
-SHIFT_SHARE = 0.5
-# peaks with a scatter needed for a typical value (the median: robust to one unresolved pair)
-SCATTER_PEAKS = 3
-# points needed to estimate that scatter (two give one difference, no spread)
-SCATTER_POINTS = 3
 
 
 def _block_median(x: np.ndarray, size: int) -> np.ndarray:
@@ -74,7 +59,7 @@ def error_variance(prob, proj, width: np.ndarray, skip: np.ndarray, local: bool 
     ``skip`` (the typical model error of a peak; robust to one peak with a missed mode). The
     nominal noise floor is not used; with white noise and an exact model ``eps^2`` is ~0.
     ``local``: the noise level of each line is the running median of ``|r_j|^2`` over
-    ``NOISE_WIDTHS`` median bandwidths instead of one level per FRF (measured FRFs are noisier
+    ``noise_widths`` median bandwidths instead of one level per FRF (measured FRFs are noisier
     near antiresonances and where the coherence drops; a missed mode's bump, a few bandwidths
     wide, barely moves the running median).
 
@@ -85,12 +70,12 @@ def error_variance(prob, proj, width: np.ndarray, skip: np.ndarray, local: bool 
     r2 = np.abs(resid) ** 2
     m2 = np.abs(model) ** 2
     if local:
-        # the noise level along frequency: a running (block) median over NOISE_WIDTHS typical
+        # the noise level along frequency: a running (block) median over POLICY.noise_widths typical
         # bandwidths of the residual's second difference (noise is white from line to line,
         # a missed mode or a peak's model error is smooth there and cancels; a missed mode's
         # tails no longer count as noise on noise-free data)
         dw = prob.omega[1] - prob.omega[0] if prob.omega.size > 1 else 1.0
-        size = int(np.clip(NOISE_WIDTHS * np.median(width) / dw, 21, prob.omega.size)) | 1
+        size = int(np.clip(POLICY.noise_widths * np.median(width) / dw, 21, prob.omega.size)) | 1
         s2 = _block_median(_white_part(resid), size)
         # never below the FRF's overall level: the fits minimise the residual with one weight
         # per FRF, and a gain weighted by levels far below it (noise-free data, where the
@@ -125,12 +110,12 @@ def eigenvalue_scatter(prob, proj, width: np.ndarray) -> np.ndarray:
     information ``w_j``), less what the noise alone gives (``sum w |d - mean|^2`` is chi-square
     with ``2 (P - 1)`` degrees of freedom for a mode every FRF sees at the same eigenvalue;
     its mean and three standard deviations are taken off). NaN with fewer than
-    ``SCATTER_POINTS`` points, and where the shifts explain less than ``SHIFT_SHARE`` of the
+    ``scatter_points`` points, and where the shifts explain less than ``shift_share`` of the
     residual power beyond the noise (that misfit is something else: a missed mode).
     """
     n_point, n_mode = prob.n_points, proj.lam.size
     out = np.full(n_mode, np.nan)
-    if n_point < SCATTER_POINTS or not proj.ok:
+    if n_point < POLICY.scatter_points or not proj.ok:
         return out
     resid = complex_rows(residual_rows(prob, proj))
     s2 = np.maximum(np.median(np.abs(resid) ** 2, axis=1), 1e-300) / np.log(2.0)  # E|e|^2
@@ -152,14 +137,14 @@ def eigenvalue_scatter(prob, proj, width: np.ndarray) -> np.ndarray:
         g[:, 0, 1] = g[:, 1, 0] = np.sum((d_re.conj() * d_im).real, axis=1)
         b = np.stack([np.sum((d_re.conj() * r).real, 1), np.sum((d_im.conj() * r).real, 1)], 1)
         ok = np.linalg.det(g) > 1e-12 * np.maximum(g[:, 0, 0] * g[:, 1, 1], 1e-300)
-        if ok.sum() < SCATTER_POINTS:
+        if ok.sum() < POLICY.scatter_points:
             continue
         shift = np.linalg.solve(g[ok], b[ok][..., None])[..., 0]
         # only a misfit that shifts explain is a peak's model error (a missed mode beside it is
-        # not): the shifts must explain SHIFT_SHARE of the residual power beyond the noise
+        # not): the shifts must explain POLICY.shift_share of the residual power beyond the noise
         explained = np.sum(shift * b[ok])
         beyond = np.sum(np.abs(r) ** 2) - band.sum() * np.sum(s2)
-        if explained < SHIFT_SHARE * beyond:
+        if explained < POLICY.shift_share * beyond:
             continue
         d = shift[:, 0] + 1j * shift[:, 1]
         w = 0.5 * (g[ok, 0, 0] + g[ok, 1, 1]) / (0.5 * s2[ok])  # information of one component
@@ -172,9 +157,9 @@ def eigenvalue_scatter(prob, proj, width: np.ndarray) -> np.ndarray:
 
 
 def within_scatter(trial_lam, old_lam, scatter: np.ndarray) -> bool:
-    """Whether a trial puts a new or moved pole closer to another than ``SCATTER_RANGE`` times
+    """Whether a trial puts a new or moved pole closer to another than ``scatter_range`` times
     the typical FRF-to-FRF scatter of a peak (``scatter`` of the present modes, the median over
-    the modes away from the pole, at least ``SCATTER_PEAKS`` of them): a split of one mode that
+    the modes away from the pole, at least ``scatter_peaks`` of them): a split of one mode that
     no pole fits at every FRF."""
     if not np.isfinite(scatter).any():
         return False
@@ -187,8 +172,8 @@ def within_scatter(trial_lam, old_lam, scatter: np.ndarray) -> bool:
         away = np.abs(old_lam.imag - trial_lam[k].imag) > gap + 1e-12
         typical = scatter[away & np.isfinite(scatter)]
         # a typical value needs several peaks (one may be an unresolved pair: its "scatter")
-        if typical.size < SCATTER_PEAKS:
+        if typical.size < POLICY.scatter_peaks:
             continue
-        if gap < SCATTER_RANGE * np.median(typical) * abs(trial_lam[k]):
+        if gap < POLICY.scatter_range * np.median(typical) * abs(trial_lam[k]):
             return True
     return False

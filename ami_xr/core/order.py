@@ -18,20 +18,9 @@ import numpy as np
 
 from ami_xr.core import varpro
 from ami_xr.core.model_error import eigenvalue_scatter, error_variance, within_scatter
+from ami_xr.core.policy import POLICY
 from ami_xr.core.proposals import cluster_starts
 from ami_xr.core.regions import band_fit, complex_rows, fit_modes, residual_rows, weighted_gain
-
-TRIAL_ITERATIONS = 10  # cap of the trial fits of the model-order tests
-# residual power over data power of an exact fit (noise-free data with a complete model)
-EXACT_RSS = 1e-20
-# the one-pole model error at a close pair must exceed every other peak's by this factor
-PAIR_EXCESS = 2.0
-# trials are screened with this many iterations, and this many fitted in full
-SCREEN_ITERATIONS, SCREEN_KEEP = 3, 3
-# trials of one completion step: at most this many splits and twice as many cluster refits
-MAX_TRIALS = 3
-# false-alarm probability of the screen that picks where the residual shows structure
-SCREEN_PFA = 0.1
 
 
 @dataclass
@@ -51,7 +40,7 @@ class State:
     capped: bool = False  # the mode additions stopped at add_modes, not by the statistics
 
 
-def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=SCREEN_PFA):
+def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=POLICY.screen_pfa):
     """Where a missing mode would be: peaks of the noise-normalised residual power.
 
     ``S(w) = sum_j |r_j(w)|^2 / s_j^2`` is chi-square with 2P degrees of freedom per line when
@@ -125,7 +114,7 @@ def order_tests(prob, state: State, settings, opts, n_point, chi2, min_width):
     threshold = chi2.isf(settings.add_pfa / max(prob.omega.size, 1), 2 + 2 * n_point)
     # Trial fits of the order tests stop early: an unfinished fit only overstates the cost of
     # the smaller model (conservative for dropping) and the kept model is polished at the end.
-    trial_opts = dict(opts, max_iter=min(settings.max_iter, TRIAL_ITERATIONS))
+    trial_opts = dict(opts, max_iter=min(settings.max_iter, POLICY.trial_iterations))
     if settings.drop_modes:
         # on an exact fit the floored objective drops only modes that explain nothing
         set_stage(trace, "order test (drop)")
@@ -152,7 +141,7 @@ def order_tests(prob, state: State, settings, opts, n_point, chi2, min_width):
 
 def is_exact(prob, fit) -> bool:
     """The model explains the data to rounding (noise-free data and a complete model)."""
-    return bool(fit.proj.ok and np.max(fit.proj.rss / prob.y_norm2) < EXACT_RSS)
+    return bool(fit.proj.ok and np.max(fit.proj.rss / prob.y_norm2) < POLICY.exact_rss)
 
 
 def well_posed(prob, mu: np.ndarray) -> np.ndarray:
@@ -243,7 +232,7 @@ def _add_missed(
     # refined marks what the model misses) and around modes whose band holds more residual
     # power than noise would (a pole hidden in a cluster leaves no peak of its own): the sum of
     # S over the band against the chi-square quantile of 2P per line, at false-alarm
-    # probability SCREEN_PFA over the modes
+    # probability POLICY.screen_pfa over the modes
     from scipy.stats import chi2  # lazy: scipy.stats is slow to import
 
     width = np.maximum(2.0 * np.abs(fit.lam.real), min_width)
@@ -253,18 +242,18 @@ def _add_missed(
         band = np.abs(prob.omega - fit.lam[k].imag) <= 3.0 * width[k]
         dof = 2 * prob.n_points * int(band.sum())
         if dof > 0:
-            excess[k] = power[band].sum() / chi2.isf(SCREEN_PFA / fit.lam.size, dof)
+            excess[k] = power[band].sum() / chi2.isf(POLICY.screen_pfa / fit.lam.size, dof)
     busy = excess > 1.0
     suspect = ~state.free | busy
     # a mode of a cluster (its half-power band reaches another's) may stand for two: split.
-    # The trials of one step are bounded (MAX_TRIALS of each kind), the modes whose band holds
+    # The trials of one step are bounded (max_trials of each kind), the modes whose band holds
     # the most residual power first: with tens of modes, one trial per mode made every step
     # cost tens of fits (a 23-mode hammer FRF took minutes).
     gap = np.abs(fit.lam.imag[:, None] - fit.lam.imag[None, :])
     np.fill_diagonal(gap, np.inf)
     clustered = np.any(gap < width[:, None] + width[None, :], axis=1)
     split = np.flatnonzero(state.free & (clustered | busy))
-    for k in split[np.argsort(-excess[split], kind="stable")][:MAX_TRIALS]:
+    for k in split[np.argsort(-excess[split], kind="stable")][: POLICY.max_trials]:
         shift = 0.5 * abs(fit.lam[k].real)
         start = np.append(fit.lam, fit.lam[k] + 1j * shift)
         start[k] -= 1j * shift
@@ -275,13 +264,13 @@ def _add_missed(
     data = complex_rows(prob.y) / prob.line_weight[None, :]
     trials += cluster_starts(
         data, prob.omega, fit.lam, state.free, state.lam0, decay, min_width, centres
-    )[: 2 * MAX_TRIALS]
+    )[: 2 * POLICY.max_trials]
     # One acceptance rule for every trial: the likelihood-ratio gain against the error
     # variance of each line (noise plus the model error a typical measured peak shows,
     # error_variance), less ``threshold`` per mode added. Every trial is screened on its own
     # band (the modes outside held at the present fit). Only trials that pass the screen are
     # fitted on all lines, the first that passes again is taken: one full fit per accepted
-    # change, at most SCREEN_KEEP in a step. Trials the band cannot judge (most of the lines,
+    # change, at most POLICY.screen_keep in a step. Trials the band cannot judge (most of the lines,
     # or a mode it tries froze there) are screened with a few iterations on all lines, only
     # when no band-screened trial holds.
     var = error_variance(prob, fit.proj, width, np.zeros(fit.lam.size, bool), local=True)[0]
@@ -317,12 +306,12 @@ def _add_missed(
 
 
 def _quick_screen(indices, starts, prob, state, fit, trials, threshold, r_now, var, scatter, opts):
-    """Screen trials with ``SCREEN_ITERATIONS`` iterations on all lines: ``(score, index)`` of
+    """Screen trials with ``screen_iterations`` iterations on all lines: ``(score, index)`` of
     those whose gain against ``var`` beats ``threshold`` per mode added (their starts noted)."""
     out = []
     for i in indices:
         start, ref, n_add, _ = trials[i]
-        quick = fit_modes(prob, start, ref, **dict(opts, max_iter=SCREEN_ITERATIONS))
+        quick = fit_modes(prob, start, ref, **dict(opts, max_iter=POLICY.screen_iterations))
         state.n_iter += quick[2]
         score = _full_gain(prob, r_now, quick[0], var) - n_add * threshold
         if score > 0:
@@ -332,7 +321,7 @@ def _quick_screen(indices, starts, prob, state, fit, trials, threshold, r_now, v
 
 
 def _take(screened, starts, prob, state, fit, trials, threshold, r_now, var, scatter, opts):
-    """Fit the screened trials on all lines, at most ``SCREEN_KEEP``, and return the first that
+    """Fit the screened trials on all lines, at most ``screen_keep``, and return the first that
     holds (``(fit result, reference, removed, moved)``) or None. The best screen score first;
     then, should it fail on all lines, the fewest modes added first (a cluster refit that
     fails in full must not hide the single pole that explains a peak). A trial holds when its
@@ -342,7 +331,7 @@ def _take(screened, starts, prob, state, fit, trials, threshold, r_now, var, sca
     there made it a worse start in clusters and below-band tails)."""
     screened = sorted(screened, key=lambda s: -s[0])
     screened = screened[:1] + sorted(screened[1:], key=lambda s: (trials[s[1]][2], -s[0]))
-    for _, i in screened[:SCREEN_KEEP]:
+    for _, i in screened[: POLICY.screen_keep]:
         start, ref, n_add, removed = trials[i]
         trial = fit_modes(prob, starts[i], ref, **opts)
         state.n_iter += trial[2]
@@ -454,9 +443,9 @@ def _merge_split_pairs(prob, state: State, pfa: float, decay: float, trial_opts,
         r1 = np.abs(complex_rows(residual_rows(prob, one.proj))[:, band]) ** 2 / var
         r2 = np.abs(complex_rows(residual_rows(prob, fit.proj))[:, band]) ** 2 / var
         # the one-pole fit is no better there than at the worst single-pole peak
-        # by a factor PAIR_EXCESS: measured peaks' model errors spread over a decade
+        # by a factor POLICY.pair_excess: measured peaks' model errors spread over a decade
         # (measurement.uff), and one peak just above the others is no evidence of a second mode
-        excess = rho[kept] >= PAIR_EXCESS * rho_max
+        excess = rho[kept] >= POLICY.pair_excess * rho_max
         gain_j = 2.0 * (r1.sum(axis=1) - r2.sum(axis=1))
         gain = gain_j.sum() > chi2.isf(pfa, 2 + 2 * n_point)
         consistent = np.sum(gain_j > chi2.isf(pfa, 4)) >= min(2, n_point)

@@ -9,10 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-# local fits try up to this many poles more than the refinable modes of a cluster
-EXTRA_POLES = 3
-# a cluster's band covers each of its modes with this many half-power bandwidths to spare
-CLUSTER_MARGIN = 1.5
+from ami_xr.core.policy import POLICY
 
 
 def local_poles(frf, omega, lo, hi, order, extra=2):
@@ -52,13 +49,13 @@ def local_poles(frf, omega, lo, hi, order, extra=2):
 def cluster_band(lam, width, centre, half):
     """The band around ``centre`` grown to a cluster: every mode whose half-power band
     (``Im lam +- width``, ``width = 2 |Re lam|``) reaches the band joins, and the band then
-    covers it with a margin of ``CLUSTER_MARGIN`` bandwidths: ``(lo, hi, inside)``. (Joining
+    covers it with a margin of ``cluster_margin`` bandwidths: ``(lo, hi, inside)``. (Joining
     at three bandwidths let one strongly damped mode pull far-off modes into a wide band, on
     which the local fit's few poles no longer resolve the cluster.)"""
     lo, hi = centre - half, centre + half
     while True:
         inside = (lam.imag + width >= lo) & (lam.imag - width <= hi)
-        reach = CLUSTER_MARGIN * width[inside]
+        reach = POLICY.cluster_margin * width[inside]
         new_lo = min(lo, float(np.min(lam.imag[inside] - reach, initial=lo)))
         new_hi = max(hi, float(np.max(lam.imag[inside] + reach, initial=hi)))
         if new_lo >= lo and new_hi <= hi:
@@ -72,7 +69,7 @@ def cluster_starts(data, omega, lam, free, lam0, decay: float, min_width: float,
     Around each centre the band is grown to cover every mode within three half-power
     bandwidths (a cluster), and the data on that band, all points jointly, are refitted by a
     common-denominator rational fit (:func:`ami_xr.core.proposals.local_poles`) with one pole
-    fewer than the cluster's refinable modes up to ``EXTRA_POLES`` more. The stable in-band
+    fewer than the cluster's refinable modes up to ``extra_poles`` more. The stable in-band
     poles of each fit replace the cluster's modes: each old mode (refinable ones first) takes
     the nearest new pole, old modes left over are removed, new poles left over appended.
     ``data`` (P, L) complex FRFs on the lines ``omega``; ``lam`` (K,) the present data poles,
@@ -94,7 +91,7 @@ def cluster_starts(data, omega, lam, free, lam0, decay: float, min_width: float,
         idx = idx[np.argsort(~free[idx], kind="stable")]  # refinable modes first
         n_ok = int(np.sum(free[idx]))
         counts = set()
-        for order in range(max(n_ok - 1, 1), n_ok + EXTRA_POLES + 1):
+        for order in range(max(n_ok - 1, 1), n_ok + POLICY.extra_poles + 1):
             poles = local_poles(data, omega, lo, hi, order)
             good = poles[
                 (poles.real < 0)

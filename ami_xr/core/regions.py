@@ -14,14 +14,11 @@ import numpy as np
 
 from ami_xr.core import varpro
 from ami_xr.core.matching import match_by_distance
+from ami_xr.core.policy import POLICY
 from ami_xr.kernels.modal_basis import model_columns
 from ami_xr.kernels.projection import project_points
 
 FALLBACK_MESSAGE = "fallback: nothing could be fitted"  # FitResult.message of a fit given up
-# a trial is first fitted on the lines within this many half-power bandwidths (of the widest
-# mode it changes) of the modes it changes, the modes outside held at the present fit; a band
-# of more than LOCAL_MAX_SHARE of the lines is screened on all lines instead
-LOCAL_WIDTHS, LOCAL_MAX_SHARE = 6.0, 0.5
 
 
 def _mode_codes(lam: np.ndarray, lam0: np.ndarray, max_shift: float, min_width: float):
@@ -123,7 +120,7 @@ def weighted_gain(before: np.ndarray, after: np.ndarray, var: np.ndarray) -> flo
 
 
 def band_fit(prob, fit, trial, opts: dict, min_width: float, var: np.ndarray | None = None):
-    """Fit one completion trial on its own band: the lines within ``LOCAL_WIDTHS`` half-power
+    """Fit one completion trial on its own band: the lines within ``local_widths`` half-power
     bandwidths of the modes it changes (moved, added or removed), the data less the present
     fit's far modes (residues held), the modes in the band free.
 
@@ -134,7 +131,7 @@ def band_fit(prob, fit, trial, opts: dict, min_width: float, var: np.ndarray | N
     Returns ``(likelihood-ratio gain on the band, the trial's start with its band modes at
     their fitted values, iterations of the band fit)``; the gain is ``None`` (then screen on
     all lines) when the band holds
-    more than ``LOCAL_MAX_SHARE`` of the lines or too few for its modes, or when the band fit
+    more than ``local_max_share`` of the lines or too few for its modes, or when the band fit
     fails or freezes a mode the trial changes.
     """
     start, ref, _, removed = trial
@@ -145,7 +142,7 @@ def band_fit(prob, fit, trial, opts: dict, min_width: float, var: np.ndarray | N
     if not (changed.any() or removed.size):
         return None, start, 0
     poles = np.concatenate([start[changed], lam[removed]])
-    margin = LOCAL_WIDTHS * float(np.max(np.maximum(2.0 * np.abs(poles.real), min_width)))
+    margin = POLICY.local_widths * float(np.max(np.maximum(2.0 * np.abs(poles.real), min_width)))
     lo, hi = poles.imag.min() - margin, poles.imag.max() + margin
     sel = np.flatnonzero((omega >= lo) & (omega <= hi))
     # the old modes the band model holds: inside the band, changed or removed by the trial
@@ -154,7 +151,7 @@ def band_fit(prob, fit, trial, opts: dict, min_width: float, var: np.ndarray | N
     near[removed] = True
     entry = np.append(near[kept], np.ones(start.size - n_old, bool))  # trial entries in band
     n_col = 2 * max(int(entry.sum()), int(near.sum())) + 2 * len(prob.residual_terms)
-    if sel.size > LOCAL_MAX_SHARE * omega.size or 2 * sel.size < 3 * n_col:
+    if sel.size > POLICY.local_max_share * omega.size or 2 * sel.size < 3 * n_col:
         return None, start, 0
     n_line = omega.size
     far = np.flatnonzero(~near)
