@@ -160,7 +160,7 @@ def measure(sets, ema, repeats: int, label: str) -> list[float]:
         fn = np.sort(modes[names.NATURAL_FREQUENCY].values)
         band = (float(modes.attrs[names.ATTR_BAND_FMIN]), float(modes.attrs[names.ATTR_BAND_FMAX]))
         n_line = int(modes.sizes[names.FREQUENCY]) if names.FREQUENCY in modes.sizes else 0
-        full = modes.attrs.get(names.ATTR_REFINE_FULL_FITS, "-")
+        full = modes.attrs.get("refine_full_fits", "-")  # (absent before it was recorded)
         line = (
             f"{label:7s} {s.name:26s} {s.frf.sizes[names.POINT]:3d} x {n_line:6d} "
             f"{band[0]:7.1f}-{band[1]:7.1f} Hz  ami_xr {t_ami:7.2f} s {fn.size:3d} modes "
