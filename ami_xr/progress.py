@@ -21,10 +21,15 @@ inside numba's dispatcher.
 tqdm draws the bar when it is installed, a plain line otherwise. Leaving the ``with`` block,
 also by Ctrl-C or an error, stops the thread (it wakes every :data:`TICK_SECONDS`) and closes the
 bar, so an interrupt never waits on the indicator.
+
+Progress never fails the work it shows: with no usable stderr (``sys.stderr`` None, as under
+``pythonw`` or some services, or closed) nothing is drawn, and a stderr that fails a write
+(closed during the work, a broken pipe) ends the drawing, quietly (:func:`stderr`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import threading
 import time
@@ -47,7 +52,10 @@ __all__ = [
     "by_rows",
     "detail",
     "elapsed",
+    "notice",
+    "on_a_terminal",
     "phases",
+    "stderr",
 ]
 
 
@@ -65,6 +73,51 @@ MAX_CALLS = 50
 # Where :func:`detail` sends the running phase's counts: set by :func:`phases` while a bar (or a
 # callback with a ``detail`` method) listens, None otherwise (then nothing is counted or split).
 _DETAIL: ContextVar = ContextVar("ami_xr_progress_detail", default=None)
+
+
+#: What a write to a stream that is gone raises: closed (ValueError), a broken pipe or an I/O
+#: error (OSError), not a stream at all (AttributeError).
+STREAM_ERRORS = (OSError, ValueError, AttributeError)
+
+
+def stderr():
+    """``sys.stderr`` when progress can be drawn on it, else None: None under ``pythonw`` or a
+    service that has none, or closed (a write would raise)."""
+    stream = sys.stderr
+    if stream is None or not callable(getattr(stream, "write", None)):
+        return None
+    try:
+        if stream.closed:
+            return None
+    except STREAM_ERRORS:
+        return None
+    return stream
+
+
+def _write(stream, text: str) -> bool:
+    """Write and flush ``text``; False (nothing raised) when the stream is gone."""
+    try:
+        stream.write(text)
+        stream.flush()
+    except STREAM_ERRORS:
+        return False
+    return True
+
+
+def on_a_terminal() -> bool:
+    """Whether stderr is a usable terminal (False when it is None or closed)."""
+    stream = stderr()
+    try:
+        return stream is not None and bool(stream.isatty())
+    except STREAM_ERRORS:
+        return False
+
+
+def notice(text: str) -> None:
+    """``text`` as a line on stderr, or nowhere when there is none or it is closed."""
+    stream = stderr()
+    if stream is not None:
+        _write(stream, text + "\n")
 
 
 def active() -> bool:
@@ -139,20 +192,22 @@ class _PlainBar:
 
     WIDTH = 30
 
-    def __init__(self, total: int, desc: str, delay: float = 0.0):
+    def __init__(self, total: int, desc: str, delay: float = 0.0, file=None):
         self.total, self.n, self.desc = total, 0, desc
         self._start, self._delay, self._shown = time.perf_counter(), delay, False
+        self._file = file  # None: the stream is gone, nothing is drawn
         self._draw()
 
     def _draw(self) -> None:
         seconds = time.perf_counter() - self._start
-        if seconds < self._delay:
+        if seconds < self._delay or self._file is None:
             return
         self._shown = True
         done = int(self.WIDTH * self.n / self.total) if self.total else self.WIDTH
         bar = "#" * done + "." * (self.WIDTH - done)
-        sys.stderr.write(f"\r{self.desc}: [{bar}] {self.n}/{self.total} {seconds:.1f} s")
-        sys.stderr.flush()
+        line = f"\r{self.desc}: [{bar}] {self.n}/{self.total} {seconds:.1f} s"
+        if not _write(self._file, line):
+            self._file = None  # closed during the work: stop drawing
 
     def update(self, n: int = 1) -> None:
         self.n += n
@@ -167,9 +222,8 @@ class _PlainBar:
             self._draw()
 
     def close(self) -> None:
-        if self._shown:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
+        if self._shown and self._file is not None:
+            _write(self._file, "\n")
 
 
 class Progress:
@@ -215,21 +269,24 @@ class Progress:
         self._t0 = time.perf_counter()
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
+        self._file: Any = None
 
     def __enter__(self) -> Progress:
         self._t0 = time.perf_counter()
-        if not self.enabled:
+        # the stream of this block, taken once: no stderr (pythonw) or a closed one draws nothing
+        self._file = stderr() if self.enabled else None
+        if self._file is None:
             return self
         tqdm = _tqdm()
         if self.total is not None:
             if tqdm is None:
-                self._bar = _PlainBar(self.total, self.desc, self.delay)
+                self._bar = _PlainBar(self.total, self.desc, self.delay, file=self._file)
             else:
                 self._bar = tqdm(
                     total=self.total,
                     desc=self.desc,
                     unit=self.unit,
-                    file=sys.stderr,
+                    file=self._file,
                     delay=self.delay,
                 )
             if self.live:
@@ -239,7 +296,7 @@ class Progress:
             self._bar = tqdm(
                 total=None,
                 desc=self.desc,
-                file=sys.stderr,
+                file=self._file,
                 bar_format="{desc}: {elapsed}",
                 leave=False,
             )
@@ -257,31 +314,39 @@ class Progress:
             if time.perf_counter() - start < self.delay:
                 continue
             if self._bar is not None:
-                self._bar.refresh()
-            else:
-                sys.stderr.write(f"\r{self.desc}: {time.perf_counter() - start:.1f} s")
-                sys.stderr.flush()
+                try:
+                    self._bar.refresh()
+                except STREAM_ERRORS:  # tqdm's own guard missed it: stop redrawing
+                    return
+            elif self._file is None or not _write(
+                self._file, f"\r{self.desc}: {time.perf_counter() - start:.1f} s"
+            ):
+                self._file = None  # closed during the work: stop drawing
+                return
 
     def update(self, n: int = 1) -> None:
         """Advance a counted bar by ``n`` steps (nothing when disabled or open-ended)."""
         if self._bar is not None and self.total is not None:
-            self._bar.update(n)
+            with contextlib.suppress(*STREAM_ERRORS):
+                self._bar.update(n)
 
     def describe(self, text: str, refresh: bool = True) -> None:
         """Name the running step after the label: ``desc (text)``; ``refresh=False`` leaves the
         redraw to the live thread (cheap enough to call at every iteration)."""
         if self._bar is not None:
             shown = time.perf_counter() - self._t0 >= self.delay
-            self._bar.set_description_str(f"{self.desc} ({text})", refresh=refresh and shown)
+            with contextlib.suppress(*STREAM_ERRORS):
+                self._bar.set_description_str(f"{self.desc} ({text})", refresh=refresh and shown)
 
     def __exit__(self, *exc: object) -> bool:
         if self._thread is not None:
             self._stop.set()
             self._thread.join()
         if self._bar is not None:
-            self._bar.close()
-        elif self._thread is not None:
-            sys.stderr.write("\n")
+            with contextlib.suppress(*STREAM_ERRORS):
+                self._bar.close()
+        elif self._thread is not None and self._file is not None:
+            _write(self._file, "\n")
         return False
 
 
@@ -291,7 +356,7 @@ def elapsed(desc: str, n_items: int, *, enabled: bool = True) -> Progress:
     Shown only on a terminal (a ticking line would clutter logs and pipes) and from
     :data:`MIN_ITEMS` items on.
     """
-    return Progress(desc, enabled=enabled and sys.stderr.isatty() and n_items >= MIN_ITEMS)
+    return Progress(desc, enabled=enabled and n_items >= MIN_ITEMS and on_a_terminal())
 
 
 class PhaseBar:
@@ -340,7 +405,7 @@ class PhaseBar:
 def on_terminal(enabled: bool = True, desc: str = "") -> PhaseBar | bool:
     """The ``progress`` argument for work started from the command line: a :class:`PhaseBar`
     that appears after :data:`DELAY_SECONDS` when stderr is a terminal, else False."""
-    if not (enabled and sys.stderr.isatty()):
+    if not (enabled and on_a_terminal()):
         return False
     return PhaseBar(desc, delay=DELAY_SECONDS)
 

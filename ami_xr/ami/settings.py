@@ -13,9 +13,11 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping, MutableMapping
 from dataclasses import dataclass, field
+from numbers import Integral, Real
 from typing import Any, TypeVar
 
 from ami_xr import names
+from ami_xr.errors import AmiXrValueError
 
 _S = TypeVar("_S")
 
@@ -123,16 +125,40 @@ def _encode(value: Any) -> Any:
 
 
 def _decode(value: Any, default: Any) -> Any:
-    """The inverse of :func:`_encode`, typed after the field's default."""
-    if isinstance(default, bool):
-        return bool(int(value))
-    if isinstance(default, int):
-        return int(value)
+    """The inverse of :func:`_encode`, typed after the field's default (raises TypeError or
+    ValueError for a value that is not of that type: :func:`from_attrs` names the attribute)."""
+    if isinstance(default, int):  # bool too
+        if isinstance(value, Real) and not isinstance(value, Integral):
+            if not float(value).is_integer():
+                raise ValueError(value)
+        number = int(value)
+        if isinstance(default, bool):
+            if number not in (0, 1):
+                raise ValueError(value)
+            return bool(number)
+        return number
     if isinstance(default, float):
-        return value if isinstance(value, str) else float(value)  # band may be "all"
+        if isinstance(value, str) and value in _WORDS:
+            return value  # band may be "all"
+        return float(value)
     if isinstance(default, str) and isinstance(value, str) and "," in value:
         return tuple(value.split(","))
     return value
+
+
+#: Words a number-valued setting may hold instead of a number (``band="all"``).
+_WORDS = ("all",)
+
+
+def _expected(f: dataclasses.Field) -> str:
+    if isinstance(f.default, bool):
+        return "0 or 1 (a flag)"
+    if isinstance(f.default, int):
+        return "an integer"
+    if isinstance(f.default, float):
+        words = " or ".join(repr(w) for w in _WORDS)
+        return "a number" + (f" (or {words})" if "str" in str(f.type) else "")
+    return "a string"
 
 
 def to_attrs(settings: Any, attrs: MutableMapping[str, Any]) -> None:
@@ -149,7 +175,14 @@ def from_attrs(cls: type[_S], attrs: Mapping[str, Any]) -> _S:
     for f in dataclasses.fields(cls):
         name = f.metadata.get("attr")
         if name is not None and attrs.get(name) is not None:  # None: not set
-            values[f.name] = _decode(attrs[name], f.default)
+            try:
+                values[f.name] = _decode(attrs[name], f.default)
+            except (TypeError, ValueError, OverflowError):
+                raise AmiXrValueError(
+                    f"attribute {name!r}: expected {_expected(f)}, got "
+                    f"{attrs[name]!r}; it records a setting of an earlier phase (a corrupt or "
+                    "hand-edited file? remove the attribute to use the default)"
+                ) from None
     return cls(**values)
 
 

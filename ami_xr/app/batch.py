@@ -28,6 +28,8 @@ Guarantees
   and makes ``ami-xr batch`` exit with 4 when no file failed (3 when some failed).
 * **Summary.** ``<output_dir>/batch_summary.csv`` (file, status, modes found, natural frequencies
   in Hz, output, seconds, message), written atomically after every run.
+* **No machine path in an output file.** The summary (messages too) and the outputs name files
+  relative to ``input_dir`` and ``output_dir`` (:func:`ami_xr.app.redact.relative_paths`).
 """
 
 from __future__ import annotations
@@ -38,7 +40,6 @@ import hashlib
 import json
 import os
 import signal
-import sys
 import time
 import traceback
 import warnings
@@ -48,10 +49,11 @@ from pathlib import Path
 from typing import Any
 
 from ami_xr import interrupt, names, provenance
+from ami_xr.app.redact import relative_paths
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_folder, atomic_open, interrupts_deferred, remove_stale
 from ami_xr.io.formats import INPUT_SUFFIXES, check_input, read_any
-from ami_xr.progress import Progress
+from ami_xr.progress import Progress, notice
 
 __all__ = [
     "batch",
@@ -291,7 +293,7 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
             if names.FRF not in ds:
                 if names.RESPONSE not in ds:
                     raise DataFileError(
-                        f"{inp}: neither an FRF Dataset ('{names.FRF}') nor a time Dataset "
+                        f"{job['rel']}: neither an FRF Dataset ('{names.FRF}') nor a time Dataset "
                         f"('{names.RESPONSE}'); found variables {sorted(map(str, ds.data_vars))}"
                     )
                 ds = estimate_frf(ds, job["frf_options"])
@@ -333,6 +335,8 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
         row["message"] = f"{type(err).__name__}: {' '.join(s.strip() for s in first)}"
         if job.get("traceback"):
             row["traceback"] = traceback.format_exc()
+    files = {inp: job["rel"], out: job["out_rel"]}  # no machine path in the summary
+    row["message"] = relative_paths(row["message"], files, job["folders"])
     row["seconds"] = round(time.perf_counter() - start, 3)
     return row
 
@@ -388,11 +392,9 @@ def _run_jobs(jobs: list[dict], workers: int) -> Iterator[dict]:
             done, waiting = cf.wait(waiting, timeout=POLL_SECONDS, return_when=cf.FIRST_COMPLETED)
             if interrupt.pending() is not None and not stop_event.is_set():
                 stop_event.set()  # running files stop at their next checkpoint
-                print(
+                notice(
                     "\nami-xr batch: stopping: files in progress are rolled back, queued ones "
-                    "not started",
-                    file=sys.stderr,
-                    flush=True,
+                    "not started"
                 )
                 for fut in waiting:
                     fut.cancel()  # queued files are not started
@@ -467,7 +469,8 @@ def _plan(
         try:  # a named pipe would block the batch forever: refused before anything opens it
             check_input(inp, name=rel)
         except DataFileError as err:
-            rows[rel] = _row(rel, "", STATUS_FAILED, str(err))
+            why = relative_paths(str(err), {inp: rel}, shared["folders"])  # no machine path
+            rows[rel] = _row(rel, "", STATUS_FAILED, why)
             continue
         if not force and _up_to_date(inp, out, shared["params_sha"]):
             count, freqs = _modal_summary_from_file(out)
@@ -556,6 +559,7 @@ def batch(
     inputs = find_inputs(input_dir, exclude=[output_dir])
 
     shared = {
+        "folders": [str(input_dir), str(output_dir)],  # messages name files relative to them
         "identify_options": identify_options or {},
         "frf_options": frf_options or {},
         "parameters": parameters,

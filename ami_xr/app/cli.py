@@ -234,7 +234,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from ami_xr import names
     from ami_xr.app.cluster import cluster, read_frfs
     from ami_xr.io.formats import LVM_SUFFIX, write_any
-    from ami_xr.progress import on_terminal
+    from ami_xr.progress import on_a_terminal, on_terminal
     from ami_xr.tables import format_modal_table
 
     if Path(args.input).suffix.lower() == LVM_SUFFIX:  # always time histories: say so unread
@@ -251,7 +251,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     _say(format_modal_table(result))
     if args.stability:  # the variants take their own pfa and band; the other options stay
         others = {k: v for k, v in options.items() if k != "pfa"}
-        show = not args.quiet and sys.stderr.isatty()
+        show = not args.quiet and on_a_terminal()  # False, not an error, when stderr is closed
         result = ami_xr.stability(ds, result, progress=show, **others)
         _say(stability_table(result))
     if args.output:  # one record, the running command's (main), with identify as its step

@@ -14,7 +14,7 @@ import contextlib
 from collections.abc import Iterator
 from pathlib import Path
 
-from ami_xr.app.options import ranged
+from ami_xr.app.options import memory_size, ranged, scheduler_address
 from ami_xr.errors import AmiXrValueError
 
 __all__ = ["add_cluster_options", "cluster", "read_frfs"]
@@ -24,15 +24,17 @@ DISTRIBUTED_MISSING = "--workers/--scheduler need dask.distributed: pip install 
 
 def add_cluster_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("scale-out (dask.distributed)")
-    g.add_argument(
+    one = g.add_mutually_exclusive_group()  # both: a usage error (exit 2) naming the two
+    one.add_argument(
         "--workers",
         type=ranged(int, 1, 1024),
         metavar="N",
         help="run on a local dask.distributed cluster of N single-threaded workers "
         "(default: none, in this process)",
     )
-    g.add_argument(
+    one.add_argument(
         "--scheduler",
+        type=scheduler_address,
         metavar="ADDRESS",
         help="run on the existing dask.distributed scheduler at ADDRESS (e.g. tcp://host:8786) "
         "(default: none)",
@@ -46,9 +48,11 @@ def add_cluster_options(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--worker-memory",
+        type=memory_size,
         default="2GB",
         metavar="SIZE",
-        help="memory limit of each local worker (--workers) (default: %(default)s)",
+        help="memory limit of each local worker (--workers): a size (2GB, 512MiB, bytes), a "
+        "fraction of this machine's memory, or auto (default: %(default)s)",
     )
 
 

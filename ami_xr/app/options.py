@@ -11,11 +11,14 @@ not passed on (:func:`non_default`), so the library applies its own.
 from __future__ import annotations
 
 import argparse
+import math
+import re
 from functools import cached_property
 from typing import Any
 
 __all__ = [
     "BENCHMARK",
+    "SCHEDULER_SCHEMES",
     "Default",
     "RANDOM_SYSTEM",
     "add_frf_options",
@@ -24,6 +27,8 @@ __all__ = [
     "add_stability_option",
     "frf_options",
     "identify_options",
+    "memory_size",
+    "scheduler_address",
     "stability_table",
     "non_default",
     "value",
@@ -139,6 +144,66 @@ def _band(text: str) -> float | str:
         return ranged(float, 0.0, low_open=True)(text)
     except argparse.ArgumentTypeError as err:
         raise argparse.ArgumentTypeError(f"{err} (or 'all')") from None
+
+
+#: Schemes of a dask.distributed scheduler address that another process can reach (``inproc``
+#: lives inside one process).
+SCHEDULER_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+_HOST = re.compile(r"^(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_]([A-Za-z0-9_.-]*[A-Za-z0-9_])?)$")
+
+
+def scheduler_address(text: str) -> str:
+    """An argparse ``type`` for ``--scheduler``: ``[SCHEME://]HOST:PORT``, checked before any
+    work (dask.distributed would take ``not-an-address`` for a host and fail deep in the run, or
+    wait for a connection that cannot come). Returns ``text`` unchanged."""
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text
+    host, colon, port = rest.rpartition(":")
+    why = ""
+    if scheme not in SCHEDULER_SCHEMES:
+        why = f"unknown scheme {scheme!r}"
+    elif not colon or not host:
+        why = "no HOST:PORT"
+    elif not _HOST.match(host):
+        why = f"{host!r} is not a host name or address"
+    elif not (port.isdigit() and 1 <= int(port) <= 65535):
+        why = f"port {port!r} is not an integer in 1..65535"
+    if why:
+        raise argparse.ArgumentTypeError(
+            f"expected a scheduler address [SCHEME://]HOST:PORT (SCHEME one of "
+            f"{', '.join(SCHEDULER_SCHEMES)}; default tcp), e.g. tcp://localhost:8786, "
+            f"got {text!r} ({why})"
+        )
+    return text
+
+
+def memory_size(text: str) -> str:
+    """An argparse ``type`` for ``--worker-memory``: a size dask understands (``2GB``,
+    ``512MiB``, ``4e9`` bytes), a fraction in (0, 1] of this machine's memory, or ``auto``;
+    checked before any work (``abc`` failed deep in the cluster's start). Returns ``text``
+    unchanged (dask.distributed reads it)."""
+    if text.strip() == "auto":
+        return text
+    try:
+        from dask.utils import parse_bytes
+    except ImportError:  # the command says that --workers needs dask.distributed
+        return text
+    try:
+        number = float(text)
+    except ValueError:
+        number = None
+    try:
+        size = number if number is not None else parse_bytes(text)
+        good = math.isfinite(size) and size > 0
+    except (ValueError, OverflowError, TypeError):
+        good = False
+    if not good:
+        raise argparse.ArgumentTypeError(
+            "expected a memory size > 0 such as 2GB, 512MiB or 4e9 (bytes), a fraction in "
+            f"(0, 1] of this machine's memory, or 'auto', got {text!r}"
+        )
+    return text
 
 
 #: Largest --max-modes (the kernels count modes in int64 arrays sized by it).

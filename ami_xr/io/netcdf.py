@@ -251,14 +251,60 @@ def _encode_attrs(attrs: dict, owner: str) -> dict:
     return out
 
 
-def _decode_attrs(attrs: dict) -> dict:
+#: The tags :func:`_encode_attr` writes into ``ami_xr_encoded_attrs``.
+ATTR_TAGS = ("bool", "bool[]", "complex", "complex[]", "json", "[1]")
+
+
+def _encoded_tags(raw: Any, attrs: dict, owner: str) -> dict[str, str]:
+    """The tags of ``ami_xr_encoded_attrs`` (its value ``raw``) of ``owner``, checked: a JSON
+    object naming attributes that ``attrs`` has, each with a known tag."""
+    where = f"attribute {ATTR_ENCODED_ATTRS!r} of {owner}"
+    expected = (
+        "expected a JSON object mapping attribute names to encoding tags "
+        f"({', '.join(ATTR_TAGS)}), as ami_xr.to_netcdf writes it"
+    )
+    hint = " (a file written or edited by another tool? remove the attribute or rewrite the file)"
+    try:
+        tags = json.loads(raw)
+    except (TypeError, ValueError) as err:  # JSONDecodeError is a ValueError
+        raise DataFileError(
+            f"{where}: {expected}, got {_short(raw)}, which is not valid JSON ({err}){hint}"
+        ) from None
+    if not isinstance(tags, dict):
+        raise DataFileError(f"{where}: {expected}, got a JSON {type(tags).__name__}{hint}")
+    for key, tag in tags.items():
+        if key not in attrs:
+            raise DataFileError(
+                f"{where}: names attribute {key!r}, which {owner} does not have "
+                f"(it has {_short(sorted(map(str, attrs)), 200)}){hint}"
+            )
+        if tag not in ATTR_TAGS:
+            raise DataFileError(
+                f"{where}: unknown encoding tag {_short(tag)} for attribute {key!r} "
+                f"(expected one of {', '.join(ATTR_TAGS)}){hint}"
+            )
+    return tags
+
+
+def _short(value: Any, limit: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _decode_attrs(attrs: dict, owner: str = "the Dataset") -> dict:
     attrs = dict(attrs)
     raw = attrs.pop(ATTR_ENCODED_ATTRS, None)
     if raw is None:
         return attrs
-    tags = json.loads(raw)
-    for key, tag in tags.items():
-        attrs[key] = _decode_attr(attrs[key], tag)
+    for key, tag in _encoded_tags(raw, attrs, owner).items():
+        try:
+            attrs[key] = _decode_attr(attrs[key], tag)
+        except (TypeError, ValueError) as err:
+            raise DataFileError(
+                f"attribute {key!r} of {owner}: tagged {tag!r} in {ATTR_ENCODED_ATTRS!r} but its "
+                f"value {_short(attrs[key])} cannot be decoded as that ({err}); expected what "
+                "ami_xr.to_netcdf writes for that tag (a file written or edited by another tool?)"
+            ) from None
     return attrs
 
 
@@ -317,9 +363,9 @@ def decode(ds: xr.Dataset) -> xr.Dataset:
             var = _decode_complex_variable(str(name), var.to_base_variable())
         else:
             var = var.copy(deep=False)
-        var.attrs = _decode_attrs(var.attrs)
+        var.attrs = _decode_attrs(var.attrs, f"variable {name!r}")
         variables[name] = var
-    return _rebuild(ds, variables, _decode_attrs(ds.attrs))
+    return _rebuild(ds, variables, _decode_attrs(ds.attrs, "the Dataset"))
 
 
 # --- files ----------------------------------------------------------------------------------------
@@ -383,7 +429,7 @@ def _uniform_time_axis(path: Path) -> xr.Coordinates | None:
     if not last > t0:
         return None
     kept = {k: v for k, v in attrs.items() if k not in ("_FillValue", "missing_value")}
-    coords = uniform_coords(t0, last, n, dim, _decode_attrs(kept))
+    coords = uniform_coords(t0, last, n, dim, _decode_attrs(kept, f"variable {dim!r}"))
     grid = coords[dim].variable[positions].values  # computes only the probed positions
     tol = _TIME_AXIS_ULPS * np.finfo(np.float64).eps * max(abs(t0), abs(last))
     if np.max(np.abs(grid - probes)) > tol:
@@ -495,6 +541,8 @@ def open_dataset(
         if time_axis is not None:
             ds = ds.assign_coords(time_axis)
         ds = strip(ds)  # the CF metadata to_netcdf added is an on-disk encoding
+    except DataFileError as err:  # decode() names what is wrong: add the file, nothing else
+        raise DataFileError(f"{path}: {err}") from err
     except (
         OSError,
         RuntimeError,

@@ -48,13 +48,63 @@ def check_params(params: IsolateParams) -> None:
         )
 
 
-def _check_sigma(sigma: np.ndarray, n_p: int) -> np.ndarray:
+def _check_sigma(sigma: np.ndarray, n_p: int, data: np.ndarray) -> np.ndarray:
+    """``sigma`` (one noise floor per FRF row of ``data``), checked: positive and finite. The
+    message names the rows and the values at fault and why such a value comes about."""
     sigma = np.ascontiguousarray(sigma, dtype=np.float64)
-    if sigma.shape != (n_p,) or not np.all(np.isfinite(sigma) & (sigma > 0.0)):
+    if sigma.shape != (n_p,):
         raise AmiXrValueError(
-            f"sigma: expected {n_p} positive noise floors (shape ({n_p},)), got shape {sigma.shape}"
+            f"sigma: expected one noise floor per FRF, shape ({n_p},), got shape {sigma.shape}"
         )
+    bad = ~(np.isfinite(sigma) & (sigma > 0.0))
+    if bad.any():
+        raise AmiXrValueError(_sigma_message(sigma, bad, data))
     return sigma
+
+
+def _sigma_message(sigma: np.ndarray, bad: np.ndarray, data: np.ndarray) -> str:
+    rows = np.flatnonzero(bad)
+    values = sorted({float(v) for v in sigma[rows]}, key=repr)
+    shown = ", ".join(str(int(r)) for r in rows[:10]) + (", ..." if rows.size > 10 else "")
+    text = (
+        f"sigma: expected a positive, finite noise floor (noise standard deviation) for each of "
+        f"the {sigma.size} FRFs, got {', '.join(f'{v:g}' for v in values)} at FRF "
+        f"row{'s' if rows.size > 1 else ''} {shown} (0-based, in point order)"
+    )
+    why = []
+    if np.any(sigma[rows] == 0.0):
+        why.append(
+            "a noise floor of 0 means the FRF shows no noise at all: constant or noise-free "
+            "data, or values too small to represent next to the largest value of the data (the "
+            "FRFs are scaled together to their largest value)"
+        )
+        magnitude = np.abs(data)
+        if magnitude.size and np.isfinite(magnitude).all():
+            row, line = np.unravel_index(int(np.argmax(magnitude)), magnitude.shape)
+            peak = float(magnitude[row, line])
+            typical = magnitude[magnitude > 0.0]
+            typical = float(np.median(typical)) if typical.size else 0.0
+            with np.errstate(divide="ignore", over="ignore"):
+                ratio = peak / typical if typical > 0.0 else np.inf
+            if peak > 0.0 and ratio >= SPIKE_RATIO:
+                how = f"{ratio:.3g} times" if np.isfinite(ratio) else "far above"
+                why.append(
+                    f"line {line} (of the lines analysed) of FRF row {row} is {how} the median "
+                    "magnitude of the data: a spike? remove or clip it, or identify that FRF "
+                    "apart"
+                )
+    if np.any(np.isnan(sigma[rows])) or np.any(np.isinf(sigma[rows])):
+        why.append(
+            "a NaN or infinite noise floor comes from NaN or infinite FRF values, or values so "
+            "large that their squares overflow"
+        )
+    if np.any(sigma[rows] < 0.0):
+        why.append("a noise floor is a standard deviation and cannot be negative")
+    return (text + "; " + "; ".join(why)) if why else text
+
+
+#: Largest value / median magnitude from which :func:`_check_sigma` names a line a spike.
+SPIKE_RATIO = 1e12
 
 
 def isolate_batch(
@@ -102,7 +152,7 @@ def isolate_batch(
     n0 = np.ascontiguousarray(n0, dtype=np.int64)
     if n0.shape != (n_p,) or np.any(n0 < 0) or np.any(n0 > lam0.shape[1]):
         raise AmiXrValueError(f"n0: expected {n_p} counts in 0..{lam0.shape[1]}, got {n0!r}")
-    sigma = _check_sigma(sigma, n_p)
+    sigma = _check_sigma(sigma, n_p, data)
     s = min(lam0.shape[1], m)
     lam_in = np.full((n_p, m), complex(np.nan, np.nan))
     res_in = np.full((n_p, 1, m), complex(np.nan, np.nan))
@@ -153,7 +203,7 @@ def isolate_simo(
         raise AmiXrValueError(f"lam0: expected a 1-D array of eigenvalues, got {lam0.shape}")
     if int(n0) != n0 or not 0 <= n0 <= lam0.size:
         raise AmiXrValueError(f"n0: expected a count in 0..{lam0.size}, got {n0!r}")
-    sigma = _check_sigma(sigma, n_p)
+    sigma = _check_sigma(sigma, n_p, data)
     scaled = data / sigma[:, None]  # noise units: the SNR weighting of the FRFs
     k = min(int(n0), m)
     lam_in = np.full((1, m), complex(np.nan, np.nan))
