@@ -18,8 +18,9 @@ Guarantees
 * **Resumable, incremental.** Each output records the SHA-256 of its input file, the input's size
   and mtime, and a hash of the pipeline parameters (attributes ``batch_input_sha256``,
   ``batch_parameters_sha256``). A re-run skips a file whose output matches both (the content
-  hash decides; a touched but unchanged input is still up to date) and redoes it otherwise;
-  ``force=True`` redoes everything.
+  hash decides, always: a touched but unchanged input is still up to date, and an input
+  changed in place with the same size and mtime is redone) and redoes it otherwise;
+  ``force=True`` redoes everything (:mod:`ami_xr.app.batch_files`).
 * **One bad file never stops the batch.** Its error is reported in the summary (status
   ``failed``) and the others go on.
 * **An incomplete result is not a success.** A file whose identification stopped at a cap
@@ -27,7 +28,11 @@ Guarantees
   status ``capped`` (also when its output is up to date), is counted apart in the summary line
   and makes ``ami-xr batch`` exit with 4 when no file failed (3 when some failed).
 * **Summary.** ``<output_dir>/batch_summary.csv`` (file, status, modes found, natural frequencies
-  in Hz, output, seconds, message), written atomically after every run.
+  in Hz, output, seconds, message), written atomically after every run; an existing read-only
+  summary is refused before any work (:class:`~ami_xr.errors.DataFileError`).
+* **Outputs inside the inputs.** The batch's own outputs are left out by name (``*.modes.nc``,
+  report folders), never by folder: an ``output_dir`` inside ``input_dir`` that holds
+  measurements has them processed, with a one-line notice on stderr.
 * **No machine path in an output file.** The summary (messages too) and the outputs name files
   relative to ``input_dir`` and ``output_dir`` (:func:`ami_xr.app.redact.relative_paths`).
 """
@@ -36,23 +41,41 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import csv
-import hashlib
 import json
 import os
 import signal
 import time
 import traceback
 import warnings
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ami_xr import interrupt, names, provenance
+from ami_xr.app.batch_files import (
+    ATTR_INPUT,
+    ATTR_INPUT_MTIME,
+    ATTR_INPUT_SHA,
+    ATTR_INPUT_SIZE,
+    ATTR_PARAMS,
+    ATTR_PARAMS_SHA,
+    OUTPUT_SUFFIX,
+    REPORT_SUFFIX,
+    SUMMARY_NAME,
+    check_summary,
+    find_inputs,
+    output_attrs,
+    output_inside_input,
+    output_path,
+    parameters_hash,
+    sha256,
+    up_to_date,
+)
 from ami_xr.app.redact import relative_paths
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_folder, atomic_open, interrupts_deferred, remove_stale
-from ami_xr.io.formats import INPUT_SUFFIXES, check_input, read_any
+from ami_xr.io.formats import check_input, read_any
 from ami_xr.progress import Progress, notice
 
 __all__ = [
@@ -62,17 +85,6 @@ __all__ = [
     "find_inputs",
     "output_path",
 ]
-
-OUTPUT_SUFFIX = ".modes.nc"
-SUMMARY_NAME = "batch_summary.csv"
-ATTR_INPUT = "batch_input"
-ATTR_INPUT_SHA = "batch_input_sha256"
-ATTR_INPUT_SIZE = "batch_input_size"
-ATTR_INPUT_MTIME = "batch_input_mtime_ns"
-ATTR_PARAMS_SHA = "batch_parameters_sha256"
-ATTR_PARAMS = "batch_parameters"
-# Bump when the meaning of the pipeline changes so old outputs are redone.
-PIPELINE_VERSION = 1
 
 STATUS_OK = "ok"
 STATUS_UP_TO_DATE = "up to date"
@@ -172,72 +184,6 @@ def _printable(text: Any) -> Any:
     return raw.decode("utf-8", "backslashreplace")
 
 
-# --- discovery -----------------------------------------------------------------------------------
-def find_inputs(input_dir: str | os.PathLike, *, exclude: Iterable[Path] = ()) -> list[Path]:
-    """Measurement files under ``input_dir`` (recursive, sorted), skipping hidden files and folders,
-    ``*.modes.nc`` results and anything under the ``exclude`` folders."""
-    root = Path(input_dir)
-    excluded = [Path(e).resolve() for e in exclude]
-    found = []
-    for dirpath, dirnames, filenames in os.walk(root):
-        here = Path(dirpath)
-        dirnames[:] = sorted(
-            d for d in dirnames if not d.startswith(".") and (here / d).resolve() not in excluded
-        )
-        for name in sorted(filenames):
-            if name.startswith(".") or name.lower().endswith(OUTPUT_SUFFIX):
-                continue
-            if Path(name).suffix.lower() in INPUT_SUFFIXES:
-                found.append(here / name)
-    return found
-
-
-def output_path(input_file: Path, input_dir: Path, output_dir: Path) -> Path:
-    """Where the result of ``input_file`` goes: same relative folder, ``<stem>.modes.nc``."""
-    rel = input_file.relative_to(input_dir)
-    return output_dir / rel.parent / (rel.stem + OUTPUT_SUFFIX)
-
-
-# --- hashing and up-to-date check ----------------------------------------------------------------
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
-def _parameters_hash(parameters: dict[str, Any]) -> str:
-    text = json.dumps({"pipeline": PIPELINE_VERSION, **parameters}, sort_keys=True, default=repr)
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-def _output_attrs(path: Path) -> dict[str, Any] | None:
-    """Global attributes of an existing output (None when missing or unreadable)."""
-    if not path.is_file():
-        return None
-    try:
-        import netCDF4
-
-        with netCDF4.Dataset(path) as nc:
-            return {k: nc.getncattr(k) for k in nc.ncattrs()}
-    except (OSError, RuntimeError, ValueError):
-        return None
-
-
-def _up_to_date(inp: Path, out: Path, params_sha: str) -> bool:
-    attrs = _output_attrs(out)
-    if attrs is None or attrs.get(ATTR_PARAMS_SHA) != params_sha:
-        return False
-    st = inp.stat()
-    same_stat = str(attrs.get(ATTR_INPUT_SIZE)) == str(st.st_size) and str(
-        attrs.get(ATTR_INPUT_MTIME)
-    ) == str(st.st_mtime_ns)
-    if same_stat and attrs.get(ATTR_INPUT_SHA):
-        return True
-    return attrs.get(ATTR_INPUT_SHA) == _sha256(inp)
-
-
 # --- one file ---------------------------------------------------------------------------------
 def estimate_frf(ts, frf_options: dict[str, Any] | None = None):
     """FRFs of a time Dataset by :func:`ami_xr.dsp.frf.frf_from_options`; without an
@@ -287,7 +233,7 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
         # one record per output, the batch's, with the read and identify as its steps
         with warnings.catch_warnings(record=True) as caught, provenance.command(BATCH_FUNCTION):
             warnings.simplefilter("always")
-            input_sha = _sha256(inp)
+            input_sha = sha256(inp)
             st = inp.stat()
             ds = read_any(inp)
             if names.FRF not in ds:
@@ -313,7 +259,7 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
                 from ami_xr.app.report import report
 
                 # Report first: the netCDF output appearing marks the whole file as done.
-                folder = out.with_name(out.name[: -len(OUTPUT_SUFFIX)] + ".report")
+                folder = out.with_name(out.name[: -len(OUTPUT_SUFFIX)] + REPORT_SUFFIX)
                 with atomic_folder(folder) as tmp:  # swapped in whole: never a partial report
                     report(result, tmp)
             ami_xr.to_netcdf(result, out, parameters=job["parameters"])  # BATCH_FUNCTION's
@@ -429,12 +375,12 @@ def _reconcile(rows: dict[str, dict], jobs: list[dict]) -> None:
             continue
         out = Path(job["output"])
         try:
-            if not _up_to_date(Path(job["input"]), out, job["params_sha"]):
+            if not up_to_date(Path(job["input"]), out, job["params_sha"]):
                 continue
         except OSError:
             continue
         count, freqs = _modal_summary_from_file(out)
-        caps = str((_output_attrs(out) or {}).get(names.ATTR_AMI_CAPPED, "") or "")
+        caps = str((output_attrs(out) or {}).get(names.ATTR_AMI_CAPPED, "") or "")
         status = STATUS_CAPPED if caps else STATUS_OK
         rows[job["rel"]] = _row(
             job["rel"],
@@ -472,9 +418,9 @@ def _plan(
             why = relative_paths(str(err), {inp: rel}, shared["folders"])  # no machine path
             rows[rel] = _row(rel, "", STATUS_FAILED, why)
             continue
-        if not force and _up_to_date(inp, out, shared["params_sha"]):
+        if not force and up_to_date(inp, out, shared["params_sha"]):
             count, freqs = _modal_summary_from_file(out)
-            caps = str((_output_attrs(out) or {}).get(names.ATTR_AMI_CAPPED, "") or "")
+            caps = str((output_attrs(out) or {}).get(names.ATTR_AMI_CAPPED, "") or "")
             status, message = STATUS_UP_TO_DATE, ""
             if caps:  # an up-to-date incomplete result stays incomplete
                 status, message = STATUS_CAPPED, f"up to date; stopped at cap(s): {caps}"
@@ -504,8 +450,9 @@ def batch(
     ----------
     input_dir : str or path-like
         Folder searched recursively for ``.nc`` (FRF or time Datasets), ``.uff``/``.unv``
-        (dataset 58) and ``.lvm`` files. Hidden files and folders, ``*.modes.nc`` files and
-        ``output_dir`` (if inside) are skipped.
+        (dataset 58) and ``.lvm`` files. Hidden files and folders and ``*.modes.nc`` files are
+        skipped, and so are the report folders inside ``output_dir``: an ``output_dir`` inside
+        ``input_dir`` is named in a notice on stderr, and the measurements in it are processed.
     output_dir : str or path-like
         Results go to ``<output_dir>/<relative folder>/<stem>.modes.nc`` (created as needed),
         the summary to ``<output_dir>/batch_summary.csv``.
@@ -532,7 +479,8 @@ def batch(
     Raises
     ------
     DataFileError
-        ``input_dir`` is not a folder.
+        ``input_dir`` is not a folder, ``output_dir`` is a file, or
+        ``<output_dir>/batch_summary.csv`` exists and is read-only (refused before any work).
     AmiXrValueError
         ``workers`` is not a positive integer, or an options argument is not a dict.
     """
@@ -548,6 +496,7 @@ def batch(
             )
     if output_dir.exists() and not output_dir.is_dir():
         raise DataFileError(f"output_dir: {str(output_dir)!r} exists and is not a folder")
+    summary = BatchSummary(csv_path=check_summary(output_dir))  # a read-only one: before work
     output_dir.mkdir(parents=True, exist_ok=True)
     remove_stale(output_dir)
     parameters = {
@@ -555,8 +504,15 @@ def batch(
         "frf": frf_options or {},
         "report": bool(report),
     }
-    params_sha = _parameters_hash(parameters)
-    inputs = find_inputs(input_dir, exclude=[output_dir])
+    params_sha = parameters_hash(parameters)
+    inputs = find_inputs(input_dir, output_dir=output_dir)  # outputs by name, not by folder
+    inner = output_inside_input(input_dir, output_dir)
+    if inner is not None:
+        notice(
+            f"ami-xr batch: the output folder {inner} is inside the input folder: its results "
+            f"(*{OUTPUT_SUFFIX}, *{REPORT_SUFFIX}/, {SUMMARY_NAME}) are not read as inputs, "
+            "the measurements in it are processed"
+        )
 
     shared = {
         "folders": [str(input_dir), str(output_dir)],  # messages name files relative to them
@@ -569,7 +525,6 @@ def batch(
     }
     rows, jobs = _plan(inputs, input_dir, output_dir, shared, force)
 
-    summary = BatchSummary(csv_path=output_dir / SUMMARY_NAME)
     try:
         with (
             interrupt.armed(),

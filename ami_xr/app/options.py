@@ -567,7 +567,10 @@ def check_paths(args: argparse.Namespace) -> None:
     DataFileError
         Naming the option, the output and, where it clashes with one, the input; or an input
         that is missing or not a regular file (a folder for ``batch``).
+    SystemExit
+        Code 2 (a usage error, one line): ``batch DIR -o DIR``, the same folder.
     """
+    from ami_xr.app.batch_files import BATCH_SAME_FOLDER, same_folder
     from ami_xr.io.formats import check_input, check_output
 
     reads, writes = PATHS[args.command]
@@ -575,6 +578,10 @@ def check_paths(args: argparse.Namespace) -> None:
     for path in inputs:  # a FIFO or device would block or never end the reader: refuse it now
         if path is not None:
             check_input(path, folder=args.command == "batch")
+    if args.command == "batch" and same_folder(value(args.input), value(args.output)):
+        parser: argparse.ArgumentParser = args.subcommand_parser  # a usage error: exit 2
+        why = BATCH_SAME_FOLDER.format(path=str(value(args.output)))
+        parser.exit(2, f"{parser.prog}: error: argument -o/--output: {why}\n")
     done: list[str] = []
     for attr, kind in writes:
         path = value(getattr(args, attr))

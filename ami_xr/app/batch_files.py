@@ -1,0 +1,178 @@
+"""The files of a batch (:mod:`ami_xr.app.batch`): which measurements it reads, where their
+results go, whether a result is still up to date, and the summary's write check.
+
+* **Inputs.** Every ``.nc``, ``.uff``/``.unv`` and ``.lvm`` file under the input folder, hidden
+  files and folders left out. The batch's own outputs are recognised by name, never by the
+  folder they are in: ``*.modes.nc`` anywhere, and ``<stem>.report/`` folders and
+  ``batch_summary.csv`` in the output tree. So an output folder inside the inputs (``-o
+  camp/day1`` where ``day1/`` holds measurements) never hides a measurement.
+* **Staleness by content.** An output records the SHA-256 of its input (with its size and
+  mtime). It is up to date when the parameters match and the input's content hash equals the
+  recorded one; the hash is streamed (1 MiB at a time) and skipped only when the size differs
+  (then the content differs too). Size and mtime alone never decide "up to date": a copy tool
+  that keeps both can change the content.
+* **Read-only summary.** An existing ``batch_summary.csv`` that is read-only is refused before
+  any work, as every other read-only output is (:func:`ami_xr.io.formats.check_output`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import stat
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from ami_xr.errors import DataFileError
+from ami_xr.io.formats import INPUT_SUFFIXES
+
+OUTPUT_SUFFIX = ".modes.nc"
+REPORT_SUFFIX = ".report"
+SUMMARY_NAME = "batch_summary.csv"
+ATTR_INPUT = "batch_input"
+ATTR_INPUT_SHA = "batch_input_sha256"
+ATTR_INPUT_SIZE = "batch_input_size"
+ATTR_INPUT_MTIME = "batch_input_mtime_ns"
+ATTR_PARAMS_SHA = "batch_parameters_sha256"
+ATTR_PARAMS = "batch_parameters"
+# Bump when the meaning of the pipeline changes so old outputs are redone.
+PIPELINE_VERSION = 1
+_WRITE_BITS = stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH
+_HASH_BLOCK = 1 << 20
+
+
+# --- discovery -----------------------------------------------------------------------------------
+def _inside(path: Path, folder: Path) -> bool:
+    return path == folder or folder in path.parents
+
+
+def find_inputs(
+    input_dir: str | os.PathLike,
+    *,
+    exclude: Iterable[Path] = (),
+    output_dir: str | os.PathLike | None = None,
+) -> list[Path]:
+    """Measurement files under ``input_dir`` (recursive, sorted), skipping hidden files and
+    folders, ``*.modes.nc`` results, anything under the ``exclude`` folders and, inside
+    ``output_dir``, the batch's report folders (``<stem>.report/``). Measurements inside
+    ``output_dir`` are found like any other."""
+    root = Path(input_dir)
+    excluded = [Path(e).resolve() for e in exclude]
+    outputs = Path(output_dir).resolve() if output_dir is not None else None
+    found = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        here = Path(dirpath)
+        real = here.resolve()
+        in_outputs = outputs is not None and _inside(real, outputs)
+        dirnames[:] = sorted(
+            d
+            for d in dirnames
+            if not d.startswith(".")
+            and (real / d).resolve() not in excluded
+            and not (in_outputs and d.endswith(REPORT_SUFFIX))
+        )
+        for name in sorted(filenames):
+            if name.startswith(".") or name.lower().endswith(OUTPUT_SUFFIX):
+                continue
+            if Path(name).suffix.lower() in INPUT_SUFFIXES:
+                found.append(here / name)
+    return found
+
+
+def output_inside_input(input_dir: Path, output_dir: Path) -> str | None:
+    """``output_dir`` relative to ``input_dir`` when it lies inside it (not equal), else None."""
+    inner, outer = output_dir.resolve(), input_dir.resolve()
+    if inner == outer or outer not in inner.parents:
+        return None
+    return inner.relative_to(outer).as_posix()
+
+
+#: Why ``batch DIR -o DIR`` is refused (a usage error on the command line).
+BATCH_SAME_FOLDER = (
+    "{path!r} is the input folder DIR; expected another folder (results would mix with the "
+    "measurements), e.g. DIR/results"
+)
+
+
+def same_folder(a: str | os.PathLike | None, b: str | os.PathLike | None) -> bool:
+    """``a`` and ``b`` name one existing folder (another spelling, a symlink or a bind mount)."""
+    if a is None or b is None:
+        return False
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist: not the same folder
+        return False
+
+
+def output_path(input_file: Path, input_dir: Path, output_dir: Path) -> Path:
+    """Where the result of ``input_file`` goes: same relative folder, ``<stem>.modes.nc``."""
+    rel = input_file.relative_to(input_dir)
+    return output_dir / rel.parent / (rel.stem + OUTPUT_SUFFIX)
+
+
+# --- hashing and up-to-date check ----------------------------------------------------------------
+def sha256(path: Path) -> str:
+    """SHA-256 of the file's content, read in 1 MiB blocks (constant memory)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(_HASH_BLOCK), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def parameters_hash(parameters: dict[str, Any]) -> str:
+    text = json.dumps({"pipeline": PIPELINE_VERSION, **parameters}, sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def output_attrs(path: Path) -> dict[str, Any] | None:
+    """Global attributes of an existing output (None when missing or unreadable)."""
+    if not path.is_file():
+        return None
+    try:
+        import netCDF4
+
+        with netCDF4.Dataset(path) as nc:
+            return {k: nc.getncattr(k) for k in nc.ncattrs()}
+    except (OSError, RuntimeError, ValueError):
+        return None
+
+
+def up_to_date(inp: Path, out: Path, params_sha: str) -> bool:
+    """Whether ``out`` is the result of ``inp``'s present content with these parameters.
+
+    The content hash decides; a different size skips it (a new content for sure). A matching
+    size and mtime never stand in for the hash (module docstring).
+    """
+    attrs = output_attrs(out)
+    if attrs is None or attrs.get(ATTR_PARAMS_SHA) != params_sha:
+        return False
+    recorded = attrs.get(ATTR_INPUT_SHA)
+    if not recorded:
+        return False
+    if str(attrs.get(ATTR_INPUT_SIZE)) != str(inp.stat().st_size):
+        return False
+    return recorded == sha256(inp)
+
+
+# --- the summary ---------------------------------------------------------------------------------
+def check_summary(output_dir: Path) -> Path:
+    """The summary's path; :class:`DataFileError` when it exists and is read-only (or a folder),
+    raised before any work, so nothing is computed for a summary that cannot be written."""
+    path = output_dir / SUMMARY_NAME
+    label = f"output_dir {str(output_dir)!r}"
+    if path.is_dir():
+        raise DataFileError(f"{label}: {SUMMARY_NAME} is a folder; expected the summary file")
+    if path.exists():
+        mode = path.stat().st_mode
+        # permission bits as well as access(2): root passes access() for a 0444 file
+        if not (os.access(path, os.W_OK) and mode & _WRITE_BITS):
+            raise DataFileError(
+                f"{label}: {SUMMARY_NAME} exists and is read-only (mode "
+                f"{stat.S_IMODE(mode):04o}); make it writable or choose another output folder"
+            )
+    return path
