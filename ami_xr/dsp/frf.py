@@ -223,6 +223,66 @@ def _check_input_conditioning(gff: np.ndarray, frequency: np.ndarray, f_da) -> n
     return bad
 
 
+#: Attributes of an estimated FRF Dataset that name the lines where the FRF is NaN (Hz, a float
+#: array) and say why, one sentence; absent where every line is defined.
+ATTR_UNDEFINED_LINES = "frf_undefined_frequencies"
+ATTR_UNDEFINED_REASON = "frf_undefined_reason"
+
+
+def _undefined_lines(
+    h: np.ndarray,
+    gff: np.ndarray,
+    gyy: np.ndarray,
+    frequency: np.ndarray,
+    singular: np.ndarray,
+    estimator: str,
+) -> dict[str, Any]:
+    """Lines where an estimate ``h`` (ref, point, f) is not finite, other than those the singular
+    Gff warning already named: an AssumptionWarning that names them and says why, and the
+    attributes that record them (empty dict where there are none).
+
+    The usual cause is a line without force power: a clean pulse whose spectrum is exactly 0 at
+    the Nyquist line (a two-sample pulse), the 0 Hz line of a detrended force. H1 = Gfy/Gff is
+    then 0/0; H2 and Hv divide by Gyf or Gyy, 0 where the response carries no power.
+    """
+    bad = ~np.isfinite(h).all(axis=tuple(range(h.ndim - 1))) & ~singular
+    if not bad.any():
+        return {}
+    power = np.real(np.einsum("iik->ik", gff))  # (ref, f)
+    no_force = bad & (power <= 0.0).any(axis=0)
+    no_response = bad & ~no_force & (np.real(gyy) <= 0.0).any(axis=0)
+    other = bad & ~no_force & ~no_response
+    why = []
+    for mask, text in (
+        (
+            no_force,
+            "the force autospectrum Gff is exactly 0 (no excitation at that line: the "
+            "Nyquist line of a clean pulse, 0 Hz of a detrended force)",
+        ),
+        (no_response, f"the response autospectrum Gyy is exactly 0 ({estimator} divides by it)"),
+        (other, "the spectra there are not finite or cancel exactly"),
+    ):
+        if mask.any():
+            why.append(f"at {_lines_text(frequency[mask])} Hz {text}")
+    lines = frequency[bad]
+    reason = "; ".join(why)
+    warn(
+        f"frf: the FRF is NaN at {lines.size} of {frequency.size} lines: {reason}. Those lines "
+        "carry no estimate; keep them out of the analysis band (ami-xr identify --fmin/--fmax) "
+        f"or excite them. Recorded in the attributes {ATTR_UNDEFINED_LINES!r} and "
+        f"{ATTR_UNDEFINED_REASON!r}",
+        AssumptionWarning,
+    )
+    return {
+        ATTR_UNDEFINED_LINES: np.asarray(lines, dtype=np.float64),
+        ATTR_UNDEFINED_REASON: reason,
+    }
+
+
+def _lines_text(lines: np.ndarray) -> str:
+    return ", ".join(f"{x:g}" for x in lines[:10]) + (" ..." if lines.size > 10 else "")
+
+
 def _spectra_to_frf(
     ds: xr.Dataset,
     s: _Setup,
@@ -277,6 +337,9 @@ def _spectra_to_frf(
     )
     if singular.any():  # lines where Gff cannot be inverted: NaN, as the warning said
         H = H.where(~xr.DataArray(singular, dims=[fdim]))
+    undefined = _undefined_lines(H.values, gff, gyy, acc.frequency, singular, s.estimator)
+    if undefined:
+        attrs_extra = {**attrs_extra, **undefined}
     ru = ds.attrs.get(names.ATTR_RESPONSE_UNITS, y_da.attrs.get(names.ATTR_UNITS, ""))
     fu = ds.attrs.get(names.ATTR_FORCE_UNITS, f_da.attrs.get(names.ATTR_UNITS, ""))
     std, noise_model = _noise_std(H.values, coh.values, gff, gyy, acc, s, windows[1])

@@ -24,6 +24,7 @@ from pathlib import Path
 from ami_xr.errors import DataFileError
 from ami_xr.io.uff.codes import require_pyuff
 from ami_xr.io.uff.completeness import block_tags, check_complete, check_lengths
+from ami_xr.io.uff.quiet import quiet
 
 __all__ = ["read_sets", "redecode_text", "strip_padding"]
 
@@ -88,14 +89,15 @@ class _SetFailed(Exception):
 def _read_each(file: Path) -> list[dict]:
     """Every dataset of ``file``, read one by one; :class:`_SetFailed` names the one that fails."""
     pyuff = require_pyuff()
-    uff = pyuff.UFF(str(file))
-    types = list(uff.get_set_types()) if uff.get_n_sets() else []
-    sets = []
-    for i, kind in enumerate(types):
-        try:
-            sets.append(uff.read_sets(i))
-        except Exception as err:  # pyuff raises bare Exceptions of many kinds on bad datasets
-            raise _SetFailed(i, int(kind), err) from err
+    with quiet():  # pyuff prints while it reads some datasets (2467): not the tool's output
+        uff = pyuff.UFF(str(file))
+        types = list(uff.get_set_types()) if uff.get_n_sets() else []
+        sets = []
+        for i, kind in enumerate(types):
+            try:
+                sets.append(uff.read_sets(i))
+            except Exception as err:  # pyuff raises bare Exceptions of many kinds on bad datasets
+                raise _SetFailed(i, int(kind), err) from err
     return sets
 
 

@@ -7,6 +7,7 @@ See :mod:`ami_xr.io.uff` for the mapping from ami_xr Datasets.
 from __future__ import annotations
 
 import os
+import re
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -28,6 +29,7 @@ from ami_xr.io.uff.codes import (
     dof_map,
     require_pyuff,
 )
+from ami_xr.io.uff.quiet import quiet
 
 __all__ = ["write_uff", "check_writable"]
 
@@ -480,11 +482,85 @@ def write_uff(
         with interrupts_deferred() as held:
             # tmp does not exist yet: pyuff refuses to "overwrite" a file it did not write;
             # "add" creates it and appends the later blocks.
-            uff = pyuff.UFF(str(tmp))
+            with quiet():  # pyuff's print() output is not the tool's output
+                uff = pyuff.UFF(str(tmp))
             for lo in range(0, len(records), RECORDS_PER_BLOCK):
-                uff.write_sets(records[lo : lo + RECORDS_PER_BLOCK], mode="add")
+                for record in records[lo : lo + RECORDS_PER_BLOCK]:
+                    offset = tmp.stat().st_size if tmp.exists() else 0
+                    with quiet():
+                        uff.write_sets([record], mode="add")
+                    if record.get("type") == 58:
+                        _restate_abscissa(tmp, offset, record)
                 held.deliver()
     return path
+
+
+# --- the abscissa of dataset 58 --------------------------------------------------------------
+#: Width of the real fields of record 7 of dataset 58 (Fortran 3I10,3E13.5; pyuff reads the
+#: fields by these columns).
+_FIELD = 13
+#: Columns of record 7 (of the dataset's 9th line) that hold the abscissa minimum and increment.
+_MIN_COLS, _INC_COLS = slice(30, 43), slice(43, 56)
+
+
+def _short_exponent(text: str) -> str:
+    """``1.25E-01`` -> ``1.25E-1``: a Fortran and Python real either way, two columns shorter."""
+    return re.sub(r"E([+-])0*(\d)", r"E\1\2", text)
+
+
+def real_field(value: float, width: int = _FIELD) -> str:
+    """``value`` as the most precise text that fits ``width`` columns with a leading blank.
+
+    pyuff writes the abscissa minimum and increment of dataset 58 as ``%13.5e``: six significant
+    digits, so a step of 0.10666666666666667 Hz comes back as 0.106667 Hz and the 321st line
+    drifts by 7e-5 Hz in every reader that rebuilds the axis from the header (pyuff, SDynPy).
+    UFF reads the field as a Fortran real of 13 columns: any real text (fixed point, an
+    exponent with one digit) is valid there, which leaves room for 10 or 11 significant digits
+    (``.10666666667``): the last of 321 lines is then off by about 1e-9 Hz. Full double
+    precision (17 digits) does not fit; a wider field would shift the columns pyuff and Fortran
+    readers cut the record by. The text pyuff would write is kept where it is already exact.
+    """
+    text = f"{value:{width}.5e}"
+    if float(text) == value:
+        return text
+    best: tuple[float, int, str] | None = None
+    for digits in range(17, -1, -1):
+        for candidate in (
+            f"{value:.{digits}f}",
+            _short_exponent(f"{value:.{digits}E}"),
+            f"{value:.{digits}g}",
+            re.sub(r"^(-?)0\.", r"\1.", f"{value:.{digits}f}"),  # .1066666667: one more digit
+        ):
+            if len(candidate) > width - 1:
+                continue
+            key = (abs(float(candidate) - value), len(candidate), candidate)
+            if best is None or key < best:
+                best = key
+    return best[2].rjust(width) if best is not None else text
+
+
+def _restate_abscissa(path: Path, offset: int, record: dict) -> None:
+    """Rewrite, in place and at the same width, the abscissa minimum and increment of the
+    dataset-58 record pyuff has just written at byte ``offset`` of ``path`` (see
+    :func:`real_field`). Uneven abscissas (written point by point) are left as they are."""
+    if int(record.get("abscissa_spacing", 0)) != 1:
+        return
+    x = np.asarray(record["x"], dtype=np.float64)
+    if x.size < 2:
+        return
+    with open(path, "r+b") as fh:
+        fh.seek(offset)
+        head = fh.read(16384)  # 8 header lines of 80 characters, UTF-8: well within
+        lines = head.split(b"\n", 9)
+        if len(lines) < 10:
+            return
+        line = lines[8]
+        if len(line.rstrip(b"\r")) != 3 * 10 + 3 * _FIELD:
+            return  # not the record-7 layout pyuff writes: leave the file as written
+        start = offset + sum(len(part) + 1 for part in lines[:8])
+        fields = (real_field(float(x[0])) + real_field(float(x[1] - x[0]))).encode("ascii")
+        fh.seek(start + _MIN_COLS.start)
+        fh.write(fields)
 
 
 #: Records pyuff writes between two looks at a held Ctrl-C or SIGTERM.
