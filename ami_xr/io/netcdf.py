@@ -47,6 +47,7 @@ from ami_xr.coords import uniform_coords
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_path, interrupts_deferred
 from ami_xr.io.cf import ATTR_CF_ADDED, annotate, on_disk_name, strip
+from ami_xr.io.lazy_source import source_guard
 from ami_xr.provenance import add_history, running_command
 
 __all__ = [
@@ -480,7 +481,11 @@ def open_dataset(
         The rule when ``lazy`` is None: lazy if ``chunks`` is given or the file is larger than
         ``LAZY_THRESHOLD_BYTES`` (256 MiB; chunks then default to ``"auto"``), eager otherwise.
         An eager open reads everything and closes the file. A lazy open keeps the file open and
-        reads on compute; decoding complex variables stays lazy too.
+        reads on compute; decoding complex variables stays lazy too. ``ds.close()`` (or a
+        ``with`` block) releases the file. The file must stay as it was until the data are read:
+        each block read checks its size, modification time and inode against the open
+        (:mod:`ami_xr.io.lazy_source`), and a changed, truncated, replaced or removed file is a
+        :class:`~ami_xr.errors.DataFileError` naming it, never a result from stale data.
 
         Time axis of a lazy open: a 1-D float64 ``time`` dimension coordinate is not read into
         a pandas index (8 bytes per sample, 8 GB for 1e9 samples). Only ``time[0]``,
@@ -505,7 +510,8 @@ def open_dataset(
     ------
     DataFileError
         If the file is missing, not a netCDF file, truncated or not decodable; the message names
-        the file.
+        the file. For a lazy open also later, when the data are computed, if the file changed
+        or vanished since the open.
     AmiXrValueError
         If ``lazy=False`` is combined with ``chunks``.
     """
@@ -527,12 +533,15 @@ def open_dataset(
         # could leave the lock held and the next close of the file wait forever.
         with interrupts_deferred():
             time_axis = _uniform_time_axis(path) if lazy else None
+            # each block read checks that the file is still the one opened (lazy_source)
+            guard = {"getitem": source_guard(str(path.resolve()))} if lazy else None
             raw = xr.open_dataset(
                 path,
                 engine=ENGINE,
                 chunks=_disk_chunks(path, chunks) if lazy else None,
                 decode_timedelta=False,
                 drop_variables=list(time_axis) if time_axis is not None else None,
+                from_array_kwargs=guard,
             )
             if not lazy:
                 with raw:
@@ -557,6 +566,8 @@ def open_dataset(
             f"{type(err).__name__}: {err}"
         ) from err
     ds.attrs[names.ATTR_SOURCE_FILE] = str(path.resolve())
+    if lazy:
+        ds.set_close(raw.close)  # decode/strip built a new Dataset: close() releases the file
     return ds
 
 
