@@ -9,11 +9,24 @@ unit impulse at the tip, 60 s record, 2^12 samples, 15 % uniform noise (eq. 15, 
     benchmark_frf_clean.nc      the same without noise
     benchmark_truth.nc          exact eigenvalues, mode vectors and residues at the points
 
+The files are written by ``ami_xr.to_netcdf``, the writer every ``ami-xr`` output goes through:
+CF-1.11 (``Conventions``, ``title``, ``history``, ``long_name`` and UDUNITS units on every
+variable, point labels as an auxiliary coordinate, complex values as a trailing real/imag dim).
+
 Every run writes the same arrays up to floating-point rounding, which depends on the CPU
-(numpy, BLAS and LAPACK pick their SIMD kernels at run time), and the same provenance apart from
-timestamps. ``--check`` regenerates the files in a temporary folder and compares them with the
-ones in ``--output-dir`` to the tolerance ``RTOL`` (see ``compare``), writing nothing; it exits 0
-when they agree and 1 otherwise. Usage::
+(numpy, BLAS and LAPACK pick their SIMD kernels at run time), and the same attributes apart from
+timestamps and the version number. ``--check`` regenerates the files in a temporary folder,
+writing nothing, and compares them with the ones in ``--output-dir``:
+
+* the values, decoded, to the tolerance ``RTOL`` (see ``compare``);
+* the files as stored (see ``compare_stored``): the same variables, dims, dtypes and every
+  global and variable attribute, so a file written by an older writer (no ``Conventions``, a
+  string ``point`` dimension coordinate, a unit UDUNITS cannot read) is reported;
+* when the IOOS compliance checker is installed (``pip install 'ami_xr[cf]'``), each shipped
+  file against ``cf:1.11`` at criteria ``normal`` (see ``cf_problems``); without it this part is
+  skipped and the verdict says so.
+
+It exits 0 when they agree and 1 otherwise. Usage::
 
     python scripts/make_sample_data.py [--output-dir sample_data] [--seed 0] [--noise 0.15]
     python scripts/make_sample_data.py --check [--output-dir sample_data]
@@ -22,11 +35,15 @@ when they agree and 1 otherwise. Usage::
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
+import re
 import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
+import xarray as xr
 
 import ami_xr
 
@@ -117,17 +134,127 @@ def compare(new_folder: Path, old_folder: Path, rtol: float = RTOL) -> list[str]
     return problems
 
 
+#: Text that differs between two runs of the same code: UTC timestamps (ISO 8601, as the
+#: provenance writes them) and the version number in the provenance.
+_VOLATILE = (
+    (re.compile(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(?:\.\d+)?(?:Z|[+-]\d\d:\d\d)?"), "<time>"),
+    (re.compile(r"(ami_xr[ _]version\W+|ami_xr )\d+(?:\.\d+)*\S*?(?=[\s\")]|$)"), r"\1<version>"),
+)
+
+
+def _stable(value) -> object:
+    """An attribute value with its run-dependent text masked (see ``_VOLATILE``)."""
+    if isinstance(value, bytes):
+        value = value.decode("utf-8", "replace")
+    if isinstance(value, str):
+        for pattern, mask in _VOLATILE:
+            value = pattern.sub(mask, value)
+        return value
+    return np.asarray(value).tolist()
+
+
+def _stored(path: Path) -> xr.Dataset:
+    """The file as stored: no CF decoding, no masking, nothing of ami_xr's decoding."""
+    with xr.open_dataset(path, decode_cf=False, mask_and_scale=False) as ds:
+        return ds.load()
+
+
+def _attr_problems(where: str, new: dict, old: dict) -> list[str]:
+    problems = []
+    for key in sorted(set(new) | set(old)):
+        if key not in old:
+            problems.append(f"{where}: attribute {key!r} missing (expected {new[key]!r:.60})")
+        elif key not in new:
+            problems.append(f"{where}: attribute {key!r} is not written by this code")
+        elif _stable(new[key]) != _stable(old[key]):
+            problems.append(
+                f"{where}: attribute {key!r} is {old[key]!r:.60}, this code writes {new[key]!r:.60}"
+            )
+    return problems
+
+
+def compare_stored(new_folder: Path, old_folder: Path) -> list[str]:
+    """Problems found comparing the sample files in two folders as stored on disk (empty list:
+    they agree): the same variables with the same dims and dtypes, and the same global and
+    variable attributes apart from timestamps and version numbers. The values are ``compare``'s.
+    """
+    problems = []
+    for name in FILES:
+        if not (old_folder / name).exists():
+            continue  # compare reports it
+        new, old = _stored(new_folder / name), _stored(old_folder / name)
+        problems += _attr_problems(f"{name}", new.attrs, old.attrs)
+        if set(new.variables) != set(old.variables):
+            problems.append(
+                f"{name}: stored variables differ: only in the file "
+                f"{sorted(map(str, set(old.variables) - set(new.variables)))}, only written "
+                f"by this code {sorted(map(str, set(new.variables) - set(old.variables)))}"
+            )
+        for var in sorted(set(new.variables) & set(old.variables), key=str):
+            a, b = new[var], old[var]
+            if a.dims != b.dims or a.dtype.kind != b.dtype.kind:
+                problems.append(
+                    f"{name}: {var!s}: stored as {b.dims} {b.dtype}, this code writes "
+                    f"{a.dims} {a.dtype}"
+                )
+            problems += _attr_problems(f"{name}: {var!s}", a.attrs, b.attrs)
+    return problems
+
+
+def cf_problems(folder: Path) -> list[str] | None:
+    """Each sample file in ``folder`` against the IOOS compliance checker's ``cf:1.11`` at
+    criteria ``normal`` (as tests/io/test_cf_compliance.py runs it): one problem per file that
+    does not pass, with the checker's report. None when the checker is not installed."""
+    try:
+        from compliance_checker.runner import CheckSuite, ComplianceChecker
+    except ImportError:
+        return None
+    CheckSuite.load_all_available_checkers()
+    problems = []
+    for name in FILES:
+        path = folder / name
+        if not path.exists():
+            continue  # compare reports it
+        report, errors_text = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(report), contextlib.redirect_stderr(errors_text):
+            passed, errors = ComplianceChecker.run_checker(
+                str(path),
+                ["cf:1.11"],
+                verbose=0,
+                criteria="normal",
+                output_filename="-",
+                output_format="text",
+            )
+        text = report.getvalue() + errors_text.getvalue()
+        if not passed or errors or "All tests passed!" not in text:
+            problems.append(f"{name}: not CF-1.11 (IOOS compliance checker):\n{text.strip()}")
+    return problems
+
+
 def check(folder: Path) -> int:
     """Regenerate in a temporary folder, compare with ``folder``, print the verdict."""
     with tempfile.TemporaryDirectory() as tmp:
         write_sample_data(Path(tmp))
-        problems = compare(Path(tmp), folder)
+        problems = compare(Path(tmp), folder) + compare_stored(Path(tmp), folder)
+    cf = cf_problems(folder)
+    problems += cf or []
     for problem in problems:
         print(problem, file=sys.stderr)
     if problems:
-        print(f"{folder}: the sample data do NOT agree with this code ({len(problems)} problems)")
+        print(
+            f"{folder}: the sample data do NOT agree with this code ({len(problems)} problems); "
+            f"regenerate them: python scripts/make_sample_data.py --output-dir {folder}"
+        )
         return 1
-    print(f"{folder}: all {len(FILES)} sample files agree with this code (tolerance {RTOL:g})")
+    checked = (
+        "CF-1.11 checked by the IOOS compliance checker"
+        if cf is not None
+        else "CF check skipped: compliance_checker is not installed"
+    )
+    print(
+        f"{folder}: all {len(FILES)} sample files agree with this code (values to tolerance "
+        f"{RTOL:g}, attributes and layout as stored; {checked})"
+    )
     return 0
 
 
