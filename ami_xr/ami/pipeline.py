@@ -61,10 +61,16 @@ def identify_single(
     """The phases on the FRF Dataset ``ds`` (dims (point, frequency)) with ``settings``; see
     :func:`ami_xr.identify` for what is returned (its provenance record is the caller's).
     ``final=False``: a result the caller goes on with (no mode dropped beyond the lines)."""
-    c.check_frf(ds, "identify")
     check_settings(settings)
     whole = ds
-    ds = band_of(ds, settings.fmin, settings.fmax, "identify")
+    # the band first, then the checks on the lines analysed: a NaN line outside the band (frf's
+    # Nyquist line of a clean pulse) does not refuse the file
+    try:
+        ds = band_of(ds, settings.fmin, settings.fmax, "identify")
+    except Exception:
+        c.check_frf(ds, "identify")  # a malformed Dataset: the data model's own message
+        raise
+    ds = c.check_frf(ds, "identify")
     refined = refines(settings)
     # one power of two for all FRFs (the isolation and the global fit combine them)
     peak = np.abs(ds[names.FRF]).max(skipna=False).values

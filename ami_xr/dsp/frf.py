@@ -377,6 +377,13 @@ def _spectra_to_frf(
     out = out.transpose(
         *[d for d in (names.REFERENCE, names.POINT, fdim, names.RECORD) if d in out.dims]
     )
+    out.attrs = _frf_attrs(ds, s, ru, fu, int(acc.count), attrs_extra)
+    return out
+
+
+def _frf_attrs(ds, s: _Setup, ru: str, fu: str, n_averages: int, attrs_extra: dict) -> dict:
+    """The estimated FRF Dataset's attributes: what the time Dataset says that still applies,
+    the units, the estimator and the averages, and ``attrs_extra``."""
     quantity = ds.attrs.get(names.ATTR_QUANTITY)
     # Several force channels: the reference labels (the force's ``reference`` coordinate) name
     # the excitation locations, and those that are point labels are the drive points; the
@@ -397,15 +404,14 @@ def _spectra_to_frf(
             names.ATTR_FORCE_UNITS: fu,
             names.ATTR_SOURCE: names.SOURCE_ESTIMATED,
             names.ATTR_ESTIMATOR: s.estimator,
-            names.ATTR_N_AVERAGES: int(acc.count),
+            names.ATTR_N_AVERAGES: n_averages,
             **attrs_extra,
         }
     )
     for key in (names.ATTR_HISTORY, names.ATTR_VERSION, names.ATTR_SOURCE_FILE):
         if key in ds.attrs:
             attrs[key] = ds.attrs[key]
-    out.attrs = attrs
-    return out
+    return attrs
 
 
 def _finish(out: xr.Dataset, s: _Setup, function: str, window: str, extra: dict) -> xr.Dataset:

@@ -95,10 +95,6 @@ def test_the_record_survives_netcdf(tmp_path):
     assert back.attrs[ATTR_UNDEFINED_REASON] == out.attrs[ATTR_UNDEFINED_REASON]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 33 item 4: ami/pipeline.py judges finiteness before the band (owned elsewhere)",
-)
 def test_identify_with_a_band_that_leaves_out_the_nan_line():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
