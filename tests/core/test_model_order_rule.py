@@ -28,6 +28,7 @@ from ami_xr.core.regions import (
 )
 
 from ..reference import frf_from_residues
+from .test_local_trials import _opts
 
 FN = np.array([176.0, 476.0, 932.0, 1535.0, 2286.0])  # Hz, a free-free beam's first modes
 ZETA = 0.002
@@ -107,17 +108,6 @@ def _problem_two_levels():
     level = np.where(freq > 60.0, 1e-2, 1e-3) * np.abs(frf).max()
     frf = frf + level * (rng.standard_normal(frf.shape) + 1j * rng.standard_normal(frf.shape))
     return varpro.make_problem(frf, omega, None, None), lam, omega, level
-
-
-def _opts(omega):
-    return dict(
-        decay=0.0,
-        max_iter=10,
-        tol=RefineSettings.tol,
-        max_shift=RefineSettings.max_shift,
-        min_width=2.0 * (omega[1] - omega[0]),
-        trace=None,
-    )
 
 
 def test_error_variance_follows_a_noise_level_that_changes_with_frequency():
