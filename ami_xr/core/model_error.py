@@ -46,7 +46,14 @@ def _white_part(resid: np.ndarray) -> np.ndarray:
     return np.concatenate([d2[:, :1], d2, d2[:, -1:]], axis=1)
 
 
-def error_variance(prob, proj, width: np.ndarray, skip: np.ndarray, local: bool = False):
+def error_variance(
+    prob,
+    proj,
+    width: np.ndarray,
+    skip: np.ndarray,
+    local: bool = False,
+    resid: np.ndarray | None = None,
+):
     """Variance ``E|e|^2`` (P, L) of noise and model error on each line, from the residual.
 
     ``s_j^2 + eps^2 |H_j(w)|^2``: a noise level per FRF from the median of ``|r_j|^2`` (for
@@ -58,20 +65,22 @@ def error_variance(prob, proj, width: np.ndarray, skip: np.ndarray, local: bool 
     bandwidths ``width[k]`` of it; ``eps^2`` is the median of ``rho_k`` over the modes not in
     ``skip`` (the typical model error of a peak; robust to one peak with a missed mode). The
     nominal noise floor is not used; with white noise and an exact model ``eps^2`` is ~0.
-    ``local``: the noise level of each line is the running median of ``|r_j|^2`` over
-    ``noise_widths`` median bandwidths instead of one level per FRF (measured FRFs are noisier
-    near antiresonances and where the coherence drops; a missed mode's bump, a few bandwidths
-    wide, barely moves the running median).
+    ``local``: the noise level of each line is the median of the residual's second difference
+    over blocks of ``noise_widths`` median bandwidths, interpolated between blocks and never
+    below the FRF's overall level, instead of one level per FRF (measured FRFs are noisier near
+    antiresonances and where the coherence drops; a missed mode's bump is smooth and cancels in
+    the second difference). ``resid``: the complex residual rows (P, L) of ``proj``, when the
+    caller has them (otherwise projected here).
 
     Returns ``(variance (P, L), rho (K,), largest rho over the modes not in skip)``.
     """
-    resid = complex_rows(residual_rows(prob, proj))
+    resid = complex_rows(residual_rows(prob, proj)) if resid is None else resid
     model = complex_rows(prob.y) - resid
     r2 = np.abs(resid) ** 2
     m2 = np.abs(model) ** 2
     if local:
-        # the noise level along frequency: a running (block) median over POLICY.noise_widths typical
-        # bandwidths of the residual's second difference (noise is white from line to line,
+        # the noise level along frequency: a block median over noise_widths typical bandwidths
+        # of the residual's second difference (noise is white from line to line,
         # a missed mode or a peak's model error is smooth there and cancels; a missed mode's
         # tails no longer count as noise on noise-free data)
         dw = prob.omega[1] - prob.omega[0] if prob.omega.size > 1 else 1.0
@@ -98,7 +107,9 @@ def error_variance(prob, proj, width: np.ndarray, skip: np.ndarray, local: bool 
     return s2 + eps2 * m2, rho, float(np.max(others)) if others.size else 0.0
 
 
-def eigenvalue_scatter(prob, proj, width: np.ndarray) -> np.ndarray:
+def eigenvalue_scatter(
+    prob, proj, width: np.ndarray, resid: np.ndarray | None = None
+) -> np.ndarray:
     """FRF-to-FRF scatter of each mode's eigenvalue, relative to ``|lam_k|`` (K,): the model
     error of a measured peak as a number, estimated the same way at every peak.
 
@@ -112,12 +123,13 @@ def eigenvalue_scatter(prob, proj, width: np.ndarray) -> np.ndarray:
     its mean and three standard deviations are taken off). NaN with fewer than
     ``scatter_points`` points, and where the shifts explain less than ``shift_share`` of the
     residual power beyond the noise (that misfit is something else: a missed mode).
+    ``resid``: the complex residual rows (P, L) of ``proj``, when the caller has them.
     """
     n_point, n_mode = prob.n_points, proj.lam.size
     out = np.full(n_mode, np.nan)
     if n_point < POLICY.scatter_points or not proj.ok:
         return out
-    resid = complex_rows(residual_rows(prob, proj))
+    resid = complex_rows(residual_rows(prob, proj)) if resid is None else resid
     s2 = np.maximum(np.median(np.abs(resid) ** 2, axis=1), 1e-300) / np.log(2.0)  # E|e|^2
     # u_k, v_k of model_columns (line-weighted), less what the model's columns already
     # represent: the fitted residues absorbed that part of any shift, the residual holds the rest

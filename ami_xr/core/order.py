@@ -273,10 +273,10 @@ def _add_missed(
     # change, at most POLICY.screen_keep in a step. Trials the band cannot judge (most of the lines,
     # or a mode it tries froze there) are screened with a few iterations on all lines, only
     # when no band-screened trial holds.
-    var = error_variance(prob, fit.proj, width, np.zeros(fit.lam.size, bool), local=True)[0]
-    r_now = complex_rows(residual_rows(prob, fit.proj))
-    scatter = eigenvalue_scatter(prob, fit.proj, width)
-    screened, deferred, starts = [], [], {}
+    r_now = complex_rows(residual_rows(prob, fit.proj))  # one projection for all the scores
+    var = error_variance(prob, fit.proj, width, np.zeros(fit.lam.size, bool), True, r_now)[0]
+    scatter = eigenvalue_scatter(prob, fit.proj, width, r_now)
+    screened, deferred = [], []
     for i, (_, _, n_add, _) in enumerate(trials):
         gain, refined, n_it = band_fit(prob, fit, trials[i], trial_opts, min_width, var)
         state.n_iter += n_it
@@ -284,16 +284,15 @@ def _add_missed(
             deferred.append(i)
         elif gain - n_add * threshold > 0 and not within_scatter(refined, fit.lam, scatter):
             screened.append((gain - n_add * threshold, i))
-            starts[i] = trials[i][0]  # the full fit starts where the trial does (see _take)
     judge = (prob, state, fit, trials, threshold, r_now, var, scatter, trial_opts)
     # a trial that removes modes is screened on all lines at once (a simpler model that fits as
     # well wins); the others the band could not judge only when no band-screened trial holds
     fewer = [i for i in deferred if trials[i][2] < 0]
     deferred = [i for i in deferred if trials[i][2] >= 0]
-    screened += _quick_screen(fewer, starts, *judge)
-    best = _take(screened, starts, *judge)
+    screened += _quick_screen(fewer, *judge)
+    best = _take(screened, *judge)
     if best is None and deferred:
-        best = _take(_quick_screen(deferred, starts, *judge), starts, *judge)
+        best = _take(_quick_screen(deferred, *judge), *judge)
     if best is None:
         return False
     (state.fit, free, _, _), ref, removed, moved = best
@@ -305,9 +304,9 @@ def _add_missed(
     return True
 
 
-def _quick_screen(indices, starts, prob, state, fit, trials, threshold, r_now, var, scatter, opts):
+def _quick_screen(indices, prob, state, fit, trials, threshold, r_now, var, scatter, opts):
     """Screen trials with ``screen_iterations`` iterations on all lines: ``(score, index)`` of
-    those whose gain against ``var`` beats ``threshold`` per mode added (their starts noted)."""
+    those whose gain against ``var`` beats ``threshold`` per mode added."""
     out = []
     for i in indices:
         start, ref, n_add, _ = trials[i]
@@ -316,11 +315,10 @@ def _quick_screen(indices, starts, prob, state, fit, trials, threshold, r_now, v
         score = _full_gain(prob, r_now, quick[0], var) - n_add * threshold
         if score > 0:
             out.append((score, i))
-            starts[i] = start
     return out
 
 
-def _take(screened, starts, prob, state, fit, trials, threshold, r_now, var, scatter, opts):
+def _take(screened, prob, state, fit, trials, threshold, r_now, var, scatter, opts):
     """Fit the screened trials on all lines, at most ``screen_keep``, and return the first that
     holds (``(fit result, reference, removed, moved)``) or None. The best screen score first;
     then, should it fail on all lines, the fewest modes added first (a cluster refit that
@@ -333,7 +331,7 @@ def _take(screened, starts, prob, state, fit, trials, threshold, r_now, var, sca
     screened = screened[:1] + sorted(screened[1:], key=lambda s: (trials[s[1]][2], -s[0]))
     for _, i in screened[: POLICY.screen_keep]:
         start, ref, n_add, removed = trials[i]
-        trial = fit_modes(prob, starts[i], ref, **opts)
+        trial = fit_modes(prob, start, ref, **opts)
         state.n_iter += trial[2]
         score = _full_gain(prob, r_now, trial[0], var) - n_add * threshold
         kept_free = np.delete(state.free, removed)
@@ -394,10 +392,9 @@ def _merge_split_pairs(prob, state: State, pfa: float, decay: float, trial_opts,
     * the second pole explains significantly more than noise and model error: on the lines
       within three bandwidths of the pair, with the variance ``v`` estimated from the one-pole
       model's residual (:func:`~ami_xr.core.model_error.error_variance`, the pair's own peak left
-      out of the
-      model-error estimate), ``2 sum (|r_1|^2 - |r_2|^2) / v`` exceeds the chi-square quantile
-      with ``2 + 2P`` degrees of freedom (the second eigenvalue and its residues) at false-alarm
-      probability ``pfa``;
+      out of the model-error estimate), ``2 sum (|r_1|^2 - |r_2|^2) / v`` exceeds the
+      chi-square quantile with ``2 + 2P`` degrees of freedom (the second eigenvalue and its
+      residues) at false-alarm probability ``pfa``;
     * its shape is consistent across points: that gain is significant (chi-square, 4 degrees of
       freedom, ``pfa``) at two points or more (at the one point of a single FRF).
 
@@ -435,13 +432,16 @@ def _merge_split_pairs(prob, state: State, pfa: float, decay: float, trial_opts,
         half = 0.5 * abs(lam[i].imag - lam[j].imag) + 3.0 * max(width[i], width[j])
         band = np.abs(prob.omega - centre) <= half
         skip = np.abs(one.lam.imag - centre) <= half
-        var, rho, _ = error_variance(prob, one.proj, np.delete(width, weak), skip)
+        res1 = complex_rows(residual_rows(prob, one.proj))
+        res2 = complex_rows(residual_rows(prob, fit.proj))
+        var, rho, _ = error_variance(prob, one.proj, np.delete(width, weak), skip, resid=res1)
         # the other peaks' model error under the present model: with the weak pole removed the
         # neighbours in a cluster fit worse too and would hide the pair's excess
-        _, _, rho_max = error_variance(prob, fit.proj, width, np.abs(lam.imag - centre) <= half)
+        near = np.abs(lam.imag - centre) <= half
+        _, _, rho_max = error_variance(prob, fit.proj, width, near, resid=res2)
         var = var[:, band]
-        r1 = np.abs(complex_rows(residual_rows(prob, one.proj))[:, band]) ** 2 / var
-        r2 = np.abs(complex_rows(residual_rows(prob, fit.proj))[:, band]) ** 2 / var
+        r1 = np.abs(res1[:, band]) ** 2 / var
+        r2 = np.abs(res2[:, band]) ** 2 / var
         # the one-pole fit is no better there than at the worst single-pole peak
         # by a factor POLICY.pair_excess: measured peaks' model errors spread over a decade
         # (measurement.uff), and one peak just above the others is no evidence of a second mode

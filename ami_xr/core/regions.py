@@ -125,7 +125,7 @@ def band_fit(prob, fit, trial, opts: dict, min_width: float, var: np.ndarray | N
     fit's far modes (residues held), the modes in the band free.
 
     ``var`` (P, L): the error variance ``E|e|^2`` of every point and line (noise and the model
-    error of a peak, :func:`ami_xr.core.order.error_variance`) the gain is measured against;
+    error of a peak, :func:`ami_xr.core.model_error.error_variance`) the gain is measured against;
     None: white noise at the present fit's level on all lines.
 
     Returns ``(likelihood-ratio gain on the band, the trial's start with its band modes at

@@ -43,7 +43,8 @@ def single_blas_thread() -> Iterator[None]:
     """Run the body with every BLAS library limited to one thread in this thread (the
     setting is restored when the outermost call in the thread leaves)."""
     depth = getattr(_LOCAL, "depth", 0)
-    limit = _controller().limit(limits=1, user_api="blas") if depth == 0 and _controller() else None
+    controller = _controller() if depth == 0 else None
+    limit = controller.limit(limits=1, user_api="blas") if controller else None
     _LOCAL.depth = depth + 1
     try:
         yield
