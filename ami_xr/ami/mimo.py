@@ -533,7 +533,7 @@ def _refit(stacked, result, lam, det_added, settings) -> xr.Dataset:
         # reference that found it, and the stacked test is the one that lost it (the FRFs of
         # references that do not see a mode dilute its likelihood ratio); the stacked poles
         # passed theirs in the first run
-        out = refine_phase(out, drop_modes=False)
+        out = refine_phase(out, **{**pl.model_order(settings), "drop_modes": False})
     if scale != 1.0:
         out = pl.unscale(out, ds, scale)
     out = pl.window_corrected(out, from_attrs(FrfAttributes, ds.attrs))

@@ -92,6 +92,13 @@ def identify_single(
     return with_quality(result)
 
 
+def model_order(settings: IdentifySettings) -> dict:
+    """:func:`refine_phase`'s model-order arguments for ``settings``: none (the default step),
+    or with ``complete=False`` the maximum-likelihood fit of AMI's modes only (no mode added,
+    dropped or merged)."""
+    return {} if settings.complete else dict(add_modes=0, drop_modes=False)
+
+
 def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progress) -> xr.Dataset:
     """subtract -> isolate -> global_fit [-> refine] on ``work``, with a progress bar."""
     s = settings
@@ -123,10 +130,7 @@ def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progres
             out = global_fit(out, band=s.band, residual_terms=s.residual_terms)
             if refined:
                 step(names.PHASE_REFINE)
-                # complete=False: the maximum-likelihood fit of AMI's modes only, no model-order
-                # step (no mode added, dropped or merged)
-                order = {} if s.complete else dict(add_modes=0, drop_modes=False)
-                out = refine_phase(out, **order)
+                out = refine_phase(out, **model_order(s))
     superseded = _caps_superseded(out, refined)
     for w in said:
         if not (superseded and str(w.message).startswith("subtract: stopped at the cap")):

@@ -321,3 +321,12 @@ def test_report_refuses_an_unknown_reference_before_writing(chain, tmp_path):
     with pytest.raises(ValueError, match=r"reference: 'nope' is not one of the references"):
         ami_xr.report(out, tmp_path / "rep", reference="nope")
     assert not (tmp_path / "rep").exists()
+
+
+def test_complete_false_adds_no_mode_on_any_run(chain):
+    """``complete=False`` reaches every refinement of the multi-reference path (the stacked
+    run, each reference's and the union refit): no mode is added by the refinement."""
+    _, ds, _ = chain
+    out = _identify(ds, fmin=15.0, fmax=60.0, residual_terms=True, complete=False)
+    flags = out[names.QUALITY_FLAGS].values.astype(str)
+    assert not any("added_by_refine" in f for f in flags)
