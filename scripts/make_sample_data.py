@@ -35,8 +35,6 @@ It exits 0 when they agree and 1 otherwise. Usage::
 from __future__ import annotations
 
 import argparse
-import contextlib
-import io
 import re
 import sys
 import tempfile
@@ -205,28 +203,18 @@ def cf_problems(folder: Path) -> list[str] | None:
     """Each sample file in ``folder`` against the IOOS compliance checker's ``cf:1.11`` at
     criteria ``normal`` (as tests/io/test_cf_compliance.py runs it): one problem per file that
     does not pass, with the checker's report. None when the checker is not installed."""
-    try:
-        from compliance_checker.runner import CheckSuite, ComplianceChecker
-    except ImportError:
-        return None
-    CheckSuite.load_all_available_checkers()
+    from ami_xr.io.cf import compliance_report
+
     problems = []
     for name in FILES:
         path = folder / name
         if not path.exists():
             continue  # compare reports it
-        report, errors_text = io.StringIO(), io.StringIO()
-        with contextlib.redirect_stdout(report), contextlib.redirect_stderr(errors_text):
-            passed, errors = ComplianceChecker.run_checker(
-                str(path),
-                ["cf:1.11"],
-                verbose=0,
-                criteria="normal",
-                output_filename="-",
-                output_format="text",
-            )
-        text = report.getvalue() + errors_text.getvalue()
-        if not passed or errors or "All tests passed!" not in text:
+        result = compliance_report(path)
+        if result is None:
+            return None
+        passed, text = result
+        if not passed:
             problems.append(f"{name}: not CF-1.11 (IOOS compliance checker):\n{text.strip()}")
     return problems
 

@@ -440,3 +440,30 @@ def strip(ds: xr.Dataset) -> xr.Dataset:
         return ds  # a damaged marker: keep everything
     out.attrs = attrs
     return out
+
+
+def compliance_report(path) -> tuple[bool, str] | None:
+    """Run the IOOS compliance checker's ``cf:1.11`` at criteria ``normal`` on the file ``path``
+    (the optional extra ``ami_xr[cf]``): ``(passed with no issue, the checker's report)``, or
+    None when the checker is not installed. Used by ``tests/io/test_cf_compliance.py`` and
+    ``scripts/make_sample_data.py --check``."""
+    import contextlib
+    import io
+
+    try:
+        from compliance_checker.runner import CheckSuite, ComplianceChecker
+    except ImportError:
+        return None
+    CheckSuite.load_all_available_checkers()
+    report, errors_text = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(report), contextlib.redirect_stderr(errors_text):
+        passed, errors = ComplianceChecker.run_checker(
+            str(path),
+            ["cf:1.11"],
+            verbose=0,
+            criteria="normal",
+            output_filename="-",
+            output_format="text",
+        )
+    text = report.getvalue() + errors_text.getvalue()
+    return bool(passed and not errors and "All tests passed!" in text), text

@@ -7,8 +7,6 @@ the simulator and the test fixtures, so they always run where the checker is ins
 
 from __future__ import annotations
 
-import contextlib
-import io
 import warnings
 from pathlib import Path
 
@@ -17,6 +15,7 @@ import pytest
 
 import ami_xr
 from ami_xr import names
+from ami_xr.io.cf import compliance_report
 from ami_xr.io.netcdf import open_dataset, to_netcdf
 
 pytest.importorskip("compliance_checker")
@@ -27,22 +26,8 @@ HAMMER_LVM = DATA / "impact_hammer.lvm"
 
 def assert_cf_compliant(path: Path) -> None:
     """The checker's ``cf:1.11`` at ``--criteria=normal``: no issue and no checker exception."""
-    from compliance_checker.runner import CheckSuite, ComplianceChecker
-
-    CheckSuite.load_all_available_checkers()
-    report, problems = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(report), contextlib.redirect_stderr(problems):
-        passed, errors = ComplianceChecker.run_checker(
-            str(path),
-            ["cf:1.11"],
-            verbose=0,
-            criteria="normal",
-            output_filename="-",
-            output_format="text",
-        )
-    text = report.getvalue() + problems.getvalue()
-    assert passed and not errors, f"{path.name}:\n{text}"
-    assert "All tests passed!" in text, text
+    passed, text = compliance_report(path)
+    assert passed, f"{path.name}:\n{text}"
 
 
 @pytest.fixture(scope="module")
