@@ -17,6 +17,7 @@ from ami_xr import names
 from ami_xr.ami import common as c
 from ami_xr.ami import repeated as rp
 from ami_xr.ami import scale as scale_out
+from ami_xr.ami import whitening
 from ami_xr.ami.global_fit import global_fit, receptance_mode_vectors
 from ami_xr.ami.isolate import METHODS as ISOLATE_METHODS
 from ami_xr.ami.isolate import isolate
@@ -72,6 +73,9 @@ def identify_single(
         raise
     ds = c.check_frf(ds, "identify")
     refined = refines(settings)
+    # the noise model: fit in the quantity where the noise is closest to white (ami/whitening)
+    white = whitening.decide(ds)
+    given, ds = ds, whitening.to_working(ds, white)
     # one power of two for all FRFs (the isolation and the global fit combine them)
     peak = np.abs(ds[names.FRF]).max(skipna=False).values
     scale = float(power_of_two_scale(peak))
@@ -84,6 +88,7 @@ def identify_single(
             result = scale_out.identify_compressed(work, settings, refined, progress, _phases, how)
     if scale != 1.0:
         result = unscale(result, ds, scale)
+    result = whitening.from_working(result, given, white)
     result = repeated_flagged(result)
     result = window_corrected(result, from_attrs(FrfAttributes, ds.attrs))
     result = finish_modes(result, whole, refined=refined)

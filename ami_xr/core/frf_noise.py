@@ -34,6 +34,7 @@ FRF estimate at each frequency line (real and imaginary parts each carry ``sigma
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import scipy.ndimage
@@ -220,3 +221,86 @@ def roughness_model(order: int = ROUGHNESS_ORDER, window: int = ROUGHNESS_WINDOW
         f"sqrt(ln 2 binomial({2 * order}, {order}))"
     )
     return f"{text} ({reason})" if reason else text
+
+
+def block_roughness_std(
+    frf: np.ndarray, order: int = ROUGHNESS_ORDER, block: int = 64, quantile: float = 0.15
+) -> np.ndarray:
+    """A cheap roughness estimate of the noise std per line (O(lines), for deciding and
+    weighting inside ``identify``): the differences of :func:`roughness_noise_std`, the
+    ``quantile`` of their modulus over consecutive blocks of about ``block`` lines, scaled to a
+    standard deviation (the q-quantile of a complex Gaussian's modulus is ``sigma sqrt(-ln(1 -
+    q))``), interpolated linearly between block centres. A low quantile, not the median: near a
+    resonance the modal part is not smooth on the scale of ``order`` lines and its difference
+    adds to the noise's, only ever upwards; the quietest lines of a block are those far from
+    every peak (a peak of bandwidth ``b`` lines leaves ``~24 b / d^5`` of its height in the
+    difference ``d`` lines away), so the estimate follows the noise where the noise is far
+    below the FRF (receptance with noise white in acceleration, at high frequency), where a
+    median follows the peaks. ``frf`` (..., n_frequency) with at least ``order + 1`` lines; NaN
+    lines are left out."""
+    h = np.asarray(frf, dtype=np.complex128)
+    shape = h.shape
+    h = h.reshape(-1, shape[-1])
+    nf = shape[-1]
+    check_roughness(order, 1, nf)
+    half = order // 2
+    r = np.pad(np.abs(np.diff(h, n=order, axis=-1)), [(0, 0), (half, half)], mode="edge")
+    n_block = max(nf // max(int(block), 1), 1)
+    edges = np.linspace(0, nf, n_block + 1).astype(int)
+    centres = 0.5 * (edges[:-1] + edges[1:] - 1)
+    med = np.empty((r.shape[0], n_block))
+    for b, (lo, hi) in enumerate(zip(edges[:-1], edges[1:], strict=True)):
+        x = r[:, lo:hi]
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN block: NaN, said below
+            med[:, b] = np.nanquantile(x, quantile, axis=1)
+    if n_block == 1:
+        out = np.repeat(med, nf, axis=1)
+    else:
+        lines = np.arange(nf)
+        out = np.stack([np.interp(lines, centres, m) for m in med])
+    sigma = out / math.sqrt(-math.log(1.0 - quantile) * math.comb(2 * order, order))
+    return sigma.reshape(shape)
+
+
+def whitening_losses(
+    frf: np.ndarray, frequency: np.ndarray, shifts, sigma: np.ndarray | None = None
+) -> tuple[dict[int, float], dict[int, np.ndarray]]:
+    """How much unweighted least squares loses to the noise's variation along frequency, for the
+    FRFs (P, L) multiplied by ``(i w)^k`` for each ``k`` in ``shifts``, and the noise std of each.
+
+    The noise std per point and line of ``frf (i w)^k`` is :func:`block_roughness_std` of it,
+    estimated in each quantity anew (a steep trend within one block of the estimate -- receptance
+    with noise white in acceleration falls 4096-fold over its first 64 lines -- is followed by
+    none of them, but it is flat in the quantity where the noise is white); with ``sigma`` (P,
+    L) given (from the coherence) it is ``sigma w^k``. The loss of one point is ``mean(s^2)
+    mean(1 / s^2)`` over its lines above 0 Hz (the variance of an unweighted least-squares
+    estimate over that of the weighted one, for a parameter that every line informs alike: 1
+    for white noise, larger the more the level varies), the loss of a shift the median over
+    points. Lines where the std is not finite and positive are left out.
+
+    Returns ``({k: loss}, {k: std (P, L') on the lines above 0 Hz})``.
+    """
+    h = np.asarray(frf).reshape(-1, np.shape(frf)[-1])
+    f = np.asarray(frequency, dtype=np.float64)
+    use = f > 0
+    w = 2.0 * np.pi * f[use]
+    losses, stds = {}, {}
+    for k in shifts:
+        if sigma is not None:
+            x = np.asarray(sigma, dtype=np.float64).reshape(h.shape)[:, use] * w[None, :] ** k
+        else:
+            # unit-free: w / its median, so that huge or tiny units do not overflow
+            x = block_roughness_std(h[:, use] * (1j * w / np.median(w))[None, :] ** k)
+            x = x * np.median(w) ** k
+        ok = np.isfinite(x) & (x > 0)
+        loss = []
+        for row, good in zip(x, ok, strict=True):
+            if good.sum() < 8:
+                continue
+            v = row[good] ** 2
+            v = v / np.median(v)
+            loss.append(float(np.mean(v) * np.mean(1.0 / v)))
+        losses[int(k)] = float(np.median(loss)) if loss else 1.0
+        stds[int(k)] = x
+    return losses, stds

@@ -1,0 +1,226 @@
+"""The noise model of ``identify``: fit where the noise is white, report in the quantity given.
+
+Every fit of the pipeline (the subtraction's SDOF fits and peak statistics, the isolation, the
+global fit, the refinement's likelihood and the model-order tests) weights the lines of an FRF
+alike, which is right when the noise is white in the quantity the FRFs arrive in. Measured noise
+is often white in another quantity (receptance computed from accelerometers: the noise grows as
+``1 / w^2``; mobility from a vibrometer; a force rolling off), and then the noisiest lines decide
+every fit: the same measurement given as receptance, mobility or accelerance lost up to two thirds
+of its modes and reported noise spikes as modes (issue 37).
+
+The rule, on the lines analysed:
+
+1. **Noise per point and line.** ``frf_line_noise_std`` where the FRF carries it (``ami_xr.frf``:
+   the coherence and the number of averages), otherwise the FRF's roughness between adjacent
+   lines (:func:`ami_xr.core.frf_noise.block_roughness_std`: the 4th difference, a median over
+   blocks of 64 lines).
+2. **Working quantity.** Multiplying the FRFs by ``(i w)^k`` changes no line's signal-to-noise
+   ratio and no pole; for each quantity the data can be converted to (displacement, velocity,
+   acceleration), the loss of unweighted least squares ``mean(s^2) mean(1/s^2)`` (1 for white
+   noise; :func:`ami_xr.core.frf_noise.whitening_losses`) is computed from the noise converted
+   alike. The pipeline runs in the quantity of the least loss when that is at least
+   ``SWITCH_RATIO`` (1.25) times smaller than the loss as given (white noise stays where it is:
+   its loss is 1.05-1.15 from the estimate's own scatter).
+3. **Line weights.** When the loss in the working quantity still exceeds ``WEIGHT_LOSS`` (1.1),
+   the noise model (converted) goes with the data as ``frf_line_noise_std``, and the refinement
+   weights each line by it (its likelihood and the model-order statistics).
+4. **Back to the quantity given.** Poles, damping ratios, mode vectors (displacement convention)
+   and their standard errors do not depend on the quantity. Residues become ``A / (c lam^k)``
+   (``c`` the unit factor, e.g. 9.80665 for g), FRF-shaped outputs ``H / (c (i w)^k)``, residual
+   coefficients ``/ c`` (the residual bases of the quantities map onto each other exactly).
+
+FRFs of sampled impulse responses (``frf_source="impulse_response"``) stay as given: their basis
+is that of the sampled record, which a conversion would break, and their noise (white in time) is
+white in frequency. The decision is recorded in attributes ``noise_model_*`` and, when the
+quantity changes, said in an :class:`~ami_xr.errors.AssumptionWarning`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.caller import warn
+from ami_xr.core import frf_noise as fn
+from ami_xr.dsp.quantity import convert_units
+from ami_xr.errors import AssumptionWarning
+
+SWITCH_RATIO = 1.25
+WEIGHT_LOSS = 1.3
+MAX_POINTS = 64  # points the noise model is estimated on (evenly chosen): O(lines) beyond
+
+ATTR_QUANTITY = "noise_model_quantity"  # the quantity the modes were fitted in
+ATTR_SOURCE = "noise_model_source"  # "coherence" | "roughness"
+ATTR_LOSSES = "noise_model_losses"  # loss of unweighted least squares per quantity
+ATTR_WEIGHTED = "noise_model_line_weights"  # 1: the refinement weighted the lines
+ATTR_RULE = "noise_model_rule"
+
+
+@dataclass(frozen=True)
+class Whitening:
+    """What :func:`decide` found: the shift ``k`` (working = given times ``(i w)^k``), the unit
+    factor ``scale`` of the conversion, the noise model in the working quantity (P, L) when
+    the lines are to be weighted (else None), and the record for the attributes."""
+
+    k: int
+    target: str
+    scale: float
+    line_noise: np.ndarray | None
+    attrs: dict
+
+
+def _points(n: int) -> np.ndarray:
+    return np.unique(np.linspace(0, n - 1, min(n, MAX_POINTS)).round().astype(int))
+
+
+def _data(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray | None, str]:
+    """The FRFs (P', L) the noise model is estimated on (at most ``MAX_POINTS`` of them) and
+    the stored noise std of the same rows (None without one)."""
+    h = ds[names.FRF].transpose(..., names.POINT, names.FREQUENCY)
+    x = np.asarray(h.values).reshape(-1, h.shape[-1])
+    rows = _points(x.shape[0])
+    if names.FRF_LINE_NOISE_STD in ds and ds[names.FRF_LINE_NOISE_STD].dims == h.dims:
+        sd = ds[names.FRF_LINE_NOISE_STD].transpose(*h.dims).values
+        sd = sd.reshape(-1, sd.shape[-1])[rows]
+        if np.isfinite(sd).mean() > 0.5:
+            return x[rows], sd, "coherence"
+    return x[rows], None, "roughness"
+
+
+def decide(ds: xr.Dataset) -> Whitening:
+    """The working quantity and the line weights of ``ds`` (the lines analysed); see the
+    module docstring."""
+    attrs = ds.attrs
+    given = attrs.get(names.ATTR_QUANTITY)
+    f = np.asarray(ds[names.FREQUENCY].values, dtype=np.float64)
+    h, stored, source = _data(ds)
+    if given in names.QUANTITY_POWER and attrs.get(names.ATTR_SOURCE) != names.SOURCE_IMPULSE:
+        p = names.QUANTITY_POWER[given]
+        shifts = [q - p for q in names.QUANTITY_POWER.values()]
+    else:
+        p, shifts = 0, [0]
+    losses, stds = fn.whitening_losses(h, f, shifts, stored)
+    best = min(losses, key=losses.get)
+    k = best if losses[0] > SWITCH_RATIO * losses[best] else 0
+    target = next(q for q, v in names.QUANTITY_POWER.items() if v == p + k) if k else given
+    scale = 1.0
+    if k:
+        try:
+            _, scale = convert_units(str(attrs.get(names.ATTR_RESPONSE_UNITS, "")), p, p + k)
+        except ValueError:
+            scale = 1.0
+    weighted = losses[k] > WEIGHT_LOSS
+    line_noise = None
+    if weighted:
+        line_noise = np.full((h.shape[0], f.size), np.nan)
+        line_noise[:, f > 0] = stds[k] * abs(scale)
+    record = {
+        ATTR_QUANTITY: str(target or ""),
+        ATTR_SOURCE: source,
+        ATTR_LOSSES: ", ".join(
+            f"{next(q for q, v in names.QUANTITY_POWER.items() if v == p + s)}: {v:.3g}"
+            if given in names.QUANTITY_POWER
+            else f"as given: {v:.3g}"
+            for s, v in sorted(losses.items())
+        ),
+        ATTR_WEIGHTED: int(weighted),
+        ATTR_RULE: (
+            f"fit in the quantity whose noise is closest to white (loss mean(s^2) mean(1/s^2) "
+            f"of unweighted least squares, smaller by {SWITCH_RATIO:g}x than as given); lines "
+            f"weighted by the noise model where the loss there exceeds {WEIGHT_LOSS:g}"
+        ),
+    }
+    return Whitening(int(k), str(target or ""), float(scale), line_noise, record)
+
+
+def to_working(ds: xr.Dataset, w: Whitening) -> xr.Dataset:
+    """``ds`` in the working quantity, with the noise model attached when the lines are to be
+    weighted; the 0 Hz line is left out where the conversion divides by ``i w``."""
+    from ami_xr.dsp.quantity import convert_quantity
+
+    work = ds
+    if w.k:
+        if w.k < 0 and float(ds[names.FREQUENCY].values[0]) <= 0.0:
+            work = work.isel({names.FREQUENCY: slice(1, None)})
+        extra = [v for v in (names.FRF_LINE_NOISE_STD,) if v in work]
+        work = convert_quantity(work.drop_vars(extra), w.target)
+        work.attrs[names.ATTR_SOURCE] = ds.attrs.get(names.ATTR_SOURCE, names.SOURCE_MEASURED)
+    if w.line_noise is not None:
+        h = work[names.FRF].transpose(..., names.POINT, names.FREQUENCY)
+        sd = w.line_noise[:, -work.sizes[names.FREQUENCY] :]
+        if sd.shape[0] != int(np.prod(h.shape[:-1])):  # estimated on a subset of the points
+            sd = np.broadcast_to(np.nanmedian(sd, axis=0), h.shape)
+        sd = np.where(np.isfinite(sd) & (sd > 0), sd, np.nan).reshape(h.shape)
+        work = work.assign(
+            {names.FRF_LINE_NOISE_STD: (h.dims, sd, {names.ATTR_NOISE_MODEL: w.attrs[ATTR_SOURCE]})}
+        )
+    work.attrs.update(w.attrs)
+    return work
+
+
+_FRF_SHAPED = (names.FRF_SYNTHESIZED,)
+_RESIDUES = (
+    (names.RESIDUE, names.EIGENVALUE),
+    (names.AMI_PREFIX + names.RESIDUE, names.AMI_PREFIX + names.EIGENVALUE),
+    (names.SUB_RESIDUE, names.SUB_EIGENVALUE),
+)
+
+
+def from_working(result: xr.Dataset, ds: xr.Dataset, w: Whitening) -> xr.Dataset:
+    """``result`` of the pipeline on :func:`to_working` ``(ds, w)`` in the quantity of ``ds``."""
+    out = result.drop_vars([names.FRF_LINE_NOISE_STD], errors="ignore")
+    f = out[names.FREQUENCY]
+    if names.FRF_LINE_NOISE_STD in ds:  # the input's own noise model stays in the output
+        out = out.assign({names.FRF_LINE_NOISE_STD: ds[names.FRF_LINE_NOISE_STD].sel(
+            {names.FREQUENCY: f.values})})
+    if not w.k:
+        return out.assign_attrs(w.attrs)
+    iw = xr.DataArray(2j * np.pi * f.values, dims=[names.FREQUENCY], coords={names.FREQUENCY: f})
+    back = 1.0 / (w.scale * iw**w.k)
+    frf = ds[names.FRF].sel({names.FREQUENCY: f.values})
+    units = ds[names.FRF].attrs.get(names.ATTR_UNITS, "")
+    out = out.assign({names.FRF: frf})
+    for v in _FRF_SHAPED:
+        if v in out:
+            out[v] = (out[v] * back).assign_attrs(out[v].attrs)
+    if names.FRF_SYNTHESIZED in out and names.FRF_RESIDUAL in out:
+        res = (out[names.FRF] - out[names.FRF_SYNTHESIZED]).transpose(*out[names.FRF_RESIDUAL].dims)
+        out[names.FRF_RESIDUAL] = out[names.FRF_RESIDUAL].copy(data=res.values)
+    for v, lam_name in _RESIDUES:
+        if v in out and lam_name in out:
+            lam = out[lam_name]
+            out[v] = (out[v] / (w.scale * lam**w.k)).assign_attrs(out[v].attrs)
+            if v == names.RESIDUE and names.RESIDUE_STD in out:
+                std = out[names.RESIDUE_STD] / (abs(w.scale) * np.abs(lam) ** w.k)
+                out[names.RESIDUE_STD] = std.assign_attrs(out[names.RESIDUE_STD].attrs)
+    if names.RESIDUAL_COEFFICIENT in out:
+        rc = out[names.RESIDUAL_COEFFICIENT]
+        out[names.RESIDUAL_COEFFICIENT] = (rc / w.scale).assign_attrs(rc.attrs)
+    # noise levels per point: the working level at each line taken back, as an RMS over the lines
+    rms = np.sqrt(np.nanmean(np.abs(back.values) ** 2))
+    for v in (names.FRF_NOISE_STD, names.SUB_NOISE_FLOOR):
+        if v in out:
+            out[v] = (out[v] * rms).assign_attrs(out[v].attrs)
+    for v in (*_FRF_SHAPED, names.FRF_RESIDUAL, names.FRF_NOISE_STD, names.SUB_NOISE_FLOOR):
+        if v in out and units:
+            out[v].attrs[names.ATTR_UNITS] = units
+    for v, _ in _RESIDUES:
+        if v in out and units:
+            out[v].attrs[names.ATTR_UNITS] = f"{units} {names.ANGULAR_UNITS}"
+    if names.RESIDUE_STD in out and units:
+        out[names.RESIDUE_STD].attrs[names.ATTR_UNITS] = f"{units} {names.ANGULAR_UNITS}"
+    for key in (names.ATTR_QUANTITY, names.ATTR_FRF_TYPE, names.ATTR_RESPONSE_UNITS):
+        if key in ds.attrs:
+            out.attrs[key] = ds.attrs[key]
+    out.attrs.update(w.attrs)
+    warn(
+        f"identify: the FRFs' noise is closest to white as {w.target} (noise model from the "
+        f"{w.attrs[ATTR_SOURCE]}; loss of unweighted least squares {w.attrs[ATTR_LOSSES]}): the "
+        f"modes were fitted on the FRFs times (i w)^{w.k} and are reported as given "
+        f"({ds.attrs.get(names.ATTR_QUANTITY)}); attrs {ATTR_QUANTITY}, {ATTR_LOSSES}",
+        AssumptionWarning,
+    )
+    return out
