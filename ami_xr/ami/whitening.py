@@ -21,13 +21,14 @@ The rule, on the lines analysed:
    alike. The pipeline runs in the quantity of the least loss when that is at least
    ``SWITCH_RATIO`` (1.25) times smaller than the loss as given (white noise stays where it is:
    its loss is 1.05-1.15 from the estimate's own scatter).
-3. **Line weights.** When the loss in the working quantity still exceeds ``WEIGHT_LOSS`` (30:
-   the noise level varies by more than about ten times across the band), the noise model
+3. **Line weights.** When the loss in the working quantity still exceeds ``WEIGHT_LOSS`` (100:
+   the noise level varies by more than about twenty times across the band), the noise model
    (converted) goes with the data as ``frf_line_noise_std``, and the refinement weights each
    line by it (its likelihood and the model-order statistics). Not below: the noise model does
    not see the model error of measured peaks, and weighting the quiet lines up lets it decide
    -- ``measurement.uff`` (loss 10 as accelerance) weighted gives a split 958 Hz mode and two
-   more, unweighted its six modes; the simulated cases of ``benchmark_quantity.py`` give the
+   more, unweighted its six modes; sdypy-EMA's beam (loss 28-29) weighted an extra 1377 Hz mode,
+   unweighted none; the simulated cases of ``benchmark_quantity.py`` give the
    same counts either way once in the working quantity.
 4. **Back to the quantity given.** Poles, damping ratios, mode vectors (displacement convention)
    and their standard errors do not depend on the quantity. Residues become ``A / (c lam^k)``
@@ -54,7 +55,7 @@ from ami_xr.dsp.quantity import convert_units
 from ami_xr.errors import AssumptionWarning
 
 SWITCH_RATIO = 1.25
-WEIGHT_LOSS = 30.0  # below it model error at the peaks outweighs the gain (module docstring)
+WEIGHT_LOSS = 100.0  # below it model error at the peaks outweighs the gain (module docstring)
 MAX_POINTS = 64  # points the noise model is estimated on (evenly chosen): O(lines) beyond
 
 ATTR_QUANTITY = "noise_model_quantity"  # the quantity the modes were fitted in
