@@ -24,7 +24,8 @@ The rule, on the lines analysed:
 3. **Line weights.** When the loss in the working quantity still exceeds ``WEIGHT_LOSS`` (100:
    the noise level varies by more than about twenty times across the band), the noise model
    (converted) goes with the data as ``frf_line_noise_std``, and the refinement weights each
-   line by it (its likelihood and the model-order statistics). Not below: the noise model does
+   line by it (its likelihood and the model-order statistics); a stored noise model always
+   does. Not below: the noise model does
    not see the model error of measured peaks, and weighting the quiet lines up lets it decide
    -- ``measurement.uff`` (loss 10 as accelerance) weighted gives a split 958 Hz mode and two
    more, unweighted its six modes; sdypy-EMA's beam (loss 28-29) weighted an extra 1377 Hz mode,
@@ -128,7 +129,8 @@ def decide(ds: xr.Dataset) -> Whitening:
             _, scale = convert_units(str(attrs.get(names.ATTR_RESPONSE_UNITS, "")), p, p + k)
         except ValueError:
             scale = 1.0
-    weighted = losses[k] > WEIGHT_LOSS and "curvature" not in source
+    # a stored noise model (from the coherence) always weights the lines, as before issue 37
+    weighted = stored is not None or (losses[k] > WEIGHT_LOSS and "curvature" not in source)
     line_noise = None
     if weighted:
         line_noise = np.full((h.shape[0], f.size), np.nan)

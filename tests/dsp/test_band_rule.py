@@ -50,7 +50,8 @@ def _naive_valid(f, gff, coh):
         smooth[i] = np.median(gp[lo:hi])
         frac[i] = np.mean(cp[lo:hi] >= bd.COHERENCE_MIN)
     ok = np.zeros(f.size, bool)
-    ok[pos] = (smooth >= smooth.max() * 10 ** (-bd.FORCE_DROP_DB / 10)) & (frac >= 0.5)
+    # with a coherence the force may fall to FORCE_FLOOR_DB (issue 37)
+    ok[pos] = (smooth >= smooth.max() * 10 ** (-bd.FORCE_FLOOR_DB / 10)) & (frac >= 0.5)
     return ok
 
 
@@ -60,7 +61,7 @@ def test_valid_lines_match_the_rule_written_out():
     gff, coh = ds[names.FORCE_AUTOSPECTRUM].values, ds[names.COHERENCE].values
     ok, rule = bd.valid_lines(f, gff, coh)
     np.testing.assert_array_equal(ok, _naive_valid(f, gff, coh[0]))
-    assert "maximum" in rule and "20 dB" in rule
+    assert "maximum" in rule and "20 dB" in rule and "40 dB" in rule
 
 
 def test_window_width_is_relative_and_at_least_five_lines():
@@ -126,3 +127,47 @@ def test_the_old_reference_moved_the_new_one_does_not():
     cut = bd.analysis_band(ds.sel({names.FREQUENCY: slice(2000.0, 6000.0)}))
     assert cut.fmin == 2000.0
     assert abs(cut.fmax - whole.fmax) <= 5000.0 / 32 + 1
+
+
+def _record(f, gff, coh):
+    return xr.Dataset(
+        {
+            names.FORCE_AUTOSPECTRUM: (names.FREQUENCY, gff),
+            names.COHERENCE: ((names.POINT, names.FREQUENCY), coh[None, :]),
+        },
+        coords={names.FREQUENCY: f, names.POINT: ["a"]},
+    )
+
+
+def test_a_long_coherence_gap_inside_the_band_keeps_both_sides():
+    """A quiet range between modes (coherence 0.3 over 400-900 Hz, force flat): the band
+    spans both sides of it; the longest run (the rule before issue 37) kept only 900-2000."""
+    f = np.arange(0.0, 2001.0)
+    coh = np.where((f > 400) & (f < 900), 0.3, 0.99)
+    coh[f < 5] = 0.1
+    band = bd.analysis_band(_record(f, np.ones(f.size), coh))
+    assert band.fmin <= 10.0 and band.fmax == 2000.0
+    assert bd.longest_run(bd.valid_lines(f, np.ones(f.size), coh[None])[0])[0] > 850
+
+
+def test_a_weak_force_at_the_low_end_joins_the_band_where_the_coherence_holds():
+    """A sweep's force 28 dB below its peak at 2-8 Hz, the response clean there (coherence
+    0.99 without a gap): the lowest modes are in the band. Without the coherence (the force
+    rule alone) they are not. Past a gap (coherence 0.3 at 1-2 Hz) nothing more joins."""
+    f = np.arange(0.0, 50.0, 0.05)
+    gff = np.where(f < 8.0, 10 ** (-2.8), 1.0)
+    coh = np.where(f < 1.0, 0.99, np.where(f < 2.0, 0.3, 0.99))
+    band = bd.analysis_band(_record(f, gff, coh))
+    assert 1.9 <= band.fmin <= 2.3 and band.fmax == f[-1]
+    alone = bd.analysis_band(_record(f, gff, coh).drop_vars(names.COHERENCE))
+    assert alone.fmin >= 7.5
+
+
+def test_a_weak_force_at_the_top_never_joins_the_band():
+    """A force rolling off 30 dB past 30 Hz (a sweep's end, a hammer tip) with the coherence
+    still high there (the structure answers the harmonics): the band ends with the force's
+    20 dB point."""
+    f = np.arange(0.0, 50.0, 0.05)
+    gff = np.where(f > 30.0, 1e-3, 1.0)
+    band = bd.analysis_band(_record(f, gff, np.full(f.size, 0.99)))
+    assert 29.0 <= band.fmax <= 31.0
