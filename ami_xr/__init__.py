@@ -39,6 +39,7 @@ _PUBLIC: dict[str, str] = {
     "make_frf_dataset": "ami_xr.io",
     "make_time_dataset": "ami_xr.io",
     "open_frf": "ami_xr.io.formats",
+    "combine_runs": "ami_xr.io.combine",
     "read_lvm": "ami_xr.io.lvm",
     "read_uff": "ami_xr.io.uff",
     "write_uff": "ami_xr.io.uff",

@@ -298,6 +298,21 @@ def _cmd_convert(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_combine(args: argparse.Namespace) -> int:
+    import ami_xr
+    from ami_xr import names
+    from ami_xr.io.formats import check_input, check_output
+
+    for path in args.input:
+        check_input(path)
+    check_output(args.output, "netcdf", inputs=args.input, name="-o", writer="ami-xr combine")
+    g = ami_xr.combine_runs(args.input, drive_point=args.drive_point, layout=args.layout)
+    ami_xr.to_netcdf(g, args.output, parameters={"inputs": args.input, "layout": args.layout})
+    _say(f"{g.attrs['combine_layout']}; drive point {g.attrs.get(names.ATTR_DRIVE_POINT)!r}")
+    _say(_wrote_frfs(g, args.output) + f" from {len(args.input)} runs")
+    return EXIT_OK
+
+
 def _cmd_batch(args: argparse.Namespace) -> int:
     from ami_xr.app.batch import batch
 
@@ -537,6 +552,42 @@ def _add_file_commands(add) -> None:
     p.set_defaults(func=_cmd_convert)
 
 
+def _add_combine(add) -> None:
+    p = add(
+        "combine",
+        "one FRF set from the runs of a roving test",
+        "Combine FRF files measured in runs (ami_xr.combine_runs): a roving response (the runs "
+        "share the excitation, each measured other points) or a roving hammer (the runs share "
+        "one response point; by reciprocity the hammer positions become the points). Points are "
+        "concatenated; each run's force autospectrum, coherence and noise are kept, the run of "
+        "each point is recorded (point_run), and the frequency lines, units and drive point are "
+        "checked to agree (an error names the run that differs).",
+    )
+    p.add_argument("input", nargs="+", help="FRF files of the runs (.nc, .uff/.unv, tables)")
+    _add_output(p, "FRF netCDF file to write")
+    p.add_argument(
+        "--drive-point",
+        metavar="LABEL",
+        type=_label,
+        default=None,
+        help="roving response: where the shaker acts, for runs that do not state it; roving "
+        "hammer: the response point (default: what the runs state)",
+    )
+    p.add_argument(
+        "--layout",
+        choices=("auto", "roving_response", "roving_hammer"),
+        default="auto",
+        help="auto: a roving hammer when every run has the same one response point and its own "
+        "drive point, else a roving response",
+    )
+    p.set_defaults(func=_cmd_combine)
+
+
+def _label(text: str) -> int | str:
+    """A point label: an integer when the text is one, else the text."""
+    return int(text) if text.strip().lstrip("-").isdigit() else text
+
+
 def _add_batch(add) -> None:
     p = add(
         "batch",
@@ -609,7 +660,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.set_defaults(subcommand_parser=p)
         return p
 
-    for add_command in (_add_demo, _add_simulate, _add_file_commands, _add_batch):
+    for add_command in (_add_demo, _add_simulate, _add_file_commands, _add_combine, _add_batch):
         add_command(add)
     return parser
 
