@@ -40,6 +40,8 @@ _PUBLIC: dict[str, str] = {
     "make_time_dataset": "ami_xr.io",
     "open_frf": "ami_xr.io.formats",
     "combine_runs": "ami_xr.io.combine",
+    "split_frf_and_modes": "ami_xr.io.reference_modes",
+    "compare_modes": "ami_xr.io.reference_modes",
     "read_lvm": "ami_xr.io.lvm",
     "read_uff": "ami_xr.io.uff",
     "write_uff": "ami_xr.io.uff",

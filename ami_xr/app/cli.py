@@ -233,13 +233,26 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     import ami_xr
     from ami_xr import names
     from ami_xr.app.cluster import cluster, read_frfs
-    from ami_xr.io.formats import LVM_SUFFIX, write_any
+    from ami_xr.io.formats import LVM_SUFFIX, read_any, write_any
     from ami_xr.progress import on_a_terminal, on_terminal
     from ami_xr.tables import format_modal_table
 
     if Path(args.input).suffix.lower() == LVM_SUFFIX:  # always time histories: say so unread
         raise AmiXrValueError(_frf_first(args.input))
-    ds = read_frfs(args.input, args)  # lazy, chunked along point with --workers/--scheduler
+    from ami_xr.io.kinds import ModesFileError
+    from ami_xr.io.reference_modes import compare_modes, format_reference_table
+    from ami_xr.io.reference_modes import split_frf_and_modes as split
+
+    given = None  # modes stored with the FRFs: identify the FRFs, compare with those modes
+    try:
+        ds = read_frfs(args.input, args)  # lazy, chunked along point with --workers/--scheduler
+    except ModesFileError as refused:
+        both = read_any(args.input)
+        if names.FRF not in both:  # modes only: nothing to identify
+            raise refused from None
+        ds, given = split(both, args.input)
+        n = given.sizes[names.MODE]
+        _say(f"{args.input}: FRFs and {n} modes; the FRFs are identified, the modes compared")
     if names.FRF not in ds and names.TIME in ds.dims:
         raise AmiXrValueError(_frf_first(args.input))
     if args.conjugate:  # the other sign convention (ami_xr.dsp.convention)
@@ -249,6 +262,9 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     with cluster(args):
         result = ami_xr.identify(ds, progress=on_terminal(not args.quiet), **options)
     _say(format_modal_table(result))
+    if given is not None:
+        result = compare_modes(result, given)
+        _say(format_reference_table(result))
     if args.stability:  # the variants take their own pfa and band; the other options stay
         others = {k: v for k, v in options.items() if k != "pfa"}
         show = not args.quiet and on_a_terminal()  # False, not an error, when stderr is closed

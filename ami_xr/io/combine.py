@@ -36,7 +36,7 @@ from ami_xr import names
 from ami_xr.caller import warn
 from ami_xr.errors import AmiXrValueError, AssumptionWarning
 from ami_xr.io.messages import python_scalar
-from ami_xr.provenance import _jsonable, add_history, file_name, history, public_call
+from ami_xr.provenance import add_history, file_name, history, public_call
 
 __all__ = [
     "LAYOUT_HAMMER",
@@ -128,6 +128,23 @@ def _labels(parts: list[xr.Dataset], files: list[str | None], run_labels) -> lis
     if len(set(labels)) != len(labels):
         raise AmiXrValueError(f"run_labels: expected unique labels, got {labels}")
     return labels
+
+
+def _plain(value: Any) -> Any:
+    """An attribute value as JSON data (numpy scalars and arrays as Python ones; an absolute
+    path, e.g. the ``source_file`` :func:`ami_xr.open_dataset` keeps in memory, as its file
+    name: no machine path goes into a file)."""
+    if isinstance(value, str) and os.path.isabs(value):
+        return file_name(value)
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return [_plain(v) for v in value.tolist()] if value.dtype.kind != "c" else repr(value)
+    if isinstance(value, complex):
+        return [value.real, value.imag]
+    return value if isinstance(value, (str, int, float, bool, list, dict)) or value is None else (
+        repr(value)
+    )
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -263,7 +280,7 @@ def _merge_attrs(parts: list[xr.Dataset], runs: list[str]) -> tuple[dict, dict]:
         if all(k in ds.attrs for ds in parts) and all(_same(v, values[0]) for v in values):
             common[k] = values[0]
         else:
-            differ[k] = {r: _jsonable(v) for r, v in zip(runs, values, strict=True)}
+            differ[k] = {r: _plain(v) for r, v in zip(runs, values, strict=True)}
     lines = [(r, ds.attrs.get(ATTR_UNDEFINED_LINES)) for r, ds in zip(runs, parts, strict=True)]
     lines = [(r, np.atleast_1d(v)) for r, v in lines if v is not None and np.size(v)]
     if lines:  # a line without an estimate in any run has none in the set
