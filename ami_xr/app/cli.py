@@ -198,7 +198,7 @@ def _cmd_frf(args: argparse.Namespace) -> int:
         "points": [p.strip() for p in args.points.split(",")] if args.points else None,
         "drive_point": args.drive_point,
     }
-    ts = read_any(args.input, **reader)
+    ts = read_any(args.input, want="time", **reader)
     options = frf_options(args)
     if "excitation" not in options:  # auto: the rule ami_xr.frf_from_options applies too
         options["excitation"] = excitation_of(ts)
@@ -470,23 +470,24 @@ def _add_file_commands(add) -> None:
     p = add(
         "frf",
         "estimate FRFs from force and response time histories",
-        "Read a time Dataset (netCDF, UFF dataset 58 time responses, or LabVIEW .lvm) and "
+        "Read a time Dataset (netCDF, UFF dataset 58 time responses, LabVIEW .lvm, or MATLAB "
+        ".mat channels with a sampling rate: see ami_xr.io.time_mat) and "
         "estimate FRFs with coherence (ami_xr.frf).",
     )
-    p.add_argument("input", help="time-history file (.nc, .uff, .lvm)")
+    p.add_argument("input", help="time-history file (.nc, .uff, .lvm, .mat)")
     _add_output(p, "FRF netCDF file to write")
     g = p.add_argument_group("channels (what the file does not say)")
     g.add_argument(
         "--force-channel",
         metavar="INDEX_OR_TITLE",
-        help=".lvm: the force channel, by column index (0 = first) or title (default: the "
-        "channel with a force unit (N, kN, lbf) or 'force' in its title)",
+        help=".lvm, .mat: the force channel, by column index (0 = first) or title (default: "
+        "the channel with a force unit (N, kN, lbf) or 'force' in its title)",
     )
     g.add_argument(
         "--points",
         metavar="LABELS",
-        help=".lvm: comma-separated labels of the response channels, in file order (default: "
-        "their column titles)",
+        help=".lvm, .mat: comma-separated labels of the response channels, in file order "
+        "(default: their column titles)",
     )
     g.add_argument(
         "--drive-point",
