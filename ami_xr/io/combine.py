@@ -428,6 +428,11 @@ def combine_runs(
     from ami_xr.schema import validate
 
     points = list(out[names.POINT].values)
-    validate(out, require_drive_point=drive is not None and drive in points)
+    # NaN lines a run's estimate recorded (frf_undefined_frequencies) are allowed, as in the runs
+    validate(
+        out,
+        require_drive_point=drive is not None and drive in points,
+        check_values=ATTR_UNDEFINED_LINES not in out.attrs,
+    )
     params = {"runs": runs, "layout": kind, "drive_point": drive}
     return add_history(out, "ami_xr.combine_runs", params)
