@@ -63,3 +63,12 @@ def test_combine_checks_paths_first(tmp_path, capsys, which):
     assert main(argv) == EXIT_ERROR
     err = capsys.readouterr().err
     assert ("nope.nc" in err and "no such file" in err) if which == "missing" else "-o" in err
+
+
+def test_combine_help_names_every_option(capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["combine", "--help"])
+    assert done.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    for option in ("--drive-point", "--layout", "-o", "roving hammer", "(default: auto)"):
+        assert option in text

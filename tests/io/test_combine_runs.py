@@ -217,3 +217,16 @@ def test_roving_hammer_by_reciprocity():
     runs[3] = runs[3].assign_coords({names.POINT: [3]})
     with pytest.raises(RunMismatchError, match="run 'run3': response point 3, but the set's is 2"):
         combine_runs(runs, layout="roving_hammer")
+
+
+def test_lines_a_run_left_undefined_stay_undefined(roving):
+    """A run whose estimate is NaN at a line (recorded by ami_xr.frf in
+    frf_undefined_frequencies) combines; the set records the union of those lines."""
+    _, runs, _ = roving
+    parts = [r.copy(deep=True) for r in runs[:3]]
+    parts[1][names.FRF].values[:, 0] = np.nan
+    parts[1].attrs.update(frf_undefined_frequencies=np.array([0.0]), frf_undefined_reason="Gff 0")
+    out = combine_runs(parts)
+    np.testing.assert_array_equal(out.attrs["frf_undefined_frequencies"], [0.0])
+    assert out.attrs["frf_undefined_reason"] == "run run1: Gff 0"
+    assert np.isnan(out[names.FRF].values[2:4, 0]).all()
