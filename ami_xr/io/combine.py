@@ -266,7 +266,9 @@ def _hammer(parts: list[xr.Dataset], runs: list[str], drive_point: Any) -> tuple
                 f"run {run!r}: no drive_point attribute; a roving-hammer run must say where the "
                 "hammer hit"
             )
-        out.append(ds.assign_coords({names.POINT: [hit]}))
+        # the run's geometry is the sensor's place, not the hammer's: not carried over
+        where = [c for c in ds.coords if c != names.POINT and names.POINT in ds[c].dims]
+        out.append(ds.drop_vars(where).assign_coords({names.POINT: [hit]}))
     return out, response
 
 

@@ -207,6 +207,7 @@ def test_roving_hammer_by_reciprocity():
         )
         g.attrs[names.ATTR_DRIVE_POINT] = p  # where the hammer hit (unmeasured unless p = 2)
         g[names.FORCE_AUTOSPECTRUM] = (names.FREQUENCY, np.full(f.size, float(p)))
+        g = g.assign_coords(point_x=(names.POINT, [0.5], {"units": "m"}))  # the sensor's place
         runs.append(g)
     out = combine_runs(runs)
     assert out.attrs["combine_layout"].startswith("roving hammer")
@@ -214,6 +215,7 @@ def test_roving_hammer_by_reciprocity():
     assert out.attrs[names.ATTR_DRIVE_POINT] == 2
     np.testing.assert_array_equal(out[names.FRF].values, h.sel({names.POINT: [1, 2, 3, 4]}).values)
     assert out[names.FORCE_AUTOSPECTRUM].dims == (RUN, names.FREQUENCY)
+    assert "point_x" not in out.coords  # not the hammer positions' coordinates
     runs[3] = runs[3].assign_coords({names.POINT: [3]})
     with pytest.raises(RunMismatchError, match="run 'run3': response point 3, but the set's is 2"):
         combine_runs(runs, layout="roving_hammer")
