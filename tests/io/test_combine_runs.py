@@ -120,6 +120,11 @@ def test_ten_runs_give_the_modes_of_one_run_within_sigma(roving):
     # statistical: two independent estimates of the same modes, their difference within 3
     # combined sigma for the frequencies, 3.5 for the damping ratios (8 comparisons; measured:
     # see docs/data-model.md "A roving test from its runs")
+    print(  # pytest -s shows the figures docs/data-model.md quotes
+        f"|f_runs - f_one| / sigma {np.round(np.abs(fa - fb) / np.hypot(sa, sb), 2)}, "
+        f"|zeta_runs - zeta_one| / sigma {np.round(np.abs(za - zb) / np.hypot(dza, dzb), 2)}, "
+        f"|f_runs - f_truth| / sigma {np.round(np.abs(fa - ft) / sa, 2)}"
+    )
     assert np.all(np.abs(fa - fb) < 3 * np.hypot(sa, sb)), (fa, fb, sa, sb)
     assert np.all(np.abs(za - zb) < 3.5 * np.hypot(dza, dzb)), (za, zb, dza, dzb)
     # and the combined set's within 3 sigma of the truth (no leakage: periodic excitation)
