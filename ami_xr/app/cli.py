@@ -198,7 +198,7 @@ def _cmd_frf(args: argparse.Namespace) -> int:
         "points": [p.strip() for p in args.points.split(",")] if args.points else None,
         "drive_point": args.drive_point,
     }
-    ts = read_any(args.input, **reader)
+    ts = read_any(args.input, want="time", **reader)
     options = frf_options(args)
     if "excitation" not in options:  # auto: the rule ami_xr.frf_from_options applies too
         options["excitation"] = excitation_of(ts)
@@ -233,13 +233,26 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     import ami_xr
     from ami_xr import names
     from ami_xr.app.cluster import cluster, read_frfs
-    from ami_xr.io.formats import LVM_SUFFIX, write_any
+    from ami_xr.io.formats import LVM_SUFFIX, read_any, write_any
     from ami_xr.progress import on_a_terminal, on_terminal
     from ami_xr.tables import format_modal_table
 
     if Path(args.input).suffix.lower() == LVM_SUFFIX:  # always time histories: say so unread
         raise AmiXrValueError(_frf_first(args.input))
-    ds = read_frfs(args.input, args)  # lazy, chunked along point with --workers/--scheduler
+    from ami_xr.io.kinds import ModesFileError
+    from ami_xr.io.reference_modes import compare_modes, format_reference_table
+    from ami_xr.io.reference_modes import split_frf_and_modes as split
+
+    given = None  # modes stored with the FRFs: identify the FRFs, compare with those modes
+    try:
+        ds = read_frfs(args.input, args)  # lazy, chunked along point with --workers/--scheduler
+    except ModesFileError as refused:
+        both = read_any(args.input)
+        if names.FRF not in both:  # modes only: nothing to identify
+            raise refused from None
+        ds, given = split(both, args.input)
+        n = given.sizes[names.MODE]
+        _say(f"{args.input}: FRFs and {n} modes; the FRFs are identified, the modes compared")
     if names.FRF not in ds and names.TIME in ds.dims:
         raise AmiXrValueError(_frf_first(args.input))
     if args.conjugate:  # the other sign convention (ami_xr.dsp.convention)
@@ -249,6 +262,9 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     with cluster(args):
         result = ami_xr.identify(ds, progress=on_terminal(not args.quiet), **options)
     _say(format_modal_table(result))
+    if given is not None:
+        result = compare_modes(result, given)
+        _say(format_reference_table(result))
     if args.stability:  # the variants take their own pfa and band; the other options stay
         others = {k: v for k, v in options.items() if k != "pfa"}
         show = not args.quiet and on_a_terminal()  # False, not an error, when stderr is closed
@@ -295,6 +311,21 @@ def _cmd_convert(args: argparse.Namespace) -> int:
         parameters={"input": str(src)},  # the running command's record (main)
     )
     _say(f"converted {src} -> {out}")
+    return EXIT_OK
+
+
+def _cmd_combine(args: argparse.Namespace) -> int:
+    import ami_xr
+    from ami_xr import names
+    from ami_xr.io.formats import check_input, check_output
+
+    for path in args.input:
+        check_input(path)
+    check_output(args.output, "netcdf", inputs=args.input, name="-o", writer="ami-xr combine")
+    g = ami_xr.combine_runs(args.input, drive_point=args.drive_point, layout=args.layout)
+    ami_xr.to_netcdf(g, args.output, parameters={"inputs": args.input, "layout": args.layout})
+    _say(f"{g.attrs['combine_layout']}; drive point {g.attrs.get(names.ATTR_DRIVE_POINT)!r}")
+    _say(_wrote_frfs(g, args.output) + f" from {len(args.input)} runs")
     return EXIT_OK
 
 
@@ -439,23 +470,24 @@ def _add_file_commands(add) -> None:
     p = add(
         "frf",
         "estimate FRFs from force and response time histories",
-        "Read a time Dataset (netCDF, UFF dataset 58 time responses, or LabVIEW .lvm) and "
+        "Read a time Dataset (netCDF, UFF dataset 58 time responses, LabVIEW .lvm, or MATLAB "
+        ".mat channels with a sampling rate: see ami_xr.io.time_mat) and "
         "estimate FRFs with coherence (ami_xr.frf).",
     )
-    p.add_argument("input", help="time-history file (.nc, .uff, .lvm)")
+    p.add_argument("input", help="time-history file (.nc, .uff, .lvm, .mat)")
     _add_output(p, "FRF netCDF file to write")
     g = p.add_argument_group("channels (what the file does not say)")
     g.add_argument(
         "--force-channel",
         metavar="INDEX_OR_TITLE",
-        help=".lvm: the force channel, by column index (0 = first) or title (default: the "
-        "channel with a force unit (N, kN, lbf) or 'force' in its title)",
+        help=".lvm, .mat: the force channel, by column index (0 = first) or title (default: "
+        "the channel with a force unit (N, kN, lbf) or 'force' in its title)",
     )
     g.add_argument(
         "--points",
         metavar="LABELS",
-        help=".lvm: comma-separated labels of the response channels, in file order (default: "
-        "their column titles)",
+        help=".lvm, .mat: comma-separated labels of the response channels, in file order "
+        "(default: their column titles)",
     )
     g.add_argument(
         "--drive-point",
@@ -537,6 +569,42 @@ def _add_file_commands(add) -> None:
     p.set_defaults(func=_cmd_convert)
 
 
+def _add_combine(add) -> None:
+    p = add(
+        "combine",
+        "one FRF set from the runs of a roving test",
+        "Combine FRF files measured in runs (ami_xr.combine_runs): a roving response (the runs "
+        "share the excitation, each measured other points) or a roving hammer (the runs share "
+        "one response point; by reciprocity the hammer positions become the points). Points are "
+        "concatenated; each run's force autospectrum, coherence and noise are kept, the run of "
+        "each point is recorded (point_run), and the frequency lines, units and drive point are "
+        "checked to agree (an error names the run that differs).",
+    )
+    p.add_argument("input", nargs="+", help="FRF files of the runs (.nc, .uff/.unv, tables)")
+    _add_output(p, "FRF netCDF file to write")
+    p.add_argument(
+        "--drive-point",
+        metavar="LABEL",
+        type=_label,
+        default=None,
+        help="roving response: where the shaker acts, for runs that do not state it; roving "
+        "hammer: the response point (default: what the runs state)",
+    )
+    p.add_argument(
+        "--layout",
+        choices=("auto", "roving_response", "roving_hammer"),
+        default="auto",
+        help="auto: a roving hammer when every run has the same one response point and its own "
+        "drive point, else a roving response",
+    )
+    p.set_defaults(func=_cmd_combine)
+
+
+def _label(text: str) -> int | str:
+    """A point label: an integer when the text is one, else the text."""
+    return int(text) if text.strip().lstrip("-").isdigit() else text
+
+
 def _add_batch(add) -> None:
     p = add(
         "batch",
@@ -609,7 +677,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.set_defaults(subcommand_parser=p)
         return p
 
-    for add_command in (_add_demo, _add_simulate, _add_file_commands, _add_batch):
+    for add_command in (_add_demo, _add_simulate, _add_file_commands, _add_combine, _add_batch):
         add_command(add)
     return parser
 

@@ -540,6 +540,8 @@ PATHS: dict[str, tuple[tuple[str, ...], tuple[tuple[str, str], ...]]] = {
     "identify": (("input",), (("output", "file"),)),
     "report": (("input",), (("output", "folder"),)),
     "convert": (("input",), (("output", "file"),)),
+    # several inputs: _cmd_combine checks each, and the output against them
+    "combine": ((), (("output", "netcdf"),)),
     "batch": (("input",), (("output", "folder"),)),
 }
 

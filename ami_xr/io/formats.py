@@ -259,7 +259,10 @@ def read_any(
     want : {"frf", "time"}, optional
         What the caller needs: a modes file (identify's output) is then refused with a
         message naming the commands that take it (:func:`ami_xr.io.kinds.refuse_other_kind`).
-        None (default) takes any kind.
+        None (default) takes any kind. A ``.mat`` file is read as time histories
+        (:func:`ami_xr.io.time_mat.read_time_mat`, which also takes ``force_channel`` and
+        ``points``) with ``want="time"`` or when it has a sampling rate and no frequency
+        vector, else as an FRF table.
 
     Returns
     -------
@@ -283,6 +286,13 @@ def read_any(
         raise DataFileError(
             f"{path}: unknown file type {suffix!r}; expected one of {_READ_SUFFIXES}"
         )
+    if suffix == MATLAB_SUFFIX and want != "frf":
+        from ami_xr.io.time_mat import holds_time_histories, read_time_mat
+
+        if want == "time" or holds_time_histories(path):  # else an FRF table
+            return read_time_mat(
+                path, force_channel=force_channel, points=points, drive_point=drive_point
+            )
     for name, given in (("force_channel", force_channel), ("points", points)):
         if given is not None:
             raise AmiXrValueError(

@@ -58,7 +58,11 @@ def test_refuse_other_kind_passes_frfs(frf_dataset):
 
 
 def test_identify_on_a_modes_file_says_what_it_is(modes_file, tmp_path, capsys):
-    code = main(["identify", str(modes_file), "-o", str(tmp_path / "x.uff")])
+    """A modes file without FRFs is refused; one with FRFs (issue 40) is identified, its modes
+    kept as the reference set (tests/app/test_identify_reference_modes.py)."""
+    only = ami_xr.open_dataset(modes_file).drop_vars(names.FRF)
+    modes_only = ami_xr.to_netcdf(only, tmp_path / "ONLY.nc")
+    code = main(["identify", str(modes_only), "-o", str(tmp_path / "x.uff")])
     err = capsys.readouterr().err
     assert code == EXIT_ERROR
     lines = [line for line in err.splitlines() if line.strip()]
@@ -66,6 +70,9 @@ def test_identify_on_a_modes_file_says_what_it_is(modes_file, tmp_path, capsys):
     assert "a modes file" in lines[0] and "ami-xr report" in lines[0]
     assert "conflicting sizes" not in err and "unexpected" not in err
     assert not (tmp_path / "x.uff").exists()
+    assert main(["identify", str(modes_file), "-o", str(tmp_path / "x.nc")]) == 0
+    assert "reference modes from MODES.nc" in capsys.readouterr().out
+    assert ami_xr.open_dataset(tmp_path / "x.nc").sizes["reference_mode"] == 3
 
 
 def test_an_exception_from_inside_a_library_is_labelled_a_bug(

@@ -27,7 +27,15 @@ from ami_xr.io.frf_tables.build import (
     split_unit,
 )
 
-__all__ = ["read_frf_mat", "FRF_NAMES", "POINT_NAMES", "V73_NEEDS_H5PY"]
+__all__ = [
+    "read_frf_mat",
+    "load_variables",
+    "describe_variables",
+    "text_list",
+    "FRF_NAMES",
+    "POINT_NAMES",
+    "V73_NEEDS_H5PY",
+]
 
 #: Names (case-insensitive) of the FRF matrix variable.
 FRF_NAMES = ("frf", "h")
@@ -101,6 +109,18 @@ def _h5_value(f: Any, obj: Any) -> Any:
     return data[()] if data.ndim == 0 else data
 
 
+def load_variables(path: Path) -> tuple[dict[str, Any], bool]:
+    """The variables of a ``.mat`` file as plain values (either loader), and whether it is v7.3.
+
+    Raises
+    ------
+    DataFileError
+        Not a MATLAB file, or a v7.3 file without ``h5py``.
+    """
+    v73 = _is_v73(path)
+    return (_load_v73(path) if v73 else _load_v5(path)), v73
+
+
 def _lookup(scope: dict[str, Any], wanted: tuple[str, ...], test=None) -> str | None:
     """The key of ``scope`` named one of ``wanted`` (case-insensitive) or passing ``test``."""
     hits = [k for k in scope if k.lower() in wanted or (test is not None and test(k))]
@@ -114,6 +134,16 @@ def _describe(scope: dict[str, Any]) -> str:
         kind = "struct" if isinstance(v, dict) else type(v).__name__
         parts.append(f"{k} {shape}" if shape is not None else f"{k} ({kind})")
     return ", ".join(parts) or "none"
+
+
+def describe_variables(scope: dict[str, Any]) -> str:
+    """``"name (shape), ..."`` of the variables found, for a message."""
+    return _describe(scope)
+
+
+def text_list(value: Any) -> list:
+    """A cell array of text or numbers (or one text) as a list (whole numbers as int)."""
+    return _text_list(value)
 
 
 def _scope(variables: dict[str, Any], path: Path) -> tuple[dict[str, Any], str]:

@@ -42,7 +42,8 @@ _ANALYSIS_NAMES = {
         "viscous damping ratio, lam = -zeta*wn + i*wn*sqrt(1 - zeta^2); real mode shapes as "
         "written"
     ),
-    COMPLEX_MODES: "complex modes (dataset 55 analysis type 3): eigenvalue as written",
+    COMPLEX_MODES: "complex modes (dataset 55 analysis type 3): eigenvalue as written; mode "
+    "shapes with a modal A divided by sqrt(A lam), so that lam Phi_j Phi_k is the residue",
 }
 
 
@@ -83,6 +84,7 @@ def _modal_variables(modes: list[dict], vectors: np.ndarray, path: Path) -> dict
     hysteretic_damping_ratio when the file holds normal modes (and states a hysteretic one)."""
     parameters = [_eigenvalue(m, k, path) for k, m in enumerate(modes)]
     eig = np.array([p[0] for p in parameters], dtype=np.complex128)
+    vectors = vectors * _modal_a_scale(modes, eig)[np.newaxis, :]
     fn = np.array([p[1] for p in parameters], dtype=np.float64)
     zeta = np.array([p[2] for p in parameters], dtype=np.float64)
     out = {
@@ -127,6 +129,24 @@ def _modal_variables(modes: list[dict], vectors: np.ndarray, path: Path) -> dict
                 AssumptionWarning,
                 stacklevel=4,
             )
+    return out
+
+
+def _modal_a_scale(modes: list[dict], eig: np.ndarray) -> np.ndarray:
+    """Per mode, the factor that turns a complex mode shape scaled by its modal A into ami_xr's
+    mode vector: residues ``psi_j psi_k / a`` (first-order form) equal ``lam Phi_j Phi_k``
+    (eq. 8) for ``Phi = psi / sqrt(a lam)``. 1 where the file states no modal A (0), for normal
+    modes, and for the files :func:`~ami_xr.io.uff.write_uff` wrote (``a = 1/lam`` exactly, but
+    written with 6 digits)."""
+    out = np.ones(len(modes), dtype=np.complex128)
+    for k, m in enumerate(modes):
+        a = complex(m.get("modal_a", 0j) or 0j)
+        own = str(m.get("id1", "")).strip() == MODES_ID1
+        if int(m.get("analysis_type", 0)) != COMPLEX_MODES or a == 0 or own:
+            continue
+        if not (np.isfinite(a.real) and np.isfinite(a.imag)) or eig[k] == 0:
+            continue
+        out[k] = 1.0 / np.sqrt(a * eig[k])
     return out
 
 

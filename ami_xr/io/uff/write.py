@@ -31,7 +31,7 @@ from ami_xr.io.uff.codes import (
 )
 from ami_xr.io.uff.quiet import quiet
 
-__all__ = ["write_uff", "check_writable"]
+__all__ = ["MODAL_A_LINE", "check_writable", "modal_a_b", "write_uff"]
 
 
 def _nonfinite(values: np.ndarray, dims: Sequence[str]) -> str | None:
@@ -286,6 +286,25 @@ def _time_records(ds: xr.Dataset, binary: bool) -> list[dict]:
     return records
 
 
+#: ID line 4 of dataset 55: how the modal A and B written make FRFs from the mode vectors.
+MODAL_A_LINE = "modal A = 1/lam, B = -1: H_jk = sum Phi_j Phi_k/(A (iw - lam)) + conj"
+
+
+def modal_a_b(eigenvalue: complex) -> tuple[complex, complex]:
+    """Modal A and B of dataset 55 (complex modes, analysis type 3) for ami_xr's mode vectors.
+
+    The first-order (state-space) form that dataset 55 follows writes the residues as
+    ``A_jk = psi_j psi_k / a`` with modal A ``a = psi^T A psi`` and modal B
+    ``b = psi^T B psi = -lam a``. ami_xr's mode vectors satisfy ``A_jk = lam Phi_j Phi_k``
+    (eq. 8), so with ``psi = Phi``: ``a = 1 / lam`` and ``b = -1``. A mode without a finite,
+    non-zero eigenvalue gets ``a = b = 0`` (no scaling stated).
+    """
+    lam = complex(eigenvalue)
+    if not (np.isfinite(lam.real) and np.isfinite(lam.imag)) or lam == 0:
+        return 0j, 0j
+    return 1.0 / lam, -1.0 + 0j
+
+
 def _convention_lines(ds: xr.Dataset) -> tuple[str, str]:
     """ID lines 2 and 3 of dataset 55: the mode-vector convention and units (80 columns)."""
     attrs = ds[names.MODE_VECTOR].attrs
@@ -328,7 +347,7 @@ def _mode_records(ds: xr.Dataset) -> list[dict]:
                 "id1": MODES_ID1,
                 "id2": id2,
                 "id3": id3,
-                "id4": "NONE",
+                "id4": MODAL_A_LINE,
                 "id5": "NONE",
                 "model_type": 1,
                 "analysis_type": 3,
@@ -339,8 +358,8 @@ def _mode_records(ds: xr.Dataset) -> list[dict]:
                 "load_case": 1,
                 "mode_n": mode_n,
                 "eig": complex(eig[k]),
-                "modal_a": 0j,
-                "modal_b": 0j,
+                "modal_a": modal_a_b(eig[k])[0],
+                "modal_b": modal_a_b(eig[k])[1],
                 "node_nums": np.asarray(nodes),
                 **kwargs,
             }
@@ -420,7 +439,9 @@ def write_uff(
     and a ``coherence`` without ``reference`` dim with reference node 0); time Datasets to
     dataset 58 function type 1 (one record per point and per ``record``, load case = record
     number, plus the force at the drive point); identified modes (``eigenvalue`` and
-    ``mode_vector``) to one dataset 55 per mode (complex eigenvalue, displacement); point
+    ``mode_vector``) to one dataset 55 per mode (complex eigenvalue, displacement; modal A
+    ``1/lam`` and modal B ``-1``, so that ``Phi_j Phi_k / A`` is the receptance residue and
+    another tool rebuilds the FRFs from the shapes: :func:`modal_a_b`, ID line 4 says so); point
     coordinates (``point_x/y/z``, if any) to one dataset 15 in metres, first. Reading the file
     back with :func:`read_uff` gives the same FRFs, mode vectors and coordinates (these to the
     6 digits dataset 15 holds).
