@@ -17,7 +17,7 @@ from ami_xr import names
 from ami_xr.ami import common as c
 from ami_xr.ami import repeated as rp
 from ami_xr.ami import scale as scale_out
-from ami_xr.ami import whitening
+from ami_xr.ami import spikes, whitening
 from ami_xr.ami.global_fit import global_fit, receptance_mode_vectors
 from ami_xr.ami.isolate import METHODS as ISOLATE_METHODS
 from ami_xr.ami.isolate import isolate
@@ -94,6 +94,7 @@ def identify_single(
     result = finish_modes(result, whole, refined=refined)
     if final:
         result = drop_beyond_lines(result, whole)
+        result = spikes.drop_noise_spikes(result)
     return with_quality(result)
 
 

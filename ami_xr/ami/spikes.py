@@ -1,0 +1,130 @@
+"""No noise spike as a mode (issue 37 item 3): narrow poles that the noise explains are dropped.
+
+A pole fitted to a noise excursion looks like a mode of almost no damping: its half-power
+bandwidth ``2 zeta fn`` is a fraction of a line, so that all its evidence is one or two lines,
+where the noise alone reaches ``sigma sqrt(ln(n / p))`` somewhere among ``n`` lines with
+probability ``p`` (``|e|^2 / sigma^2`` is exponential for complex Gaussian noise). A real mode
+that narrow (a 0.2 %-damped mode on 0.06 Hz lines) stands far above that; a spike does not.
+
+The rule, on the final modes, for each mode whose half-power bandwidth spans fewer than
+``NARROW_LINES`` (2) lines:
+
+* its contribution ``A_j / (i w - lam) + conj`` (with that of any other such pole within a
+  line of it: two poles of opposite residue at one frequency cancel) at each point, at the lines within two lines of
+  its frequency, over the local noise std of that point (the robust level of the residual,
+  ``median |r| / sqrt(ln 2)``, over ``NOISE_HALF_WIDTH`` lines on either side) is its
+  peak SNR at that point;
+* the threshold is ``sqrt(ln(n_lines n_points / PFA))`` (``PFA`` = 0.01: the chance that the
+  noise of the whole set puts one line that high);
+* the pole is dropped when its SNR stays below the threshold at every point, or (3 points or
+  more) exceeds it at one point only: a mode shows at more than one point.
+
+Dropped modes are warned about (:class:`~ami_xr.errors.AssumptionWarning`), listed in attr
+``noise_spike_dropped_modes`` (Hz), and their contribution moves from ``frf_synthesized`` to
+``frf_residual``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.ami import common as c
+from ami_xr.caller import warn
+from ami_xr.errors import AssumptionWarning
+
+NARROW_LINES = 2.0
+NOISE_HALF_WIDTH = 32
+PFA = 0.01
+ATTR_DROPPED = "noise_spike_dropped_modes"
+ATTR_RULE = "noise_spike_rule"
+RULE = (
+    f"a mode whose half-power bandwidth spans fewer than {NARROW_LINES:g} line(s) is dropped "
+    f"when its peak contribution over the local residual noise stays below sqrt(ln(lines x "
+    f"points / {PFA:g})) at every point, or at all but one of 3 or more points"
+)
+
+
+def _contribution(res: np.ndarray, lam: complex, omega: np.ndarray) -> np.ndarray:
+    """``A_j / (i w - lam) + conj(A_j) / (i w - conj(lam))`` (P, L)."""
+    s = 1j * omega[None, :]
+    return res[:, None] / (s - lam) + np.conj(res)[:, None] / (s - np.conj(lam))
+
+
+def spike_modes(result: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
+    """Which modes of ``result`` the rule (module docstring) drops, and each mode's largest
+    peak SNR over the points (NaN where the mode is not narrow)."""
+    n_mode = result.sizes.get(names.MODE, 0)
+    drop = np.zeros(n_mode, bool)
+    snr_max = np.full(n_mode, np.nan)
+    need = (names.FRF_RESIDUAL, names.RESIDUE, names.EIGENVALUE, names.DAMPING_RATIO)
+    if n_mode == 0 or any(v not in result for v in need):
+        return drop, snr_max
+    f = np.asarray(result[names.FREQUENCY].values, dtype=float)
+    if f.size < 4:
+        return drop, snr_max
+    df = float(np.median(np.diff(f)))
+    omega = 2.0 * np.pi * f
+    fn = np.asarray(result[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
+    zeta = np.asarray(result[names.DAMPING_RATIO].transpose(names.MODE).values, dtype=float)
+    lam = np.asarray(result[names.EIGENVALUE].transpose(names.MODE).values)
+    res = result[names.RESIDUE].transpose(names.POINT, names.MODE).values
+    resid = result[names.FRF_RESIDUAL].transpose(names.POINT, names.FREQUENCY).values
+    n_point = resid.shape[0]
+    threshold = math.sqrt(math.log(f.size * n_point / PFA))
+    width = 2.0 * np.abs(zeta) * fn / df
+    narrow = np.isfinite(width) & (width < NARROW_LINES)
+    for k in np.flatnonzero(narrow):
+        at = int(np.argmin(np.abs(f - fn[k])))
+        near = slice(max(at - 2, 0), at + 3)
+        local = slice(max(at - NOISE_HALF_WIDTH, 0), at + NOISE_HALF_WIDTH + 1)
+        sigma = np.median(np.abs(resid[:, local]), axis=1) / math.sqrt(math.log(2.0))
+        # narrow poles within a line of each other act as one (two poles of opposite residue
+        # at one frequency cancel: each alone looks strong, together they are noise)
+        group = [m for m in range(n_mode) if abs(fn[m] - fn[k]) < df and narrow[m]]
+        both = sum(_contribution(res[:, m], lam[m], omega[near]) for m in group)
+        peak = np.abs(both).max(axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            snr = np.where(sigma > 0, peak / sigma, np.inf)
+        snr_max[k] = float(np.nanmax(snr))
+        above = int(np.sum(snr >= threshold))
+        drop[k] = above == 0 or (n_point >= 3 and above == 1)
+    return drop, snr_max
+
+
+def drop_noise_spikes(result: xr.Dataset) -> xr.Dataset:
+    """``result`` without the modes :func:`spike_modes` drops (labels stay 1..n), said and
+    recorded; the rule is recorded in attr ``noise_spike_rule`` either way."""
+    drop, _ = spike_modes(result)
+    result.attrs[ATTR_RULE] = RULE
+    if not drop.any():
+        return result
+    fn = np.asarray(result[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
+    zeta = np.asarray(result[names.DAMPING_RATIO].transpose(names.MODE).values, dtype=float)
+    if names.FRF_SYNTHESIZED in result and names.FRF_RESIDUAL in result:
+        omega = 2.0 * np.pi * np.asarray(result[names.FREQUENCY].values, dtype=float)
+        res = result[names.RESIDUE].transpose(names.POINT, names.MODE).values
+        lam = np.asarray(result[names.EIGENVALUE].transpose(names.MODE).values)
+        gone = sum(_contribution(res[:, k], lam[k], omega) for k in np.flatnonzero(drop))
+        dims = (names.POINT, names.FREQUENCY)
+        for v, sign in ((names.FRF_SYNTHESIZED, -1.0), (names.FRF_RESIDUAL, 1.0)):
+            da = result[v]
+            new = da.transpose(*dims).values + sign * gone
+            result[v] = da.copy(data=xr.DataArray(new, dims=dims).transpose(*da.dims).values)
+    out = c.select_modes(result, np.flatnonzero(~drop))
+    labels = np.arange(1, out.sizes[names.MODE] + 1)
+    out = out.assign_coords({names.MODE: labels})
+    if names.MODE_2 in out.dims:
+        out = out.assign_coords({names.MODE_2: labels})
+    listed = [x for x in str(result.attrs.get(ATTR_DROPPED, "")).split(",") if x]
+    out.attrs[ATTR_DROPPED] = ",".join(listed + [f"{x:.6g}" for x in fn[drop]])
+    warn(
+        f"identify: {int(drop.sum())} pole(s) narrower than a line that the noise explains not "
+        f"reported as modes ({', '.join(f'{a:.6g} Hz (zeta {b:.2g})' for a, b in zip(fn[drop], zeta[drop], strict=True))}); "
+        f"attr {ATTR_DROPPED}",
+        AssumptionWarning,
+    )
+    return out
