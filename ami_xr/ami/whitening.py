@@ -64,6 +64,8 @@ ATTR_SOURCE = "noise_model_source"  # "stored frf_line_noise_std" | "roughness" 
 ATTR_LOSSES = "noise_model_losses"  # loss of unweighted least squares per quantity
 ATTR_WEIGHTED = "noise_model_line_weights"  # 1: the refinement weighted the lines
 ATTR_RULE = "noise_model_rule"
+VAR_SHAPE = "noise_model_shape"  # (frequency) the noise's shape, median 1, quantity given
+VAR_LEVEL = "noise_model_level"  # (point) the noise std of one line where the shape is 1
 
 
 @dataclass(frozen=True)
@@ -77,6 +79,7 @@ class Whitening:
     scale: float
     line_noise: np.ndarray | None
     attrs: dict
+    shape: np.ndarray | None = None  # (L,) the noise's shape along frequency, quantity given
 
 
 def _points(n: int) -> np.ndarray:
@@ -151,7 +154,17 @@ def decide(ds: xr.Dataset) -> Whitening:
             f"weighted by the noise model where the loss there exceeds {WEIGHT_LOSS:g}"
         ),
     }
-    return Whitening(int(k), str(target or ""), float(scale), line_noise, record)
+    shape = None
+    if "curvature" not in source:
+        w = 2.0 * np.pi * f[f > 0]
+        given_std = stds[k] / w[None, :] ** k  # the working estimate, taken back
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rel = np.nanmedian(given_std / np.nanmedian(given_std, axis=1, keepdims=True), axis=0)
+        shape = np.full(f.size, np.nan)
+        shape[f > 0] = rel / np.nanmedian(rel)
+        ok = np.isfinite(shape) & (shape > 0)
+        shape = np.interp(np.arange(f.size), np.flatnonzero(ok), shape[ok]) if ok.any() else None
+    return Whitening(int(k), str(target or ""), float(scale), line_noise, record, shape)
 
 
 def to_working(ds: xr.Dataset, w: Whitening) -> xr.Dataset:
@@ -193,6 +206,53 @@ _RESIDUES = (
 )
 
 
+def _with_noise_model(out: xr.Dataset, w: Whitening) -> xr.Dataset:
+    """``out`` with the noise model in compact form, in the quantity given: ``noise_model_shape``
+    (frequency; median 1) and ``noise_model_level`` (point), the noise std of one line of FRF
+    ``j`` at frequency ``f`` being ``level_j * shape(f)``. The level of every point is the
+    0.15-quantile of the modulus of its 4th difference over the lines, each divided by the
+    shape, on the FRFs in the working quantity (scaled as in
+    :func:`ami_xr.core.frf_noise.block_roughness_std`). Nothing for
+    noise-free data (no noise to show)."""
+    if w.shape is None or names.FRF not in out:
+        return out
+    f = out[names.FREQUENCY]
+    shape = w.shape[-f.size :]
+    h = out[names.FRF].transpose(..., names.FREQUENCY)
+    x = np.asarray(h.values).reshape(-1, f.size)
+    q = 0.15
+    # in the working quantity, where the noise is closest to white (in the quantity given the
+    # FRF's own curvature would outweigh the noise where that is far below it)
+    fw = np.asarray(f.values, dtype=float)
+    conv = np.where(fw > 0, abs(w.scale) * (2.0 * np.pi * fw) ** w.k, np.nan) if w.k else 1.0
+    phase = np.exp(0.5j * np.pi * w.k)  # (i w)^k = i^k w^k
+    xw = x * (conv * phase if w.k else 1.0)
+    xw = np.where(np.isfinite(xw), xw, 0.0)
+    d = np.abs(np.diff(xw, n=fn.ROUGHNESS_ORDER, axis=-1)) / (shape * conv)[None, 2:-2]
+    level = np.quantile(d, q, axis=-1) / np.sqrt(-np.log(1 - q) * 70.0)  # binomial(8, 4)
+    units = h.attrs.get(names.ATTR_UNITS, "")
+    return out.assign(
+        {
+            VAR_SHAPE: (
+                (names.FREQUENCY,),
+                shape,
+                {
+                    names.ATTR_LONG_NAME: "noise std of one FRF line relative to the point's level",
+                    names.ATTR_UNITS: "1",
+                },
+            ),
+            VAR_LEVEL: (
+                h.dims[:-1],
+                level.reshape(h.shape[:-1]),
+                {
+                    names.ATTR_LONG_NAME: "noise std of one FRF line where noise_model_shape is 1",
+                    **({names.ATTR_UNITS: units} if units else {}),
+                },
+            ),
+        }
+    )
+
+
 def from_working(result: xr.Dataset, ds: xr.Dataset, w: Whitening) -> xr.Dataset:
     """``result`` of the pipeline on :func:`to_working` ``(ds, w)`` in the quantity of ``ds``."""
     out = result.drop_vars([names.FRF_LINE_NOISE_STD], errors="ignore")
@@ -201,7 +261,7 @@ def from_working(result: xr.Dataset, ds: xr.Dataset, w: Whitening) -> xr.Dataset
         out = out.assign({names.FRF_LINE_NOISE_STD: ds[names.FRF_LINE_NOISE_STD].sel(
             {names.FREQUENCY: f.values})})
     if not w.k:
-        return out.assign_attrs(w.attrs)
+        return _with_noise_model(out, w).assign_attrs(w.attrs)
     iw = xr.DataArray(2j * np.pi * f.values, dims=[names.FREQUENCY], coords={names.FREQUENCY: f})
     back = 1.0 / (w.scale * iw**w.k)
     frf = ds[names.FRF].sel({names.FREQUENCY: f.values})
@@ -239,6 +299,7 @@ def from_working(result: xr.Dataset, ds: xr.Dataset, w: Whitening) -> xr.Dataset
     for key in (names.ATTR_QUANTITY, names.ATTR_FRF_TYPE, names.ATTR_RESPONSE_UNITS):
         if key in ds.attrs:
             out.attrs[key] = ds.attrs[key]
+    out = _with_noise_model(out, w)  # on the FRFs as given
     out.attrs.update(w.attrs)
     warn(
         f"identify: the FRFs' noise is closest to white as {w.target} (noise model: "

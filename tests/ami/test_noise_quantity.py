@@ -135,3 +135,27 @@ def test_noise_free_data_stay_in_their_quantity():
     assert "curvature" in out.attrs[whitening.ATTR_SOURCE]
     assert not any("closest to white" in m for m in said)
     assert score_modes(out, truth).n_found == truth.sizes[names.MODE]
+
+
+@pytest.mark.parametrize("colour", [0, 2])
+def test_the_noise_model_is_recorded_in_the_quantity_given(tmp_path, colour):
+    """``noise_model_level * noise_model_shape`` follows the true noise std of every line
+    within 25 % (median over points), whatever the presentation; it survives the file."""
+    frf, _ = _system()
+    noisy = _noisy(frf, colour, 0.02, seed=7)
+    h = noisy[names.FRF].transpose(names.POINT, names.FREQUENCY).values
+    f = noisy[names.FREQUENCY].values
+    w = 2 * np.pi * f
+    sigma = 0.02 * np.abs(h * (1j * w) ** colour).max(axis=1)  # as _noisy draws it
+    for q in QUANTITIES:
+        out, _ = _identify(_given_as(noisy, q))
+        true = sigma[:, None] * w ** (names.QUANTITY_POWER[q] - colour)
+        level = out[whitening.VAR_LEVEL].transpose(names.POINT).values
+        est = level[:, None] * out[whitening.VAR_SHAPE].values[None, :]
+        ratio = np.median(est / true, axis=0)
+        assert np.all(np.abs(np.log(ratio[8:-8])) < np.log(1.25)), (q, ratio.min(), ratio.max())
+    path = tmp_path / "m.nc"
+    ami_xr.to_netcdf(out, path)
+    back = ami_xr.open_dataset(path)
+    np.testing.assert_allclose(back[whitening.VAR_SHAPE].values, out[whitening.VAR_SHAPE].values)
+    assert back.attrs[whitening.ATTR_QUANTITY] == out.attrs[whitening.ATTR_QUANTITY]
