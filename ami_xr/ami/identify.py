@@ -45,6 +45,7 @@ def identify(
     fmax: float | None = None,
     compress: str | int = "auto",
     complete: bool = True,
+    noise_std=None,
     progress=False,
 ) -> xr.Dataset:
     """Identify modes: :func:`subtract`, :func:`isolate`, :func:`global_fit` and, by default,
@@ -85,6 +86,14 @@ def identify(
         The refinement's model-order step (:mod:`ami_xr.core.order`: add, drop or merge modes
         when the likelihood gain beats noise and a measured peak's model error). False: the
         maximum-likelihood fit of AMI's modes as they are.
+    noise_std : xarray.DataArray or array_like, optional
+        Your own noise model: the standard deviation of the complex FRF estimate at each line
+        (``sqrt(E|H_est - H|^2)``, FRF units), broadcastable to ``frf`` (a DataArray by dim
+        name; an array by numpy's rules in the order of ``frf``'s dims, e.g. one value per
+        line). It replaces ``frf_line_noise_std`` and the estimate from the data: the working
+        quantity is chosen by it and the refinement weights each line by it
+        (:mod:`ami_xr.ami.whitening`). Default: the stored ``frf_line_noise_std`` (from
+        ``ami_xr.frf``'s coherence), else the FRF's roughness between adjacent lines.
     progress : bool or callable, default False
         True draws a bar of the phases (subtract, isolate, global_fit, refine) on stderr,
         labelled with the numbers of FRFs and lines, its elapsed time moving during a long phase
@@ -134,6 +143,8 @@ def identify(
         compress=compress,
         complete=complete,
     )
+    if noise_std is not None:
+        ds = with_noise_std(ds, noise_std)
     # small products only: one BLAS thread, which does not collapse when the cores are busy
     with single_blas_thread():
         if mimo.is_multi_reference(ds):  # dims (reference, point, frequency)
@@ -146,3 +157,36 @@ def identify(
         residual_terms=bool(residual_terms),
     )
     return c.finish(result, "ami_xr.identify", "identify", params)
+
+
+def with_noise_std(ds: xr.Dataset, noise_std) -> xr.Dataset:
+    """``ds`` with the user's noise model ``noise_std`` as ``frf_line_noise_std`` (the dims of
+    ``frf``); an :class:`IdentificationError` naming ``noise_std`` when it does not broadcast to
+    ``frf`` or holds values that are not finite and >= 0, or is 0 everywhere."""
+    import numpy as np
+
+    from ami_xr import names
+
+    if not isinstance(ds, xr.Dataset) or names.FRF not in ds:
+        return ds  # identify's own checks name what is wrong with ds
+    h = ds[names.FRF]
+    try:
+        if isinstance(noise_std, xr.DataArray):
+            sd = noise_std.broadcast_like(h).transpose(*h.dims).values
+        else:
+            sd = np.broadcast_to(np.asarray(noise_std, dtype=np.float64), h.shape)
+        sd = np.asarray(sd, dtype=np.float64)
+    except (ValueError, TypeError) as exc:
+        raise IdentificationError(
+            f"noise_std: expected a noise std per line broadcastable to frf {dict(h.sizes)}, "
+            f"got {getattr(noise_std, 'shape', type(noise_std).__name__)} ({exc})"
+        ) from None
+    if sd.shape != h.shape or not np.all(np.isfinite(sd)) or np.any(sd < 0) or not sd.any():
+        raise IdentificationError(
+            f"noise_std: expected finite values >= 0, not all 0, of the shape of frf "
+            f"{dict(h.sizes)}; got shape {sd.shape}"
+        )
+    attrs = {names.ATTR_NOISE_MODEL: "given by the user (identify noise_std=)"}
+    if names.ATTR_UNITS in h.attrs:
+        attrs[names.ATTR_UNITS] = h.attrs[names.ATTR_UNITS]
+    return ds.assign({names.FRF_LINE_NOISE_STD: (h.dims, sd, attrs)})

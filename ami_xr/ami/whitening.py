@@ -96,7 +96,8 @@ def _data(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray | None, str]:
         sd = ds[names.FRF_LINE_NOISE_STD].transpose(*h.dims).values
         sd = sd.reshape(-1, sd.shape[-1])[rows]
         if np.isfinite(sd).mean() > 0.5:
-            return x[rows], sd, "stored frf_line_noise_std"
+            how = ds[names.FRF_LINE_NOISE_STD].attrs.get(names.ATTR_NOISE_MODEL, "")
+            return x[rows], sd, "stored frf_line_noise_std" + (f" ({how})" if how else "")
     return x[rows], None, "roughness"
 
 

@@ -250,3 +250,15 @@ def in_band(ds: xr.Dataset, frequency_range: tuple[float, float] | None, figure:
 
 def units_of(ds: xr.Dataset, var: str) -> str:
     return str(ds[var].attrs.get(names.ATTR_UNITS, "")) if var in ds else ""
+
+
+def draw_noise_model(ax, ds, point, freq) -> None:
+    """Draw identify's noise model at ``point`` on a magnitude axis: the noise std of one line,
+    ``noise_model_level * noise_model_shape`` (issue 37); nothing without one."""
+    if "noise_model_level" not in ds or "noise_model_shape" not in ds:
+        return
+    level = ds["noise_model_level"]
+    if level.dims != (names.POINT,):
+        return
+    std = float(level.sel({names.POINT: point}).values) * ds["noise_model_shape"].values
+    ax.semilogy(freq, std, color="tab:red", lw=0.8, ls=":", label="noise (model)")

@@ -4,11 +4,10 @@ Every function takes an identification result (or an FRF Dataset, for what it ne
 a :class:`matplotlib.figure.Figure`; with ``path=`` it also saves it (PNG, or any format
 matplotlib knows by the suffix), atomically through :mod:`ami_xr.io.atomic`. Figures are built
 on matplotlib's object API with an Agg canvas attached inside each function: importing this
-module imports no matplotlib, selects no backend and changes no global state, so it is safe in
-scripts, servers, tests and notebooks alike (a notebook shows a returned Figure as usual).
+module imports no matplotlib, selects no backend and changes no global state (safe anywhere).
 
-A figure whose inputs are missing raises :class:`ami_xr.errors.AmiXrValueError` naming the missing
-variable; :func:`ami_xr.app.report.report` turns that into a "not produced" note.
+A figure whose inputs are missing raises :class:`ami_xr.errors.AmiXrValueError` naming them
+(:func:`ami_xr.app.report.report` notes "not produced"). Bode plots draw identify's noise model.
 """
 
 from __future__ import annotations
@@ -39,6 +38,7 @@ __all__ = [
 from ami_xr.plot.common import (
     MAX_WIDTH_IN,
     POINT_COORDS,
+    draw_noise_model,
     finish,
     in_band,
     labels_of_modes,
@@ -57,6 +57,7 @@ MIN_PANEL_IN = 1.6  # narrowest Nyquist panel: beyond, the figure grows wider th
 
 
 # --- Bode --------------------------------------------------------------------------------------
+
 def plot_bode(
     ds: xr.Dataset,
     *,
@@ -110,6 +111,7 @@ def plot_bode(
         g = ds[names.FRF].sel({names.POINT: p}).values
         ax_mag.semilogy(freq, np.abs(g), color="0.55", lw=0.8, label="measured")
         ax_ph.plot(freq, np.degrees(np.angle(g)), color="0.55", lw=0.8, label="measured")
+        draw_noise_model(ax_mag, ds, p, freq)
         if synth is not None:
             s = synth.sel({names.POINT: p}).values
             ax_mag.semilogy(freq, np.abs(s), color="tab:blue", lw=1.2, label="synthesised")

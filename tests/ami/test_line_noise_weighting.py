@@ -70,5 +70,32 @@ def test_noisy_lines_are_discounted():
     # 300-fold step is found and the quiet modes come out as well as with the true model
     assert plain.attrs["noise_model_line_weights"] == 1
     assert plain.attrs["noise_model_source"] == "roughness"
-    assert same.attrs["noise_model_line_weights"] == 0
+    assert "stored" in same.attrs["noise_model_source"]  # flat: the same as unweighted
     assert error(plain) < 0.3 * error(same)
+
+
+def test_the_users_noise_model_is_used_and_checked():
+    import pytest
+
+    from ami_xr.errors import IdentificationError
+
+    frf, truth = clustered_system(n_points=5, cluster_sizes=(3,), overlap=0.5, seed=3)
+    n = frf.sizes[names.FREQUENCY]
+    level = np.full(n, 1e-4)
+    level[n // 2 :] = 3e-2
+    noisy = _with_line_noise(frf, level, seed=0)
+    stored = noisy[names.FRF_LINE_NOISE_STD]
+    bare = noisy.drop_vars(names.FRF_LINE_NOISE_STD)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        given = ami_xr.identify(bare, noise_std=stored)
+        as_stored = ami_xr.identify(noisy)
+    np.testing.assert_allclose(
+        given[names.EIGENVALUE].values, as_stored[names.EIGENVALUE].values, rtol=1e-9
+    )
+    assert "given by the user" in given.attrs["noise_model_source"]
+    assert given.attrs["noise_model_line_weights"] == 1
+    for bad, why in ((np.ones(3), "broadcastable"), (-stored, ">= 0"), (stored * 0, "not all 0")):
+        with pytest.raises(IdentificationError, match=f"noise_std: .*{why}"):
+            ami_xr.identify(bare, noise_std=bad)
+    assert issubclass(IdentificationError, ValueError)

@@ -159,3 +159,17 @@ def test_the_noise_model_is_recorded_in_the_quantity_given(tmp_path, colour):
     back = ami_xr.open_dataset(path)
     np.testing.assert_allclose(back[whitening.VAR_SHAPE].values, out[whitening.VAR_SHAPE].values)
     assert back.attrs[whitening.ATTR_QUANTITY] == out.attrs[whitening.ATTR_QUANTITY]
+
+
+def test_the_bode_plot_draws_the_noise_model():
+    pytest.importorskip("matplotlib")
+    from ami_xr.plot.modal import plot_bode
+
+    frf, _ = _system()
+    out, _ = _identify(_given_as(_noisy(frf, 2, 0.02, seed=7), "displacement"))
+    fig = plot_bode(out, points=[out[names.POINT].values[0]])
+    labels = [line.get_label() for line in fig.axes[0].lines]
+    assert "noise (model)" in labels
+    drawn = fig.axes[0].lines[labels.index("noise (model)")].get_ydata()
+    level = float(out[whitening.VAR_LEVEL].values[0])
+    np.testing.assert_allclose(drawn, level * out[whitening.VAR_SHAPE].values)
