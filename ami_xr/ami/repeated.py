@@ -15,23 +15,28 @@ proportional to ``a1 + a2``, that is when the shape does not change across the b
 * Each ``c_p`` is weighted by its noise: the noise level of FRF ``p`` is estimated from the
   residual's line-to-line roughness (the median of its second difference over ``noise_widths``
   half-bandwidths of the mode: a smooth misfit, a missed mode or a model error cancels there).
-* Less the shift common to every point (the fitted eigenvalue absorbs it), ``T = sum w_p
-  |c_p - a_p d|^2`` is chi-square with ``P - 1`` complex degrees of freedom for one pole plus
-  noise: ``z = (T - (P - 1)) / sqrt(P - 1)`` says whether the shape changes across the band at
-  all, and ``spread`` (the information-weighted rms of the per-point shifts beyond what the
-  noise gives, over ``|lam_k|``) how much, in the units of
-  :func:`ami_xr.core.model_error.eigenvalue_scatter`.
+* Less the shift common to every point (the fitted eigenvalue absorbs it) and, with
+  ``transducer_mass``, a shift proportional to ``|a_p|^2`` (a roving transducer's mass ``dm``
+  moves mode ``k`` by about ``-dm phi_pk^2 / 2`` in the FRF of point ``p``, and ``|a_p|`` is
+  proportional to ``|phi_pk|``), ``T = sum w_p |c_p - fit_p|^2`` is chi-square with ``P - 2``
+  (``P - 1`` without the mass term) complex degrees of freedom for one pole plus noise:
+  ``z = (T - dof) / sqrt(dof)`` says whether the shape changes across the band at all, and
+  ``spread`` (the information-weighted rms of the per-point shifts beyond what the noise gives,
+  over ``|lam_k|``) how much, in the units of :func:`ami_xr.core.model_error.eigenvalue_scatter`.
+  The noise level never goes below ``noise_floor`` of the FRF's largest value in the band.
 
 :func:`suspected` flags a mode whose ``z`` exceeds ``z_min`` and whose ``spread`` exceeds
 ``spread_range`` times the model-error allowance: the median ``spread`` of the other modes.
-Measured data have a model error at every peak (a roving accelerometer shifts each FRF's
-eigenvalue by its mass: rank two in exactly this form), a split pair only at its own; the
-median, not the lower quartile: a transducer's mass shifts each mode in proportion to its own
-shape squared, and on a mass-loaded chain the spread of single modes differs by two orders of
-magnitude (the lower quartile flags the largest). A mode with another identified mode within its
-band is two poles already (a resolved pair, or a model-order split): it is neither flagged nor
-counted in the allowance. With fewer than ``min_peaks`` other modes there is no typical value
-and significance alone decides.
+Measured data have a model error at every peak (each FRF measured at another time, temperature
+or transducer position sees the mode at a slightly different eigenvalue: rank two in exactly
+this form), a split pair only at its own peak. The median, not the lower quartile that the
+model-order step's split test takes (:func:`ami_xr.core.model_error.within_scatter`): the
+per-FRF scatter differs from mode to mode by more than the quartile's margin allows (a mode
+whose shape is small where the shifts act is barely moved), and the lower quartile flags the
+largest of them. A mode with another identified mode within its band is two poles already (a
+resolved pair, or a model-order split): it is neither flagged nor counted in the allowance.
+With fewer than ``min_peaks`` other modes there is no typical value and significance alone
+decides.
 
 What one reference cannot identify: an exactly repeated root (split 0) is one pole with the
 residue vector ``a1 + a2`` in every column of the FRF matrix -- the FRFs of one reference are
@@ -132,7 +137,7 @@ def band_shift(
     basis, derivative : ndarray of complex (K, F)
         ``b(lam_k, w)`` (unit residue) and its derivative in ``lam_k``.
     policy : RepeatedPolicy
-        Band, noise window and the minimum number of points.
+        Band, noise window and floor, the minimum number of points, the transducer's mass.
 
     Returns
     -------
@@ -140,12 +145,13 @@ def band_shift(
         Information-weighted rms of the per-point eigenvalue shifts beyond the noise, over
         ``|lam_k|`` (0 where ``T`` is within three standard deviations of the noise).
     z : ndarray (K,)
-        ``(T - (P - 1)) / sqrt(P - 1)``.
+        ``(T - dof) / sqrt(dof)``, ``dof`` the points less the shifts allowed (one, or two
+        with ``transducer_mass``).
     alone : ndarray of bool (K,)
         No other mode of ``lam`` within the band.
 
     NaN (``spread``, ``z``) with fewer than ``min_points`` FRFs with a noise level and a
-    residue, or fewer than three lines in the band.
+    residue (or no degree of freedom left), or fewer than three lines in the band.
     """
     n_k = lam.size
     spread = np.full(n_k, np.nan)
@@ -209,42 +215,38 @@ def band_shift_statistics(
     (point, frequency) or (reference, point, frequency)), arrays (R, K) with R = 1 without a
     reference dim; NaN where the residual or the residues are missing."""
     n_k = result.sizes.get(names.MODE, 0)
-    n_r = result.sizes.get(names.REFERENCE, 1) if names.FRF_RESIDUAL in result else 1
-    if names.FRF_RESIDUAL in result and names.REFERENCE not in result[names.FRF_RESIDUAL].dims:
-        n_r = 1
-    nan = np.full((n_r, n_k), np.nan)
     need = (names.FRF_RESIDUAL, names.RESIDUE, names.EIGENVALUE)
-    if n_k == 0 or any(v not in result for v in need):
-        return RepeatedStatistics(nan, nan.copy(), np.ones((n_r, n_k), bool))
+    have = n_k > 0 and all(v in result for v in need)
+    refs = [None]
+    if have and names.REFERENCE in result[names.FRF_RESIDUAL].dims:
+        refs = list(result[names.REFERENCE].values)
+    shape = (len(refs), n_k)
+    spread, z, alone = np.full(shape, np.nan), np.full(shape, np.nan), np.ones(shape, bool)
+    if not have:
+        return RepeatedStatistics(spread, z, alone)
     model = resolve_model(result.attrs, "auto")
     omega = 2 * np.pi * np.asarray(result[names.FREQUENCY].values, dtype=float)
     lam = np.asarray(result[names.EIGENVALUE].transpose(names.MODE).values, np.complex128)
     # the data are the windowed FRFs: their poles are the measured ones, before the correction
     lam = lam - float(result.attrs.get(names.ATTR_EXP_CORRECTED, 0.0) or 0.0)
-    basis = np.array([pole_basis(omega, lk, model.dt, model.n_samples) for lk in lam])
-    step = 1e-6 * np.maximum(np.abs(lam.real), 1e-12 * np.abs(lam))
-    derivative = np.array(
-        [
-            (
-                pole_basis(omega, lk + h, model.dt, model.n_samples)
-                - pole_basis(omega, lk - h, model.dt, model.n_samples)
-            )
-            / (2 * h)
-            for lk, h in zip(lam, step, strict=True)
-        ]
-    )
-    refs = [None]
-    if names.REFERENCE in result[names.FRF_RESIDUAL].dims:
-        refs = list(result[names.REFERENCE].values)
-    out = [np.empty((len(refs), n_k)), np.empty((len(refs), n_k)), np.empty((len(refs), n_k), bool)]
-    for i, r in enumerate(refs):
 
-        def block(name: str, *dims: str, r=r) -> np.ndarray:
+    def basis_at(lk: complex) -> np.ndarray:
+        return pole_basis(omega, lk, model.dt, model.n_samples)
+
+    basis = np.array([basis_at(lk) for lk in lam])
+    step = 1e-6 * np.maximum(np.abs(lam.real), 1e-12 * np.abs(lam))  # central difference
+    derivative = np.array(
+        [(basis_at(lk + h) - basis_at(lk - h)) / (2 * h) for lk, h in zip(lam, step, strict=True)]
+    )
+    for i, r in enumerate(refs):
+        pick = {} if r is None else {names.REFERENCE: r}
+
+        def block(name: str, *dims: str, pick: dict = pick) -> np.ndarray:
             da = result[name]
-            da = da.sel({names.REFERENCE: r}) if r is not None and names.REFERENCE in da.dims else da
+            da = da.sel(pick) if pick and names.REFERENCE in da.dims else da
             return da.transpose(*dims).values
 
-        got = band_shift(
+        spread[i], z[i], alone[i] = band_shift(
             block(names.FRF_RESIDUAL, names.POINT, names.FREQUENCY),
             omega,
             lam,
@@ -253,9 +255,7 @@ def band_shift_statistics(
             derivative,
             policy,
         )
-        for o, g in zip(out, got, strict=True):
-            o[i] = g
-    return RepeatedStatistics(*out)
+    return RepeatedStatistics(spread, z, alone)
 
 
 def suspected(
