@@ -72,8 +72,9 @@ class RepeatedPolicy:
     noise_widths: float = 10.0
     noise_lines: int = 21
     #: significance of the shape change, in standard deviations of ``T`` (chi-square with
-    #: ``P - 1`` complex degrees of freedom): single modes of the simulated ring and chain
-    #: benchmarks reach about 3.5 from the fit's own error and non-Gaussian noise
+    #: ``dof`` complex degrees of freedom): single modes of the simulated rings and chains of
+    #: ``scripts/benchmark_mimo.py --repeated`` reach about 3 (the fit's own error, uniform
+    #: rather than Gaussian noise)
     z_min: float = 6.0
     #: ``spread`` over the allowance (the median over the other peaks) that flags a mode: the
     #: model-order step's ``scatter_range`` (the range of a dozen draws of a spread is below 4)
@@ -120,6 +121,7 @@ def band_shift(
     basis: np.ndarray,
     derivative: np.ndarray,
     policy: RepeatedPolicy = POLICY,
+    noise_var: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The rank-2 fit of each mode's own part of the data within its band (the module
     docstring), on plain arrays.
@@ -138,6 +140,10 @@ def band_shift(
         ``b(lam_k, w)`` (unit residue) and its derivative in ``lam_k``.
     policy : RepeatedPolicy
         Band, noise window and floor, the minimum number of points, the transducer's mass.
+    noise_var : ndarray (P,), optional
+        ``E|e|^2`` of each FRF's lines when it is known (what noise-free data would show at a
+        given noise level: ``scripts/benchmark_mimo.py``'s identifiability); by default
+        estimated from the residual's roughness near each mode (:func:`noise_variance`).
 
     Returns
     -------
@@ -174,7 +180,7 @@ def band_shift(
         lines = np.arange(max(lo, 0), min(hi, n_line - 1) + 1)
         if lines.size < 5:
             continue
-        s2 = noise_variance(residual, lines)
+        s2 = noise_variance(residual, lines) if noise_var is None else np.asarray(noise_var)
         a = residue[:, k]
         ok = np.isfinite(s2) & (s2 > 0) & np.isfinite(a) & (a != 0)
         if ok.sum() < policy.min_points:
