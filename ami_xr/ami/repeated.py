@@ -10,8 +10,11 @@ proportional to ``a1 + a2``, that is when the shape does not change across the b
 
 * ``D = frf_residual + a_k b(lam_k)`` over the lines within ``band_widths`` half-power
   half-bandwidths ``|Re lam_k|`` of the mode (the data less every other term of the fitted
-  model), per point ``p`` its coefficient ``c_p`` on ``b'`` orthogonalised to ``b``: what would
-  shift that FRF's eigenvalue by ``d_p = c_p / a_p`` on its own.
+  model), per point ``p`` its coefficient ``c_p`` on ``b'``: what would shift that FRF's
+  eigenvalue by ``d_p = c_p / a_p`` on its own. The coefficients of all modes come from one
+  least-squares fit of each FRF's residual on every mode's ``b`` and ``b'`` over the lines of
+  all bands, so that a neighbour's own shifts, whose tails reach into a mode's band, stay the
+  neighbour's.
 * Each ``c_p`` is weighted by its noise: the noise level of FRF ``p`` is estimated from the
   residual's line-to-line roughness (the median of its second difference over ``noise_widths``
   half-bandwidths of the mode: a smooth misfit, a missed mode or a model error cancels there).
@@ -26,10 +29,12 @@ proportional to ``a1 + a2``, that is when the shape does not change across the b
   The noise level never goes below ``noise_floor`` of the FRF's largest value in the band.
 
 :func:`suspected` flags a mode whose ``z`` exceeds ``z_min`` and whose ``spread`` exceeds
-``spread_range`` times the model-error allowance: the median ``spread`` of the other modes.
-Measured data have a model error at every peak (each FRF measured at another time, temperature
-or transducer position sees the mode at a slightly different eigenvalue: rank two in exactly
-this form), a split pair only at its own peak. The median, not the lower quartile that the
+``spread_range`` times the model-error allowance: the median ``spread`` of the other modes,
+but at least ``spread_floor`` of the mode's half-power half-bandwidth (at a high
+signal-to-noise ratio the second-order terms of any per-FRF shift are significant). Measured
+data have a model error at every peak (each FRF measured at another time, temperature or
+transducer position sees the mode at a slightly different eigenvalue: rank two in exactly this
+form), a split pair only at its own peak. The median, not the lower quartile that the
 model-order step's split test takes (:func:`ami_xr.core.model_error.within_scatter`): the
 per-FRF scatter differs from mode to mode by more than the quartile's margin allows (a mode
 whose shape is small where the shifts act is barely moved), and the lower quartile flags the
@@ -42,8 +47,8 @@ What one reference cannot identify: an exactly repeated root (split 0) is one po
 residue vector ``a1 + a2`` in every column of the FRF matrix -- the FRFs of one reference are
 exactly those of a single mode with that residue vector, and no statistic of them can tell it
 from one mode; two references resolve it (:mod:`ami_xr.ami.mimo`). A split whose
-``delta a2 b'`` term is below the noise (``T`` of its noise-free data comparable to ``P - 1``)
-is not identifiable either; ``scripts/benchmark_mimo.py --repeated`` prints both.
+``delta a2 b'`` term is below the noise (``T`` of its noise-free data comparable to ``dof``) is
+not identifiable either; ``scripts/benchmark_mimo.py --repeated`` prints both.
 """
 
 from __future__ import annotations
@@ -79,6 +84,11 @@ class RepeatedPolicy:
     #: ``spread`` over the allowance (the median over the other peaks) that flags a mode: the
     #: model-order step's ``scatter_range`` (the range of a dozen draws of a spread is below 4)
     spread_range: float = 4.0
+    #: the smallest allowance, a share of the mode's half-power half-bandwidth ``|Re lam|``
+    #: (0.5 %): at a high signal-to-noise ratio the second-order terms of any per-FRF shift
+    #: (a transducer's mass of 1 % on the chain of ``scripts/benchmark_mimo.py --repeated``:
+    #: 0.2 % of the bandwidth) are significant; a 0.1 % split at 1 % damping is 4.6 %
+    spread_floor: float = 0.005
     #: other peaks needed for a typical model error (the model-order step's ``scatter_peaks``)
     min_peaks: int = 3
     #: points needed for a spread (two give one difference)
@@ -101,6 +111,7 @@ class RepeatedStatistics(NamedTuple):
     spread: np.ndarray  # relative rms eigenvalue shift across the points beyond the noise
     z: np.ndarray  # significance of the shape change across the band
     alone: np.ndarray  # bool: no other identified mode within the band
+    damping: np.ndarray  # |Re lam| / |lam|: the half-power half-bandwidth in spread's units
 
 
 def noise_variance(residual: np.ndarray, lines: np.ndarray) -> np.ndarray:
@@ -167,47 +178,51 @@ def band_shift(
         [not np.any(np.abs(np.delete(lam.imag, k) - lam[k].imag) <= half[k]) for k in range(n_k)],
         dtype=bool,
     )
+    in_band = np.abs(omega[None, :] - lam.imag[:, None]) <= half[:, None]
+    lines = np.flatnonzero(in_band.any(axis=0))
+    if lines.size < 3:
+        return spread, z, alone
+    # one least-squares fit of every FRF on the lines of all bands: each mode's basis (its
+    # residue's correction) and its derivative (that FRF's own shift of the mode), so that a
+    # neighbour's shifts, whose tails reach into a mode's band, are not counted as its own
+    x = np.concatenate([basis[:, lines], derivative[:, lines]]).T  # (L, 2K)
+    coef = np.linalg.lstsq(x, residual[:, lines].T, rcond=None)[0]  # (2K, P)
+    cov = np.linalg.pinv(x.conj().T @ x)  # per unit noise variance
     n_line = omega.size
     for k in range(n_k):
-        cols = np.flatnonzero(np.abs(omega - lam[k].imag) <= half[k])
-        if cols.size < 3:
+        cols = np.flatnonzero(in_band[k])
+        var_c = float(cov[n_k + k, n_k + k].real)
+        if cols.size < 3 or not var_c > 0:
             continue
         reach = max(policy.noise_widths * abs(lam[k].real), 0.0)
         near = np.flatnonzero(np.abs(omega - lam[k].imag) <= reach)
         centre = int(np.clip(np.searchsorted(omega, lam[k].imag), 0, n_line - 1))
         lo = min(near.min() if near.size else centre, centre - policy.noise_lines // 2)
         hi = max(near.max() if near.size else centre, centre + policy.noise_lines // 2)
-        lines = np.arange(max(lo, 0), min(hi, n_line - 1) + 1)
-        if lines.size < 5:
+        window = np.arange(max(lo, 0), min(hi, n_line - 1) + 1)
+        if window.size < 5:
             continue
-        s2 = noise_variance(residual, lines) if noise_var is None else np.asarray(noise_var)
-        a = residue[:, k]
+        s2 = noise_variance(residual, window) if noise_var is None else np.asarray(noise_var)
+        a = residue[:, k] + coef[k]
         ok = np.isfinite(s2) & (s2 > 0) & np.isfinite(a) & (a != 0)
         if ok.sum() < policy.min_points:
             continue
-        b, g = basis[k, cols], derivative[k, cols]
-        g = g - b * (np.vdot(b, g) / np.vdot(b, b))  # the shape change not in the mode itself
-        gg = float(np.vdot(g, g).real)
-        if not gg > 0:
-            continue
-        a = a[ok]
-        data = residual[np.ix_(ok, cols)] + np.outer(a, b)
+        a, c = a[ok], coef[n_k + k, ok]
+        data = residual[np.ix_(ok, cols)] + np.outer(residue[ok, k], basis[k, cols])
         floor = (policy.noise_floor * np.abs(data).max(axis=1)) ** 2
-        s2 = np.maximum(s2[ok], floor)
-        c = data @ np.conj(g) / gg  # per point: the coefficient of the pole's derivative
-        w = gg / s2  # 1 / var(c_p)
+        w = 1.0 / (np.maximum(s2[ok], floor) * var_c)  # 1 / var(c_p)
         info = np.sum(w * np.abs(a) ** 2)
         # the shift every FRF shares (the fitted eigenvalue absorbs it) and, with a
         # transducer's mass, the one proportional to the shape squared at the point
-        x = a[:, None]
+        xs = a[:, None]
         if policy.transducer_mass:
-            x = np.column_stack([a, a * (np.abs(a) / np.abs(a).max()) ** 2])
-        sw = np.sqrt(w)
-        coef = np.linalg.lstsq(x * sw[:, None], c * sw, rcond=None)[0]
-        t = float(np.sum(w * np.abs(c - x @ coef) ** 2))
-        dof = a.size - x.shape[1]
+            xs = np.column_stack([a, a * (np.abs(a) / np.abs(a).max()) ** 2])
+        dof = a.size - xs.shape[1]
         if dof < 1:
             continue
+        sw = np.sqrt(w)
+        fit = xs @ np.linalg.lstsq(xs * sw[:, None], c * sw, rcond=None)[0]
+        t = float(np.sum(w * np.abs(c - fit) ** 2))
         z[k] = (t - dof) / np.sqrt(dof)
         beyond = max(t - dof - 3.0 * np.sqrt(dof), 0.0)
         spread[k] = np.sqrt(beyond / info * a.size / dof) / abs(lam[k])
@@ -229,7 +244,7 @@ def band_shift_statistics(
     shape = (len(refs), n_k)
     spread, z, alone = np.full(shape, np.nan), np.full(shape, np.nan), np.ones(shape, bool)
     if not have:
-        return RepeatedStatistics(spread, z, alone)
+        return RepeatedStatistics(spread, z, alone, np.full(shape, np.nan))
     model = resolve_model(result.attrs, "auto")
     omega = 2 * np.pi * np.asarray(result[names.FREQUENCY].values, dtype=float)
     lam = np.asarray(result[names.EIGENVALUE].transpose(names.MODE).values, np.complex128)
@@ -261,22 +276,26 @@ def band_shift_statistics(
             derivative,
             policy,
         )
-    return RepeatedStatistics(spread, z, alone)
+    damping = np.broadcast_to(np.abs(lam.real) / np.abs(lam), shape).copy()
+    return RepeatedStatistics(spread, z, alone, damping)
 
 
 def suspected(
     spread: np.ndarray,
     z: np.ndarray,
     alone: np.ndarray | None = None,
+    damping: np.ndarray | None = None,
     policy: RepeatedPolicy = POLICY,
 ) -> np.ndarray:
     """Where the band statistics (:func:`band_shift_statistics`) say two poles, per mode (K,):
-    in any reference, ``z > z_min`` and ``spread`` above ``spread_range`` times the median
-    ``spread`` of the other modes that are alone in their band (none with fewer than
-    ``min_peaks`` of them: significance alone); never where ``alone`` is False."""
+    in any reference, ``z > z_min`` and ``spread`` above ``spread_range`` times the allowance,
+    the median ``spread`` of the other modes that are alone in their band (none with fewer than
+    ``min_peaks`` of them) but at least ``spread_floor`` times ``damping``; never where
+    ``alone`` is False."""
     spread = np.atleast_2d(np.asarray(spread, dtype=float))
     z = np.atleast_2d(np.asarray(z, dtype=float))
     alone = np.ones(spread.shape, bool) if alone is None else np.atleast_2d(alone)
+    damping = np.zeros(spread.shape) if damping is None else np.atleast_2d(damping)
     flag = np.zeros(spread.shape, bool)
     for r in range(spread.shape[0]):
         for k in range(spread.shape[1]):
@@ -284,7 +303,8 @@ def suspected(
                 continue
             pool = np.delete(spread[r], k)[np.delete(alone[r], k)]
             pool = pool[np.isfinite(pool)]
-            allowance = np.median(pool) if pool.size >= policy.min_peaks else 0.0
+            typical = np.median(pool) if pool.size >= policy.min_peaks else 0.0
+            allowance = max(typical, policy.spread_floor * np.nan_to_num(damping[r, k]))
             flag[r, k] = spread[r, k] > policy.spread_range * allowance
     return flag.any(axis=0)
 
