@@ -25,13 +25,18 @@ proportional to ``a1 + a2``, that is when the shape does not change across the b
   (``P - 1`` without the mass term) complex degrees of freedom for one pole plus noise:
   ``z = (T - dof) / sqrt(dof)`` says whether the shape changes across the band at all, and
   ``spread`` (the information-weighted rms of the per-point shifts beyond what the noise gives,
-  over ``|lam_k|``) how much, in the units of :func:`ami_xr.core.model_error.eigenvalue_scatter`.
+  over the half-power half-bandwidth ``|Re lam_k|``) how much.
   The noise level never goes below ``noise_floor`` of the FRF's largest value in the band.
 
 :func:`suspected` flags a mode whose ``z`` exceeds ``z_min`` and whose ``spread`` exceeds
 ``spread_range`` times the model-error allowance: the median ``spread`` of the other modes,
-but at least ``spread_floor`` of the mode's half-power half-bandwidth (at a high
-signal-to-noise ratio the second-order terms of any per-FRF shift are significant). Measured
+but at least ``spread_floor`` (at a high signal-to-noise ratio the second-order terms of any
+per-FRF shift are significant). The half-bandwidth is the unit: a measured peak's model error
+(the estimator's bias at the peak, leakage, drift) changes its shape on the scale of its own
+bandwidth, and a split is seen in proportion to it. On sdypy-EMA's measured beam
+(``/work/shared/data``, eleven single modes at 0.15-0.9 % damping) the spread of each peak is
+0.04-0.16 of its half-bandwidth, but 0.6e-4 to 7e-4 of ``|lam|``: the mode with the most
+damping stood out four to ten times in those units. Measured
 data have a model error at every peak (each FRF measured at another time, temperature or
 transducer position sees the mode at a slightly different eigenvalue: rank two in exactly this
 form), a split pair only at its own peak. The median, not the lower quartile that the
@@ -84,10 +89,10 @@ class RepeatedPolicy:
     #: ``spread`` over the allowance (the median over the other peaks) that flags a mode: the
     #: model-order step's ``scatter_range`` (the range of a dozen draws of a spread is below 4)
     spread_range: float = 4.0
-    #: the smallest allowance, a share of the mode's half-power half-bandwidth ``|Re lam|``
-    #: (0.5 %): at a high signal-to-noise ratio the second-order terms of any per-FRF shift
-    #: (a transducer's mass of 1 % on the chain of ``scripts/benchmark_mimo.py --repeated``:
-    #: 0.2 % of the bandwidth) are significant; a 0.1 % split at 1 % damping is 4.6 %
+    #: the smallest allowance, in half-power half-bandwidths ``|Re lam|`` (0.5 %): at a high
+    #: signal-to-noise ratio the second-order terms of any per-FRF shift (a transducer's mass
+    #: of 1 % on the chain of ``scripts/benchmark_mimo.py --repeated``: 0.2 % of the
+    #: bandwidth) are significant; a 0.1 % split at 1 % damping is 4.6 %
     spread_floor: float = 0.005
     #: other peaks needed for a typical model error (the model-order step's ``scatter_peaks``)
     min_peaks: int = 3
@@ -111,7 +116,6 @@ class RepeatedStatistics(NamedTuple):
     spread: np.ndarray  # relative rms eigenvalue shift across the points beyond the noise
     z: np.ndarray  # significance of the shape change across the band
     alone: np.ndarray  # bool: no other identified mode within the band
-    damping: np.ndarray  # |Re lam| / |lam|: the half-power half-bandwidth in spread's units
 
 
 def noise_variance(residual: np.ndarray, lines: np.ndarray) -> np.ndarray:
@@ -160,7 +164,8 @@ def band_shift(
     -------
     spread : ndarray (K,)
         Information-weighted rms of the per-point eigenvalue shifts beyond the noise, over
-        ``|lam_k|`` (0 where ``T`` is within three standard deviations of the noise).
+        the half-power half-bandwidth ``|Re lam_k|`` (0 where ``T`` is within three standard
+        deviations of the noise).
     z : ndarray (K,)
         ``(T - dof) / sqrt(dof)``, ``dof`` the points less the shifts allowed (one, or two
         with ``transducer_mass``).
@@ -225,7 +230,7 @@ def band_shift(
         t = float(np.sum(w * np.abs(c - fit) ** 2))
         z[k] = (t - dof) / np.sqrt(dof)
         beyond = max(t - dof - 3.0 * np.sqrt(dof), 0.0)
-        spread[k] = np.sqrt(beyond / info * a.size / dof) / abs(lam[k])
+        spread[k] = np.sqrt(beyond / info * a.size / dof) / abs(lam[k].real)
     return spread, z, alone
 
 
@@ -244,7 +249,7 @@ def band_shift_statistics(
     shape = (len(refs), n_k)
     spread, z, alone = np.full(shape, np.nan), np.full(shape, np.nan), np.ones(shape, bool)
     if not have:
-        return RepeatedStatistics(spread, z, alone, np.full(shape, np.nan))
+        return RepeatedStatistics(spread, z, alone)
     model = resolve_model(result.attrs, "auto")
     omega = 2 * np.pi * np.asarray(result[names.FREQUENCY].values, dtype=float)
     lam = np.asarray(result[names.EIGENVALUE].transpose(names.MODE).values, np.complex128)
@@ -276,26 +281,23 @@ def band_shift_statistics(
             derivative,
             policy,
         )
-    damping = np.broadcast_to(np.abs(lam.real) / np.abs(lam), shape).copy()
-    return RepeatedStatistics(spread, z, alone, damping)
+    return RepeatedStatistics(spread, z, alone)
 
 
 def suspected(
     spread: np.ndarray,
     z: np.ndarray,
     alone: np.ndarray | None = None,
-    damping: np.ndarray | None = None,
     policy: RepeatedPolicy = POLICY,
 ) -> np.ndarray:
     """Where the band statistics (:func:`band_shift_statistics`) say two poles, per mode (K,):
     in any reference, ``z > z_min`` and ``spread`` above ``spread_range`` times the allowance,
     the median ``spread`` of the other modes that are alone in their band (none with fewer than
-    ``min_peaks`` of them) but at least ``spread_floor`` times ``damping``; never where
+    ``min_peaks`` of them) but at least ``spread_floor``; never where
     ``alone`` is False."""
     spread = np.atleast_2d(np.asarray(spread, dtype=float))
     z = np.atleast_2d(np.asarray(z, dtype=float))
     alone = np.ones(spread.shape, bool) if alone is None else np.atleast_2d(alone)
-    damping = np.zeros(spread.shape) if damping is None else np.atleast_2d(damping)
     flag = np.zeros(spread.shape, bool)
     for r in range(spread.shape[0]):
         for k in range(spread.shape[1]):
@@ -304,7 +306,7 @@ def suspected(
             pool = np.delete(spread[r], k)[np.delete(alone[r], k)]
             pool = pool[np.isfinite(pool)]
             typical = np.median(pool) if pool.size >= policy.min_peaks else 0.0
-            allowance = max(typical, policy.spread_floor * np.nan_to_num(damping[r, k]))
+            allowance = max(typical, policy.spread_floor)
             flag[r, k] = spread[r, k] > policy.spread_range * allowance
     return flag.any(axis=0)
 
