@@ -43,9 +43,11 @@ resolved it (two modes), flagged it (``repeated_root_suspected``) or missed it, 
 shape change of the noise-free pair over the noise (what :mod:`ami_xr.ami.repeated` tests;
 an exactly repeated pair is one mode to one reference, ``z`` 0); and modes flagged among single
 modes: a beam whose FRFs each see the modes at their own eigenvalue, a chain measured with a
-roving transducer.
+roving transducer, and (where ../shared/data holds it) sdypy-EMA's measured beam, one set of
+six FRFs per seed.
 
-    python scripts/benchmark_mimo.py --repeated --seeds 5   # about 1.5 min
+    python scripts/benchmark_mimo.py --repeated --seeds 5   # about 2.5 min
+    python scripts/benchmark_mimo.py --repeated --quick     # 2 seeds, about 1 min
 
 Written against the public API only (the identifiability ``z`` uses
 :func:`ami_xr.ami.repeated.band_shift`).
@@ -56,6 +58,7 @@ from __future__ import annotations
 import argparse
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -423,8 +426,32 @@ def chain_frf(mass: float, level: float, seed: int):
     return _noisy(ds.assign(frf=ds["frf"].copy(data=np.stack(rows))), level, seed)
 
 
+# sdypy-EMA's measured beam (MIT; see /work/shared/data/README.md): 7 sets of 6 accelerances,
+# 11 well-separated single modes; left out where the shared data folder is absent
+MEASURED_BEAM = Path(__file__).resolve().parents[2] / "shared" / "data" / "sdypy_ema_beam.npz"
+
+
+def measured_beam_flags(n_sets: int) -> dict | None:
+    """Modes flagged and identified over the first ``n_sets`` sets of the measured beam."""
+    if not MEASURED_BEAM.is_file():
+        return None
+    data = np.load(MEASURED_BEAM)
+    flagged = total = 0
+    for k in range(min(n_sets, data["frf"].shape[1])):
+        frf = data["frf"][:, k, :].astype(complex)
+        ds = ami_xr.make_frf_dataset(
+            frf, data["freq"], drive_point=0, response_quantity="acceleration"
+        )
+        out, _ = _identify(ds)
+        total += out.sizes["mode"]
+        flagged += sum("repeated_root_suspected" in str(x) for x in out["quality_flags"].values)
+    label = f"measured beam, {min(n_sets, data['frf'].shape[1])} sets"
+    return {"label": label, "level": float("nan"), "flagged": flagged, "modes": total}
+
+
 def run_single_modes(seeds: int) -> list[dict]:
-    """Per single-mode case: modes flagged and modes identified, summed over ``seeds``."""
+    """Per single-mode case: modes flagged and modes identified, summed over ``seeds``; the
+    measured beam's sets (as many as seeds, at most 7) where the shared data are present."""
     rows = []
     for label, kind, amount, level in SINGLE_RUNS:
         flagged = total = 0
@@ -434,7 +461,8 @@ def run_single_modes(seeds: int) -> list[dict]:
             total += out.sizes["mode"]
             flagged += sum("repeated_root_suspected" in str(x) for x in out["quality_flags"].values)
         rows.append({"label": label, "level": level, "flagged": flagged, "modes": total})
-    return rows
+    measured = measured_beam_flags(seeds)
+    return rows + ([measured] if measured else [])
 
 
 def print_repeated(seeds: int) -> None:
@@ -464,7 +492,8 @@ def print_repeated(seeds: int) -> None:
     print()
     print(f"One reference, single modes: {seeds} seeds; modes flagged / modes identified")
     for r in run_single_modes(seeds):
-        print(f"  {r['label']:<30} noise {100 * r['level']:>4g} %  {r['flagged']:>3}/{r['modes']}")
+        noise = "as measured" if np.isnan(r["level"]) else f"noise {100 * r['level']:>4g} %"
+        print(f"  {r['label']:<30} {noise:<12}  {r['flagged']:>3}/{r['modes']}")
 
 
 def main(argv: list[str] | None = None) -> int:
