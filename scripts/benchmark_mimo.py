@@ -36,7 +36,21 @@ measured points, 3 references on unmeasured masses, 8 modes with 3 close pairs, 
 seeds all together found at least the best single reference, spurious modes of all together,
 and its errors over the multi-reference bound (as ``err/CRB``).
 
-Written against the public API only.
+One reference's repeated-root flag (issue 41 item 1; ``--repeated`` prints only this): per
+pair of the 6-mass ring (reference 2 alone) and of a 7-mass ring with three pairs (reference
+1 alone, each pair split by 0.1 % in turn), at 1 % noise, in how many seeds one reference
+resolved it (two modes), flagged it (``repeated_root_suspected``) or missed it, with ``z``, the
+shape change of the noise-free pair over the noise (what :mod:`ami_xr.ami.repeated` tests;
+an exactly repeated pair is one mode to one reference, ``z`` 0); and modes flagged among single
+modes: a beam whose FRFs each see the modes at their own eigenvalue, a chain measured with a
+roving transducer, and (where ../shared/data holds it) sdypy-EMA's measured beam, one set of
+six FRFs per seed.
+
+    python scripts/benchmark_mimo.py --repeated --seeds 5   # about 2.5 min
+    python scripts/benchmark_mimo.py --repeated --quick     # 2 seeds, about 1 min
+
+Written against the public API only (the identifiability ``z`` uses
+:func:`ami_xr.ami.repeated.band_shift`).
 """
 
 from __future__ import annotations
@@ -44,6 +58,7 @@ from __future__ import annotations
 import argparse
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -75,11 +90,11 @@ def noisy_frf(truth, level: float, seed: int):
     return ds.assign(frf=(re + 1j * im).assign_attrs(g.attrs))
 
 
-def _identify(ds):
+def _identify(ds, **kwargs):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         t0 = time.perf_counter()
-        out = ami_xr.identify(ds)
+        out = ami_xr.identify(ds, **kwargs)
         return out, time.perf_counter() - t0
 
 
@@ -260,6 +275,227 @@ def format_row(row: dict) -> str:
     )
 
 
+# --- One reference and repeated roots (issue 41 item 1) ----------------------------------------
+# The repeated side: the ring above (6 masses, reference 2 alone) and a ring of 7 masses (three
+# pairs, reference 1 alone, each pair split in turn), split 0 and 0.1 %, 1 % noise. The single
+# side: a beam whose FRFs each see five single modes shifted by their own amount (as
+# tests/core/test_model_order_rule.py) and a chain of 6 masses measured with a roving
+# transducer (each FRF with the transducer's mass at its point), 0.1 % and 1 % noise.
+RING_RUNS = ((6, 2, 1, 0.0), (6, 2, 1, 0.001), (7, 1, 1, 0.0))
+RING_RUNS += tuple((7, 1, j, 0.001) for j in (1, 2, 3))
+REPEATED_LEVEL = 0.01
+BEAM_FN = (176.0, 476.0, 932.0, 1535.0, 2286.0)
+SINGLE_RUNS = (
+    ("beam, per-FRF shift 0.025 %", "beam", 2.5e-4, 0.001),
+    ("beam, per-FRF shift 0.05 %", "beam", 5e-4, 0.001),
+    ("chain, no transducer mass", "chain", 0.0, 0.001),
+    ("chain, transducer 0.3 % mass", "chain", 0.003, 0.001),
+    ("chain, transducer 0.3 % mass", "chain", 0.003, 0.01),
+    ("chain, transducer 1 % mass", "chain", 0.01, 0.001),
+    ("chain, transducer 1 % mass", "chain", 0.01, 0.01),
+)
+
+
+def _noisy(ds, level: float, seed: int):
+    """``ds`` with eq. 15 noise on Re and Im of every FRF along frequency."""
+    g = ds["frf"]
+    rng = np.random.default_rng(seed)
+    re = ami_xr.simulate.add_noise(g.real, level, rng=rng, dim="frequency")
+    im = ami_xr.simulate.add_noise(g.imag, level, rng=rng, dim="frequency")
+    return ds.assign(frf=(re + 1j * im).assign_attrs(g.attrs))
+
+
+def pair_identifiability(truth, reference, modes, level: float) -> float:
+    """The expected ``z`` of :func:`ami_xr.ami.repeated.band_shift` for the pair ``modes``
+    (indices) at one reference and eq. 15 noise ``level``: its statistic ``T`` on the
+    noise-free FRFs, fitted by one pole at the pair's mean eigenvalue, over the standard
+    deviation of ``T`` for noise alone (noise adds its mean). The flag needs ``z_min``; an
+    exactly repeated pair gives 0."""
+    from ami_xr.ami import repeated as rp
+
+    f = np.linspace(F_MAX / N_LINES, F_MAX, N_LINES)
+    omega = 2 * np.pi * f
+    clean = ami_xr.simulate.frf(truth, f, references=[reference])
+    noise_var = line_noise_std(clean, level).values.ravel() ** 2
+    res = ami_xr.simulate.residues(truth, drive_point=reference)["residue"]
+    res = res.transpose("point", "mode").values[:, modes]
+    lam = truth["eigenvalue"].values[modes]
+    data = sum(np.outer(res[:, i], 1 / (1j * omega - lam[i])) for i in range(len(modes)))
+    mean = lam.mean()
+    b = 1 / (1j * omega - mean)
+    near = np.abs(omega - mean.imag) <= 2 * abs(mean.real)
+    one = data[:, near] @ np.conj(b[near]) / np.vdot(b[near], b[near])
+    got = rp.band_shift(
+        data - np.outer(one, b),
+        omega,
+        np.array([mean]),
+        one[:, None],
+        b[None],
+        (b**2)[None],
+        noise_var=noise_var,
+    )
+    dof = res.shape[0] - (2 if rp.POLICY.transducer_mass else 1)
+    return float(got[1][0]) + np.sqrt(dof)  # z = (T - dof) / sqrt(dof): T / sqrt(dof)
+
+
+def pair_outcome(out, lam) -> str:
+    """"resolved" (two modes within the pair's band), "flagged" (one, flagged
+    ``repeated_root_suspected``) or "missed"."""
+    got = np.asarray(out["eigenvalue"].values)
+    near = np.abs(got - lam) < 2 * abs(lam.real)
+    if near.sum() >= 2:
+        return "resolved"
+    flagged = np.array(["repeated_root_suspected" in str(x) for x in out["quality_flags"].values])
+    return "flagged" if np.any(flagged & near) else "missed"
+
+
+def run_repeated_pairs(seeds: int) -> list[dict]:
+    """Per ring run and pair: its identifiability and outcomes over ``seeds``."""
+    rows = []
+    f = np.linspace(F_MAX / N_LINES, F_MAX, N_LINES)
+    for n, ref, pair, split in RING_RUNS:
+        truth = ami_xr.simulate.symmetric_structure(split, n_masses=n, pair=pair)
+        pairs = np.reshape(np.asarray(truth.attrs["repeated_pairs"]) - 1, (-1, 2))
+        if split:
+            pairs = pairs[[pair - 1]]  # the split pair; the others are the split-0 runs'
+        # the 6-mass ring's noise as in the table above (drawn on the references 2, 3, 4)
+        drawn = list(REFERENCES) if n == 6 else [ref]
+        clean = ami_xr.simulate.frf(truth, f, references=drawn)
+        runs = {"": [], "no refine": []}
+        for seed in range(seeds):
+            ds = _noisy(clean, REPEATED_LEVEL, 1000 * seed + 100).sel(reference=[ref])
+            runs[""].append(_identify(ds)[0])
+            runs["no refine"].append(_identify(ds, refine=False)[0])
+        for modes in pairs:
+            lam = truth["eigenvalue"].values[modes].mean()
+            z = pair_identifiability(truth, ref, list(modes), REPEATED_LEVEL)
+            for how, outs in runs.items():
+                got = [pair_outcome(out, lam) for out in outs]
+                rows.append(
+                    {"n": n, "ref": ref, "split": split, "fn": abs(lam) / 2 / np.pi, "z": z}
+                    | {"how": how}
+                    | {k: got.count(k) for k in ("resolved", "flagged", "missed")}
+                )
+    return rows
+
+
+def beam_frf(shift: float, level: float, seed: int):
+    """Five single modes (0.2 % damping) at 6 points; FRF ``j`` sees every mode shifted by its
+    own relative amount, uniform in +-``shift``; complex Gaussian noise ``level`` times each
+    FRF's largest value (tests/core/test_model_order_rule.py's beam)."""
+    rng = np.random.default_rng(seed)
+    freq = np.arange(50.0, 2600.0, 0.25)
+    omega = 2 * np.pi * freq
+    phi = rng.standard_normal((6, len(BEAM_FN)))
+
+    def lam_of(fn):
+        wn = 2 * np.pi * np.asarray(fn)
+        return -0.002 * wn + 1j * wn * np.sqrt(1 - 0.002**2)
+
+    frf = np.zeros((6, freq.size), complex)
+    for j in range(6):
+        lam = lam_of(np.asarray(BEAM_FN) * (1 + shift * rng.uniform(-1, 1)))
+        res = lam * phi[j] * phi[0]
+        frf[j] = np.sum(
+            res[:, None] / (1j * omega - lam[:, None])
+            + np.conj(res)[:, None] / (1j * omega - np.conj(lam)[:, None]),
+            axis=0,
+        )
+    scale = level * np.abs(frf).max(axis=1, keepdims=True)
+    frf += scale * (rng.standard_normal(frf.shape) + 1j * rng.standard_normal(frf.shape))
+    return ami_xr.make_frf_dataset(frf, freq, drive_point=0, response_quantity="displacement")
+
+
+def chain_frf(mass: float, level: float, seed: int):
+    """A grounded chain of 6 unit masses (springs 1e4 N/m, damping 2e-4 K + 0.5 M: single modes
+    at 15.9-34.6 Hz); FRF ``p`` measured with a transducer of ``mass`` kg at point ``p``."""
+    n = 6
+    k = np.eye(n) * 1e4
+    for i in range(n - 1):
+        k[np.ix_([i, i + 1], [i, i + 1])] += 1e4 * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    m = np.eye(n)
+    c = 2e-4 * k + 0.5 * m
+    f = np.linspace(0.1, 60.0, 1200)
+    ds = ami_xr.simulate.frf(ami_xr.simulate.modal_model(m, c, k, drive_point=0), f)
+    rows = []
+    for p in range(n):
+        mp = m.copy()
+        mp[p, p] += mass
+        loaded = ami_xr.simulate.modal_model(mp, c, k, drive_point=0)
+        rows.append(ami_xr.simulate.frf(loaded, f)["frf"].values[p])
+    return _noisy(ds.assign(frf=ds["frf"].copy(data=np.stack(rows))), level, seed)
+
+
+# sdypy-EMA's measured beam (MIT; see /work/shared/data/README.md): 7 sets of 6 accelerances,
+# 11 well-separated single modes; left out where the shared data folder is absent
+MEASURED_BEAM = Path(__file__).resolve().parents[2] / "shared" / "data" / "sdypy_ema_beam.npz"
+
+
+def measured_beam_flags(n_sets: int) -> dict | None:
+    """Modes flagged and identified over the first ``n_sets`` sets of the measured beam."""
+    if not MEASURED_BEAM.is_file():
+        return None
+    data = np.load(MEASURED_BEAM)
+    flagged = total = 0
+    for k in range(min(n_sets, data["frf"].shape[1])):
+        frf = data["frf"][:, k, :].astype(complex)
+        ds = ami_xr.make_frf_dataset(
+            frf, data["freq"], drive_point=0, response_quantity="acceleration"
+        )
+        out, _ = _identify(ds)
+        total += out.sizes["mode"]
+        flagged += sum("repeated_root_suspected" in str(x) for x in out["quality_flags"].values)
+    label = f"measured beam, {min(n_sets, data['frf'].shape[1])} sets"
+    return {"label": label, "level": float("nan"), "flagged": flagged, "modes": total}
+
+
+def run_single_modes(seeds: int) -> list[dict]:
+    """Per single-mode case: modes flagged and modes identified, summed over ``seeds``; the
+    measured beam's sets (as many as seeds, at most 7) where the shared data are present."""
+    rows = []
+    for label, kind, amount, level in SINGLE_RUNS:
+        flagged = total = 0
+        for seed in range(seeds):
+            ds = beam_frf(amount, level, seed) if kind == "beam" else chain_frf(amount, level, seed)
+            out, _ = _identify(ds)
+            total += out.sizes["mode"]
+            flagged += sum("repeated_root_suspected" in str(x) for x in out["quality_flags"].values)
+        rows.append({"label": label, "level": level, "flagged": flagged, "modes": total})
+    measured = measured_beam_flags(seeds)
+    return rows + ([measured] if measured else [])
+
+
+def print_repeated(seeds: int) -> None:
+    """The section's two tables (repeated pairs; single modes)."""
+    print(
+        f"One reference, repeated pairs: rings, eq. 15 noise {100 * REPEATED_LEVEL:g} %, "
+        f"{seeds} seeds; z: the noise-free pair's shape change over the noise (flag: z > 6)"
+    )
+    print(
+        f"{'masses':>6}{'ref':>4}{'split':>7}{'pair Hz':>9}{'z':>8}{'':>11}"
+        "  resolved flagged missed"
+    )
+    ok = {True: [0, 0], False: [0, 0]}
+    for r in run_repeated_pairs(seeds):
+        print(
+            f"{r['n']:>6}{r['ref']:>4}{100 * r['split']:>6g}%{r['fn']:>9.2f}{r['z']:>8.1f}"
+            f"{r['how']:>11}  {r['resolved']:>8}{r['flagged']:>8}{r['missed']:>7}"
+        )
+        if r["how"]:
+            continue  # the totals count identify's defaults
+        tally = ok[r["z"] > 6.0]
+        tally[0] += r["resolved"] + r["flagged"]
+        tally[1] += r["resolved"] + r["flagged"] + r["missed"]
+    for known, (hit, n) in ok.items():
+        what = "identifiable (z > 6)" if known else "not identifiable with one reference"
+        print(f"  pairs {what}: flagged or resolved {hit}/{n}")
+    print()
+    print(f"One reference, single modes: {seeds} seeds; modes flagged / modes identified")
+    for r in run_single_modes(seeds):
+        noise = "as measured" if np.isnan(r["level"]) else f"noise {100 * r['level']:>4g} %"
+        print(f"  {r['label']:<30} {noise:<12}  {r['flagged']:>3}/{r['modes']}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20, help="noise seeds (default 20)")
@@ -267,11 +503,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--ring-only", action="store_true", help="leave out the measured-like plate case"
     )
+    parser.add_argument(
+        "--repeated",
+        action="store_true",
+        help="only one reference's repeated-root flag: repeated pairs and single modes",
+    )
     args = parser.parse_args(argv)
     seeds = 2 if args.quick else args.seeds
     if seeds < 1:
         parser.error(f"--seeds: expected an integer >= 1, got {seeds}")
     t0 = time.perf_counter()
+    if args.repeated:
+        print_repeated(seeds)
+        print(f"({time.perf_counter() - t0:.0f} s)")
+        return 0
     rows = run(seeds)
     print(
         f"Symmetric ring, 6 points, references among {list(REFERENCES)}; first pair split 0 and "
@@ -292,6 +537,8 @@ def main(argv: list[str] | None = None) -> int:
     print(PLATE_HEADER)
     for row in run_measured_like(seeds):
         print(format_plate_row(row))
+    print()
+    print_repeated(seeds)
     print(f"({time.perf_counter() - t0:.0f} s)")
     return 0
 
