@@ -27,16 +27,24 @@ peaks there are not modes. :func:`analysis_band` picks the band by default as fo
 * **Coherence rule.** Coherence dips at every antiresonance (little response, the same noise),
   so a single line of low coherence must not cut the band. A line passes when at least
   ``coherence_fraction`` (half) of the lines of its window have coherence ``>= coherence_min``
-  (0.8; several points: the median over points). The level is set on the hammer test: below
-  6 kHz its coherence is above 0.99 except at antiresonances, where it falls to 0.55-0.9 for up
-  to 100 lines (1.61-1.72 kHz) while the force is within 3 dB of its low-frequency level, so
-  0.9 would end the band at 1.6 kHz; above the force's band it is 0.5-0.85 on most lines, which
-  0.8 rejects. The random error of ``|H1|`` from ``n`` averages is
-  ``sqrt((1 - coh) / (2 coh n))``: 16 % at 0.8 for ``n = 1``.
+  (several points: the median over points). What a coherence means depends on the averages:
+  the random error of ``|H1|`` is ``sqrt((1 - coh) / (coh n))``; a line passes where it is at
+  most ``1 / sqrt(12)`` (29 %), i.e. ``coherence_min = 1 / (1 + n / 12)``: 0.8 at the hammer
+  test's 3 averages (the level was set there: below 6 kHz its coherence is above 0.99 except at
+  antiresonances, where it falls to 0.55-0.9 for up to 100 lines while the force is within
+  3 dB of its low-frequency level, so 0.9 would end the band at 1.6 kHz; above the force's band
+  it is 0.5-0.85 on most lines, which 0.8 rejects), 0.44 at 15 averages (a displacement sensor's
+  FRF from 15 averages is good to 26 % where its coherence is 0.5; a fixed 0.8 cut a shaker
+  test's band at 18 Hz below a clean 21 Hz mode). ``n_averages`` from the FRF's attribute
+  (``ami_xr.frf`` writes it), 3 without one.
 * **The band** runs from the first to the last line that passes both rules inside the run of
   lines where the force lies within ``FORCE_DROP_DB`` (the run holding most passing lines;
-  without a force: all lines), then, with a coherence, on through the lines on either side
-  that pass with the force down to ``FORCE_FLOOR_DB``, as long as they pass without a gap.
+  without a force: all lines), then, with a coherence, on down through the lines below it that
+  pass with the force down to ``FORCE_FLOOR_DB``, as long as they pass without a gap (a shaker
+  cannot push at low frequency; never upwards: a force rolling off at the top is a hammer
+  tip's or a sweep's end, past which the response is harmonics and noise). A line whose force
+  fails with passing lines within its window on both sides passes (a gap of the smoothing: a
+  repeated sweep fills every other line, and the median of a window flips with its parity).
   Lines that fail inside the band stay: a stretch of low coherence between two modes (an
   antiresonance, a building's quiet range between its modes) is no reason to drop the modes
   on either side -- the longest run of passing lines, the rule before issue 37, dropped a
@@ -44,6 +52,8 @@ peaks there are not modes. :func:`analysis_band` picks the band by default as fo
   weak at the low end joins the band when the coherence holds from the band's edge to it (the
   hammer test's coherence is 0.9-0.98 at 9-14 kHz with the force 29-40 dB down: left out, and
   taking its 4.9-6.8 kHz in cost 16 of 23 visible peaks below 4.9 kHz and twice the time).
+  On the hammer test the band is 12-4867 Hz: below 12 Hz the coherence is 0.02-0.8, at
+  4867 Hz the smoothed force is 20 dB below its maximum.
 
 A Dataset without ``force_autospectrum`` and ``coherence`` (a bare FRF, simulated data) is
 analysed over the whole band. ``fmin``/``fmax`` override either limit. When ``[a, b]`` lies
@@ -64,7 +74,9 @@ from ami_xr.errors import AmiXrValueError
 
 FORCE_DROP_DB = 20.0
 FORCE_FLOOR_DB = 40.0  # with a coherence: the force may fall this far where the response is clean
-COHERENCE_MIN = 0.8
+COHERENCE_MIN = 0.8  # at DEFAULT_AVERAGES; coherence_min(n) for n averages
+DEFAULT_AVERAGES = 3.0
+MAX_RELATIVE_ERROR = 12.0**-0.5  # of |H1| on a line, from the coherence and the averages
 COHERENCE_FRACTION = 0.5
 RELATIVE_WINDOW = 1.0 / 16.0  # window width over frequency (+-1/32 around each line)
 MIN_HALF_WIDTH = 2  # lines on each side at least
@@ -123,10 +135,20 @@ def _running_mean(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return (c[hi] - c[lo]) / (hi - lo)
 
 
+def coherence_min(n_averages: float | None = None) -> float:
+    """The coherence a line needs: the random error of ``|H1|`` from ``n`` averages,
+    ``sqrt((1 - coh) / (coh n))``, at most ``1 / sqrt(12)`` (29 %): ``1 / (1 + n / 12)``, 0.8
+    at the hammer test's 3 averages (where the level was set), 0.44 at 15. Without a number of
+    averages: ``DEFAULT_AVERAGES`` (3)."""
+    n = float(n_averages) if n_averages and n_averages > 0 else DEFAULT_AVERAGES
+    return 1.0 / (1.0 + n * MAX_RELATIVE_ERROR**2)
+
+
 def valid_lines(
     frequency: np.ndarray,
     force_autospectrum: np.ndarray | None,
     coherence: np.ndarray | None,
+    n_averages: float | None = None,
 ) -> tuple[np.ndarray, str]:
     """Boolean mask of the lines passing the force and coherence rules (module docstring), and a
     description of the rules applied. ``force_autospectrum`` is ``(..., frequency)``,
@@ -154,11 +176,13 @@ def valid_lines(
     if coherence is not None:
         coh = np.asarray(coherence, dtype=float).reshape(-1, n)[:, pos]
         med = np.nanmedian(coh, axis=0) if coh.shape[0] > 1 else coh[0]
-        frac = _running_mean(np.nan_to_num(med) >= COHERENCE_MIN, lo, hi)
+        level = coherence_min(n_averages)
+        frac = _running_mean(np.nan_to_num(med) >= level, lo, hi)
         ok_pos &= frac >= COHERENCE_FRACTION
         rules.append(
-            f"coherence >= {COHERENCE_MIN:g} on at least {COHERENCE_FRACTION:.0%} of the lines "
-            f"within +-{RELATIVE_WINDOW / 2:.3g} of each line's frequency"
+            f"coherence >= {level:.3g} ({n_averages or DEFAULT_AVERAGES:g} averages) on at least "
+            f"{COHERENCE_FRACTION:.0%} of the lines within +-{RELATIVE_WINDOW / 2:.3g} of each "
+            "line's frequency"
         )
     ok[pos] = ok_pos
     return ok, " and ".join(rules)
@@ -181,6 +205,12 @@ def force_lines(frequency: np.ndarray, force_autospectrum, with_coherence: bool)
         level = np.max(smooth)
         with np.errstate(divide="ignore", invalid="ignore"):
             ok_pos &= (level > 0) & (smooth >= level * 10 ** (-drop / 10))
+    # a failing line with passing lines within its window on both sides is a gap of the
+    # smoothing, not a roll-off (a repeated sweep's spectrum fills every other line: the median
+    # of a window flips with its parity), so it passes; a roll-off fails on one side
+    c = np.concatenate([[0], np.cumsum(ok_pos)])
+    i = np.arange(pos.size)
+    ok_pos |= (c[i] - c[lo] > 0) & (c[hi] - c[i + 1] > 0)
     ok[pos] = ok_pos
     return ok
 
@@ -232,7 +262,12 @@ def _excitation_band(ds: xr.Dataset) -> Band | None:
             coh = None
     if gff is None and coh is None:
         return None
-    ok, rule = valid_lines(f, gff, coh)
+    n_avg = ds.attrs.get(names.ATTR_N_AVERAGES)
+    try:
+        n_avg = float(n_avg) if n_avg is not None else None
+    except (TypeError, ValueError):
+        n_avg = None
+    ok, rule = valid_lines(f, gff, coh, n_avg)
     run = band_span(ok, None if gff is None else force_lines(f, gff, False))
     if run is not None and gff is not None and coh is not None:
         run = _extended(run, ok)
