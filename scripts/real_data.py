@@ -1,11 +1,15 @@
 """The measured files of ``../shared/data`` through the command line, scored against issue 10.
 
-    python scripts/real_data.py [--data ../shared/data] [--max-modes N]
+    python scripts/real_data.py [--data ../shared/data] [--max-modes N] [--beam-sets 0,3]
 
 Runs, in a temporary folder, exactly what a user types (``python -m ami_xr`` = ``ami-xr``):
 
 * ``impact_hammer.lvm``: ``ami-xr frf`` then ``ami-xr identify``;
 * ``measurement.uff``: ``ami-xr identify``;
+* ``sdypy_ema_beam.npz`` (issue 37; sets ``--beam-sets``, default 0 and 3): each set written as
+  accelerance (as measured), mobility and receptance (``ami_xr.convert_quantity``), each through
+  ``ami-xr identify``: the same modes in every quantity (frequencies within 0.1 %), sdypy-EMA's
+  seven modes within 1 % (or 3 Hz), no pair within 1 % with MAC > 0.9;
 
 and prints for each: the analysis band and the rule that chose it, the caps that ended a phase
 (``ami_capped``), the modes with their flags, and the warnings the command printed. For the
@@ -162,6 +166,61 @@ def cut_runs(tmp: Path, h_path: Path, peaks: np.ndarray, extra: list[str]) -> li
     return targets
 
 
+BEAM_REF_HZ = (176.07, 476.46, 932.29, 1534.79, 2286.32, 3162.16, 4181.72)  # sdypy-EMA's LSCF
+QUANTITIES = ("acceleration", "velocity", "displacement")
+
+
+def beam_quantities(tmp: Path, beam: Path, sets: list[int], extra: list[str]) -> list[str]:
+    """Issue 37: sdypy-EMA's measured beam (accelerance) identified by ``ami-xr identify`` as
+    accelerance and converted to mobility and receptance: the same modes in every quantity,
+    sdypy-EMA's seven within 1 %, no phantom split."""
+    import time
+
+    d = np.load(beam)
+    targets, same_all, hits_all, pairs_all = [], True, [], 0
+    for k in sets:
+        ds = ami_xr.make_frf_dataset(
+            d["frf"][:, k, :].astype(np.complex128),
+            d["freq"],
+            response_quantity="acceleration",
+            frf_source="measured",
+        )
+        found = {}
+        for q in QUANTITIES:
+            path = tmp / f"beam{k}_{q}.nc"
+            ami_xr.to_netcdf(ami_xr.convert_quantity(ds, q), path)
+            t0 = time.perf_counter()
+            ami_xr_cli("identify", str(path), "-o", str(tmp / f"beam{k}_{q}.modes.nc"), *extra)
+            secs = time.perf_counter() - t0
+            with ami_xr.open_dataset(tmp / f"beam{k}_{q}.modes.nc") as m:
+                fn = np.sort(m[names.NATURAL_FREQUENCY].values)
+                pairs_all += len(suspicious_pairs(m))
+                fitted_in = m.attrs.get("noise_model_quantity", "?")
+            found[q] = fn
+            hit = matched_peaks(np.array(BEAM_REF_HZ), fn)
+            hits_all.append(sum(hit))
+            print(
+                f"  set {k} as {q:12s} fitted as {fitted_in:12s} {fn.size:2d} modes, "
+                f"{sum(hit)}/7 of sdypy-EMA's, {secs:5.1f} s: "
+                + " ".join(f"{x:.1f}" for x in fn)
+            )
+        ref = found[QUANTITIES[0]]
+        same = all(
+            f.size == ref.size and np.allclose(f, ref, rtol=1e-3) for f in found.values()
+        )
+        same_all &= same
+    targets.append(verdict("beam: the same modes in every quantity", same_all, f"sets {sets}"))
+    targets.append(
+        verdict(
+            "beam: sdypy-EMA's 7 modes within 1 % in every run",
+            min(hits_all) == 7,
+            f"min {min(hits_all)}/7",
+        )
+    )
+    targets.append(verdict("beam: no phantom split", pairs_all == 0, f"{pairs_all} pair(s)"))
+    return targets
+
+
 def verdict(name: str, ok: bool, detail: str) -> str:
     return f"  {name:58s} {detail:28s} {'met' if ok else 'NOT met'}"
 
@@ -170,6 +229,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(REPO.parent / "shared" / "data"))
     ap.add_argument("--max-modes", type=int, default=None, help="passed to ami-xr identify")
+    ap.add_argument(
+        "--beam-sets", default="0,3", help="sets of sdypy_ema_beam.npz (0-6), '' for none"
+    )
     args = ap.parse_args(argv)
     data = Path(args.data)
     hammer, uff = data / "impact_hammer.lvm", data / "measurement.uff"
@@ -237,10 +299,18 @@ def main(argv: list[str] | None = None) -> int:
             )
         )
         cut_targets = cut_runs(tmp, tmp / "h.nc", peaks, extra)
+        beam, beam_targets = data / "sdypy_ema_beam.npz", []
+        sets = [int(x) for x in args.beam_sets.split(",") if x.strip()]
+        if sets and beam.is_file():
+            print(f"\n== {beam.name}: as accelerance, mobility, receptance: ami-xr identify")
+            beam_targets = beam_quantities(tmp, beam, sets, extra)
     print("\nTargets (issue 10)")
     print("\n".join(targets))
     print("\nTargets (issue 20)")
     print("\n".join(cut_targets))
+    if beam_targets:
+        print("\nTargets (issue 37)")
+        print("\n".join(beam_targets))
     return 0
 
 

@@ -48,7 +48,7 @@ def test_suspicious_pairs_are_close_in_frequency_and_alike_in_shape():
 
 @pytest.mark.skipif(not SHARED_DATA.is_dir(), reason="../shared/data (measured files) is absent")
 def test_real_data_script_runs_both_files_and_prints_the_targets(capsys):
-    assert SCRIPT["main"](["--data", str(SHARED_DATA)]) == 0
+    assert SCRIPT["main"](["--data", str(SHARED_DATA), "--beam-sets", "0"]) == 0
     out = capsys.readouterr().out
     assert "== impact_hammer.lvm" in out and "== measurement.uff" in out
     assert "rule 'excitation'" in out  # the hammer band comes from the force and coherence
@@ -59,6 +59,10 @@ def test_real_data_script_runs_both_files_and_prints_the_targets(capsys):
     assert "--fmin 20 --fmax 4885: ami-xr identify h.nc" in out
     assert ".sel(frequency=slice(20, 4885)): ami-xr identify h_cut.nc" in out
     assert "same modes with --fmin/--fmax and with .sel: yes" in out
-    cut = out.split("Targets (issue 20)")[1].strip().splitlines()
+    cut = out.split("Targets (issue 20)")[1].split("Targets (issue 37)")[0].strip().splitlines()
     assert len(cut) == 3 and all(t.endswith(("met", "NOT met")) for t in cut)
     assert cut[2].endswith(" met") and not cut[2].endswith("NOT met")  # the same modes
+    # issue 37: sdypy-EMA's beam as accelerance, mobility and receptance, the same modes
+    assert "== sdypy_ema_beam.npz" in out
+    beam = out.split("Targets (issue 37)")[1].strip().splitlines()
+    assert len(beam) == 3 and beam[0].endswith(" met") and not beam[0].endswith("NOT met")
