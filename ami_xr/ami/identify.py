@@ -78,31 +78,20 @@ def identify(
         holds its lines), no mode outside it is reported (dropped ones: attr
         ``analysis_band_dropped_modes``), and attrs ``analysis_band_*`` record it.
     compress : "auto", "off" or int, default "auto"
-        Many points (:mod:`ami_xr.ami.scale`): the phases run on a few virtual FRFs (real,
-        noise-weighted combinations of the FRFs spanning their dominant subspace), which gives
-        the eigenvalues, then every point's residues are fitted at them in one pass. "auto"
-        does so to 48 virtual FRFs above 192 points, an int ``r`` to ``r`` virtual FRFs, "off"
-        never. What is exact and what approximate: :mod:`ami_xr.core.compress`.
+        Many points: the eigenvalues from a few virtual FRFs, then every point's residues
+        (:mod:`ami_xr.ami.scale`, :mod:`ami_xr.core.compress`): "auto" to 48 virtual FRFs
+        above 192 points, an int ``r`` to ``r``, "off" never.
     complete : bool, default True
         The refinement's model-order step (:mod:`ami_xr.core.order`: add, drop or merge modes
         when the likelihood gain beats noise and a measured peak's model error). False: the
         maximum-likelihood fit of AMI's modes as they are.
     noise_std : xarray.DataArray or array_like, optional
-        Your own noise model: the standard deviation of the complex FRF estimate at each line
-        (``sqrt(E|H_est - H|^2)``, FRF units), broadcastable to ``frf`` (a DataArray by dim
-        name; an array by numpy's rules in the order of ``frf``'s dims, e.g. one value per
-        line). It replaces ``frf_line_noise_std`` and the estimate from the data: the working
-        quantity is chosen by it and the refinement weights each line by it
-        (:mod:`ami_xr.ami.whitening`). Default: the stored ``frf_line_noise_std`` (from
-        ``ami_xr.frf``'s coherence), else the FRF's roughness between adjacent lines.
+        Your noise std per line, broadcastable to ``frf`` (:mod:`ami_xr.ami.whitening`).
     progress : bool or callable, default False
-        True draws a bar of the phases (subtract, isolate, global_fit, refine) on stderr,
-        labelled with the numbers of FRFs and lines, its elapsed time moving during a long phase
-        (tqdm when installed, a plain line otherwise), and the counts inside the running phase:
-        FRFs done by the subtraction and the per-FRF isolation, the refinement's stage, modes
-        and iterations. A callable is called as ``progress(phase, done, total)`` when each phase
-        starts (``done`` phases finished) and ``progress("done", total, total)`` at the end; one
-        with a ``detail(text)`` method also gets those counts (see :mod:`ami_xr.progress`).
+        True draws a bar of the phases on stderr (tqdm when installed, a plain line otherwise)
+        with the counts inside the running phase; a callable is called as ``progress(phase,
+        done, total)`` when each phase starts and ``progress("done", total, total)`` at the
+        end, one with a ``detail(text)`` method also gets the counts (:mod:`ami_xr.progress`).
         Never changes the results.
 
     Returns
