@@ -119,6 +119,8 @@ FLAG_SINGLE_FRF = "single_frf"  # detected in one FRF only
 FLAG_REFINE_NOT_CONVERGED = "refine_not_converged"
 FLAG_REFINE_FALLBACK = "refine_fallback"
 FLAG_ADDED_BY_REFINE = "added_by_refine"  # a mode refine added
+# half-power bandwidth 2 zeta f_n under 3 lines of the FRF (ami_xr.ami.resolution)
+FLAG_UNDER_RESOLVED = "under_resolved"
 
 # --- FRF estimation from time histories (ami_xr.frf) ------------------------------------------
 FORCE_AUTOSPECTRUM = "force_autospectrum"  # Gff, one-sided density, dims ([reference,] frequency)
@@ -263,6 +265,7 @@ FLAG_MEANINGS = (
     FLAG_ADDED_BY_REFINE,
     FLAG_REPEATED_ROOT,
     FLAG_REPEATED_ROOT_SEPARATED,
+    FLAG_UNDER_RESOLVED,
 )
 # Noise the simulator added (ami_xr.simulate.noise), read by the Cramer-Rao bound (ami_xr.ami.crb)
 ATTR_NOISE_LEVEL = "noise_level"  # alpha of eq. 15

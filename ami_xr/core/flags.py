@@ -62,6 +62,11 @@ DESCRIPTIONS: dict[str, str] = {
         "Multi-reference: one of two modes at the same frequency that the references told "
         "apart; its partner is the neighbouring mode."
     ),
+    names.FLAG_UNDER_RESOLVED: (
+        "The mode's half-power bandwidth (2 zeta f_n) spans fewer than 3 frequency lines: its "
+        "damping rests on a few lines and the window's smearing, so its damping_ratio_std is "
+        "widened by that bias; estimate the FRF with finer lines (a longer nperseg)."
+    ),
 }
 
 

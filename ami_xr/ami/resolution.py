@@ -1,0 +1,192 @@
+"""Frequency resolution of the identified modes (issue 37 item 4): flag, widen, advise.
+
+A mode whose half-power bandwidth ``2 zeta f_n`` spans fewer than :data:`RESOLUTION_LINES`
+lines of the FRF it was identified from is ``under_resolved``: its damping is decided by a
+handful of lines and, for a Welch estimate, by the window's own smearing, which the noise
+statistics of the fit do not see. :func:`resolution_checked` (called once by the
+single-reference pipeline, after the modes are final) sets the flag, widens the damping
+ratio's standard deviation by that resolution bias (combined in quadrature with the
+statistical one), and says in one warning which modes are under-resolved and which segment
+length (or line spacing) would resolve the lightest-damped of them.
+
+The bias of a flagged mode, as a damping ratio, is
+
+    b = (1 + B_w) df / (2 f_n)
+
+with ``df`` the line spacing and ``B_w`` the equivalent noise bandwidth of the Welch window in
+lines, ``B_w = nfft sum(w^2) / (sum w)^2`` (1.5 for a Hann window with ``nfft = nperseg``),
+when the FRF's provenance records an :func:`ami_xr.frf` estimate with a named window
+(``B_w = 0`` otherwise: a measured FRF, an impact FRF, or a window given as an array). The
+term ``df / (2 f_n)`` is the damping ratio whose half-power bandwidth is one line; the window's
+term bounds how far its smearing widens a peak narrower than its own bandwidth. Biases add
+(they are systematic, not independent noise); the reported standard deviations become
+
+    damping_ratio_std = sqrt(std^2 + b^2)
+    Re(eigenvalue_std) = sqrt(std_re^2 + (b omega_n / (1 - zeta^2))^2)
+
+(``d zeta / d Re(lam) = -(1 - zeta^2) / omega_n``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.ami import common as c
+from ami_xr.caller import warn
+from ami_xr.core import flags
+from ami_xr.errors import AmiXrValueError, AssumptionWarning
+from ami_xr.kernels import windows
+from ami_xr.provenance import history
+
+#: A mode is ``under_resolved`` when its half-power bandwidth ``2 zeta f_n`` spans fewer lines.
+RESOLUTION_LINES = 3.0
+#: The provenance record of a Welch FRF estimate (its parameters hold window, nperseg, nfft, fs).
+WELCH_FUNCTION = "ami_xr.frf"
+#: The advice never asks for more than this many lines per half-power bandwidth of the
+#: lightest-damped mode's measured damping (when the bias bound exceeds its damping, the data
+#: say only that the true damping is lower; a rerun with the advice sharpens the estimate).
+MAX_REFINEMENT = 4.0
+
+
+@dataclass(frozen=True)
+class WelchWindow:
+    """The Welch estimate an FRF came from: its window (name), segment and FFT lengths, and
+    sampling rate (Hz), as :func:`ami_xr.frf` records them in the provenance."""
+
+    window: str
+    nperseg: int
+    nfft: int
+    fs: float
+
+    def enbw_lines(self) -> float:
+        """The window's equivalent noise bandwidth in lines of ``fs / nfft``:
+        ``nfft sum(w^2) / (sum w)^2``."""
+        w = windows.get_window(self.window, self.nperseg)
+        return float(self.nfft * np.sum(w * w) / np.sum(w) ** 2)
+
+
+def welch_window(attrs: dict) -> WelchWindow | None:
+    """The last :data:`WELCH_FUNCTION` record in the provenance of an FRF Dataset with
+    attributes ``attrs`` (also as a step of a command's record, as ``ami-xr frf`` writes it);
+    None when there is none or its window is not a named window (an array)."""
+    found = None
+    for record in history(xr.Dataset(attrs=dict(attrs))):
+        if not isinstance(record, dict):
+            continue
+        steps = record.get("steps")
+        for r in [*(steps if isinstance(steps, list) else []), record]:
+            if isinstance(r, dict) and r.get("function") == WELCH_FUNCTION:
+                found = r.get("parameters")
+    if not isinstance(found, dict):
+        return None
+    try:
+        name = windows.window_name(str(found["window"]))
+        nperseg, fs = int(found["nperseg"]), float(found["fs"])
+        nfft = int(found.get("nfft") or nperseg)
+        windows.get_window(name, nperseg)
+    except (KeyError, TypeError, ValueError, AmiXrValueError):
+        return None
+    return WelchWindow(window=name, nperseg=nperseg, nfft=nfft, fs=fs)
+
+
+def line_spacing(frequency: np.ndarray) -> float:
+    """The line spacing (Hz) of the frequency lines: the median step (NaN with one line)."""
+    f = np.asarray(frequency, dtype=float)
+    return float(np.median(np.diff(f))) if f.size > 1 else math.nan
+
+
+def resolution_bias(fn: np.ndarray, df: float, welch: WelchWindow | None) -> np.ndarray:
+    """The damping-ratio bias bound ``(1 + B_w) df / (2 f_n)`` of modes at ``fn`` (Hz) from
+    lines ``df`` apart (``B_w``: :meth:`WelchWindow.enbw_lines`, 0 without a Welch window)."""
+    b_w = 0.0 if welch is None else welch.enbw_lines()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (1.0 + b_w) * df / (2.0 * np.abs(np.asarray(fn, dtype=float)))
+
+
+def advice(fn: float, zeta: float, bias: float, df: float, welch: WelchWindow | None) -> str:
+    """What would resolve a mode at ``fn`` Hz with damping ``zeta`` (bias bound ``bias``) from
+    lines ``df`` apart: :data:`RESOLUTION_LINES` lines per half-power bandwidth of the lowest
+    damping the data allow (``zeta - bias``, at least ``zeta / MAX_REFINEMENT``); with a
+    Welch window, the ``nperseg`` (next power of two) that gives those lines."""
+    low = max(zeta - bias, zeta / MAX_REFINEMENT)
+    target = 2.0 * low * fn / RESOLUTION_LINES  # the line spacing wanted, Hz
+    if welch is None:
+        return (
+            f"lines {target:.3g} Hz apart or finer (now {df:.3g} Hz: segments of at least "
+            f"{1.0 / target:.3g} s)"
+        )
+    wanted = welch.fs / target * welch.nperseg / welch.nfft
+    nperseg = 1 << max(int(math.ceil(math.log2(wanted))), 0)
+    return (
+        f"nperseg={max(nperseg, 2 * welch.nperseg)} or more (now {welch.nperseg}: lines "
+        f"{df:.3g} Hz apart; ami-xr frf --nperseg), so that {RESOLUTION_LINES:g} lines or more "
+        f"span its half-power bandwidth"
+    )
+
+
+def resolution_checked(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
+    """``result`` with ``under_resolved`` set on every mode whose half-power bandwidth
+    ``2 zeta f_n`` spans fewer than :data:`RESOLUTION_LINES` lines of ``whole`` (the FRF
+    Dataset identified from; cleared elsewhere), their ``damping_ratio_std`` and the real part
+    of ``eigenvalue_std`` widened by the resolution bias (module docstring; where those
+    variables exist), and one :class:`~ami_xr.errors.AssumptionWarning` naming them and what
+    would resolve the lightest-damped one. Unchanged without modes or quality flags.
+
+    Parameters
+    ----------
+    result : xarray.Dataset
+        The identified modes (``natural_frequency``, ``damping_ratio``, ``quality_flags`` on
+        ``mode``).
+    whole : xarray.Dataset
+        The FRF Dataset as given: its ``frequency`` lines and its provenance (the Welch window
+        of :func:`ami_xr.frf`).
+
+    Returns
+    -------
+    xarray.Dataset
+        A new Dataset (``result`` is not modified).
+    """
+    need = (names.NATURAL_FREQUENCY, names.DAMPING_RATIO, names.QUALITY_FLAGS)
+    if not result.sizes.get(names.MODE, 0) or any(v not in result for v in need):
+        return result
+    df = line_spacing(whole[names.FREQUENCY].values)
+    fn = np.asarray(result[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
+    zeta = np.asarray(result[names.DAMPING_RATIO].transpose(names.MODE).values, dtype=float)
+    with np.errstate(invalid="ignore"):
+        under = 2.0 * np.abs(zeta) * fn < RESOLUTION_LINES * df
+    result = result.copy()
+    mask = flags.set_where(c.flag_mask(result), names.FLAG_UNDER_RESOLVED, under)
+    result[names.QUALITY_FLAGS] = result[names.QUALITY_FLAGS].copy(data=flags.encode(mask))
+    if not under.any():
+        return result
+    welch = welch_window(whole.attrs)
+    bias = np.where(under, resolution_bias(fn, df, welch), 0.0)
+    if names.DAMPING_RATIO_STD in result:
+        std = result[names.DAMPING_RATIO_STD]
+        z_std = np.asarray(std.transpose(names.MODE).values, dtype=float)
+        result[names.DAMPING_RATIO_STD] = std.copy(data=np.hypot(z_std, bias))
+    if names.EIGENVALUE_STD in result:
+        std = result[names.EIGENVALUE_STD]
+        e_std = np.asarray(std.transpose(names.MODE).values, dtype=np.complex128)
+        re_bias = bias * 2.0 * np.pi * fn / np.maximum(1.0 - zeta**2, 1e-12)
+        widened = np.hypot(e_std.real, re_bias) + 1j * e_std.imag
+        result[names.EIGENVALUE_STD] = std.copy(data=widened)
+    labels = result[names.MODE].values
+    k = int(np.nanargmin(np.where(under, np.abs(zeta), np.nan)))
+    listed = ", ".join(
+        f"{labels[i]} ({fn[i]:.4g} Hz, zeta {zeta[i]:.2%})" for i in np.flatnonzero(under)
+    )
+    warn(
+        f"identify: mode(s) {listed} have a half-power bandwidth 2 zeta f_n of fewer than "
+        f"{RESOLUTION_LINES:g} lines ({df:.3g} Hz apart): flagged {names.FLAG_UNDER_RESOLVED}, "
+        "their damping_ratio_std widened by the bias of the line spacing"
+        f"{'' if welch is None else ' and the ' + welch.window + ' window'}; to resolve mode "
+        f"{labels[k]} estimate the FRF with {advice(fn[k], abs(zeta[k]), bias[k], df, welch)}",
+        AssumptionWarning,
+    )
+    return result
