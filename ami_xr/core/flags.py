@@ -63,9 +63,8 @@ DESCRIPTIONS: dict[str, str] = {
         "apart; its partner is the neighbouring mode."
     ),
     names.FLAG_UNDER_RESOLVED: (
-        "The mode's half-power bandwidth (2 zeta f_n) spans fewer than 3 frequency lines: its "
-        "damping rests on a few lines and the window's smearing, so its damping_ratio_std is "
-        "widened by that bias; estimate the FRF with finer lines (a longer nperseg)."
+        "Its half-power bandwidth (2 zeta f_n) spans under 3 frequency lines: the line spacing "
+        "and the window bias its damping, and damping_ratio_std is widened to cover that."
     ),
 }
 
