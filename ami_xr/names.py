@@ -201,7 +201,8 @@ ATTR_BAND_COHERENCE_FRACTION = "analysis_band_coherence_fraction"  # ... fractio
 ATTR_BAND_DROPPED = "analysis_band_dropped_modes"  # Hz of modes outside the band, dropped
 # Caps that ended a phase ("subtract:max_modes", "isolate:max_iter", "refine:max_iter", ...)
 ATTR_AMI_CAPPED = "ami_capped"
-# subtraction caps that did not decide the mode count (the refinement completed the model)
+# caps that did not decide the result: subtraction caps when the refinement completed the model,
+# isolate:max_iter when the converged refinement re-fitted every mode
 ATTR_AMI_CAPPED_SUPERSEDED = "ami_capped_superseded"
 MODE_LABEL_UNSORTED = "mode_label_unsorted"  # (mode) label before sorting by frequency
 # Results of ami_xr.refine, as attributes
