@@ -7,7 +7,8 @@ statistics of the fit do not see. :func:`resolution_checked` (called once by the
 single-reference pipeline, after the modes are final) sets the flag, widens the damping
 ratio's standard deviation by that resolution bias (combined in quadrature with the
 statistical one), and says in one warning which modes are under-resolved and which segment
-length (or line spacing) would resolve the lightest-damped of them.
+length (or line spacing) would resolve them all (the narrowest half-power bandwidth, usually
+the lightest-damped mode's).
 
 The bias of a flagged mode, as a damping ratio, is
 
@@ -47,9 +48,9 @@ from ami_xr.provenance import history
 RESOLUTION_LINES = 3.0
 #: The provenance record of a Welch FRF estimate (its parameters hold window, nperseg, nfft, fs).
 WELCH_FUNCTION = "ami_xr.frf"
-#: The advice never asks for more than this many lines per half-power bandwidth of the
-#: lightest-damped mode's measured damping (when the bias bound exceeds its damping, the data
-#: say only that the true damping is lower; a rerun with the advice sharpens the estimate).
+#: The advice takes the damping as low as ``zeta - bias`` but never below ``zeta`` over this
+#: factor: when the bias bound exceeds the damping measured, the data say only that the true
+#: damping is lower; a rerun with the advice sharpens the estimate (and advises again).
 MAX_REFINEMENT = 4.0
 
 
@@ -108,24 +109,30 @@ def resolution_bias(fn: np.ndarray, df: float, welch: WelchWindow | None) -> np.
         return (1.0 + b_w) * df / (2.0 * np.abs(np.asarray(fn, dtype=float)))
 
 
-def advice(fn: float, zeta: float, bias: float, df: float, welch: WelchWindow | None) -> str:
-    """What would resolve a mode at ``fn`` Hz with damping ``zeta`` (bias bound ``bias``) from
-    lines ``df`` apart: :data:`RESOLUTION_LINES` lines per half-power bandwidth of the lowest
-    damping the data allow (``zeta - bias``, at least ``zeta / MAX_REFINEMENT``); with a
-    Welch window, the ``nperseg`` (next power of two) that gives those lines."""
-    low = max(zeta - bias, zeta / MAX_REFINEMENT)
-    target = 2.0 * low * fn / RESOLUTION_LINES  # the line spacing wanted, Hz
+def target_spacing(fn: np.ndarray, zeta: np.ndarray, bias: np.ndarray) -> np.ndarray:
+    """The line spacing (Hz) that puts :data:`RESOLUTION_LINES` lines in the half-power
+    bandwidth of modes at ``fn`` (Hz) with damping ``zeta`` and bias bound ``bias``: taken at
+    the lowest damping the data allow, ``zeta - bias``, but at least ``zeta /``
+    :data:`MAX_REFINEMENT` (the bias bound can exceed the damping measured)."""
+    zeta = np.abs(np.asarray(zeta, dtype=float))
+    low = np.maximum(zeta - np.asarray(bias, dtype=float), zeta / MAX_REFINEMENT)
+    return 2.0 * low * np.abs(np.asarray(fn, dtype=float)) / RESOLUTION_LINES
+
+
+def advice(target: float, df: float, welch: WelchWindow | None) -> str:
+    """How to get lines ``target`` Hz apart (now ``df``): with a Welch window the ``nperseg``
+    (next power of two, at least twice the one used, the FFT padding kept), otherwise the line
+    spacing and the segment duration it takes."""
     if welch is None:
         return (
             f"lines {target:.3g} Hz apart or finer (now {df:.3g} Hz: segments of at least "
             f"{1.0 / target:.3g} s)"
         )
     wanted = welch.fs / target * welch.nperseg / welch.nfft
-    nperseg = 1 << max(int(math.ceil(math.log2(wanted))), 0)
+    nperseg = max(1 << max(int(math.ceil(math.log2(wanted))), 0), 2 * welch.nperseg)
     return (
-        f"nperseg={max(nperseg, 2 * welch.nperseg)} or more (now {welch.nperseg}: lines "
-        f"{df:.3g} Hz apart; ami-xr frf --nperseg), so that {RESOLUTION_LINES:g} lines or more "
-        f"span its half-power bandwidth"
+        f"nperseg={nperseg} or more (now {welch.nperseg}: lines {df:.3g} Hz apart; ami-xr frf "
+        f"--nperseg), so that {RESOLUTION_LINES:g} lines or more span its half-power bandwidth"
     )
 
 
@@ -135,7 +142,8 @@ def resolution_checked(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
     Dataset identified from; cleared elsewhere), their ``damping_ratio_std`` and the real part
     of ``eigenvalue_std`` widened by the resolution bias (module docstring; where those
     variables exist), and one :class:`~ami_xr.errors.AssumptionWarning` naming them and what
-    would resolve the lightest-damped one. Unchanged without modes or quality flags.
+    would resolve them all (:func:`target_spacing`, :func:`advice`). Unchanged without modes
+    or quality flags.
 
     Parameters
     ----------
@@ -177,7 +185,9 @@ def resolution_checked(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
         widened = np.hypot(e_std.real, re_bias) + 1j * e_std.imag
         result[names.EIGENVALUE_STD] = std.copy(data=widened)
     labels = result[names.MODE].values
-    k = int(np.nanargmin(np.where(under, np.abs(zeta), np.nan)))
+    # the narrowest half-power bandwidth needs the finest lines: resolving it resolves all
+    target = np.where(under, target_spacing(fn, zeta, bias), np.nan)
+    k = int(np.nanargmin(target))
     listed = ", ".join(
         f"{labels[i]} ({fn[i]:.4g} Hz, zeta {zeta[i]:.2%})" for i in np.flatnonzero(under)
     )
@@ -185,8 +195,9 @@ def resolution_checked(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
         f"identify: mode(s) {listed} have a half-power bandwidth 2 zeta f_n of fewer than "
         f"{RESOLUTION_LINES:g} lines ({df:.3g} Hz apart): flagged {names.FLAG_UNDER_RESOLVED}, "
         "their damping_ratio_std widened by the bias of the line spacing"
-        f"{'' if welch is None else ' and the ' + welch.window + ' window'}; to resolve mode "
-        f"{labels[k]} estimate the FRF with {advice(fn[k], abs(zeta[k]), bias[k], df, welch)}",
+        f"{'' if welch is None else ' and the ' + welch.window + ' window'}; to resolve them "
+        f"(mode {labels[k]} has the narrowest) estimate the FRF with "
+        f"{advice(float(target[k]), df, welch)}",
         AssumptionWarning,
     )
     return result

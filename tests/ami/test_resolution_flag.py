@@ -193,3 +193,38 @@ def test_isolation_cap_without_refinement_says_what_to_do(coarse):
     (text,) = _isolate_warnings(said)
     assert "refine=True" in text and names.FLAG_NOT_CONVERGED in text
     assert any(names.FLAG_NOT_CONVERGED in f for f in modes.quality_flags.values)
+
+
+def test_the_advice_resolves_the_narrowest_bandwidth_not_only_the_lowest_damping():
+    """5 Hz at 1 % (0.1 Hz wide) needs finer lines than 50 Hz at 0.5 % (0.5 Hz wide); a mode
+    4 Hz wide on 0.5 Hz lines (8 lines) is neither flagged nor widened."""
+    fn, zeta = np.array([5.0, 50.0, 40.0]), np.array([0.01, 0.005, 0.05])
+    lam = -zeta * 2 * np.pi * fn + 1j * 2 * np.pi * fn * np.sqrt(1 - zeta**2)
+    mode = [names.MODE]
+    result = xr.Dataset(
+        {
+            names.NATURAL_FREQUENCY: (mode, fn),
+            names.DAMPING_RATIO: (mode, zeta),
+            names.EIGENVALUE: (mode, lam),
+            names.DAMPING_RATIO_STD: (mode, np.full(3, 1e-4)),
+            names.EIGENVALUE_STD: (mode, np.full(3, 0.01 + 0.02j)),
+            names.QUALITY_FLAGS: (mode, np.array(["", names.FLAG_SINGLE_FRF, ""])),
+        },
+        coords={names.MODE: [1, 2, 3]},
+    )
+    whole = xr.Dataset(coords={names.FREQUENCY: np.arange(0.0, 100.5, 0.5)})
+    with pytest.warns(AssumptionWarning) as said:
+        out = resolution.resolution_checked(result, whole)
+    assert out[names.QUALITY_FLAGS].values.tolist() == [
+        names.FLAG_UNDER_RESOLVED,
+        f"{names.FLAG_SINGLE_FRF},{names.FLAG_UNDER_RESOLVED}",
+        "",
+    ]
+    text = str(said[0].message)
+    # bias 0.5 / 10 = 5 % > 1 %: the damping is taken as low as 1 % / 4; 3 lines in 0.025 Hz
+    assert "(mode 1 has the narrowest)" in text and "lines 0.00833 Hz apart or finer" in text
+    bias = np.array([0.5 / 10, 0.5 / 100, 0.0])
+    np.testing.assert_allclose(out[names.DAMPING_RATIO_STD].values, np.hypot(1e-4, bias))
+    assert out[names.DAMPING_RATIO_STD].values[2] == 1e-4
+    assert out[names.EIGENVALUE_STD].values[2] == 0.01 + 0.02j
+    assert result[names.DAMPING_RATIO_STD].values[0] == 1e-4  # the input is not modified
