@@ -48,21 +48,28 @@ from ami_xr.provenance import history
 RESOLUTION_LINES = 3.0
 #: The provenance record of a Welch FRF estimate (its parameters hold window, nperseg, nfft, fs).
 WELCH_FUNCTION = "ami_xr.frf"
-#: The advice takes the damping as low as ``zeta - bias`` but never below ``zeta`` over this
-#: factor: when the bias bound exceeds the damping measured, the data say only that the true
-#: damping is lower; a rerun with the advice sharpens the estimate (and advises again).
-MAX_REFINEMENT = 4.0
+#: The advice takes the damping as low as the window's smearing leaves it, but never below
+#: ``zeta`` over this factor: when the window is wider than the peak measured, the data say
+#: only that the true damping is lower; a rerun with the advice sharpens the estimate (and
+#: advises again if the mode is still under-resolved).
+MAX_REFINEMENT = 2.0
+#: Segments per record below which the advice says the record is short for its ``nperseg``
+#: (:data:`ami_xr.dsp.frf.SUGGESTED_SEGMENTS`, the count frf's own advice keeps).
+SEGMENTS = 8
 
 
 @dataclass(frozen=True)
 class WelchWindow:
     """The Welch estimate an FRF came from: its window (name), segment and FFT lengths, and
-    sampling rate (Hz), as :func:`ami_xr.frf` records them in the provenance."""
+    sampling rate (Hz), as :func:`ami_xr.frf` records them in the provenance, and the length of
+    a record as the segments averaged tell it."""
 
     window: str
     nperseg: int
     nfft: int
     fs: float
+    #: samples per record, from the segments averaged (None when not recorded)
+    record_samples: int | None = None
 
     def enbw_lines(self) -> float:
         """The window's equivalent noise bandwidth in lines of ``fs / nfft``:
@@ -92,7 +99,21 @@ def welch_window(attrs: dict) -> WelchWindow | None:
         windows.get_window(name, nperseg)
     except (KeyError, TypeError, ValueError, AmiXrValueError):
         return None
-    return WelchWindow(window=name, nperseg=nperseg, nfft=nfft, fs=fs)
+    return WelchWindow(name, nperseg, nfft, fs, _record_samples(found, nperseg, attrs))
+
+
+def _record_samples(parameters: dict, nperseg: int, attrs: dict) -> int | None:
+    """Samples per record of a Welch estimate: ``nperseg + (n - 1) (nperseg - noverlap)`` for
+    ``n`` segments per record (attr ``n_averages`` over ``n_records_used``); None when the
+    Dataset does not say."""
+    try:
+        noverlap = int(parameters.get("noverlap", nperseg // 2))
+        per_record = int(attrs[names.ATTR_N_AVERAGES]) / int(parameters.get("n_records_used", 1))
+    except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        return None
+    if per_record < 1 or not 0 <= noverlap < nperseg:
+        return None
+    return int(nperseg + (per_record - 1) * (nperseg - noverlap))
 
 
 def line_spacing(frequency: np.ndarray) -> float:
@@ -109,13 +130,15 @@ def resolution_bias(fn: np.ndarray, df: float, welch: WelchWindow | None) -> np.
         return (1.0 + b_w) * df / (2.0 * np.abs(np.asarray(fn, dtype=float)))
 
 
-def target_spacing(fn: np.ndarray, zeta: np.ndarray, bias: np.ndarray) -> np.ndarray:
+def target_spacing(fn: np.ndarray, zeta: np.ndarray, smear: np.ndarray) -> np.ndarray:
     """The line spacing (Hz) that puts :data:`RESOLUTION_LINES` lines in the half-power
-    bandwidth of modes at ``fn`` (Hz) with damping ``zeta`` and bias bound ``bias``: taken at
-    the lowest damping the data allow, ``zeta - bias``, but at least ``zeta /``
-    :data:`MAX_REFINEMENT` (the bias bound can exceed the damping measured)."""
+    bandwidth of modes at ``fn`` (Hz) with measured damping ``zeta``, taken at the damping left
+    when the window's smearing ``smear`` (``B_w df / (2 f_n)``, as a damping ratio) is taken
+    out in quadrature, ``sqrt(zeta^2 - smear^2)`` (the widths of a peak and of the window it is
+    seen through add about so), but at least ``zeta /`` :data:`MAX_REFINEMENT`."""
     zeta = np.abs(np.asarray(zeta, dtype=float))
-    low = np.maximum(zeta - np.asarray(bias, dtype=float), zeta / MAX_REFINEMENT)
+    left = np.sqrt(np.maximum(zeta**2 - np.asarray(smear, dtype=float) ** 2, 0.0))
+    low = np.maximum(left, zeta / MAX_REFINEMENT)
     return 2.0 * low * np.abs(np.asarray(fn, dtype=float)) / RESOLUTION_LINES
 
 
@@ -130,10 +153,17 @@ def advice(target: float, df: float, welch: WelchWindow | None) -> str:
         )
     wanted = welch.fs / target * welch.nperseg / welch.nfft
     nperseg = max(1 << max(int(math.ceil(math.log2(wanted))), 0), 2 * welch.nperseg)
-    return (
+    text = (
         f"nperseg={nperseg} or more (now {welch.nperseg}: lines {df:.3g} Hz apart; ami-xr frf "
         f"--nperseg), so that {RESOLUTION_LINES:g} lines or more span its half-power bandwidth"
     )
+    n = welch.record_samples
+    if n is not None and nperseg * SEGMENTS > n:
+        text += (
+            f"; a record of {n} samples holds fewer than {SEGMENTS} such segments (fewer "
+            "averages, a noisier FRF): record longer, or keep this FRF and the widened std"
+        )
+    return text
 
 
 def resolution_checked(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
@@ -186,7 +216,8 @@ def resolution_checked(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
         result[names.EIGENVALUE_STD] = std.copy(data=widened)
     labels = result[names.MODE].values
     # the narrowest half-power bandwidth needs the finest lines: resolving it resolves all
-    target = np.where(under, target_spacing(fn, zeta, bias), np.nan)
+    smear = 0.0 if welch is None else welch.enbw_lines() * df / (2.0 * fn)
+    target = np.where(under, target_spacing(fn, zeta, smear), np.nan)
     k = int(np.nanargmin(target))
     listed = ", ".join(
         f"{labels[i]} ({fn[i]:.4g} Hz, zeta {zeta[i]:.2%})" for i in np.flatnonzero(under)
