@@ -26,6 +26,11 @@ term bounds how far its smearing widens a peak narrower than its own bandwidth. 
     Re(eigenvalue_std) = sqrt(std_re^2 + (b omega_n / (1 - zeta^2))^2)
 
 (``d zeta / d Re(lam) = -(1 - zeta^2) / omega_n``).
+
+The advice puts :data:`RESOLUTION_LINES` lines in the half-power bandwidth of the narrowest
+flagged mode at the damping left when the window's smearing is taken out in quadrature,
+``sqrt(zeta^2 - (B_w df / (2 f_n))^2)``, but at least ``zeta /`` :data:`MAX_REFINEMENT`
+(:func:`target_spacing`), as an ``nperseg`` for a Welch estimate (:func:`advice`).
 """
 
 from __future__ import annotations
