@@ -119,6 +119,8 @@ FLAG_SINGLE_FRF = "single_frf"  # detected in one FRF only
 FLAG_REFINE_NOT_CONVERGED = "refine_not_converged"
 FLAG_REFINE_FALLBACK = "refine_fallback"
 FLAG_ADDED_BY_REFINE = "added_by_refine"  # a mode refine added
+# half-power bandwidth 2 zeta f_n under 3 lines of the FRF (ami_xr.ami.resolution)
+FLAG_UNDER_RESOLVED = "under_resolved"
 
 # --- FRF estimation from time histories (ami_xr.frf) ------------------------------------------
 FORCE_AUTOSPECTRUM = "force_autospectrum"  # Gff, one-sided density, dims ([reference,] frequency)
@@ -199,7 +201,8 @@ ATTR_BAND_COHERENCE_FRACTION = "analysis_band_coherence_fraction"  # ... fractio
 ATTR_BAND_DROPPED = "analysis_band_dropped_modes"  # Hz of modes outside the band, dropped
 # Caps that ended a phase ("subtract:max_modes", "isolate:max_iter", "refine:max_iter", ...)
 ATTR_AMI_CAPPED = "ami_capped"
-# subtraction caps that did not decide the mode count (the refinement completed the model)
+# caps that did not decide the result: subtraction caps when the refinement completed the model,
+# isolate:max_iter when the converged refinement re-fitted every mode
 ATTR_AMI_CAPPED_SUPERSEDED = "ami_capped_superseded"
 MODE_LABEL_UNSORTED = "mode_label_unsorted"  # (mode) label before sorting by frequency
 # Results of ami_xr.refine, as attributes
@@ -263,6 +266,7 @@ FLAG_MEANINGS = (
     FLAG_ADDED_BY_REFINE,
     FLAG_REPEATED_ROOT,
     FLAG_REPEATED_ROOT_SEPARATED,
+    FLAG_UNDER_RESOLVED,
 )
 # Noise the simulator added (ami_xr.simulate.noise), read by the Cramer-Rao bound (ami_xr.ami.crb)
 ATTR_NOISE_LEVEL = "noise_level"  # alpha of eq. 15

@@ -39,7 +39,8 @@ CAP_DESCRIPTIONS: dict[str, str] = {
     "(max_modes)",
     "subtract:max_rejected_peaks": "the subtraction phase stopped after examining its limit of "
     "peaks (3 max_modes + 10)",
-    "isolate:max_iter": "the isolation phase reached its iteration limit (max_iter) at some FRF",
+    "isolate:max_iter": "the isolation phase reached its iteration limit (max_iter) at some FRF "
+    "(its modes carry not_converged; the refinement, refine=True, re-fits them)",
     "refine:max_iter": "the refinement stopped at its iteration limit before converging",
     "refine:add_modes": "the refinement stopped adding modes at its limit (add_modes)",
 }
@@ -163,7 +164,8 @@ def cap_notes(ds: xr.Dataset) -> list[tuple[str, str]]:
         ``("incomplete", ...)`` from the attribute ``ami_capped`` (modes may be missing) and
         ``("superseded", ...)`` from ``ami_capped_superseded`` (the subtraction stopped at a
         limit, but the refinement then completed the model by its statistics, so that limit
-        did not decide the mode count); empty when neither is set.
+        did not decide the mode count; or the isolation stopped at ``max_iter`` but the
+        converged refinement re-fitted every mode); empty when neither is set.
     """
 
     def entries(attr: str) -> list[str]:
@@ -181,6 +183,14 @@ def cap_notes(ds: xr.Dataset) -> list[tuple[str, str]]:
         )
         notes.append(("incomplete", text))
     superseded = entries(names.ATTR_AMI_CAPPED_SUPERSEDED)
+    if "isolate:max_iter" in superseded:
+        superseded.remove("isolate:max_iter")
+        text = (
+            f"Limit superseded: {words(['isolate:max_iter'])}, but the refinement then re-fitted "
+            "every mode and converged, so the isolation's estimates are not the result "
+            f"({names.ATTR_AMI_CAPPED_SUPERSEDED})."
+        )
+        notes.append(("superseded", text))
     if superseded:
         text = (
             f"Limit superseded: {words(superseded)}, but the refinement then completed the "

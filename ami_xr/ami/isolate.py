@@ -246,6 +246,11 @@ def _isolate_simo_modes(ds, omega, data_model, sub, settings, sigma) -> _Isolate
     )
 
 
+#: How the warning of an isolation stopped at ``max_iter`` begins (the pipeline drops it when
+#: a converged refinement re-fitted every mode).
+NOT_CONVERGED = "isolate: not converged"
+
+
 def isolate(
     ds: xr.Dataset,
     tol: float = IsolateSettings.tol,
@@ -338,8 +343,13 @@ def isolate(
     if not np.all(res.converged):
         bad = points[~res.converged].tolist()
         warn(  # at the user's line, also when reached through identify
-            f"isolate: not converged within max_iter={max_iter} sweeps at point(s) "
-            f"{bad} (tol={tol}); see isolation_converged",
+            f"{NOT_CONVERGED} within max_iter={max_iter} sweeps at point(s) {bad} (tol={tol}; "
+            f"see {names.ISO_CONVERGED}): the eigenvalues of the modes detected there still "
+            "moved between sweeps (often a mode that alternates between two fits, which more "
+            f"sweeps do not settle), so they carry {names.FLAG_NOT_CONVERGED}. The refinement "
+            "(identify's default, refine=True; not --no-refine or --method paper) re-fits "
+            "every mode and replaces these estimates when it converges; on isolate's own "
+            "output run ami_xr.global_fit and ami_xr.refine, or loosen tol",
             ConvergenceWarning,
         )
     if res.n_modes == 0:

@@ -20,8 +20,10 @@ from ami_xr.ami import scale as scale_out
 from ami_xr.ami import spikes, whitening
 from ami_xr.ami.global_fit import global_fit, receptance_mode_vectors
 from ami_xr.ami.isolate import METHODS as ISOLATE_METHODS
+from ami_xr.ami.isolate import NOT_CONVERGED as ISOLATION_NOT_CONVERGED
 from ami_xr.ami.isolate import isolate
 from ami_xr.ami.refine import refine as refine_phase
+from ami_xr.ami.resolution import resolution_checked
 from ami_xr.ami.settings import FrfAttributes, IdentifySettings, IsolateSettings, from_attrs
 from ami_xr.ami.subtract import add_capped, band_of, power_of_two_scale, subtract
 from ami_xr.caller import warn
@@ -92,6 +94,7 @@ def identify_single(
     result = repeated_flagged(result)
     result = window_corrected(result, from_attrs(FrfAttributes, ds.attrs))
     result = finish_modes(result, whole, refined=refined)
+    result = resolution_checked(result, whole)  # under_resolved, damping std widened
     if final:
         result = drop_beyond_lines(result, whole)
         result = spikes.drop_noise_spikes(result)
@@ -138,8 +141,13 @@ def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progres
                 step(names.PHASE_REFINE)
                 out = refine_phase(out, **model_order(s))
     superseded = _caps_superseded(out, refined)
+    refitted = _isolation_superseded(out, refined)
     for w in said:
-        if not (superseded and str(w.message).startswith("subtract: stopped at the cap")):
+        text = str(w.message)
+        if not (
+            (superseded and text.startswith("subtract: stopped at the cap"))
+            or (refitted and text.startswith(ISOLATION_NOT_CONVERGED))
+        ):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     return out
 
@@ -161,6 +169,19 @@ def _caps_superseded(out: xr.Dataset, refined: bool) -> bool:
     out.attrs[names.ATTR_AMI_CAPPED] = ",".join(e for e in caps if e not in _SUBTRACT_CAPS)
     out.attrs[names.ATTR_AMI_CAPPED_SUPERSEDED] = ",".join(hit)
     return True
+
+
+def _isolation_superseded(out: xr.Dataset, refined: bool) -> bool:
+    """Whether an isolation that stopped at ``max_iter`` no longer decides the result: the
+    refinement ran and converged, re-fitting every mode (it clears ``not_converged`` on each
+    mode it moved to its converged estimate). Then ``isolate:max_iter`` goes to
+    ``ami_capped_superseded`` (:func:`finish_modes`) and the isolation's warning is not shown."""
+    return bool(
+        refined
+        and names.ISO_CONVERGED in out
+        and not np.all(out[names.ISO_CONVERGED].values)
+        and int(out.attrs.get(names.ATTR_REFINE_CONVERGED, 0) or 0)
+    )
 
 
 def repeated_flagged(result: xr.Dataset) -> xr.Dataset:
@@ -323,14 +344,20 @@ def drop_beyond_lines(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
 
 def finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dataset:
     """The modes as reported: none outside a restricted analysis band, sorted by frequency with
-    labels 1..n; caps that ended a phase warned about and listed in attr ``ami_capped``."""
+    labels 1..n; caps that ended a phase warned about and listed in attr ``ami_capped``. An
+    isolation stopped at ``max_iter`` is listed in ``ami_capped_superseded`` instead when the
+    refinement ran and converged (:func:`_isolation_superseded`): it re-fitted every mode."""
     band = bd.analysis_band(result)
     if not bd.is_whole(whole, band):
         result, dropped = c.drop_outside_band(result, band.fmin, band.fmax)
         result.attrs[names.ATTR_BAND_DROPPED] = ",".join(f"{f:.6g}" for f in dropped)
     result = c.sort_modes(result)
     caps = []
-    if names.ISO_CONVERGED in result and not bool(np.all(result[names.ISO_CONVERGED].values)):
+    if _isolation_superseded(result, refined):  # the converged refinement re-fitted every mode
+        gone = str(result.attrs.get(names.ATTR_AMI_CAPPED_SUPERSEDED, "")).split(",")
+        gone = [e for e in gone if e and e != "isolate:max_iter"] + ["isolate:max_iter"]
+        result.attrs[names.ATTR_AMI_CAPPED_SUPERSEDED] = ",".join(gone)
+    elif names.ISO_CONVERGED in result and not bool(np.all(result[names.ISO_CONVERGED].values)):
         caps.append("isolate:max_iter")  # isolate warned already
     if refined and names.ATTR_REFINE_CONVERGED in result.attrs:
         if not int(result.attrs[names.ATTR_REFINE_CONVERGED]):

@@ -171,7 +171,7 @@ def report(
     table (with the std columns when the Dataset has them), a legend of the quality flags that
     appear in it (:func:`ami_xr.tables.flag_legend`: one plain-language line each), the limits
     that ended a phase (:func:`ami_xr.tables.cap_notes`: ``ami_capped``, and
-    ``ami_capped_superseded`` when the refinement made a subtraction cap moot) and the figures
+    ``ami_capped_superseded`` when the refinement made a cap moot) and the figures
     of :data:`FIGURES`.
     Figures whose inputs are missing from ``ds`` (e.g. no subtraction outputs, no mode vectors)
     are skipped and listed in the page as "not produced" with the reason. Every file is written

@@ -62,6 +62,10 @@ DESCRIPTIONS: dict[str, str] = {
         "Multi-reference: one of two modes at the same frequency that the references told "
         "apart; its partner is the neighbouring mode."
     ),
+    names.FLAG_UNDER_RESOLVED: (
+        "Its half-power bandwidth (2 zeta f_n) spans under 3 frequency lines: the line spacing "
+        "and the window bias its damping, and damping_ratio_std is widened to cover that."
+    ),
 }
 
 

@@ -562,7 +562,8 @@ SUGGESTED_SEGMENTS = 8
 def _warn_few_lines(nperseg: int, nfft: int, n_time: int, fs: float) -> None:
     """The default ``nperseg`` leaves fewer than :data:`FEW_LINES` lines although the record
     holds :data:`SUGGESTED_SEGMENTS` segments of a longer power of two: say so and what to
-    pass."""
+    pass. (The damping is not known here: :func:`ami_xr.identify` gives the ``nperseg`` that
+    resolves its lightest-damped mode, :mod:`ami_xr.ami.resolution`.)"""
     lines = nfft // 2 + 1
     suggested = 2 ** int(np.floor(np.log2(max(n_time / SUGGESTED_SEGMENTS, 1.0))))
     if lines >= FEW_LINES or suggested <= nperseg:
@@ -572,7 +573,8 @@ def _warn_few_lines(nperseg: int, nfft: int, n_time: int, fs: float) -> None:
         f"a record of {n_time} samples ({n_time / fs:.4g} s); identification wants a few "
         f"hundred lines: pass nperseg={suggested} ({suggested // 2 + 1} lines "
         f"{fs / suggested:.4g} Hz apart, {SUGGESTED_SEGMENTS} segments or more; "
-        "ami-xr frf --nperseg)",
+        "ami-xr frf --nperseg); identify then flags a mode whose half-power bandwidth spans "
+        "fewer than 3 lines (under_resolved) and names the nperseg that resolves it",
         AssumptionWarning,
     )
 

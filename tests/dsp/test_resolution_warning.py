@@ -40,3 +40,10 @@ def test_a_short_record_is_not_warned():
     with warnings.catch_warnings():
         warnings.simplefilter("error", AssumptionWarning)
         ami_xr.frf(_random_test(2048))  # 8 segments of 256 already
+
+
+def test_the_advice_points_to_identify_for_the_lightest_damped_mode():
+    """The segment length that resolves a mode depends on its damping, which frf does not
+    know: its advice says that identify names it (tests/ami/test_resolution_flag.py)."""
+    with pytest.warns(AssumptionWarning, match=r"under_resolved\) and names the nperseg"):
+        ami_xr.frf(_random_test(60_000))
