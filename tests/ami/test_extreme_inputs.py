@@ -29,6 +29,7 @@ LINEAR = {
     names.FRF_NOISE_STD,
     names.RESIDUAL_COEFFICIENT,
     "ami_residue",
+    "noise_model_level",  # identify's noise model (issue 37), in FRF units
 }
 SQRT = {names.MODE_VECTOR, names.MODE_VECTOR_STD, "ami_mode_vector"}
 
