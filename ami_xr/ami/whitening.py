@@ -101,10 +101,11 @@ def _data(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray | None, str]:
     return x[rows], None, "roughness"
 
 
-def _noise_free(h: np.ndarray, f: np.ndarray) -> bool:
+def _noise_free(h: np.ndarray, f: np.ndarray, fourth: np.ndarray | None = None) -> bool:
     """Whether the roughness of ``h`` (P, L) is the FRF's own curvature rather than noise at
-    most of its blocks (:func:`ami_xr.core.frf_noise.noise_dominated_share` below 1/2)."""
-    return fn.noise_dominated_share(h[:, f > 0]) < 0.5
+    most of its blocks (:func:`ami_xr.core.frf_noise.noise_dominated_share` below 1/2);
+    ``fourth``: its order-4 estimate on the lines above 0 Hz, when already made."""
+    return fn.noise_dominated_share(h[:, f > 0], fourth=fourth) < 0.5
 
 
 def decide(ds: xr.Dataset) -> Whitening:
@@ -122,7 +123,7 @@ def decide(ds: xr.Dataset) -> Whitening:
     losses, stds = fn.whitening_losses(h, f, shifts, stored)
     best = min(losses, key=losses.get)
     k = best if losses[0] > SWITCH_RATIO * losses[best] else 0
-    if stored is None and _noise_free(h, f):
+    if stored is None and _noise_free(h, f, stds[0] if 0 in stds else None):
         # rounding, not noise: its "level" follows |H| and says nothing about a quantity
         k, source = 0, f"{source}: the curvature of the FRF, not noise; lines weighted alike"
         losses = {0: 1.0}

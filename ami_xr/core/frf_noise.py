@@ -323,16 +323,19 @@ def whitening_losses(
     return losses, stds
 
 
-def noise_dominated_share(frf: np.ndarray, block: int = 64) -> float:
+def noise_dominated_share(
+    frf: np.ndarray, block: int = 64, fourth: np.ndarray | None = None
+) -> float:
     """The share of (row, block) estimates of :func:`block_roughness_std` that measure noise,
     not the FRF's own curvature: for white noise the estimates from differences of order 4 and
     6 agree (each is scaled to the noise std), for a smooth function the 6th difference is
     orders of magnitude below the 4th (measured: ratio 1.00-1.02 on noisy random systems at 1 %,
-    0.00-0.01 noise-free). An estimate counts as noise where the ratio exceeds 0.7."""
+    0.00-0.01 noise-free). An estimate counts as noise where the ratio exceeds 0.7.
+    ``fourth``: the order-4 estimate of ``frf`` when the caller has it."""
     h = np.asarray(frf).reshape(-1, np.shape(frf)[-1])
     if h.shape[-1] <= 6:
         return 0.0
-    a = block_roughness_std(h, 4, block)
+    a = block_roughness_std(h, 4, block) if fourth is None else np.reshape(fourth, h.shape)
     b = block_roughness_std(h, 6, block)
     step = max(int(block), 1)
     with np.errstate(invalid="ignore", divide="ignore"):
