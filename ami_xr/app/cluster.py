@@ -281,19 +281,32 @@ def _connect(args: argparse.Namespace) -> tuple[Any, Any, str]:
                 f"{timeout:g} s); start some with 'dask worker {address}'"
             ) from None
         return client, None, address
-    local = LocalCluster(
-        n_workers=int(args.workers),
-        threads_per_worker=1,
-        memory_limit=args.worker_memory,
-        processes=True,
-        dashboard_address=None,
-        silence_logs=False if getattr(args, "verbose", False) else logging.CRITICAL + 1,
-        preload=[__name__],  # dask_setup: workers leave Ctrl-C to the command
-    )
+    local = None
+    try:
+        local = LocalCluster(
+            n_workers=int(args.workers),
+            threads_per_worker=1,
+            memory_limit=args.worker_memory,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=False if getattr(args, "verbose", False) else logging.CRITICAL + 1,
+            preload=[__name__],  # dask_setup: workers leave Ctrl-C to the command
+        )
+    except BaseException as err:
+        if local is not None:  # a signal raised as the constructor returned
+            _close(None, local, fast=True)
+        if not isinstance(err, Exception):
+            raise
+        interrupt.checkpoint()  # a signal held while the cluster started: raised here
+        raise ClusterError(
+            f"--workers {int(args.workers)}: the local dask cluster did not start "
+            f"({type(err).__name__}: {' '.join(str(err).split())[:200]})"
+        ) from None
+    interrupt.checkpoint()
     try:
         client = Client(local, timeout=timeout, set_as_default=True)
     except BaseException:
-        local.close(timeout=CLOSE_SECONDS)
+        _close(None, local, fast=True)
         raise
     return client, local, f"the local cluster of {int(args.workers)} worker(s)"
 
@@ -324,8 +337,9 @@ def _close(client: Any, local: Any, fast: bool = False) -> None:
     pids = _worker_pids(local) if local is not None else []
     if fast:
         _kill(pids)
-    with contextlib.suppress(Exception):
-        client.close(timeout=CLOSE_SECONDS)
+    if client is not None:
+        with contextlib.suppress(Exception):
+            client.close(timeout=CLOSE_SECONDS)
     if local is None:
         return
     with contextlib.suppress(Exception):

@@ -32,6 +32,7 @@ On-disk conventions (readable without ami_xr, see the README's "netCDF files" se
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -47,7 +48,7 @@ from ami_xr.coords import uniform_coords
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_path, interrupts_deferred
 from ami_xr.io.cf import ATTR_CF_ADDED, annotate, on_disk_name, strip
-from ami_xr.io.lazy_source import source_guard
+from ami_xr.io.lazy_source import NETCDF_LOCK, locked_call, source_guard
 from ami_xr.provenance import add_history, running_command
 
 __all__ = [
@@ -531,7 +532,8 @@ def open_dataset(
     try:
         # Ctrl-C waits until the file is read or opened: raised under xarray's file lock it
         # could leave the lock held and the next close of the file wait forever.
-        with interrupts_deferred():
+        # NETCDF_LOCK: netCDF-C/HDF5 are not thread-safe (opens from several threads crashed)
+        with interrupts_deferred(), NETCDF_LOCK:
             time_axis = _uniform_time_axis(path) if lazy else None
             # each block read checks that the file is still the one opened (lazy_source)
             guard = {"getitem": source_guard(str(path.resolve()))} if lazy else None
@@ -567,7 +569,8 @@ def open_dataset(
         ) from err
     ds.attrs[names.ATTR_SOURCE_FILE] = str(path.resolve())
     if lazy:
-        ds.set_close(raw.close)  # decode/strip built a new Dataset: close() releases the file
+        # decode/strip built a new Dataset: close() releases the file (under the lock)
+        ds.set_close(functools.partial(locked_call, raw.close))
     return ds
 
 
@@ -640,8 +643,11 @@ def to_netcdf(
     # Ctrl-C/SIGTERM are held for the whole write, lazy chunks included, and delivered once the
     # file is closed (the write is then rolled back). Delivering them between dask chunks was
     # tried: with xarray 2025.4 / netCDF4 1.6.5 it deadlocked the workers on xarray's file lock.
+    # An eager write holds NETCDF_LOCK (HDF5 is not thread-safe); a lazy one cannot: its chunks
+    # are read, under the lock, by dask threads while this thread writes.
+    lazy = any(_is_dask(v.data) for v in encoded.variables.values())
     with atomic_path(path) as tmp, interrupts_deferred():
-        with _drained_on_error(encoded):
+        with _drained_on_error(encoded), contextlib.nullcontext() if lazy else NETCDF_LOCK:
             try:
                 encoded.to_netcdf(tmp, mode="w", format=FORMAT, engine=ENGINE)
             except Exception:

@@ -243,9 +243,9 @@ def _start_busy(frf: Path) -> tuple[subprocess.Popen, list[int]]:
     workers: list[int] = []
     while time.monotonic() < deadline and len(workers) < 2:
         time.sleep(0.3)
-        workers = [p for p in _children(proc.pid) if b"from multiprocessing" in _cmdline(p)]
+        workers = [p for p in _children(proc.pid) if b"spawn_main" in _cmdline(p)]
     assert proc.poll() is None and len(workers) == 2, "the local cluster did not start"
-    time.sleep(2)  # the work under way
+    time.sleep(4)  # the workers started, the work under way
     return proc, workers
 
 
