@@ -206,11 +206,39 @@ def route_logs(verbose: bool) -> None:
         ours.handlers, ours.level = [logging.NullHandler()], logging.CRITICAL + 1
 
 
+#: dask config key (inherited by the local workers) that says whether ``-v`` was given.
+VERBOSE_KEY = "ami_xr.verbose"
+
+
 def dask_setup(worker: Any) -> None:
     """Preload of the local workers (runs in each worker process): SIGINT ignored (a Ctrl-C
-    reaches the whole process group; the command, not its workers, acts on it)."""
+    reaches the whole process group; the command, not its workers, acts on it); warnings shown
+    as the command shows them (:func:`worker_warning`)."""
+    import warnings
+
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+    warnings.showwarning = worker_warning
+
+
+def worker_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.showwarning`` of a local worker: ami_xr's own warnings as one line each,
+    other packages' (numpy's "overflow encountered", ...) only with ``-v``, as the command
+    line shows those of its own process."""
+    import warnings
+
+    import dask
+
+    from ami_xr.errors import AmiXrWarning
+
+    if issubclass(category, AmiXrWarning):
+        text = f"ami-xr: warning: {category.__name__}: {' '.join(str(message).split())}"
+    elif dask.config.get(VERBOSE_KEY, False):
+        text = warnings.formatwarning(message, category, filename, lineno, line).rstrip()
+    else:
+        return
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        print(text, file=sys.stderr, flush=True)
 
 
 # --- the cluster -------------------------------------------------------------------------------
@@ -222,6 +250,7 @@ def _config(args: argparse.Namespace) -> dict[str, Any]:
         "distributed.comm.timeouts.connect": timeout,
         # a task whose worker dies is not retried on the next: one death is reported
         "distributed.scheduler.allowed-failures": 0,
+        VERBOSE_KEY: bool(getattr(args, "verbose", False)),  # the workers' warnings
     }
 
 

@@ -452,6 +452,43 @@ def _disk_chunks(path: Path, chunks):
     return {(disk if k == names.TIME else k): v for k, v in chunks.items()}
 
 
+#: Keys of the ``ami_xr_cf_added`` JSON object (:func:`ami_xr.io.cf.annotate`) and their types.
+_CF_MARKER_KEYS = {"variables": list, "attrs": dict, "global": dict}
+_CF_MARKER_OPTIONAL = {"renamed": dict, "labels": dict, "units_of_square": dict}
+
+
+def _check_cf_marker(raw: Any) -> None:
+    """Raise :class:`DataFileError` naming the attribute when ``ami_xr_cf_added`` (what
+    :func:`ami_xr.io.cf.annotate` added, undone on reading) is present but not the JSON object
+    it writes: ignored, it left the CF encoding in place (``elapsed_time`` for ``time``, label
+    variables for ``point``) and a later error blamed a missing coordinate."""
+    if raw is None:
+        return
+    where = f"attribute {ATTR_CF_ADDED!r} of the Dataset"
+    expected = (
+        "expected the JSON object ami_xr.to_netcdf writes (keys "
+        f"{', '.join(_CF_MARKER_KEYS)}, optionally {', '.join(_CF_MARKER_OPTIONAL)})"
+    )
+    hint = " (a file written or edited by another tool? remove the attribute or rewrite the file)"
+    try:
+        added = json.loads(raw)
+    except (TypeError, ValueError):
+        raise DataFileError(f"{where}: {expected}, got {_short(raw)}, not valid JSON{hint}") from None
+    if not isinstance(added, dict):
+        raise DataFileError(f"{where}: {expected}, got a JSON {type(added).__name__}{hint}")
+    wrong = [
+        f"{key!r} ({'missing' if key not in added else type(added[key]).__name__})"
+        for key, kind in _CF_MARKER_KEYS.items()
+        if not isinstance(added.get(key), kind)
+    ] + [
+        f"{key!r} ({type(added[key]).__name__})"
+        for key, kind in _CF_MARKER_OPTIONAL.items()
+        if key in added and not isinstance(added[key], kind)
+    ]
+    if wrong:
+        raise DataFileError(f"{where}: {expected}; wrong: {', '.join(wrong)}{hint}")
+
+
 def _check_utf8_name(path: Path) -> None:
     """Raise :class:`DataFileError` for a path that is not valid UTF-8 (netCDF-C takes UTF-8
     names only; ``os.listdir`` hands such names over with surrogate escapes)."""
@@ -551,6 +588,7 @@ def open_dataset(
         ds = decode(raw)
         if time_axis is not None:
             ds = ds.assign_coords(time_axis)
+        _check_cf_marker(ds.attrs.get(ATTR_CF_ADDED))
         ds = strip(ds)  # the CF metadata to_netcdf added is an on-disk encoding
     except DataFileError as err:  # decode() names what is wrong: add the file, nothing else
         raise DataFileError(f"{path}: {err}") from err

@@ -296,3 +296,17 @@ def test_distributed_logs_only_with_verbose(frf_file):
     loud = _identify(frf_file, "--workers", "1", "-v", timeout=120)
     assert loud.returncode == 0, loud.stderr
     assert "ami-xr: distributed." in loud.stderr
+
+
+def test_numpy_warnings_of_the_workers_are_not_shown_raw(frf_file, tmp_path):
+    import ami_xr
+    from ami_xr import names
+
+    g = ami_xr.open_dataset(frf_file)
+    values = g[names.FRF].values.copy()
+    values[:, 100] = 1e308  # squares overflow in the noise model, on the workers
+    spike = tmp_path / "spike.nc"
+    ami_xr.to_netcdf(g.assign({names.FRF: g[names.FRF].copy(data=values)}), spike)
+    done = _identify(spike, "--workers", "1", timeout=120)
+    assert "RuntimeWarning" not in done.stderr and "overflow encountered" not in done.stderr
+    assert done.stderr.strip().splitlines()[-1].startswith("ami-xr identify: ")
