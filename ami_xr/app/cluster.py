@@ -405,10 +405,7 @@ class _Watch(threading.Thread):
                 self.reason = self._lost_scheduler()
                 self._abort()
                 return
-            try:
-                workers = self.client.scheduler_info().get("workers", {})
-            except Exception:  # noqa: BLE001 - a client closing under us: the status tells
-                workers = None
+            workers = self._n_workers()
             if workers is not None:
                 no_workers = (no_workers or now) if not workers else None
             if no_workers is not None and now - no_workers > self.timeout:
@@ -418,6 +415,17 @@ class _Watch(threading.Thread):
                 )
                 self._abort()
                 return
+
+    def _n_workers(self) -> int | None:
+        """The scheduler's worker count as the client last heard it (its own periodic identity
+        request, every 2 s): no request from here, which would block this thread, and the
+        signals it watches for, while a scheduler does not answer. None when not known."""
+        identity = getattr(self.client, "_scheduler_identity", None)
+        try:
+            count = identity.get("n_workers") if identity else None
+        except Exception:  # noqa: BLE001 - a client closing under us: the status tells
+            return None
+        return int(count) if isinstance(count, int) else None
 
     def _lost_scheduler(self) -> str:
         return (
