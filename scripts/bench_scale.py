@@ -11,8 +11,8 @@ block by block so that neither writing nor reading ever holds more than 1000 FRF
 ``--dir``, opened lazily and identified by :func:`ami_xr.identify` with a
 ``dask.distributed`` client on a ``LocalCluster`` (single-threaded workers, ``--memory`` each).
 Printed per run: wall time, peak worker memory (the largest RSS any worker reported, sampled
-every 0.2 s), client memory growth (RSS after minus before) and client peak RSS (sampled
-likewise), modes found; at the end the growth exponents of time against points and against
+every 0.2 s), client memory growth (RSS after minus before) and the client's peak growth
+(largest RSS during the run minus before, sampled likewise), modes found; at the end the growth exponents of time against points and against
 lines (least-squares slopes of log t on log P and on log L) per worker count.
 Written against ami_xr's public API.
 """
@@ -115,7 +115,7 @@ def run(
         stop.set()
         sampler.join()
         growth = _rss_mb() - before
-    return seconds, peak[0], growth, client_peak[0], int(out.sizes.get("mode", 0))
+    return seconds, peak[0], growth, client_peak[0] - before, int(out.sizes.get("mode", 0))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -137,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(
         f"{'points':>8}{'lines':>7}{'workers':>8}{'wall s':>9}{'peak worker MB':>16}"
-        f"{'client +MB':>12}{'client peak MB':>16}{'modes':>7}",
+        f"{'client +MB':>12}{'client peak +MB':>17}{'modes':>7}",
         flush=True,
     )
     rows: list[tuple[int, int, int, float]] = []
@@ -150,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
                 rows.append((n, lines, w, seconds))
                 print(
                     f"{n:>8}{lines:>7}{w:>8}{seconds:>9.2f}{peak:>16.0f}{growth:>12.1f}"
-                    f"{client:>16.0f}{modes:>7}",
+                    f"{client:>17.0f}{modes:>7}",
                     flush=True,
                 )
     for w in args.workers:
