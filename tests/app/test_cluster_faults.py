@@ -310,3 +310,13 @@ def test_numpy_warnings_of_the_workers_are_not_shown_raw(frf_file, tmp_path):
     done = _identify(spike, "--workers", "1", timeout=120)
     assert "RuntimeWarning" not in done.stderr and "overflow encountered" not in done.stderr
     assert done.stderr.strip().splitlines()[-1].startswith("ami-xr identify: ")
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan", "abc", "4000"])
+def test_a_bad_cluster_timeout_is_a_usage_error(value, capsys):
+    from ami_xr.app.cli import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["identify", "x.nc", "--workers", "1", f"--cluster-timeout={value}"])
+    assert stop.value.code == 2
+    assert "--cluster-timeout" in capsys.readouterr().err
