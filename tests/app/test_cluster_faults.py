@@ -320,3 +320,17 @@ def test_a_bad_cluster_timeout_is_a_usage_error(value, capsys):
         main(["identify", "x.nc", "--workers", "1", f"--cluster-timeout={value}"])
     assert stop.value.code == 2
     assert "--cluster-timeout" in capsys.readouterr().err
+
+
+def test_a_worker_killed_over_its_memory_limit_is_reported(tmp_path):
+    import ami_xr
+    from ami_xr.simulate.spread import many_points
+
+    g, _ = many_points(4000, 1024, 12, noise=0.02, seed=0)
+    big = tmp_path / "big.nc"
+    ami_xr.to_netcdf(g, big)  # a 64 MiB chunk passes the check (x4 < 300MB); the work does not
+    start = time.monotonic()
+    done = _identify(big, "--workers", "1", "--worker-memory", "300MB", "--chunk-points", "4000",
+                     timeout=180)
+    assert time.monotonic() - start < 120
+    _one_error_line(done, "a dask worker died", "--worker-memory 300MB")
