@@ -51,8 +51,10 @@ LOGGER = "ami_xr.dask"
 _FOREIGN_LOGGERS = ("distributed", "tornado", "bokeh")
 #: Seconds between two looks of the watcher at signals, workers and the scheduler.
 POLL_SECONDS = 0.1
-#: Seconds the cluster gets to close after the run (also after a signal).
+#: Seconds the client and the local cluster each get to close after the run.
 CLOSE_SECONDS = 1.0
+#: The same after a signal or a failure (the workers are killed first: nothing to wait for).
+FAST_CLOSE_SECONDS = 0.3
 #: A chunk's FRF block times this must fit in a worker's memory limit (the per-chunk kernels
 #: hold a few arrays of the block's size at once).
 CHUNK_MEMORY_FACTOR = 4
@@ -362,17 +364,19 @@ def _kill(pids: list[int]) -> None:
 def _close(client: Any, local: Any, fast: bool = False) -> None:
     """Close the client and the local cluster, each given :data:`CLOSE_SECONDS`. ``fast``
     (a signal, a failed run): the local worker processes are killed first, nothing of theirs
-    being kept; so are any still alive after the close."""
+    being kept, and each close gets :data:`FAST_CLOSE_SECONDS`; worker processes still alive
+    after the close are killed."""
     pids = _worker_pids(local) if local is not None else []
     if fast:
         _kill(pids)
+    timeout = FAST_CLOSE_SECONDS if fast else CLOSE_SECONDS
     if client is not None:
         with contextlib.suppress(Exception):
-            client.close(timeout=CLOSE_SECONDS)
+            client.close(timeout=timeout)
     if local is None:
         return
     with contextlib.suppress(Exception):
-        local.close(timeout=CLOSE_SECONDS)
+        local.close(timeout=timeout)
     _kill([pid for pid in _worker_pids(local) + pids])
     # not closed again at interpreter exit (distributed would wait up to 10 s there); the
     # worker processes end with this process anyway
@@ -434,8 +438,10 @@ class _Watch(threading.Thread):
         )
 
     def _abort(self) -> None:
+        # the local workers are killed by the close that follows in the main thread (killed
+        # here, their nannies would start new ones first)
         with contextlib.suppress(Exception):
-            self.client.close(timeout=CLOSE_SECONDS)
+            self.client.close(timeout=FAST_CLOSE_SECONDS)
 
 
 def _is_cancelled(err: BaseException) -> bool:
