@@ -7,13 +7,14 @@
 
 Each set (:func:`ami_xr.simulate.spread.many_points`: 12 modes, 2 % noise; larger sets repeat
 the first 1000 points' FRFs scaled per point by a seeded factor in [0.5, 2], built and written
-block by block so that neither writing nor reading ever holds more than 1000 FRFs) is written to a netCDF file chunked along ``point`` (``--chunk`` FRFs per chunk) in
-``--dir``, opened lazily and identified by :func:`ami_xr.identify` with a
-``dask.distributed`` client on a ``LocalCluster`` (single-threaded workers, ``--memory`` each).
-Printed per run: wall time, peak worker memory (the largest RSS any worker reported, sampled
-every 0.2 s), client memory growth (RSS after minus before) and the client's peak growth
-(largest RSS during the run minus before, sampled likewise), modes found; at the end the growth exponents of time against points and against
-lines (least-squares slopes of log t on log P and on log L) per worker count.
+block by block so that writing never holds more than 1000 FRFs) is written to a netCDF file in
+``--dir``, opened lazily (``--chunk`` FRFs per chunk) and identified by :func:`ami_xr.identify`
+with a ``dask.distributed`` client on a ``LocalCluster`` (single-threaded workers, ``--memory``
+each). Printed per run: wall time, peak worker memory (the largest RSS any worker reported,
+sampled every 0.2 s), client memory growth (RSS after minus before) and the client's peak
+growth (largest RSS during the run minus before, sampled likewise), modes found; at the end the
+growth exponents of time against points and against lines (least-squares slopes of log t on
+log P and on log L) per worker count.
 Written against ami_xr's public API.
 """
 

@@ -468,7 +468,9 @@ def _explain(err: BaseException, watch: _Watch, client: Any, address: str, args)
             if getattr(args, "workers", None) is not None
             else ""
         )
-        return f"{address}: a dask worker died while running a task: killed or out of memory{memory}"
+        return (
+            f"{address}: a dask worker died while running a task: killed or out of memory{memory}"
+        )
     status = str(getattr(client, "status", "running"))
     if _is_cancelled(err) or status not in ("running", "newly-created"):
         if _is_cancelled(err) or "CommClosedError" in kind or isinstance(err, OSError):

@@ -242,7 +242,9 @@ def check_cf_marker(raw: Any) -> None:
     try:
         added = json.loads(raw)
     except (TypeError, ValueError):
-        raise DataFileError(f"{where}: {expected}, got {_short(raw)}, not valid JSON{hint}") from None
+        raise DataFileError(
+            f"{where}: {expected}, got {_short(raw)}, not valid JSON{hint}"
+        ) from None
     if not isinstance(added, dict):
         raise DataFileError(f"{where}: {expected}, got a JSON {type(added).__name__}{hint}")
     wrong = [

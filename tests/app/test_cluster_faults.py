@@ -241,12 +241,23 @@ def _start_busy(frf: Path) -> tuple[subprocess.Popen, list[int]]:
     )
     deadline = time.monotonic() + 60
     workers: list[int] = []
-    while time.monotonic() < deadline and len(workers) < 2:
+    while time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.3)
         workers = [p for p in _children(proc.pid) if b"spawn_main" in _cmdline(p)]
+        if len(workers) == 2 and all(_ignores_sigint(p) for p in workers):
+            break  # their preload has run (a Ctrl-C during their start-up reaches them)
     assert proc.poll() is None and len(workers) == 2, "the local cluster did not start"
-    time.sleep(4)  # the workers started, the work under way
+    time.sleep(1)  # the work under way
     return proc, workers
+
+
+def _ignores_sigint(pid: int) -> bool:
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return False
+    ignored = [line.split()[1] for line in status.splitlines() if line.startswith("SigIgn")]
+    return bool(ignored) and bool(int(ignored[0], 16) & (1 << (signal.SIGINT - 1)))
 
 
 def _cmdline(pid: int) -> bytes:
