@@ -37,6 +37,15 @@ signal handling):
 ``streams``     stderr closed (``2>&-``), stdout closed, stdout a pipe closed after one byte:
                 exit 0, output written
 
+Issue 42 (``scripts/fault_cases_issue42.py``):
+
+``cluster``     ``identify --scheduler`` with no scheduler, a silent server or an HTTP server
+                at the address; SIGINT/SIGTERM to ``identify --workers 2`` at a random moment
+                (honoured within 2 s); SIGKILL of ``identify --workers 2`` and of ``batch
+                --workers 2`` (no worker may outlive it); values that overflow in the workers
+                (no raw numpy warning)
+``threads``     8 threads of one process opening and identifying netCDF files (no crash)
+
 Every outcome is classified as
 
 ``clean error``     exit code 1, 2 or 130 (or, in-process, a ``ValueError`` subclass) with a
@@ -87,7 +96,8 @@ import numpy as np
 CLEAN, CORRECT, OTHER = "clean error", "correct result", "anything else"
 OUTCOMES = (CLEAN, CORRECT, OTHER)
 ISSUE25 = ("phase", "compile", "special", "fullfs", "readonly", "streams")
-CATEGORIES = ("truncate", "flip", "signal", "batch", "concurrent", "dataset", *ISSUE25)
+ISSUE42 = ("cluster", "threads")
+CATEGORIES = ("truncate", "flip", "signal", "batch", "concurrent", "dataset", *ISSUE25, *ISSUE42)
 #: Share of the default case count per category (the write-interrupt cases are slow).
 DEFAULT_SHARE = {
     "truncate": 0.42,
@@ -102,6 +112,8 @@ DEFAULT_SHARE = {
     "fullfs": 0.03,
     "readonly": 0.005,
     "streams": 0.005,
+    "cluster": 0.01,
+    "threads": 0.003,
 }
 #: --quick: a few cases of every issue-25 category (minutes, not hours).
 QUICK_COUNTS = {"phase": 8, "compile": 2, "special": 8, "fullfs": 6, "readonly": 2, "streams": 3}
@@ -1246,9 +1258,28 @@ def run_case(spec: tuple) -> Result:
             return fullfs_case(rest[0], work)
         if category in ("readonly", "streams"):
             return environment_case(category, rest[0], work)
+        if category == "cluster":
+            return Result(*_issue42().cluster_case(rest[0], rest[1], work, inputs["frf.nc"]))
+        if category == "threads":
+            return Result(*_issue42().threads_case(rest[0], work, inputs["frf.nc"]))
     except Exception as exc:  # noqa: BLE001 - a harness failure is reported as such
         return Result(category, repr(spec), OTHER, f"harness error: {type(exc).__name__}: {exc}")
     raise ValueError(f"unknown category {category!r}")
+
+
+def _issue42():
+    """``scripts/fault_cases_issue42.py`` (the ``cluster`` and ``threads`` cases), loaded from
+    beside this file however this file was loaded."""
+    import importlib.util
+
+    module = sys.modules.get("fault_cases_issue42")
+    if module is None:
+        path = Path(__file__).resolve().with_name("fault_cases_issue42.py")
+        spec = importlib.util.spec_from_file_location("fault_cases_issue42", path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules["fault_cases_issue42"] = module
+        spec.loader.exec_module(module)
+    return module
 
 
 def plan(counts: dict[str, int], seed: int, inputs: dict[str, Path], timings: dict) -> list:
@@ -1276,8 +1307,10 @@ def plan(counts: dict[str, int], seed: int, inputs: dict[str, Path], timings: di
         specs += [(kind, i) for i in range(counts.get(kind, 0))]
     for _ in range(counts.get("fullfs", 0)):
         specs.append(("fullfs", rng.randrange(2**31)))
+    specs += [("cluster", i, rng.randrange(2**31)) for i in range(counts.get("cluster", 0))]
+    specs += [("threads", i) for i in range(counts.get("threads", 0))]
     # slow cases first so the pool ends on short ones
-    order = {"signal": 0, "batch": 0, "phase": 0, "compile": 0, "concurrent": 1}
+    order = {"signal": 0, "batch": 0, "phase": 0, "compile": 0, "cluster": 0, "concurrent": 1}
     return sorted(specs, key=lambda s: order.get(s[0], 2))
 
 

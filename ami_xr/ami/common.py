@@ -86,15 +86,50 @@ def check_frf(ds: Any, function: str) -> xr.Dataset:
         )
     if set(frf.dims) == {names.POINT, names.FREQUENCY}:  # either order: phases transpose
         ds = ds.transpose(names.POINT, names.FREQUENCY, ...)
+    ds = whole_lines(ds)
     what, problems = find_problems(ds, "frf", require_drive_point=False, metadata=False)
     if problems:
         raise SchemaError(problems, what=f"{function}: the {what}")
+    check_drive_point(ds)
     n_lines = ds.sizes[names.FREQUENCY]
     if n_lines < MIN_LINES:
         raise IdentificationError(
             f"{names.FREQUENCY}: {n_lines} lines; the single-mode fit needs at least {MIN_LINES}"
         )
     return ds
+
+
+def whole_lines(ds: xr.Dataset) -> xr.Dataset:
+    """``ds`` with lazy (dask) variables in one chunk along ``frequency``: the per-FRF kernels
+    take whole lines (xarray refuses a core dim in several chunks), so a file opened in small
+    frequency chunks is rechunked here, not by the user. Chunks along ``point`` are kept."""
+    split = [
+        name
+        for name, var in ds.variables.items()
+        if names.FREQUENCY in var.dims
+        and var.chunks is not None
+        and len(var.chunks[var.dims.index(names.FREQUENCY)]) > 1
+    ]
+    if not split:
+        return ds
+    whole = {name: ds[name].variable.chunk({names.FREQUENCY: -1}) for name in split}
+    data = {n: v for n, v in whole.items() if n in ds.data_vars}
+    coords = {n: v for n, v in whole.items() if n not in ds.data_vars}
+    return ds.assign(data).assign_coords(coords)
+
+
+def check_drive_point(ds: xr.Dataset) -> None:
+    """A ``drive_point`` attribute that names no point is an error naming it (it would leave
+    the mode vectors unscaled without a word); no attribute: unscaled mode vectors, as asked."""
+    drive = ds.attrs.get(names.ATTR_DRIVE_POINT)
+    if drive is None or names.POINT not in ds.coords or drive_index(ds) is not None:
+        return
+    raise IdentificationError(
+        f"{names.ATTR_DRIVE_POINT}: {drive!r} is not among the point labels "
+        f"{shorten(np.asarray(ds[names.POINT].values))}; set the attribute to the label of "
+        "the point where the force acts (mode vectors are scaled there), or remove it to get "
+        "unscaled mode vectors"
+    )
 
 
 def check_values(ds: xr.Dataset) -> None:

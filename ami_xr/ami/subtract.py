@@ -27,15 +27,25 @@ from ami_xr.kernels import subtract as ks
 SAFE_MAGNITUDE = (2.0**-250, 2.0**250)
 
 
+#: Largest |exponent| of a scale: 2^1022 and 2^-1022 are normal floats (2^1024 overflows to inf).
+MAX_SCALE_EXPONENT = 1022
+
+
 def power_of_two_scale(peak: np.ndarray | float) -> np.ndarray | float:
     """Power-of-two factor that brings a peak magnitude into :data:`SAFE_MAGNITUDE` (1 inside it,
     and for a zero or non-finite peak, which the value checks report). The exponent is even, so
-    square roots of scaled quantities (mode vectors) scale exactly too."""
+    square roots of scaled quantities (mode vectors) scale exactly too.
+
+    The factor is a normal float, at most ``2**MAX_SCALE_EXPONENT``: a subnormal peak (below
+    2.2e-308, down to 4.9e-324) needs more than 2^1022 to reach [2^-2, 2), which would overflow
+    to inf and turn a small but valid FRF into inf/NaN; it is scaled by 2^1022 instead, which
+    still lifts it above 2^-52, far from where squares underflow."""
     peak = np.asarray(peak, dtype=np.float64)
     lo, hi = SAFE_MAGNITUDE
     out_of_range = np.isfinite(peak) & (peak > 0) & ((peak < lo) | (peak > hi))
     exponent = np.frexp(np.where(out_of_range, peak, 1.0))[1]
     exponent = -2 * (exponent // 2)  # even; the scaled peak lies in [2^-2, 2)
+    exponent = np.clip(exponent, -MAX_SCALE_EXPONENT, MAX_SCALE_EXPONENT)  # even bounds
     scale = np.where(out_of_range, np.ldexp(1.0, exponent), 1.0)
     return scale if scale.ndim else float(scale)
 

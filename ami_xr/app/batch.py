@@ -296,13 +296,38 @@ def _write_summary(rows: list[dict], path: Path) -> None:
         writer.writerows({k: _printable(v) for k, v in row.items()} for row in rows)
 
 
-def _worker_init(stop_event) -> None:
+def _worker_init(stop_event, parent: int | None = None) -> None:
     """In a worker process: Ctrl-C from the terminal is the parent's to decide (ignored here);
     the parent's stop request (``stop_event``) and a SIGTERM sent to the process group are held
-    and raised at the worker's next checkpoint (:mod:`ami_xr.interrupt`)."""
+    and raised at the worker's next checkpoint (:mod:`ami_xr.interrupt`). A watchdog thread
+    ends the worker when its parent (process id ``parent``) is gone (:func:`_watch_parent`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, interrupt.hold)
     interrupt.use_event(stop_event)
+    if parent is not None:
+        import threading
+
+        threading.Thread(
+            target=_watch_parent, args=(parent,), name="ami_xr-parent-watch", daemon=True
+        ).start()
+
+
+#: Seconds between two looks of a batch worker at its parent process.
+PARENT_POLL_SECONDS = 0.25
+#: Seconds a worker whose parent died gets to stop at a checkpoint before it exits regardless.
+PARENT_GRACE_SECONDS = 2.0
+
+
+def _watch_parent(parent: int) -> None:
+    """Stop this worker once process ``parent`` is no longer its parent (killed, also by
+    SIGKILL, which it cannot catch): the file in progress stops at its next checkpoint with its
+    output rolled back, as for SIGTERM; after :data:`PARENT_GRACE_SECONDS` the worker exits
+    regardless (a worker idle between files, or in a long kernel)."""
+    while os.getppid() == parent:
+        time.sleep(PARENT_POLL_SECONDS)
+    interrupt.hold(signal.SIGTERM, None)
+    time.sleep(PARENT_GRACE_SECONDS)
+    os._exit(interrupt.EXIT_TERMINATED)
 
 
 def _process_in_worker(job: dict[str, Any]) -> dict[str, Any] | None:
@@ -328,7 +353,9 @@ def _run_jobs(jobs: list[dict], workers: int) -> Iterator[dict]:
 
     stop_event = multiprocessing.get_context().Event()
     pool = cf.ProcessPoolExecutor(
-        max_workers=min(workers, len(jobs)), initializer=_worker_init, initargs=(stop_event,)
+        max_workers=min(workers, len(jobs)),
+        initializer=_worker_init,
+        initargs=(stop_event, os.getpid()),
     )
     futures = {pool.submit(_process_in_worker, job): job for job in jobs}
     try:

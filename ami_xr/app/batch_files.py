@@ -136,7 +136,9 @@ def output_attrs(path: Path) -> dict[str, Any] | None:
     try:
         import netCDF4
 
-        with netCDF4.Dataset(path) as nc:
+        from ami_xr.io.lazy_source import NETCDF_LOCK
+
+        with NETCDF_LOCK, netCDF4.Dataset(path) as nc:  # HDF5 is not thread-safe
             return {k: nc.getncattr(k) for k in nc.ncattrs()}
     except (OSError, RuntimeError, ValueError):
         return None

@@ -32,10 +32,9 @@ On-disk conventions (readable without ami_xr, see the README's "netCDF files" se
 from __future__ import annotations
 
 import contextlib
-import json
+import functools
 import os
 from concurrent.futures import ThreadPoolExecutor
-from numbers import Integral
 from pathlib import Path
 from typing import Any
 
@@ -47,7 +46,18 @@ from ami_xr.coords import uniform_coords
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_path, interrupts_deferred
 from ami_xr.io.cf import ATTR_CF_ADDED, annotate, on_disk_name, strip
-from ami_xr.io.lazy_source import source_guard
+from ami_xr.io.lazy_source import NETCDF_LOCK, locked_call, source_guard
+from ami_xr.io.netcdf_codec import (
+    ATTR_COMPLEX,
+    ATTR_COMPLEX_VALUE,
+    ATTR_ENCODED_ATTRS,
+    ATTR_TAGS,
+    check_cf_marker,
+    decode_attrs,
+    encode_attrs,
+    from_pairs,
+    to_pairs,
+)
 from ami_xr.provenance import add_history, running_command
 
 __all__ = [
@@ -59,6 +69,7 @@ __all__ = [
     "ATTR_COMPLEX",
     "ATTR_COMPLEX_VALUE",
     "ATTR_ENCODED_ATTRS",
+    "ATTR_TAGS",
 ]
 
 ENGINE = "netcdf4"
@@ -67,36 +78,6 @@ FORMAT = "NETCDF4"  # needed for int64 and variable-length strings
 # Files larger than this open lazily (dask-backed) when neither ``chunks`` nor ``lazy`` is given.
 LAZY_THRESHOLD_BYTES = 256 * 2**20
 
-ATTR_COMPLEX = "ami_xr_complex"
-ATTR_COMPLEX_VALUE = f"real,imag along last dim {names.COMPLEX}"
-ATTR_ENCODED_ATTRS = "ami_xr_encoded_attrs"
-_RESERVED_ATTRS = (ATTR_COMPLEX, ATTR_ENCODED_ATTRS)
-
-_INT64 = np.iinfo(np.int64)
-
-
-# --- complex <-> (real, imag) pairs, bit exact ---------------------------------------------------
-
-
-def _to_pairs(z: np.ndarray) -> np.ndarray:
-    """complex (...,) -> float (..., 2) by reinterpreting memory (no arithmetic, bit exact)."""
-    z = np.asarray(z)
-    if not z.flags.c_contiguous:
-        z = z.copy(order="C")
-    return z.reshape(-1).view(z.real.dtype).reshape(z.shape + (2,))
-
-
-def _from_pairs(x: np.ndarray) -> np.ndarray:
-    """float (..., 2) -> complex (...,) by reinterpreting memory (no arithmetic, bit exact).
-
-    ``re + 1j * im`` is not exact: it turns -0.0 real parts into +0.0 and a NaN imaginary part
-    into a NaN real part.
-    """
-    x = np.asarray(x)
-    if not x.flags.c_contiguous:
-        x = x.copy(order="C")
-    ctype = np.result_type(x.dtype, np.complex64)
-    return x.reshape(-1).view(ctype).reshape(x.shape[:-1])
 
 
 def _is_dask(data: Any) -> bool:
@@ -118,13 +99,13 @@ def _encode_complex_variable(name: str, var: xr.Variable) -> xr.Variable:
     if _is_dask(data):
         # map_blocks with an explicit meta: lazy, one block in -> one block out (no rechunk)
         pairs = data.map_blocks(
-            _to_pairs,
+            to_pairs,
             new_axis=data.ndim,
             chunks=data.chunks + ((2,),),
             meta=np.empty((0,) * (data.ndim + 1), real),
         )
     else:
-        pairs = _to_pairs(data)
+        pairs = to_pairs(data)
     out = xr.Variable(var.dims + (names.COMPLEX,), pairs)
     out.attrs = {**var.attrs, ATTR_COMPLEX: ATTR_COMPLEX_VALUE}
     return out
@@ -146,167 +127,13 @@ def _decode_complex_variable(name: str, var: xr.Variable) -> xr.Variable:
     if _is_dask(data):
         data = data.rechunk({data.ndim - 1: 2})  # (real, imag) of a value in one block
         values = data.map_blocks(
-            _from_pairs, drop_axis=data.ndim - 1, meta=np.empty((0,) * (data.ndim - 1), ctype)
+            from_pairs, drop_axis=data.ndim - 1, meta=np.empty((0,) * (data.ndim - 1), ctype)
         )
     else:
-        values = _from_pairs(data)
+        values = from_pairs(data)
     out = xr.Variable(var.dims[:-1], values)
     out.attrs = {k: v for k, v in var.attrs.items() if k != ATTR_COMPLEX}
     return out
-
-
-# --- attributes -----------------------------------------------------------------------------------
-
-
-def _encode_attr(key: str, value: Any, owner: str) -> tuple[Any, str | None]:
-    """(value netCDF can store, tag or None) for one attribute."""
-
-    def fail(why: str) -> AmiXrValueError:
-        return AmiXrValueError(
-            f"attribute {key!r} of {owner}: {why}; netCDF attributes can hold str, numbers, bool, "
-            "complex, 1-D lists/arrays of those, dict and None (JSON-serialisable)"
-        )
-
-    if isinstance(value, (bool, np.bool_)):
-        return np.int8(value), "bool"
-    if isinstance(value, (complex, np.complexfloating)):
-        return _to_pairs(np.asarray(value)), "complex"
-    if isinstance(value, str):
-        if "\x00" in value:
-            raise fail("a NUL character cannot be stored in a netCDF string")
-        return value, None
-    if isinstance(value, Integral):
-        if _INT64.min <= int(value) <= _INT64.max:
-            return value, None
-        return json.dumps(int(value)), "json"
-    if isinstance(value, (float, np.floating)):
-        return value, None
-    if value is None or isinstance(value, dict):
-        try:
-            return json.dumps(value), "json"
-        except (TypeError, ValueError) as err:
-            raise fail(f"a {type(value).__name__} that is not JSON-serialisable ({err})") from err
-    if isinstance(value, (list, tuple, np.ndarray)):
-        arr = np.asarray(value) if not isinstance(value, np.ndarray) else value
-        if arr.ndim != 1:
-            raise fail(f"a {arr.ndim}-D array cannot be an attribute (store it as a variable)")
-        if arr.size == 0 or arr.dtype == object:
-            try:
-                return json.dumps(_json_list(value)), "json"
-            except (TypeError, ValueError) as err:
-                raise fail(f"a list of mixed or unsupported types ({err})") from err
-        if arr.dtype.kind == "b":
-            return arr.astype(np.int8), "bool[]"
-        if arr.dtype.kind == "c":
-            return _to_pairs(arr).reshape(-1), "complex[]"
-        if arr.dtype.kind == "U" and any("\x00" in s for s in arr):
-            raise fail("a NUL character cannot be stored in a netCDF string")
-        if arr.dtype.kind not in "iufU":
-            raise fail(f"arrays of dtype {arr.dtype} are not supported")
-        if arr.dtype.kind == "u" and arr.dtype.itemsize == 8 and arr.max() > _INT64.max:
-            raise fail("uint64 values beyond int64")
-        if arr.size == 1:  # netCDF reads a one-element attribute back as a scalar
-            return (arr[0].item() if arr.dtype.kind == "U" else arr[0]), "[1]"
-        return value, None
-    raise fail(f"type {type(value).__name__} is not supported")
-
-
-def _json_list(value: Any) -> Any:
-    return [v.item() if isinstance(v, np.generic) else v for v in value]
-
-
-def _decode_attr(value: Any, tag: str) -> Any:
-    if tag == "bool":
-        return bool(value)
-    if tag == "bool[]":
-        return np.atleast_1d(np.asarray(value)).astype(bool)
-    if tag == "complex":
-        return _from_pairs(np.asarray(value)).item()
-    if tag == "complex[]":
-        return _from_pairs(np.asarray(value).reshape(-1, 2))
-    if tag == "json":
-        return json.loads(value)
-    if tag == "[1]":
-        return np.atleast_1d(np.asarray(value))
-    raise DataFileError(f"unknown attribute encoding tag {tag!r}")
-
-
-def _encode_attrs(attrs: dict, owner: str) -> dict:
-    out: dict[str, Any] = {}
-    tags: dict[str, str] = {}
-    for key, value in attrs.items():
-        if not isinstance(key, str):
-            raise AmiXrValueError(
-                f"attribute {key!r} of {owner}: netCDF attribute names must be str"
-            )
-        if key in _RESERVED_ATTRS:
-            raise AmiXrValueError(
-                f"attribute {key!r} of {owner}: the name is reserved for ami_xr's netCDF encoding "
-                "(was this file opened with plain xarray? use ami_xr.open_dataset)"
-            )
-        out[key], tag = _encode_attr(key, value, owner)
-        if tag is not None:
-            tags[key] = tag
-    if tags:
-        out[ATTR_ENCODED_ATTRS] = json.dumps(tags)
-    return out
-
-
-#: The tags :func:`_encode_attr` writes into ``ami_xr_encoded_attrs``.
-ATTR_TAGS = ("bool", "bool[]", "complex", "complex[]", "json", "[1]")
-
-
-def _encoded_tags(raw: Any, attrs: dict, owner: str) -> dict[str, str]:
-    """The tags of ``ami_xr_encoded_attrs`` (its value ``raw``) of ``owner``, checked: a JSON
-    object naming attributes that ``attrs`` has, each with a known tag."""
-    where = f"attribute {ATTR_ENCODED_ATTRS!r} of {owner}"
-    expected = (
-        "expected a JSON object mapping attribute names to encoding tags "
-        f"({', '.join(ATTR_TAGS)}), as ami_xr.to_netcdf writes it"
-    )
-    hint = " (a file written or edited by another tool? remove the attribute or rewrite the file)"
-    try:
-        tags = json.loads(raw)
-    except (TypeError, ValueError) as err:  # JSONDecodeError is a ValueError
-        raise DataFileError(
-            f"{where}: {expected}, got {_short(raw)}, which is not valid JSON ({err}){hint}"
-        ) from None
-    if not isinstance(tags, dict):
-        raise DataFileError(f"{where}: {expected}, got a JSON {type(tags).__name__}{hint}")
-    for key, tag in tags.items():
-        if key not in attrs:
-            raise DataFileError(
-                f"{where}: names attribute {key!r}, which {owner} does not have "
-                f"(it has {_short(sorted(map(str, attrs)), 200)}){hint}"
-            )
-        if tag not in ATTR_TAGS:
-            raise DataFileError(
-                f"{where}: unknown encoding tag {_short(tag)} for attribute {key!r} "
-                f"(expected one of {', '.join(ATTR_TAGS)}){hint}"
-            )
-    return tags
-
-
-def _short(value: Any, limit: int = 60) -> str:
-    text = repr(value)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
-def _decode_attrs(attrs: dict, owner: str = "the Dataset") -> dict:
-    attrs = dict(attrs)
-    raw = attrs.pop(ATTR_ENCODED_ATTRS, None)
-    if raw is None:
-        return attrs
-    for key, tag in _encoded_tags(raw, attrs, owner).items():
-        try:
-            attrs[key] = _decode_attr(attrs[key], tag)
-        except (TypeError, ValueError) as err:
-            raise DataFileError(
-                f"attribute {key!r} of {owner}: tagged {tag!r} in {ATTR_ENCODED_ATTRS!r} but its "
-                f"value {_short(attrs[key])} cannot be decoded as that ({err}); expected what "
-                "ami_xr.to_netcdf writes for that tag (a file written or edited by another tool?)"
-            ) from None
-    return attrs
 
 
 # --- whole Datasets -------------------------------------------------------------------------------
@@ -339,7 +166,7 @@ def encode(ds: xr.Dataset) -> xr.Dataset:
         owner = f"variable {name!r}"
         var = var.copy(deep=False)
         var.encoding = {}
-        var.attrs = _encode_attrs(var.attrs, owner)
+        var.attrs = encode_attrs(var.attrs, owner)
         if np.issubdtype(var.dtype, np.complexfloating):
             if name in ds.dims:
                 raise AmiXrValueError(
@@ -350,7 +177,7 @@ def encode(ds: xr.Dataset) -> xr.Dataset:
         if np.issubdtype(var.dtype, np.floating):
             var.encoding = {"_FillValue": None}  # keep every bit pattern; NaN is stored as is
         variables[name] = var
-    return _rebuild(ds, variables, _encode_attrs(ds.attrs, "the Dataset"))
+    return _rebuild(ds, variables, encode_attrs(ds.attrs, "the Dataset"))
 
 
 def decode(ds: xr.Dataset) -> xr.Dataset:
@@ -364,9 +191,9 @@ def decode(ds: xr.Dataset) -> xr.Dataset:
             var = _decode_complex_variable(str(name), var.to_base_variable())
         else:
             var = var.copy(deep=False)
-        var.attrs = _decode_attrs(var.attrs, f"variable {name!r}")
+        var.attrs = decode_attrs(var.attrs, f"variable {name!r}")
         variables[name] = var
-    return _rebuild(ds, variables, _decode_attrs(ds.attrs, "the Dataset"))
+    return _rebuild(ds, variables, decode_attrs(ds.attrs, "the Dataset"))
 
 
 # --- files ----------------------------------------------------------------------------------------
@@ -430,7 +257,7 @@ def _uniform_time_axis(path: Path) -> xr.Coordinates | None:
     if not last > t0:
         return None
     kept = {k: v for k, v in attrs.items() if k not in ("_FillValue", "missing_value")}
-    coords = uniform_coords(t0, last, n, dim, _decode_attrs(kept, f"variable {dim!r}"))
+    coords = uniform_coords(t0, last, n, dim, decode_attrs(kept, f"variable {dim!r}"))
     grid = coords[dim].variable[positions].values  # computes only the probed positions
     tol = _TIME_AXIS_ULPS * np.finfo(np.float64).eps * max(abs(t0), abs(last))
     if np.max(np.abs(grid - probes)) > tol:
@@ -531,7 +358,8 @@ def open_dataset(
     try:
         # Ctrl-C waits until the file is read or opened: raised under xarray's file lock it
         # could leave the lock held and the next close of the file wait forever.
-        with interrupts_deferred():
+        # NETCDF_LOCK: netCDF-C/HDF5 are not thread-safe (opens from several threads crashed)
+        with interrupts_deferred(), NETCDF_LOCK:
             time_axis = _uniform_time_axis(path) if lazy else None
             # each block read checks that the file is still the one opened (lazy_source)
             guard = {"getitem": source_guard(str(path.resolve()))} if lazy else None
@@ -549,6 +377,7 @@ def open_dataset(
         ds = decode(raw)
         if time_axis is not None:
             ds = ds.assign_coords(time_axis)
+        check_cf_marker(ds.attrs.get(ATTR_CF_ADDED))
         ds = strip(ds)  # the CF metadata to_netcdf added is an on-disk encoding
     except DataFileError as err:  # decode() names what is wrong: add the file, nothing else
         raise DataFileError(f"{path}: {err}") from err
@@ -567,7 +396,8 @@ def open_dataset(
         ) from err
     ds.attrs[names.ATTR_SOURCE_FILE] = str(path.resolve())
     if lazy:
-        ds.set_close(raw.close)  # decode/strip built a new Dataset: close() releases the file
+        # decode/strip built a new Dataset: close() releases the file (under the lock)
+        ds.set_close(functools.partial(locked_call, raw.close))
     return ds
 
 
@@ -640,8 +470,11 @@ def to_netcdf(
     # Ctrl-C/SIGTERM are held for the whole write, lazy chunks included, and delivered once the
     # file is closed (the write is then rolled back). Delivering them between dask chunks was
     # tried: with xarray 2025.4 / netCDF4 1.6.5 it deadlocked the workers on xarray's file lock.
+    # An eager write holds NETCDF_LOCK (HDF5 is not thread-safe); a lazy one cannot: its chunks
+    # are read, under the lock, by dask threads while this thread writes.
+    lazy = any(_is_dask(v.data) for v in encoded.variables.values())
     with atomic_path(path) as tmp, interrupts_deferred():
-        with _drained_on_error(encoded):
+        with _drained_on_error(encoded), contextlib.nullcontext() if lazy else NETCDF_LOCK:
             try:
                 encoded.to_netcdf(tmp, mode="w", format=FORMAT, engine=ENGINE)
             except Exception:

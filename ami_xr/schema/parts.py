@@ -48,18 +48,22 @@ MULTI_REFERENCE_DIMS = (names.REFERENCE, names.POINT, names.FREQUENCY)
 
 def check_finite(da: xr.DataArray, subject: str, problems: list[str]) -> None:
     """Report NaN and inf values of ``da`` (one pass over the data; locations only if bad):
-    counted per point when ``da`` has the ``point`` dim, else the first index."""
+    counted per point when ``da`` has the ``point`` dim, else the first index.
+
+    Only reductions of ``~isfinite(da)`` are computed (counts per point, totals): a lazy
+    (dask-backed) ``da`` is reduced chunk by chunk, on the workers of a cluster, and never
+    materialised in this process."""
     if da.size == 0 or not (
         np.issubdtype(da.dtype, np.floating) or np.issubdtype(da.dtype, np.complexfloating)
     ):
         return
-    bad = ~np.isfinite(np.asarray(da.values))
-    n_bad = int(bad.sum())
-    if n_bad == 0:
-        return
+    bad = ~np.isfinite(da.variable)  # a Variable: lazy for dask data, no coordinates carried
     if names.POINT in da.dims:
-        axis = da.dims.index(names.POINT)
-        counts = np.moveaxis(bad, axis, 0).reshape(bad.shape[axis], -1).sum(axis=1)
+        others = [d for d in da.dims if d != names.POINT]
+        counts = np.asarray(bad.sum(others).values if others else bad.values, dtype=np.int64)
+        n_bad = int(counts.sum())
+        if n_bad == 0:
+            return
         where = np.flatnonzero(counts)
         # without a point coordinate the points are named by position
         labels = (
@@ -74,13 +78,27 @@ def check_finite(da: xr.DataArray, subject: str, problems: list[str]) -> None:
             f"{where.size} point(s) (point: count) {', '.join(listed[:8])}{more}"
         )
         return
-    n_nan = int(np.isnan(da.values).sum())
-    first = np.unravel_index(int(np.argmax(bad)), bad.shape)
-    at = ", ".join(f"{dim}={i}" for dim, i in zip(da.dims, first, strict=True))
+    n_bad = int(bad.sum().values)
+    if n_bad == 0:
+        return
+    n_nan = int(np.isnan(da.variable).sum().values)
+    at = ", ".join(f"{dim}={i}" for dim, i in _first_true(bad).items())
     problems.append(
         f"{subject}: expected finite values, found {n_nan} NaN and {n_bad - n_nan} inf "
         f"(first at index {at})"
     )
+
+
+def _first_true(mask: xr.Variable) -> dict:
+    """The index (dim -> position, in C order) of the first True of ``mask``, found by one
+    reduction per dim on ever smaller slices (a lazy mask is never materialised whole)."""
+    at: dict = {}
+    for dim in mask.dims:
+        rest = [d for d in mask.dims if d != dim]
+        counts = np.asarray(mask.sum(rest).values if rest else mask.values)
+        at[dim] = int(np.flatnonzero(counts)[0])
+        mask = mask.isel({dim: at[dim]})
+    return at
 
 
 def check_axis(
