@@ -267,7 +267,8 @@ def test_bad_input_errors():
 def test_drive_point_missing_unscaled():
     lam = np.array([-0.4 + 40j, -0.5 + 60j])
     res = np.array([[1e-3 + 1e-3j, 2e-3j], [-1e-3 + 0j, 1e-3 + 1e-3j]])
-    ds = _dataset(lam, res).assign_attrs({names.ATTR_DRIVE_POINT: 99})
+    ds = _dataset(lam, res)
+    ds.attrs.pop(names.ATTR_DRIVE_POINT, None)  # a drive point naming no point is an error (#42)
     out = ami_xr.identify(ds, refine=False)
     assert all("unscaled_no_drive_point" in f for f in out[names.QUALITY_FLAGS].values)
     phi = out[names.MODE_VECTOR].values
