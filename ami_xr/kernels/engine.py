@@ -253,7 +253,7 @@ def _mode_snr(grid, lam, res, k):
     return total, best
 
 
-@jit
+@jit(inline="always")
 def _merge_prune(scene, params, modes, n, pinned):
     """Duplicates (closer than ``merge_tol`` bandwidths) keep the mode with the larger total SNR;
     modes not above the noise floor in any FRF, or that failed too often, are removed.
@@ -291,7 +291,7 @@ def _merge_prune(scene, params, modes, n, pinned):
         changed = True
 
 
-@jit
+@jit(inline="always")
 def _fit_mode(scene, params, modes, n, k, work, state, it):
     """One sweep's update of mode ``k``: its band (kept while frozen), the fit on the isolated
     data of the group (FRFs weighted by the mode's SNR with ``reweight``), the two-state cycle
@@ -387,7 +387,7 @@ def _argsort(a, n):
     return order
 
 
-@jit
+@jit(inline="always")
 def _sweeps(scene, params, modes, n, work):
     """Isolation sweeps until every eigenvalue has settled, or the early pruning after 3 sweeps
     finds an insignificant mode. Returns ``(iterations, converged)``.
@@ -448,7 +448,7 @@ def _sweeps(scene, params, modes, n, work):
     return it, converged
 
 
-@jit
+@jit(inline="always")
 def _order_check(scene, params, modes, n, work, masked):
     """Model-order check: a significant peak of the residual's power (over the noise and the
     residual that eigenvalue errors of size ``tol`` leave) where a physical mode fits adds it; a
