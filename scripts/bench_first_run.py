@@ -9,7 +9,10 @@ folder, so the machine's own cache is neither used nor touched:
 3. a probe: the demo run in-process (again with an empty cache), with numba's dispatcher
    ``compile`` timed (CPU time of the compiling thread), then every numba dispatcher of
    ``ami_xr.kernels.*`` listed with its number of compiled specialisations and the CPU seconds
-   spent compiling it (its callees' compilation excluded) - the top ``--top`` are printed.
+   spent compiling it (its callees' compilation excluded) - the top ``--top`` are printed -
+   and the largest of numba's own implementations compiled for them (``np.roots``, ``np.empty``,
+   a sort, the formatted error of an array-to-array slice assignment: costs a kernel's source
+   decides). A kernel inlined into its caller (``inline="always"``) compiles as part of it.
 
 Wall and CPU time are printed (on a shared, busy machine the CPU time is the steadier figure).
 Target (issue 11 item 1): cold demo <= 20 s.
@@ -56,6 +59,7 @@ def _probe(report: bool) -> dict:
     from numba.core import dispatcher as nd
 
     own: dict[int, float] = {}
+    library: dict[str, float] = {}  # numba's own implementations (np.roots, argsort, ...)
     stack: list[float] = []  # callees' time, per open compile
     original = nd.Dispatcher.compile
 
@@ -68,6 +72,10 @@ def _probe(report: bool) -> dict:
             total = time.thread_time() - t0
             inner = stack.pop()
             own[id(self)] = own.get(id(self), 0.0) + total - inner
+            func = self.py_func
+            if not getattr(func, "__module__", "").startswith("ami_xr"):
+                key = f"{func.__module__}.{func.__qualname__}".replace(".<locals>", "")
+                library[key] = library.get(key, 0.0) + total - inner
             if stack:
                 stack[-1] += total
 
@@ -93,7 +101,7 @@ def _probe(report: bool) -> dict:
                             "seconds": own.get(id(obj), 0.0),
                         }
                     )
-    return {"wall": wall, "cpu": cpu, "rows": rows}
+    return {"wall": wall, "cpu": cpu, "rows": rows, "library": library}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -136,6 +144,13 @@ def main(argv: list[str] | None = None) -> int:
     for r in rows[: args.top]:
         flag = "  (parallel)" if r["parallel"] else ""
         print(f"{r['seconds']:8.2f}  {len(r['signatures']):4d}  {r['kernel']}{flag}")
+    library = sorted(probe.get("library", {}).items(), key=lambda kv: -kv[1])
+    print(
+        f"numba's own implementations compiled for them: {sum(v for _, v in library):.1f} s CPU"
+        " (the largest:)"
+    )
+    for key, seconds in library[: max(args.top // 2, 3)]:
+        print(f"{seconds:8.2f}        {key}")
     multi = [r for r in rows if len(r["signatures"]) > 1]
     for r in multi:
         print(f"  {r['kernel']}: " + " | ".join(r["signatures"]))

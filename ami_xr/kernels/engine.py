@@ -253,7 +253,7 @@ def _mode_snr(grid, lam, res, k):
     return total, best
 
 
-@jit
+@jit(inline="always")
 def _merge_prune(scene, params, modes, n, pinned):
     """Duplicates (closer than ``merge_tol`` bandwidths) keep the mode with the larger total SNR;
     modes not above the noise floor in any FRF, or that failed too often, are removed.
@@ -279,7 +279,8 @@ def _merge_prune(scene, params, modes, n, pinned):
             return n, changed
         for i in range(drop, n - 1):
             lam[i] = lam[i + 1]
-            res[:, i] = res[:, i + 1]
+            for j in range(res.shape[0]):
+                res[j, i] = res[j, i + 1]
             fails[i] = fails[i + 1]
             pinned[i] = pinned[i + 1]
         lam[n - 1] = complex(np.nan, np.nan)
@@ -290,7 +291,7 @@ def _merge_prune(scene, params, modes, n, pinned):
         changed = True
 
 
-@jit
+@jit(inline="always")
 def _fit_mode(scene, params, modes, n, k, work, state, it):
     """One sweep's update of mode ``k``: its band (kept while frozen), the fit on the isolated
     data of the group (FRFs weighted by the mode's SNR with ``reweight``), the two-state cycle
@@ -359,13 +360,34 @@ def _fit_mode(scene, params, modes, n, k, work, state, it):
     if cycle:
         new = 0.5 * (new + lk)
     work.back[k] = lk
-    res[:, k] = work.rtmp
+    for j in range(n_p):
+        res[j, k] = work.rtmp[j]
     lam[k] = new
     mode_basis(x, new, dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
     return score
 
 
 @jit
+def _argsort(a, n):
+    """``np.argsort(a[:n])`` for the few modes of a group, NaN last: an insertion sort (numba's
+    own argsort sorts fewer than 15 values so; same order for distinct values), which spares a
+    first run numba's quicksort compilation."""
+    order = np.arange(n)
+    for i in range(1, n):
+        k = order[i]
+        v = a[k]
+        j = i
+        while j > 0:
+            u = a[order[j - 1]]
+            if not (v < u or (np.isnan(u) and not np.isnan(v))):
+                break
+            order[j] = order[j - 1]
+            j -= 1
+        order[j] = k
+    return order
+
+
+@jit(inline="always")
 def _sweeps(scene, params, modes, n, work):
     """Isolation sweeps until every eigenvalue has settled, or the early pruning after 3 sweeps
     finds an insignificant mode. Returns ``(iterations, converged)``.
@@ -402,7 +424,7 @@ def _sweeps(scene, params, modes, n, work):
         if it == 1 or not params.paper_sweeps:  # the paper: the order of the restart's start
             for k in range(n):
                 tot[k] = -_mode_snr(scene.grid, lam, res, k)[0]
-            order = np.argsort(tot[:n])  # by decreasing total SNR
+            order = _argsort(tot, n)  # by decreasing total SNR
         change = 0.0
         for k in order:
             if not work.pinned[k]:
@@ -426,7 +448,7 @@ def _sweeps(scene, params, modes, n, work):
     return it, converged
 
 
-@jit
+@jit(inline="always")
 def _order_check(scene, params, modes, n, work, masked):
     """Model-order check: a significant peak of the residual's power (over the noise and the
     residual that eigenvalue errors of size ``tol`` leave) where a physical mode fits adds it; a
@@ -474,9 +496,10 @@ def _order_check(scene, params, modes, n, work, masked):
             if fit_two(iso, scene.grid, wl, wh, ws, scene.limits, work.wts, l2, r2) != FIT_OK:
                 continue
             lam[ks] = l2[0]
-            res[:, ks] = r2[:, 0]
+            for j in range(n_p):
+                res[j, ks] = r2[j, 0]
+                r_new[j] = r2[j, 1]
             new = l2[1]
-            r_new[:] = r2[:, 1]
         else:
             # no duplicate test here: a coherent residual next to a mode (two close modes fitted
             # as one) must be able to split it; true duplicates merge after the restart
@@ -494,9 +517,11 @@ def _order_check(scene, params, modes, n, work, masked):
             )
             if code != FIT_OK:
                 continue
-            r_new[:] = work.rtmp
+            for j in range(n_p):
+                r_new[j] = work.rtmp[j]
         lam[n] = new
-        res[:, n] = r_new
+        for j in range(n_p):
+            res[j, n] = r_new[j]
         fails[n] = 0
         return n + 1, True, ks
     return n, False, -1
@@ -530,8 +555,10 @@ def isolate_groups(data, lam0, res0, n0, scene, params):
     tried = np.empty(m + 4, dtype=np.complex128)
     for g in range(n_g):
         n = min(n0[g], m)
-        out.lam[g, :n] = lam0[g, :n]
-        out.res[g, :, :n] = res0[g, :, :n]
+        for k in range(n):
+            out.lam[g, k] = lam0[g, k]
+            for j in range(n_p):
+                out.res[g, j, k] = res0[g, j, k]
         modes = ModeSet(out.lam[g], out.res[g], np.zeros(m, dtype=np.int64))
         work = _work(data[g], m)
         masked[:] = False
@@ -584,7 +611,8 @@ def point_estimates_kernel(data, lam, res, scene, delta, min_points):
     for k in range(n_k):
         mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
     for j in range(n_p):
-        work.data[0] = data[j]
+        for i in range(n_f):
+            work.data[0, i] = data[j, i]
         for k in range(n_k):
             at = np.int64(0)
             peak, lo, hi = _mode_band(work, res[j : j + 1], n_k, k, scene, lam[k], delta, at, n_f)

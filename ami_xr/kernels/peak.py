@@ -152,7 +152,8 @@ def peak_trial(y, power, scene, peak, delta, min_points, wts, res_out, masked):
         e1 = 0.0
         trial = np.empty(n_f, dtype=np.complex128)
         for j in range(n_p):
-            trial[lo:hi] = y[j, lo:hi]
+            for i in range(lo, hi):
+                trial[i] = y[j, i]
             add_mode(trial, x, lam, res_out[j], dt, n_samples, -1.0, lo, hi)
             for i in range(lo, hi):
                 e1 += abs(trial[i]) ** 2

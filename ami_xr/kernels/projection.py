@@ -124,9 +124,11 @@ def _project_points(y, q, v, lo, hi, qty, rss, vtr):
             s += ri * ri
             for c in range(d):
                 vacc[c] += v[i, c] * ri
-        qty[j] = acc
+        for c in range(p):
+            qty[j, c] = acc[c]
         rss[j] = s
-        vtr[j] = vacc
+        for c in range(d):
+            vtr[j, c] = vacc[c]
 
 
 def gram(a: np.ndarray) -> np.ndarray:

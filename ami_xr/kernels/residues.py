@@ -20,7 +20,7 @@ from ami_xr.kernels.linalg import solve_normal
 from ami_xr.kernels.modal_basis import as_dt, checked_omega, line_variable, pole_factor
 
 
-@jit
+@jit(inline="always")
 def _residue_normal_equations(data, omega, lam, dt, n_samples, use, residual_kind):
     """Normal matrix (n_u, n_u) shared by all FRFs, and right sides (n_u, P), of eq. 9.
 

@@ -76,7 +76,7 @@ class FitLimits(NamedTuple):
     """Largest natural frequency ``|lam|`` in rad/s."""
 
 
-@jit
+@jit(inline="always")
 def _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, blocks):
     """Accumulate the normal equations of (*) on lines lo..hi-1 of one FRF.
 

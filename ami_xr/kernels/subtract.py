@@ -91,14 +91,15 @@ def _subtract_batch(data, scene, params):
     r = np.empty(1, dtype=np.complex128)
     for j in range(n_p):
         lam_j, res_j = out.lam[j], out.res[j]
-        y[0] = data[j]
+        for i in range(n_f):
+            y[0, i] = data[j, i]
         masked[:] = False
-        n = 0
+        n = np.int64(0)  # typed, not a literal: one specialisation of its callees
         for _attempt in range(3 * m + 10):
             if n >= m:
                 out.reason[j] = STOP_MAX_MODES
                 break
-            peak = -1
+            peak = np.int64(-1)
             for i in range(n_f):
                 power[i] = abs(y[0, i]) ** 2
                 if not masked[i] and (peak < 0 or power[i] > power[peak]):
@@ -124,7 +125,8 @@ def _subtract_batch(data, scene, params):
                 out.band_high[j, n] = omega[hi - 1]
                 n += 1
             # the residual recomputed from the data (eq. 6 with the current candidates)
-            y[0] = data[j]
+            for i in range(n_f):
+                y[0, i] = data[j, i]
             for k in range(n):
                 add_mode(y[0], x, lam_j[k], res_j[k], dt, n_samples, -1.0, np.int64(0), n_f)
         out.n_modes[j] = n

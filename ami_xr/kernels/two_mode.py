@@ -86,8 +86,10 @@ def fit_two(data, grid, lo, hi, ws, limits, wts, lam_out, res_out):
             for b in range(m):
                 acc += t[a, b] * rl[b]
             redr[a, 0] += rs[a] - acc
-        nsl_all[j] = nsl
-        rl_all[j] = rl
+        for a in range(m):
+            for b in range(m):
+                nsl_all[j, a, b] = nsl[a, b]
+            rl_all[j, a] = rl[a]
     sol, ok = solve_normal(red, redr)
     if not ok:
         return FIT_SINGULAR

@@ -181,3 +181,31 @@ def test_public_wrappers_take_any_layout():
         for res in (np.array([[1.0 + 0j]]), np.array([[1, 2]])[:, ::2], np.ones((1, 1), int)):
             modal_basis.contribution_peaks(w, None, None, lam, res)
             assert len(modal_basis._contribution_peaks.signatures) == 1
+
+
+SUBTRACT = """
+import json
+import numpy as np
+from ami_xr.kernels import peak, subtract
+w = np.linspace(1.0, 60.0, 400)
+lam = np.array([-0.3 + 20j, -0.4 + 41j])
+g = sum(1.0 / (1j * w - l) + 1.0 / (1j * w - np.conj(l)) for l in lam)
+rng = np.random.default_rng(1)
+g = np.vstack([g, 2 * g]) + 1e-4 * (rng.standard_normal((2, 400)) + 1j * rng.standard_normal((2, 400)))
+subtract.subtract_batch(g, w, None, None, subtract.SubtractParams(0.5, 6, 1e-3, 3, 0.25, 0.5))
+print(json.dumps({"peak_trial": len(peak.peak_trial.signatures),
+                  "nearest_within": len(peak.nearest_within.signatures)}))
+"""
+
+
+def test_subtraction_compiles_its_callees_once(tmp_path):
+    """On an empty cache (so callees compile and show their specialisations): a variable that
+    starts as a constant (``n = 0``, ``peak = -1``) and is passed to a kernel made numba compile
+    the callee once more for the constant (``Literal[int]``) before the loop types it int64."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), AMI_XR_NUMBA_CACHE="1")
+    env.pop("NUMBA_DISABLE_JIT", None)
+    done = subprocess.run(
+        [sys.executable, "-c", SUBTRACT], env=env, capture_output=True, text=True, check=True
+    )
+    counts = json.loads(done.stdout.strip().splitlines()[-1])
+    assert counts == {"peak_trial": 1, "nearest_within": 1}
