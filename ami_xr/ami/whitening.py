@@ -133,7 +133,10 @@ def decide(ds: xr.Dataset) -> Whitening:
         try:
             _, scale = convert_units(str(attrs.get(names.ATTR_RESPONSE_UNITS, "")), p, p + k)
         except ValueError:
-            scale = 1.0
+            # units that do not say their derivative (e.g. "V"): the FRFs cannot be converted
+            # and keep their quantity; the record says why
+            k, target = 0, given
+            source = f"{source}; response_units not convertible, fitted as given"
     # a stored noise model (from the coherence) always weights the lines, as before issue 37
     weighted = stored is not None or (losses[k] > WEIGHT_LOSS and "curvature" not in source)
     line_noise = None

@@ -173,3 +173,16 @@ def test_the_bode_plot_draws_the_noise_model():
     drawn = fig.axes[0].lines[labels.index("noise (model)")].get_ydata()
     level = float(out[whitening.VAR_LEVEL].values[0])
     np.testing.assert_allclose(drawn, level * out[whitening.VAR_SHAPE].values)
+
+
+def test_units_that_cannot_be_converted_keep_the_quantity():
+    """Response units that do not state their derivative ("V"): the FRFs stay as given and the
+    record says so; identification still runs."""
+    frf, truth = _system()
+    acc = _given_as(_noisy(frf, 0, 0.02, seed=7), "acceleration")  # noise white in displacement
+    acc.attrs[names.ATTR_RESPONSE_UNITS] = "V"
+    out, said = _identify(acc)
+    assert out.attrs[whitening.ATTR_QUANTITY] == "acceleration"
+    assert "not convertible" in out.attrs[whitening.ATTR_SOURCE]
+    assert not any("closest to white" in m for m in said)
+    assert out.sizes[names.MODE] > 0
