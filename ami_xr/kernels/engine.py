@@ -1,22 +1,15 @@
 """Isolation Phase of the AMI (eq. 7) with the model-order check: one engine for the per-FRF
 isolation (the paper) and the global SIMO isolation (Allen & Ginsberg).
 
-The engine isolates a *group* of FRFs that share their eigenvalues: one FRF (per-FRF isolation,
-every FRF its own group) or all of them (SIMO, one group). Each sweep takes the modes in order
-of decreasing SNR, isolates one mode's data by subtracting all the others (eq. 7), re-fits it on
-the band around its peak (:func:`~.single_mode.fit_single`: one eigenvalue from the group's
-FRFs, one residue each) and replaces it. After the sweeps, duplicates merge and insignificant
-modes are dropped; when nothing changed, the model-order check looks at the residual for a
-significant peak (the peak trial of :mod:`.peak`), or a coherent residual inside a mode's band
-(which splits that mode in two), and restarts the sweeps with one mode more.
-
-The data are in units of each FRF's noise floor (SNR weighting of the FRFs), so one set of
-thresholds serves every group. The per-FRF and SIMO isolations differ in their groups and in
-three settings of :class:`IsolateParams`: ``reweight`` (the fit step weighting each FRF by the
-mode's SNR in it), ``se_fraction`` (the stopping rule) and ``paper_sweeps``.
-
-Records: :class:`IsolateParams`, :class:`ModeSet` (updated in place), :class:`Work`,
-:class:`IsolateResult`. Jitted entry points; checked wrappers in :mod:`.isolate`.
+The engine isolates a *group* of FRFs sharing their eigenvalues (one FRF per group, or all in
+one). Each sweep takes the modes by decreasing SNR, isolates one mode's data by subtracting the
+others (eq. 7), re-fits it on its band (:func:`~.single_mode.fit_single`) and replaces it; then
+duplicates merge, insignificant modes drop, and the model-order check looks at the residual for
+a significant peak (:mod:`.peak`) or a coherent residual in a mode's band (a split), restarting
+the sweeps with one mode more. Data are in units of each FRF's noise floor; the two isolations
+differ in their groups and in ``reweight``, ``se_fraction``, ``paper_sweeps`` (records:
+:class:`IsolateParams`, :class:`ModeSet`, :class:`Work`, :class:`IsolateResult`; jitted entry
+points, checked wrappers in :mod:`.isolate`).
 """
 
 from __future__ import annotations
@@ -41,6 +34,7 @@ from ami_xr.kernels.peak import (
     pole_band,
 )
 from ami_xr.kernels.single_mode import FIT_OK, fit_single
+from ami_xr.kernels.sorting import argsort_first
 from ami_xr.kernels.two_mode import fit_two
 
 FREEZE_CHANGE = 1e-3
@@ -322,9 +316,7 @@ def _fit_mode(scene, params, modes, n, k, work, state, it):
     if hi - lo >= params.min_points:
         for j in range(n_p):
             if params.reweight and it <= 3:
-                # weight each FRF by its SNR for this mode (frozen after 3 sweeps so the
-                # iteration has a fixed point): FRFs where the mode is buried in noise do not
-                # bias the shared eigenvalue
+                # each FRF weighted by its SNR for this mode (frozen after 3 sweeps: a fixed point)
                 work.wts_all[k, j] = max(
                     contribution_peak(omega, x, lk, res[j, k], dt, n_samples), 1.0
                 )
@@ -367,26 +359,6 @@ def _fit_mode(scene, params, modes, n, k, work, state, it):
     return score
 
 
-@jit
-def _argsort(a, n):
-    """``np.argsort(a[:n])`` for the few modes of a group, NaN last: an insertion sort (numba's
-    own argsort sorts fewer than 15 values so; same order for distinct values), which spares a
-    first run numba's quicksort compilation."""
-    order = np.arange(n)
-    for i in range(1, n):
-        k = order[i]
-        v = a[k]
-        j = i
-        while j > 0:
-            u = a[order[j - 1]]
-            if not (v < u or (np.isnan(u) and not np.isnan(v))):
-                break
-            order[j] = order[j - 1]
-            j -= 1
-        order[j] = k
-    return order
-
-
 @jit(inline="always")
 def _sweeps(scene, params, modes, n, work):
     """Isolation sweeps until every eigenvalue has settled, or the early pruning after 3 sweeps
@@ -424,7 +396,7 @@ def _sweeps(scene, params, modes, n, work):
         if it == 1 or not params.paper_sweeps:  # the paper: the order of the restart's start
             for k in range(n):
                 tot[k] = -_mode_snr(scene.grid, lam, res, k)[0]
-            order = _argsort(tot, n)  # by decreasing total SNR
+            order = argsort_first(tot, n)  # by decreasing total SNR
         change = 0.0
         for k in order:
             if not work.pinned[k]:

@@ -420,12 +420,12 @@ def test_isolate_wrappers_validate():
 def test_sweep_order_is_numpy_argsort():
     """The sweeps' insertion sort orders as a stable ``np.argsort`` (NaN last; for distinct
     values every sort agrees)."""
-    from ami_xr.kernels import engine
+    from ami_xr.kernels import sorting
 
     rng = np.random.default_rng(7)
     for n in (0, 1, 2, 5, 14, 15, 16, 40):
         a = rng.standard_normal(n + 3)
         a[rng.random(n + 3) < 0.2] = np.nan
-        got = engine._argsort(a, np.int64(n))
+        got = sorting.argsort_first(a, np.int64(n))
         assert got.dtype == np.int64
         np.testing.assert_array_equal(got, np.argsort(a[:n], kind="stable"))
