@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import os
 import signal
 import sys
 import threading
@@ -313,6 +314,14 @@ def _connect(args: argparse.Namespace) -> tuple[Any, Any, str]:
             ) from None
         return client, None, address
     local = None
+    # a worker killed mid-task leaves a semaphore that multiprocessing's resource tracker (a
+    # process of its own, started with this environment) reports on stderr at exit: the tool
+    # reports the lost worker itself, in one line
+    quiet = "ignore::UserWarning:multiprocessing.resource_tracker"
+    if quiet not in os.environ.get("PYTHONWARNINGS", ""):
+        os.environ["PYTHONWARNINGS"] = ",".join(
+            x for x in (os.environ.get("PYTHONWARNINGS", ""), quiet) if x
+        )
     try:
         local = LocalCluster(
             n_workers=int(args.workers),
