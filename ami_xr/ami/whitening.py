@@ -44,6 +44,7 @@ quantity changes, said in an :class:`~ami_xr.errors.AssumptionWarning`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -101,6 +102,11 @@ def _data(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray | None, str]:
     return x[rows], None, "roughness"
 
 
+def _quantity(power: int) -> str:
+    """The response quantity of derivative order ``power`` (0 displacement ... 2 acceleration)."""
+    return next(q for q, v in names.QUANTITY_POWER.items() if v == power)
+
+
 def _noise_free(h: np.ndarray, f: np.ndarray, fourth: np.ndarray | None = None) -> bool:
     """Whether the roughness of ``h`` (P, L) is the FRF's own curvature rather than noise at
     most of its blocks (:func:`ami_xr.core.frf_noise.noise_dominated_share` below 1/2);
@@ -123,11 +129,12 @@ def decide(ds: xr.Dataset) -> Whitening:
     losses, stds = fn.whitening_losses(h, f, shifts, stored)
     best = min(losses, key=losses.get)
     k = best if losses[0] > SWITCH_RATIO * losses[best] else 0
-    if stored is None and _noise_free(h, f, stds[0] if 0 in stds else None):
-        # rounding, not noise: its "level" follows |H| and says nothing about a quantity
+    noise_free = stored is None and _noise_free(h, f, stds[0] if 0 in stds else None)
+    if noise_free:
+        # the FRF's curvature, not noise: its "level" follows |H| and says nothing of a quantity
         k, source = 0, f"{source}: the curvature of the FRF, not noise; lines weighted alike"
         losses = {0: 1.0}
-    target = next(q for q, v in names.QUANTITY_POWER.items() if v == p + k) if k else given
+    target = _quantity(p + k) if k else given
     scale = 1.0
     if k:
         try:
@@ -138,7 +145,7 @@ def decide(ds: xr.Dataset) -> Whitening:
             k, target = 0, given
             source = f"{source}; response_units not convertible, fitted as given"
     # a stored noise model (from the coherence) always weights the lines, as before issue 37
-    weighted = stored is not None or (losses[k] > WEIGHT_LOSS and "curvature" not in source)
+    weighted = stored is not None or (losses[k] > WEIGHT_LOSS and not noise_free)
     line_noise = None
     if weighted:
         line_noise = np.full((h.shape[0], f.size), np.nan)
@@ -147,7 +154,7 @@ def decide(ds: xr.Dataset) -> Whitening:
         ATTR_QUANTITY: str(target or ""),
         ATTR_SOURCE: source,
         ATTR_LOSSES: ", ".join(
-            f"{next(q for q, v in names.QUANTITY_POWER.items() if v == p + s)}: {v:.3g}"
+            f"{_quantity(p + s)}: {v:.3g}"
             if given in names.QUANTITY_POWER
             else f"as given: {v:.3g}"
             for s, v in sorted(losses.items())
@@ -160,7 +167,7 @@ def decide(ds: xr.Dataset) -> Whitening:
         ),
     }
     shape = None
-    if "curvature" not in source:
+    if not noise_free:
         w = 2.0 * np.pi * f[f > 0]
         given_std = stds[k] / w[None, :] ** k  # the working estimate, taken back
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -225,7 +232,7 @@ def _with_noise_model(out: xr.Dataset, w: Whitening) -> xr.Dataset:
     shape = w.shape[-f.size :]
     h = out[names.FRF].transpose(..., names.FREQUENCY)
     x = np.asarray(h.values).reshape(-1, f.size)
-    q = 0.15
+    q, k4 = fn.BLOCK_QUANTILE, fn.ROUGHNESS_ORDER
     # in the working quantity, where the noise is closest to white (in the quantity given the
     # FRF's own curvature would outweigh the noise where that is far below it)
     fw = np.asarray(f.values, dtype=float)
@@ -233,8 +240,8 @@ def _with_noise_model(out: xr.Dataset, w: Whitening) -> xr.Dataset:
     phase = np.exp(0.5j * np.pi * w.k)  # (i w)^k = i^k w^k
     xw = x * (conv * phase if w.k else 1.0)
     xw = np.where(np.isfinite(xw), xw, 0.0)
-    d = np.abs(np.diff(xw, n=fn.ROUGHNESS_ORDER, axis=-1)) / (shape * conv)[None, 2:-2]
-    level = np.quantile(d, q, axis=-1) / np.sqrt(-np.log(1 - q) * 70.0)  # binomial(8, 4)
+    d = np.abs(np.diff(xw, n=k4, axis=-1)) / (shape * conv)[None, k4 // 2 : -(k4 // 2)]
+    level = np.quantile(d, q, axis=-1) / np.sqrt(-np.log(1 - q) * math.comb(2 * k4, k4))
     units = h.attrs.get(names.ATTR_UNITS, "")
     return out.assign(
         {

@@ -42,6 +42,7 @@ import scipy.ndimage
 from ami_xr.errors import AmiXrValueError
 
 ROUGHNESS_ORDER = 4  # k: 24 / d^5 of a pole's peak left d lines away; even, so centred on a line
+BLOCK_QUANTILE = 0.15  # block_roughness_std: the quietest lines of a block are the noise's
 ROUGHNESS_WINDOW = 65  # lines of the running median: ~14 % per-line scatter, noise may vary ~2x
 # |difference| above _OUTLIER running medians is not noise (P = 2^-(_OUTLIER^2) for noise); the
 # running median is recomputed without such lines _OUTLIER_PASSES times
@@ -246,7 +247,7 @@ def _block_quantile(r: np.ndarray, edges: np.ndarray, q: float) -> np.ndarray:
 
 
 def block_roughness_std(
-    frf: np.ndarray, order: int = ROUGHNESS_ORDER, block: int = 64, quantile: float = 0.15
+    frf: np.ndarray, order: int = ROUGHNESS_ORDER, block: int = 64, quantile: float = BLOCK_QUANTILE
 ) -> np.ndarray:
     """A cheap roughness estimate of the noise std per line (O(lines), for deciding and
     weighting inside ``identify``): the differences of :func:`roughness_noise_std`, the
