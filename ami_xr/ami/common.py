@@ -218,6 +218,17 @@ def select_modes(ds: xr.Dataset, index) -> xr.Dataset:
     return ds.isel(sel)
 
 
+def keep_modes(ds: xr.Dataset, keep: np.ndarray) -> xr.Dataset:
+    """``ds`` with the modes where ``keep`` (bool, on ``mode``) is True, labelled 1..n on
+    ``mode`` (and ``mode_2``)."""
+    out = select_modes(ds, np.flatnonzero(keep))
+    labels = np.arange(1, out.sizes[names.MODE] + 1)
+    out = out.assign_coords({names.MODE: labels})
+    if names.MODE_2 in out.dims:
+        out = out.assign_coords({names.MODE_2: labels})
+    return out
+
+
 def sort_modes(ds: xr.Dataset) -> xr.Dataset:
     """Modes sorted by natural frequency and labelled 1..n (contiguous); the labels they had
     before are kept in ``mode_label_unsorted`` (attributes such as ``refine_removed_modes``

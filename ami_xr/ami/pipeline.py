@@ -325,11 +325,7 @@ def drop_beyond_lines(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
     beyond = (fn - lines[-1] > width) | (lines[0] - fn > width)
     if not beyond.any():
         return result
-    out = c.select_modes(result, np.flatnonzero(~beyond))
-    labels = np.arange(1, out.sizes[names.MODE] + 1)
-    out = out.assign_coords({names.MODE: labels})
-    if names.MODE_2 in out.dims:
-        out = out.assign_coords({names.MODE_2: labels})
+    out = c.keep_modes(result, ~beyond)
     listed = [x for x in str(result.attrs.get(names.ATTR_BAND_DROPPED, "")).split(",") if x]
     out.attrs[names.ATTR_BAND_DROPPED] = ",".join(listed + [f"{f:.6g}" for f in fn[beyond]])
     warn(

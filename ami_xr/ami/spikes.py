@@ -114,11 +114,7 @@ def drop_noise_spikes(result: xr.Dataset) -> xr.Dataset:
             da = result[v]
             new = da.transpose(*dims).values + sign * gone
             result[v] = da.copy(data=xr.DataArray(new, dims=dims).transpose(*da.dims).values)
-    out = c.select_modes(result, np.flatnonzero(~drop))
-    labels = np.arange(1, out.sizes[names.MODE] + 1)
-    out = out.assign_coords({names.MODE: labels})
-    if names.MODE_2 in out.dims:
-        out = out.assign_coords({names.MODE_2: labels})
+    out = c.keep_modes(result, ~drop)
     listed = [x for x in str(result.attrs.get(ATTR_DROPPED, "")).split(",") if x]
     out.attrs[ATTR_DROPPED] = ",".join(listed + [f"{x:.6g}" for x in fn[drop]])
     warn(
