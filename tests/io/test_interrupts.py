@@ -46,12 +46,24 @@ import numpy as np, xarray as xr
 import ami_xr
 
 mode, target, megabytes = sys.argv[1], sys.argv[2], int(sys.argv[3])
+if mode == "hold":  # announce from inside the write, once the temporary file exists, and stay
+    import time
+    write = xr.Dataset.to_netcdf
+
+    def held(self, *args, **kwargs):
+        out = write(self, *args, **kwargs)
+        print("writing", flush=True)
+        time.sleep(120)
+        return out
+
+    xr.Dataset.to_netcdf = held
 if mode == "lazy":
     ds = ami_xr.open_dataset(sys.argv[4], chunks={"a": 2**17})
 else:
     n = megabytes * 2**20 // 8 // 20  # 20 variables: many lock round trips in one write
     ds = xr.Dataset({f"v{i}": ("a", np.arange(n, dtype=float) + i) for i in range(20)})
-print("writing", flush=True)
+if mode != "hold":
+    print("writing", flush=True)
 try:
     ami_xr.to_netcdf(ds, target)
     print("done", flush=True)
@@ -137,17 +149,13 @@ def test_ctrl_c_stops_a_lazy_write_between_chunks(tmp_path, delay):
 def test_sigkill_leftover_is_removed_by_the_next_write_of_the_target(tmp_path):
     target = tmp_path / "big.nc"
     old = _old_file(target)
-    leftovers = []
-    for delay in (0.05, 0.1, 0.2):  # until a kill lands inside the write
-        rc, out, _ = _signal_child(
-            tmp_path, ["eager", str(target), str(MEGABYTES)], signal.SIGKILL, delay
-        )
-        assert rc == -signal.SIGKILL
-        _assert_old_or_complete(target, old, "done" in out)
-        leftovers = _temporaries(tmp_path)
-        if leftovers:
-            break
-    assert leftovers and all(p.is_dir() for p in leftovers), "no kill landed inside the write"
+    # The child holds inside the write (its temporary file written, not yet renamed): the kill
+    # lands there whatever the disk's speed (timed delays missed it on a fast CI disk).
+    rc, _, err = _signal_child(tmp_path, ["hold", str(target), "1"], signal.SIGKILL, 0.0)
+    assert rc == -signal.SIGKILL, err
+    assert target.read_bytes() == old
+    leftovers = _temporaries(tmp_path)
+    assert leftovers and all(p.is_dir() for p in leftovers), "no temporary folder left by the kill"
     ami_xr.to_netcdf(xr.Dataset({"new": ("x", np.arange(2.0))}), target)
     assert _temporaries(tmp_path) == []
     assert list(ami_xr.open_dataset(target).data_vars) == ["new"]
