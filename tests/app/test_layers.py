@@ -35,9 +35,7 @@ ALLOWED_CYCLES = {
         "owned by the report work: a shared sections module would cut it"
     ),
 }
-ALLOWED_PRIVATE_IMPORTS = {
-    ("ami_xr.plot.stability", "ami_xr.plot.common._label_levels"): "plot package, not split yet",
-}
+ALLOWED_PRIVATE_IMPORTS: dict[tuple[str, str], str] = {}
 ALLOWED_KERNEL_IMPORTS = {
     ("ami_xr.kernels.fft", "scipy.fft"): "rfft with workers; numpy.fft is the fallback to use",
     ("ami_xr.kernels.windows", "scipy.signal"): "get_window for the named cosine windows",
