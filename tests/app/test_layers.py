@@ -25,16 +25,10 @@ ALLOWED_LONG_MODULES = {
 }
 ALLOWED_LONG_FUNCTIONS = {
     "ami_xr.ami.crb.cramer_rao_bound": "crb.py is owned by another engineer this round",
-    "ami_xr.app.report.report": "the HTML report's sections in sequence; not split yet",
     "ami_xr.io.datasets.make_frf_dataset": "constructor with a long numpydoc; not split yet",
     "ami_xr.io.lvm.read_lvm": "LVM reader with a long numpydoc; not split yet",
 }
-ALLOWED_CYCLES = {
-    frozenset({"ami_xr.app.report", "ami_xr.app.report_mimo"}): (
-        "multi-reference report (issue 22) dispatches from report and reuses its sections; "
-        "owned by the report work: a shared sections module would cut it"
-    ),
-}
+ALLOWED_CYCLES: dict[frozenset[str], str] = {}
 ALLOWED_PRIVATE_IMPORTS: dict[tuple[str, str], str] = {}
 ALLOWED_KERNEL_IMPORTS = {
     ("ami_xr.kernels.fft", "scipy.fft"): "rfft with workers; numpy.fft is the fallback to use",
