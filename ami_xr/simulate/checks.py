@@ -22,8 +22,8 @@ def check_int(value: Any, name: str, low: int, high: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise AmiXrValueError(f"{name}: expected an integer, got {value!r}")
     if value < low or (high is not None and value > high):
-        rng = f"{low}..{high}" if high is not None else f">= {low}"
-        raise AmiXrValueError(f"{name}: expected an integer in {rng}, got {value}")
+        rng = f"in {low}..{high}" if high is not None else f">= {low}"
+        raise AmiXrValueError(f"{name}: expected an integer {rng}, got {value}")
     return int(value)
 
 
