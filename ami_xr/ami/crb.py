@@ -126,14 +126,7 @@ def cramer_rao_bound(
             band=band,
             residual_terms=residual_terms,
         )
-    for var, dims in (
-        (names.EIGENVALUE, (names.MODE,)),
-        (names.RESIDUE, (names.POINT, names.MODE)),
-    ):
-        if var not in truth or set(truth[var].dims) != set(dims):
-            raise AmiXrValueError(f"truth: expected variable {var!r} with dims {dims}")
-    if names.FREQUENCY not in frf.coords:
-        raise AmiXrValueError("frf: expected a Dataset with a 'frequency' coordinate (Hz)")
+    _check_inputs(truth, frf)
     data_model = resolve_model(frf.attrs, "exact")
     dt, n_samples = data_model.dt, data_model.n_samples
     terms = resolve_residual_terms(residual_terms, frf.attrs, names.RESIDUAL_COEFFICIENT in frf)
@@ -182,6 +175,18 @@ def cramer_rao_bound(
             "residual_terms": terms,
         },
     )
+
+
+def _check_inputs(truth: xr.Dataset, frf: xr.Dataset) -> None:
+    """The truth's eigenvalues and residues and the FRF's frequency coordinate are there."""
+    for var, dims in (
+        (names.EIGENVALUE, (names.MODE,)),
+        (names.RESIDUE, (names.POINT, names.MODE)),
+    ):
+        if var not in truth or set(truth[var].dims) != set(dims):
+            raise AmiXrValueError(f"truth: expected variable {var!r} with dims {dims}")
+    if names.FREQUENCY not in frf.coords:
+        raise AmiXrValueError("frf: expected a Dataset with a 'frequency' coordinate (Hz)")
 
 
 def _angular_frequencies(frf: xr.Dataset, band, terms) -> np.ndarray:

@@ -292,12 +292,7 @@ def random_system(
         seed=seed,
     )
     zeta = check_range(damping, "damping", 0.3)
-    pair_gap = check_positive(pair_gap, "pair_gap")
-    if pair_gap >= 0.2:
-        raise AmiXrValueError(f"pair_gap: expected a relative gap < 0.2, got {pair_gap}")
-    weak_level = check_positive(weak_level, "weak_level")
-    if weak_level >= 1:
-        raise AmiXrValueError(f"weak_level: expected a ratio < 1, got {weak_level}")
+    pair_gap, weak_level = _check_absorbers(pair_gap, weak_level)
     seed = sampling.seed
 
     rng = np.random.default_rng(seed)
@@ -339,6 +334,17 @@ def _check_size(n_points, topology, n_modes, closely_spaced, weak_mode) -> tuple
             f"n_modes: need at least {4 + n_abs} modes with {n_abs} absorber(s), got {n_modes}"
         )
     return n_points, n_modes, n_struct
+
+
+def _check_absorbers(pair_gap, weak_level) -> tuple[float, float]:
+    """Checked relative gap of the closely spaced pair and peak ratio of the weak mode."""
+    pair_gap = check_positive(pair_gap, "pair_gap")
+    if pair_gap >= 0.2:
+        raise AmiXrValueError(f"pair_gap: expected a relative gap < 0.2, got {pair_gap}")
+    weak_level = check_positive(weak_level, "weak_level")
+    if weak_level >= 1:
+        raise AmiXrValueError(f"weak_level: expected a ratio < 1, got {weak_level}")
+    return pair_gap, weak_level
 
 
 def _random_truth(n_struct, n_points, n_modes, topology, fmax, zeta, absorbers, rng):
