@@ -75,9 +75,6 @@ def cramer_rao_bound(
 ) -> xr.Dataset:
     """Cramér-Rao bound of eigenvalues, residues and mode vectors of a known system.
 
-    Long because it assembles the documented output variables around one covariance call of
-    :mod:`ami_xr.core.varpro`; 101 lines of code.
-
     Parameters
     ----------
     truth : xarray.Dataset
@@ -129,28 +126,15 @@ def cramer_rao_bound(
             band=band,
             residual_terms=residual_terms,
         )
-    for var, dims in (
-        (names.EIGENVALUE, (names.MODE,)),
-        (names.RESIDUE, (names.POINT, names.MODE)),
-    ):
-        if var not in truth or set(truth[var].dims) != set(dims):
-            raise AmiXrValueError(f"truth: expected variable {var!r} with dims {dims}")
-    if names.FREQUENCY not in frf.coords:
-        raise AmiXrValueError("frf: expected a Dataset with a 'frequency' coordinate (Hz)")
+    _check_inputs(truth, frf)
     data_model = resolve_model(frf.attrs, "exact")
     dt, n_samples = data_model.dt, data_model.n_samples
     terms = resolve_residual_terms(residual_terms, frf.attrs, names.RESIDUAL_COEFFICIENT in frf)
-    freq = frf[names.FREQUENCY]
-    if band != "all":
-        freq = freq.sel({names.FREQUENCY: slice(float(band[0]), float(band[1]))})
-    if "lower" in terms:
-        freq = freq[freq > 0]
-    omega = 2 * np.pi * freq.values.astype(float)
+    omega = _angular_frequencies(frf, band, terms)
     residue_da = truth[names.RESIDUE].transpose(names.POINT, names.MODE)
     points = list(residue_da[names.POINT].values)
     lam = truth[names.EIGENVALUE].values.astype(np.complex128)
     residue = residue_da.values.astype(np.complex128)
-    n_point, n_mode = residue.shape
     quantity = frf.attrs.get(names.ATTR_QUANTITY, "displacement")
     if quantity != "displacement":
         raise AmiXrValueError(
@@ -163,7 +147,63 @@ def cramer_rao_bound(
     line_std = _line_noise_std(
         frf, frf_noise_std, noise_level, noise_kind, points, lam, residue, dt, n_samples, power
     )
+    noise_var = 0.5 * line_std**2  # per real component
+    drive = frf.attrs.get(names.ATTR_DRIVE_POINT, truth.attrs.get(names.ATTR_DRIVE_POINT))
+    drive_index = points.index(drive) if drive in points else None
+    cov = _covariance(
+        lam, residue, omega, (dt, n_samples, terms), decay, noise_var, drive_index, power
+    )
+    out = _bound_dataset(truth, lam, points, cov, line_std)
+    if drive_index is not None:
+        mv_err = np.array(
+            [
+                _mode_vector_error(cov, k, drive_index, noise_var, power, lam[k])
+                for k in range(lam.size)
+            ]
+        )
+        out[names.MODE_VECTOR] = ((names.POINT, names.MODE), cov.mode_vector)
+        out[names.MODE_VECTOR_STD] = ((names.POINT, names.MODE), np.sqrt(cov.mode_vector_var))
+        out[names.MODE_VECTOR_ERROR] = ((names.MODE,), mv_err)
+    out.attrs = {names.ATTR_DRIVE_POINT: drive, names.ATTR_CRB_MODEL: data_model.name}
+    return add_history(
+        out,
+        "ami_xr.cramer_rao_bound",
+        {
+            "noise_level": noise_level,
+            "noise_kind": noise_kind,
+            "band": band,
+            "residual_terms": terms,
+        },
+    )
 
+
+def _check_inputs(truth: xr.Dataset, frf: xr.Dataset) -> None:
+    """The truth's eigenvalues and residues and the FRF's frequency coordinate are there."""
+    for var, dims in (
+        (names.EIGENVALUE, (names.MODE,)),
+        (names.RESIDUE, (names.POINT, names.MODE)),
+    ):
+        if var not in truth or set(truth[var].dims) != set(dims):
+            raise AmiXrValueError(f"truth: expected variable {var!r} with dims {dims}")
+    if names.FREQUENCY not in frf.coords:
+        raise AmiXrValueError("frf: expected a Dataset with a 'frequency' coordinate (Hz)")
+
+
+def _angular_frequencies(frf: xr.Dataset, band, terms) -> np.ndarray:
+    """The lines of ``frf`` inside ``band`` in rad/s (0 Hz left out with a lower residual)."""
+    freq = frf[names.FREQUENCY]
+    if band != "all":
+        freq = freq.sel({names.FREQUENCY: slice(float(band[0]), float(band[1]))})
+    if "lower" in terms:
+        freq = freq[freq > 0]
+    return 2 * np.pi * freq.values.astype(float)
+
+
+def _covariance(lam, residue, omega, sampling, decay, noise_var, drive_index, power):
+    """The covariance of the fit (:func:`ami_xr.core.varpro.covariance`) at the truth, with
+    ``sampling`` = (dt, n_samples, residual terms) of the data model."""
+    dt, n_samples, terms = sampling
+    n_point, n_mode = residue.shape
     # Noise-free model data at the truth, so that the projection returns the true residues.
     mu = lam - decay
     phi, _ = model_columns(omega, mu, dt, n_samples, terms)
@@ -177,12 +217,13 @@ def cramer_rao_bound(
     proj = varpro.project(prob, mu)
     if not proj.ok:
         raise AmiXrValueError("truth: eigenvalues coincide; the Fisher information is singular")
-    noise_var = 0.5 * line_std**2  # per real component
-    drive = frf.attrs.get(names.ATTR_DRIVE_POINT, truth.attrs.get(names.ATTR_DRIVE_POINT))
-    drive_index = points.index(drive) if drive in points else None
-    cov = varpro.covariance(
+    return varpro.covariance(
         prob, proj, noise_var, drive_index, quantity_power=power, lam_shift=decay
     )
+
+
+def _bound_dataset(truth, lam, points, cov, line_std) -> xr.Dataset:
+    """The truth's modal parameters with their bound (all but the mode-vector variables)."""
     c_t = cov.cov_theta
     wn = np.abs(lam)
     zeta = -lam.real / wn
@@ -190,7 +231,7 @@ def cramer_rao_bound(
     k_abs = np.sqrt(2.0 / np.pi)
     mode = truth[names.EIGENVALUE][names.MODE].values
     P, M = names.POINT, names.MODE
-    out = xr.Dataset(
+    return xr.Dataset(
         {
             names.EIGENVALUE: ((M,), lam, {names.ATTR_UNITS: names.ANGULAR_UNITS}),
             names.NATURAL_FREQUENCY: (
@@ -208,27 +249,6 @@ def cramer_rao_bound(
             names.FRF_NOISE_STD: ((P,), line_std),
         },
         coords={M: mode, P: points},
-    )
-    if drive_index is not None:
-        mv_err = np.array(
-            [
-                _mode_vector_error(cov, k, drive_index, noise_var, power, lam[k])
-                for k in range(n_mode)
-            ]
-        )
-        out[names.MODE_VECTOR] = ((P, M), cov.mode_vector)
-        out[names.MODE_VECTOR_STD] = ((P, M), np.sqrt(cov.mode_vector_var))
-        out[names.MODE_VECTOR_ERROR] = ((M,), mv_err)
-    out.attrs = {names.ATTR_DRIVE_POINT: drive, names.ATTR_CRB_MODEL: data_model.name}
-    return add_history(
-        out,
-        "ami_xr.cramer_rao_bound",
-        {
-            "noise_level": noise_level,
-            "noise_kind": noise_kind,
-            "band": band,
-            "residual_terms": terms,
-        },
     )
 
 

@@ -11,7 +11,6 @@ import csv
 import html
 import io
 import os
-import re
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +18,15 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.app.report_figures import (
+    FIGURES,
+    GEOMETRY_FIGURES,
+    MEASUREMENT_FIGURES,
+    STABILITY_FIGURES,
+    draw_figures,
+    draw_png,
+    wanted_figures,
+)
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_open
 from ami_xr.plot.common import PAGE_WIDTH_PX
@@ -44,78 +52,6 @@ __all__ = [
     "STD_COLUMNS",
     "INDICATOR_COLUMNS",
 ]
-
-
-#: Report figures: file stem -> (function name in ami_xr.plot.modal, caption).
-FIGURES: dict[str, tuple[str, str]] = {
-    "modal_table": ("plot_modal_table", "Identified modes with their quality flags."),
-    "bode": (
-        "plot_bode",
-        "Measured (grey) and synthesised (blue) FRFs; dashed lines mark the "
-        "identified natural frequencies.",
-    ),
-    "nyquist": (
-        "plot_nyquist",
-        "Nyquist plots of each FRF near each mode (measured dots, "
-        "synthesised line, circle at the natural frequency).",
-    ),
-    "subtraction": (
-        "plot_subtraction",
-        "Subtraction phase: FRF, residual, estimated noise floor and the automatic stop threshold.",
-    ),
-    "mode_vectors": (
-        "plot_mode_vectors",
-        "Mode vectors: magnitude and phase per point (and "
-        "shape along the structure where point coordinates "
-        "are given).",
-    ),
-    "mac": ("plot_mac", "Modal Assurance Criterion between the identified mode vectors."),
-}
-
-#: Figures of the measurement (ami_xr.plot.measurement): stem -> (function, caption, the
-#: variable they need). By default drawn only when that variable is present.
-MEASUREMENT_FIGURES: dict[str, tuple[str, str, str]] = {
-    "coherence": (
-        "plot_coherence",
-        "Coherence of each FRF: where it drops well below 1 the FRF is not to be trusted.",
-        names.COHERENCE,
-    ),
-    "force_spectrum": (
-        "plot_force_spectrum",
-        "Force autospectrum relative to its peak: the band the excitation reached.",
-        names.FORCE_AUTOSPECTRUM,
-    ),
-    "hits": (
-        "plot_hits",
-        "Peak force of each impact hit; rejected hits (red) with their reason.",
-        names.HIT_PEAK_FORCE,
-    ),
-}
-
-
-#: Figures of ami_xr.stability (ami_xr.plot.stability): stem -> (function, caption, the variable
-#: they need). By default drawn only when that variable is present.
-STABILITY_FIGURES: dict[str, tuple[str, str, str]] = {
-    "stability": (
-        "plot_stability",
-        "Mode stability: identify re-run over detection thresholds (pfa) and analysis bands, one "
-        "row per variant; filled: the mode found again, open: missed inside the band. Above "
-        "each mode its label and the fraction of variants finding it (1: solid).",
-        names.STABILITY_FOUND,
-    ),
-}
-
-
-#: Figures on the measurement geometry (ami_xr.plot.geometry): stem -> (function, caption).
-#: Drawn by default when the points have coordinates (point_x/y/z), with one animated GIF per
-#: mode (mode_shape_<mode>.gif); without coordinates the mode_vectors bars remain.
-GEOMETRY_FIGURES: dict[str, tuple[str, str]] = {
-    "mode_shapes": (
-        "plot_mode_shapes",
-        "Mode shapes on the measurement geometry: real part of the phase-normalised mode "
-        "vector (largest component 1), undeformed points faint.",
-    ),
-}
 
 
 def _source_name(ds: xr.Dataset) -> str:
@@ -205,12 +141,7 @@ def report(
     pathlib.Path
         Path of ``index.html``.
     """
-    from ami_xr.io.geometry import has_coordinates
-    from ami_xr.plot import geometry as plot_geometry
     from ami_xr.plot import measurement as plot_measurement
-    from ami_xr.plot import modal as plot
-    from ami_xr.plot import stability as plot_stability
-    from ami_xr.plot.common import gc_paused, png_bytes
 
     outdir = Path(outdir)
     if outdir.exists() and not outdir.is_dir():
@@ -226,45 +157,15 @@ def report(
             f"reference: {reference!r} given, but ds has no {names.REFERENCE!r} dim "
             "(a single-reference result)"
         )
-    known = {**MEASUREMENT_FIGURES, **FIGURES, **STABILITY_FIGURES, **GEOMETRY_FIGURES}
-    if figures is None:
-        wanted = tuple(k for k, v in MEASUREMENT_FIGURES.items() if v[2] in ds) + tuple(FIGURES)
-        wanted += tuple(k for k, v in STABILITY_FIGURES.items() if v[2] in ds)
-        wanted += tuple(GEOMETRY_FIGURES) if has_coordinates(ds) else ()
-    else:
-        wanted = tuple(figures)
-    unknown = [f for f in wanted if f not in known]
-    if unknown:
-        raise AmiXrValueError(f"report: unknown figures {unknown}; choose from {list(known)}")
+    wanted = wanted_figures(ds, figures)
     frequency_range = _check_range(frequency_range, ds)
     per_reference: tuple[str, ...] = ()
     if multi is not None:
         wanted, per_reference = multi.split(wanted, figures is None)
     outdir.mkdir(parents=True, exist_ok=True)
-    made: list[tuple[str, str, bytes]] = []
-    skipped: list[tuple[str, str]] = []
-    for stem in sorted(wanted, key=list(known).index):
-        func_name, caption = known[stem][:2]
-        module = plot_measurement if stem in MEASUREMENT_FIGURES else plot
-        module = plot_geometry if stem in GEOMETRY_FIGURES else module
-        module = plot_stability if stem in STABILITY_FIGURES else module
-        kwargs = {"frequency_range": frequency_range} if stem in _BANDED and frequency_range else {}
-        try:
-            with gc_paused():  # a third of the drawing time otherwise (plot.common.gc_paused)
-                fig = getattr(module, func_name)(ds, **kwargs)
-        except AmiXrValueError as err:
-            skipped.append((stem, str(err)))
-            continue
-        png = png_bytes(fig)  # at the size the page shows it (plot.common.PAGE_WIDTH_PX)
-        with atomic_open(outdir / f"{stem}.png", "wb") as fh:
-            fh.write(png)
-        made.append((stem, caption, png))
-        if stem in GEOMETRY_FIGURES:
-            made += _mode_animations(ds, outdir, skipped)
+    made, skipped = draw_figures(ds, outdir, wanted, frequency_range)
     if multi is not None:
-        extra_made, extra_skipped = multi.figures(
-            outdir, per_reference, frequency_range, _drawn_png
-        )
+        extra_made, extra_skipped = multi.figures(outdir, per_reference, frequency_range, draw_png)
         made, skipped = made + extra_made, skipped + extra_skipped
     try:
         rows = modal_table(ds)
@@ -282,19 +183,6 @@ def report(
     with atomic_open(index, "wb") as fh:
         fh.write(page.encode("utf-8"))
     return index
-
-
-def _drawn_png(func, data: xr.Dataset, kwargs: dict) -> bytes:
-    """The PNG of ``func(data, **kwargs)`` as the report draws every figure."""
-    from ami_xr.plot.common import gc_paused, png_bytes
-
-    with gc_paused():
-        fig = func(data, **kwargs)
-    return png_bytes(fig)
-
-
-#: Figures with a frequency axis: they take ``frequency_range``.
-_BANDED = frozenset({"bode", "subtraction", "coherence", "force_spectrum"})
 
 
 def _check_range(frequency_range, ds: xr.Dataset) -> tuple[float, float] | None:
@@ -487,22 +375,3 @@ def _figure_html(stem: str, caption: str, png: bytes) -> str:
         f"<img src='data:image/{kind};base64,{base64.b64encode(png).decode('ascii')}' "
         f"alt='{e(stem)}.{kind}'>\n"
     )
-
-
-def _mode_animations(
-    ds: xr.Dataset, outdir: Path, skipped: list[tuple[str, str]]
-) -> list[tuple[str, str, bytes]]:
-    """One animated GIF per mode (mode_shape_<mode>.gif, written atomically) for the page."""
-    from ami_xr.plot.geometry import animate_mode_shape
-
-    out: list[tuple[str, str, bytes]] = []
-    for label in ds[names.MODE].values.tolist():
-        stem = "mode_shape_" + re.sub(r"[^A-Za-z0-9_.-]", "_", str(label))
-        try:
-            gif = animate_mode_shape(ds, label, outdir / f"{stem}.gif")
-        except ImportError as err:  # pragma: no cover - pillow ships with matplotlib
-            skipped.append(("mode shape animations", str(err)))
-            break
-        caption = f"Mode {label} animated: shape x cos(phase) over one cycle on the geometry."
-        out.append((stem, caption, gif))
-    return out

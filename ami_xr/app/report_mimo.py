@@ -27,6 +27,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.app.report_figures import FIGURES, MEASUREMENT_FIGURES
 from ami_xr.errors import AmiXrValueError
 from ami_xr.io.atomic import atomic_open
 from ami_xr.io.datasets import select_reference
@@ -95,8 +96,6 @@ class MultiReferencePage:
             return wanted, ()
         per = tuple(s for s in wanted if s in PER_REFERENCE)
         if default:
-            from ami_xr.app.report import MEASUREMENT_FIGURES
-
             per += tuple(k for k, v in MEASUREMENT_FIGURES.items() if v[2] in self.ds)
         return tuple(s for s in wanted if s not in PER_REFERENCE), per
 
@@ -106,7 +105,6 @@ class MultiReferencePage:
         """Draw the multi-reference figures and the per-reference ones, written atomically as
         ``<stem>.png``; ``draw(function, ds, kwargs) -> png bytes`` (the report's). Returns
         the figures made (stem, caption, png) and those skipped (stem, reason)."""
-        from ami_xr.app.report import FIGURES, MEASUREMENT_FIGURES
         from ami_xr.plot import measurement, modal
         from ami_xr.plot import mimo as plot_mimo
 

@@ -2,8 +2,11 @@
 
 * :mod:`~ami_xr.dsp.windows` -- ``apply_window`` (force, exponential, hann, ... on time data).
 * :mod:`~ami_xr.dsp.impulse` -- ``impulse_to_frf``: sampled impulse responses to FRFs.
-* :mod:`~ami_xr.dsp.frf` -- ``frf`` (random excitation, Welch) and ``impact_frf`` (hammer hits),
-  one shared estimator; ``frf_from_options`` picks one by an ``excitation`` option.
+* :mod:`~ami_xr.dsp.frf` -- ``frf`` (random excitation, Welch) and ``frf_from_options``, which
+  picks ``frf`` or ``impact_frf`` by an ``excitation`` option.
+* :mod:`~ami_xr.dsp.hammer` -- ``impact_frf`` (hammer hits; re-exported by ``dsp.frf``).
+* :mod:`~ami_xr.dsp.estimator` -- the estimator both share: setup, spectra to H and coherence,
+  the noise of the estimate, the FRF Dataset.
 * :mod:`~ami_xr.dsp.hits` -- ``check_hits``: overload, double impact and weak force per hit.
 * :mod:`~ami_xr.dsp.noise_model` -- ``estimate_frf_noise``: ``frf_noise_std`` per line of a bare
   FRF (roughness between adjacent lines); ``noise_std_of`` for the identification phases.

@@ -102,7 +102,7 @@ def feed_all(acc: WelchAccumulator, f_da, y_da, records, blocks) -> None:
     def load(job):
         r, a, b = job
         f, y = load_block(f_da, r, a, b, "force"), load_block(y_da, r, a, b, "response")
-        if lazy:  # data in memory were checked in _setup
+        if lazy:  # data in memory were checked in dsp.estimator.setup
             ranges[0] = _merge_range(ranges[0], channel_range(f))
             ranges[1] = _merge_range(ranges[1], channel_range(y))
         return f, y

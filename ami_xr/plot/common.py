@@ -177,7 +177,7 @@ def labels_of_modes(ds: xr.Dataset) -> list:
     return list(range(1, natural_frequencies(ds).size + 1))
 
 
-def _label_levels(fn: np.ndarray, lo: float, hi: float, min_gap: float = 0.035) -> list[int]:
+def label_levels(fn: np.ndarray, lo: float, hi: float, min_gap: float = 0.035) -> list[int]:
     """Stagger level (0, 1, 2, ...) of each mode label so that labels closer than ``min_gap``
     (fraction of the axis width) to one on the same level move down a level."""
     span = hi - lo if hi > lo else 1.0
@@ -205,7 +205,7 @@ def mark_modes(
     fn_in = fn[keep]
     labels_in = [lab for lab, k in zip(labels, keep, strict=False) if k]
     lo, hi = band if band is not None else (fn_in.min(initial=0.0), fn_in.max(initial=1.0))
-    levels = _label_levels(fn_in, lo, hi) if text else [0] * fn_in.size
+    levels = label_levels(fn_in, lo, hi) if text else [0] * fn_in.size
     if fn_in.size:  # one collection for all the lines, not one artist per mode
         ax.vlines(
             fn_in,

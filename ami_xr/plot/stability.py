@@ -16,8 +16,8 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.plot.common import (
-    _label_levels,
     finish,
+    label_levels,
     labels_of_modes,
     natural_frequencies,
     new_figure,
@@ -120,7 +120,7 @@ def plot_stability(
     scale = np.log10 if log else np.asarray
     levels = np.zeros(fn.size, int)
     if good.any():  # neighbours' labels staggered upwards
-        levels[good] = _label_levels(scale(fn[good]), float(scale(lo)), float(scale(hi)), 0.045)
+        levels[good] = label_levels(scale(fn[good]), float(scale(lo)), float(scale(hi)), 0.045)
     for f, lab, frac, level in zip(fn, labels, fraction, levels, strict=False):
         if not np.isfinite(f):
             continue

@@ -3,6 +3,7 @@
 * :mod:`~ami_xr.simulate.modal` -- any linear system ``M, C, K`` (non-proportional damping):
   exact eigenvalues, mode vectors and residues (eqs. 2-5), analytic FRFs (eq. 4) and impulse
   responses.
+* :mod:`~ami_xr.simulate.eigen` -- the state-space eigensolution behind ``modal_model``.
 * :mod:`~ami_xr.simulate.noise` -- the paper's noise model (eq. 15).
 * :mod:`~ami_xr.simulate.beam` -- the paper's benchmark, a cantilever beam with three
   suspended spring-mass-dashpot absorbers.

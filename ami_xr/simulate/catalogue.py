@@ -38,6 +38,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError
+from ami_xr.simulate.checks import check_int
 from ami_xr.simulate.cluster import clustered_system
 from ami_xr.simulate.modal import frf as model_frf
 from ami_xr.simulate.modal import impulse_response
@@ -102,12 +103,6 @@ class CatalogueCase(NamedTuple):
         )
 
 
-def _check_int(value: Any, name: str, low: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise AmiXrValueError(f"{name}: expected an integer >= {low}, got {value!r}")
-    return int(value)
-
-
 def catalogue(n_cases: int = 32, seed: int = 0) -> list[CatalogueCase]:
     """The benchmark catalogue: ``n_cases`` random systems, the same for the same ``seed``.
 
@@ -117,8 +112,8 @@ def catalogue(n_cases: int = 32, seed: int = 0) -> list[CatalogueCase]:
     (6..12, absorbers included), of measured points (5..modes) and its system seed are drawn
     from ``numpy.random.default_rng(seed)``.
     """
-    n_cases = _check_int(n_cases, "n_cases", 1)
-    seed = _check_int(seed, "seed", 0)
+    n_cases = check_int(n_cases, "n_cases", 1)
+    seed = check_int(seed, "seed", 0)
     rng = np.random.default_rng(seed)
     cases = []
     for i in range(n_cases):
@@ -177,8 +172,8 @@ def cluster_catalogue(n_cases: int = 32, seed: int = 0) -> list[ClusterCase]:
     ones), measured points (5..modes) and system seed come from
     ``numpy.random.default_rng(seed)``.
     """
-    n_cases = _check_int(n_cases, "n_cases", 1)
-    seed = _check_int(seed, "seed", 0)
+    n_cases = check_int(n_cases, "n_cases", 1)
+    seed = check_int(seed, "seed", 0)
     rng = np.random.default_rng(seed)
     cases = []
     for i in range(n_cases):

@@ -38,9 +38,9 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError
 from ami_xr.provenance import add_history
+from ami_xr.simulate.checks import check_int, check_positive, check_range, check_sampling
 from ami_xr.simulate.modal import modal_model
-from ami_xr.simulate.noise import NOISE_KINDS
-from ami_xr.simulate.random import SOURCES, _check_int, _check_positive, system_frfs
+from ami_xr.simulate.random import system_frfs
 
 GAP_OVERLAP = 0.2  # overlap factor of the edge modes of two neighbouring blocks, at most
 CLUSTER = "cluster"  # truth variable (mode): 0 isolated, 1.. cluster number
@@ -77,18 +77,6 @@ def overlap_factor(truth: xr.Dataset | Any) -> xr.DataArray | np.ndarray:
     if isinstance(truth, xr.Dataset):
         return xr.DataArray(out, dims=[names.MODE], coords={names.MODE: truth[names.MODE].values})
     return out
-
-
-def _check_range(value: Any, name: str, high: float) -> tuple[float, float]:
-    try:
-        lo, hi = (float(d) for d in value)
-    except (TypeError, ValueError):
-        raise AmiXrValueError(
-            f"{name}: expected (low, high) damping ratios, got {value!r}"
-        ) from None
-    if not (0 < lo <= hi < high):
-        raise AmiXrValueError(f"{name}: expected 0 < low <= high < {high}, got {value!r}")
-    return lo, hi
 
 
 def _layout(sizes, n_isolated, overlap, zc, zi, rng):
@@ -191,24 +179,9 @@ def clustered_system(
         Exact modal parameters (:func:`~ami_xr.simulate.modal_model`) plus ``cluster`` and
         ``overlap_factor`` (mode).
     """
-    n_points = _check_int(n_points, "n_points", 2, 50)
-    try:
-        sizes = [int(_check_int(m, "cluster_sizes", 2, MAX_CLUSTER)) for m in cluster_sizes]
-    except TypeError:
-        raise AmiXrValueError(
-            f"cluster_sizes: expected a sequence of integers, got {cluster_sizes!r}"
-        ) from None
-    overlap = _check_positive(overlap, "overlap")
-    default_modes = max(n_points, sum(sizes) + 2)
-    n_modes = (
-        default_modes if n_modes is None else _check_int(n_modes, "n_modes", max(2, n_points), 200)
-    )
-    if n_modes < sum(sizes):
-        raise AmiXrValueError(
-            f"n_modes: expected at least the {sum(sizes)} modes of the clusters, got {n_modes}"
-        )
-    zc = _check_range(cluster_damping, "cluster_damping", 0.3)
-    zi = _check_range(damping, "damping", 0.3)
+    n_points, sizes, overlap, n_modes = _check_clusters(n_points, cluster_sizes, overlap, n_modes)
+    zc = check_range(cluster_damping, "cluster_damping", 0.3)
+    zi = check_range(damping, "damping", 0.3)
     if (
         isinstance(non_proportional, bool)
         or not np.isscalar(non_proportional)
@@ -217,24 +190,18 @@ def clustered_system(
         raise AmiXrValueError(
             f"non_proportional: expected a number in [0, 1], got {non_proportional!r}"
         )
-    if isinstance(noise, bool) or not np.isscalar(noise) or not np.isfinite(noise) or noise < 0:
-        raise AmiXrValueError(f"noise: expected a finite number >= 0, got {noise!r}")
-    if noise_kind not in NOISE_KINDS:
-        raise AmiXrValueError(f"noise_kind: expected one of {NOISE_KINDS}, got {noise_kind!r}")
-    if source not in SOURCES:
-        raise AmiXrValueError(f"source: expected one of {SOURCES}, got {source!r}")
-    fmax = _check_positive(max_frequency_hz, "max_frequency_hz")
-    n_frequencies = _check_int(n_frequencies, "n_frequencies", 2)
-    if source == names.SOURCE_IMPULSE and frequency is not None:
-        raise AmiXrValueError("frequency: not allowed with source='impulse_response'")
-    if source == names.SOURCE_ANALYTIC and (duration is not None or n_samples is not None):
-        raise AmiXrValueError("duration, n_samples: only used with source='impulse_response'")
-    if duration is not None:
-        duration = _check_positive(duration, "duration")
-    if n_samples is not None:
-        n_samples = _check_int(n_samples, "n_samples", 16)
-    if seed is not None:
-        seed = _check_int(seed, "seed", 0)
+    sampling = check_sampling(
+        source=source,
+        frequency=frequency,
+        max_frequency_hz=max_frequency_hz,
+        n_frequencies=n_frequencies,
+        duration=duration,
+        n_samples=n_samples,
+        noise=noise,
+        noise_kind=noise_kind,
+        seed=seed,
+    )
+    fmax, seed = sampling.max_frequency_hz, sampling.seed
 
     rng = np.random.default_rng(seed)
     noise_seed = None if seed is None else int(rng.integers(2**31))
@@ -260,23 +227,34 @@ def clustered_system(
         "seed": seed,
     }
     truth = add_history(truth, "ami_xr.simulate.clustered_system", params)
-    out = system_frfs(
-        truth,
-        drive,
-        source=source,
-        frequency=frequency,
-        max_frequency_hz=fmax,
-        n_frequencies=n_frequencies,
-        duration=duration,
-        n_samples=n_samples,
-        noise=float(noise),
-        noise_kind=noise_kind,
-        noise_seed=noise_seed,
-    )
+    options = {**sampling.frf_options(), "noise": float(noise)}
+    out = system_frfs(truth, drive, **options, noise_seed=noise_seed)
     out = add_history(
         out, "ami_xr.simulate.clustered_system", {"source": source, "noise": noise, "seed": seed}
     )
     return out, truth
+
+
+def _check_clusters(n_points, cluster_sizes, overlap, n_modes) -> tuple[int, list[int], float, int]:
+    """Checked ``n_points``, ``cluster_sizes`` (a list), ``overlap`` and ``n_modes`` (its
+    default filled in)."""
+    n_points = check_int(n_points, "n_points", 2, 50)
+    try:
+        sizes = [int(check_int(m, "cluster_sizes", 2, MAX_CLUSTER)) for m in cluster_sizes]
+    except TypeError:
+        raise AmiXrValueError(
+            f"cluster_sizes: expected a sequence of integers, got {cluster_sizes!r}"
+        ) from None
+    overlap = check_positive(overlap, "overlap")
+    default_modes = max(n_points, sum(sizes) + 2)
+    n_modes = (
+        default_modes if n_modes is None else check_int(n_modes, "n_modes", max(2, n_points), 200)
+    )
+    if n_modes < sum(sizes):
+        raise AmiXrValueError(
+            f"n_modes: expected at least the {sum(sizes)} modes of the clusters, got {n_modes}"
+        )
+    return n_points, sizes, overlap, n_modes
 
 
 __all__: Sequence[str] = ("clustered_system", "overlap_factor")

@@ -31,35 +31,25 @@ from ami_xr import names
 from ami_xr.errors import AmiXrValueError
 from ami_xr.provenance import add_history
 from ami_xr.simulate.beam import frf_from_impulse
+from ami_xr.simulate.checks import (
+    SOURCES,  # noqa: F401 - read from here too
+    check_int,
+    check_positive,
+    check_range,
+    check_sampling,
+)
 from ami_xr.simulate.modal import frf, impulse_response, modal_model
 from ami_xr.simulate.noise import (
     ATTR_NOISE_KIND,
     ATTR_NOISE_LEVEL,
     ATTR_NOISE_SEED,
-    NOISE_KINDS,
     add_noise,
 )
 
 TOPOLOGIES = ("chain", "grid")
-SOURCES = (names.SOURCE_ANALYTIC, names.SOURCE_IMPULSE)
 MIN_POINTS, MAX_POINTS = 5, 50
 ATTR_PAIR = "closely_spaced_pair"
 ATTR_WEAK = "weak_mode"
-
-
-def _check_int(value: Any, name: str, low: int, high: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise AmiXrValueError(f"{name}: expected an integer, got {value!r}")
-    if value < low or (high is not None and value > high):
-        rng = f"{low}..{high}" if high is not None else f">= {low}"
-        raise AmiXrValueError(f"{name}: expected an integer in {rng}, got {value}")
-    return int(value)
-
-
-def _check_positive(value: Any, name: str) -> float:
-    if isinstance(value, bool) or not np.isscalar(value) or not np.isfinite(value) or value <= 0:
-        raise AmiXrValueError(f"{name}: expected a finite number > 0, got {value!r}")
-    return float(value)
 
 
 def _structure(n: int, topology: str, rng: np.random.Generator):
@@ -238,9 +228,6 @@ def random_system(
 ) -> tuple[xr.Dataset, xr.Dataset]:
     """A random lumped-mass system: its FRFs at the measured points and the exact truth.
 
-    Long because its 17 parameters are checked here, in the order of the list below, before one
-    straight build (structure, points, truth, FRFs, noise); 117 lines of code.
-
     Parameters
     ----------
     n_points : int
@@ -290,56 +277,82 @@ def random_system(
         ``residue`` at the measured points (all modes), attributes ``topology``,
         ``closely_spaced_pair`` and ``weak_mode`` (mode numbers, 1-based; absent when not asked).
     """
-    # ---- validate everything before any work ----
-    n_points = _check_int(n_points, "n_points", MIN_POINTS, MAX_POINTS)
+    n_points, n_modes, n_struct = _check_size(
+        n_points, topology, n_modes, closely_spaced, weak_mode
+    )
+    sampling = check_sampling(
+        source=source,
+        frequency=frequency,
+        max_frequency_hz=max_frequency_hz,
+        n_frequencies=n_frequencies,
+        duration=duration,
+        n_samples=n_samples,
+        noise=noise,
+        noise_kind=noise_kind,
+        seed=seed,
+    )
+    zeta = check_range(damping, "damping", 0.3)
+    pair_gap, weak_level = _check_absorbers(pair_gap, weak_level)
+    seed = sampling.seed
+
+    rng = np.random.default_rng(seed)
+    noise_seed = None if seed is None else int(rng.integers(2**31))
+    absorbers = (closely_spaced, pair_gap, weak_mode, weak_level)
+    truth, drive = _random_truth(
+        n_struct, n_points, n_modes, topology, sampling.max_frequency_hz, zeta, absorbers, rng
+    )
+    truth.attrs["seed"] = -1 if seed is None else seed
+    truth = add_history(
+        truth,
+        "ami_xr.simulate.random_system",
+        {
+            "n_points": n_points,
+            "topology": topology,
+            "n_modes": n_modes,
+            "closely_spaced": bool(closely_spaced),
+            "weak_mode": bool(weak_mode),
+            "seed": seed,
+        },
+    )
+    out = system_frfs(truth, drive, **sampling.frf_options(), noise_seed=noise_seed)
+    out = add_history(
+        out, "ami_xr.simulate.random_system", {"source": source, "noise": noise, "seed": seed}
+    )
+    return out, truth
+
+
+def _check_size(n_points, topology, n_modes, closely_spaced, weak_mode) -> tuple[int, int, int]:
+    """Checked ``n_points``, ``n_modes`` and the structural modes (those not of an absorber)."""
+    n_points = check_int(n_points, "n_points", MIN_POINTS, MAX_POINTS)
     if topology not in TOPOLOGIES:
         raise AmiXrValueError(f"topology: expected one of {TOPOLOGIES}, got {topology!r}")
-    n_modes = n_points if n_modes is None else _check_int(n_modes, "n_modes", n_points, 400)
+    n_modes = n_points if n_modes is None else check_int(n_modes, "n_modes", n_points, 400)
     n_abs = int(bool(closely_spaced)) + int(bool(weak_mode))
     n_struct = n_modes - n_abs
     if n_struct < 4:
         raise AmiXrValueError(
             f"n_modes: need at least {4 + n_abs} modes with {n_abs} absorber(s), got {n_modes}"
         )
-    if source not in SOURCES:
-        raise AmiXrValueError(f"source: expected one of {SOURCES}, got {source!r}")
-    if isinstance(noise, bool) or not np.isscalar(noise) or not np.isfinite(noise) or noise < 0:
-        raise AmiXrValueError(f"noise: expected a finite number >= 0, got {noise!r}")
-    if noise_kind not in NOISE_KINDS:
-        raise AmiXrValueError(f"noise_kind: expected one of {NOISE_KINDS}, got {noise_kind!r}")
-    fmax = _check_positive(max_frequency_hz, "max_frequency_hz")
-    try:
-        zlo, zhi = (float(d) for d in damping)
-    except (TypeError, ValueError):
-        raise AmiXrValueError(
-            f"damping: expected (low, high) damping ratios, got {damping!r}"
-        ) from None
-    if not (0 < zlo <= zhi < 0.3):
-        raise AmiXrValueError(f"damping: expected 0 < low <= high < 0.3, got {damping!r}")
-    pair_gap = _check_positive(pair_gap, "pair_gap")
+    return n_points, n_modes, n_struct
+
+
+def _check_absorbers(pair_gap, weak_level) -> tuple[float, float]:
+    """Checked relative gap of the closely spaced pair and peak ratio of the weak mode."""
+    pair_gap = check_positive(pair_gap, "pair_gap")
     if pair_gap >= 0.2:
         raise AmiXrValueError(f"pair_gap: expected a relative gap < 0.2, got {pair_gap}")
-    weak_level = _check_positive(weak_level, "weak_level")
+    weak_level = check_positive(weak_level, "weak_level")
     if weak_level >= 1:
         raise AmiXrValueError(f"weak_level: expected a ratio < 1, got {weak_level}")
-    n_frequencies = _check_int(n_frequencies, "n_frequencies", 2)
-    if source == names.SOURCE_IMPULSE and frequency is not None:
-        raise AmiXrValueError(
-            "frequency: not allowed with source='impulse_response' (the grid is k / duration; "
-            "set duration and n_samples instead)"
-        )
-    if source == names.SOURCE_ANALYTIC and (duration is not None or n_samples is not None):
-        raise AmiXrValueError("duration, n_samples: only used with source='impulse_response'")
-    if duration is not None:
-        duration = _check_positive(duration, "duration")
-    if n_samples is not None:
-        n_samples = _check_int(n_samples, "n_samples", 16)
-    if seed is not None:
-        seed = _check_int(seed, "seed", 0)
+    return pair_gap, weak_level
 
-    rng = np.random.default_rng(seed)
-    noise_seed = None if seed is None else int(rng.integers(2**31))
-    st = _damped_structure(n_struct, topology, fmax, (zlo, zhi), rng)
+
+def _random_truth(n_struct, n_points, n_modes, topology, fmax, zeta, absorbers, rng):
+    """The random structure with its absorbers (``absorbers``: closely_spaced, pair_gap,
+    weak_mode, weak_level), the measured points, and its exact truth with the ``topology``,
+    ``closely_spaced_pair`` and ``weak_mode`` attributes; and the drive point."""
+    closely_spaced, pair_gap, weak_mode, weak_level = absorbers
+    st = _damped_structure(n_struct, topology, fmax, zeta, rng)
     M, C, K = st.M, st.C, st.K
     drive = n_struct - 1 if topology == "chain" else 0  # free end / clamped-edge corner
     pair_dof = pair_target = None
@@ -359,7 +372,6 @@ def random_system(
         )
 
     truth.attrs["topology"] = topology
-    truth.attrs["seed"] = -1 if seed is None else seed
     if closely_spaced:
         lam = truth[names.EIGENVALUE].values
         # the pair: the two modes nearest the tuning frequency
@@ -368,37 +380,7 @@ def random_system(
         truth.attrs[ATTR_PAIR] = np.array(pair, dtype=np.int64)
     if weak_mode:
         truth.attrs[ATTR_WEAK] = int(weak_k) + 1
-    truth = add_history(
-        truth,
-        "ami_xr.simulate.random_system",
-        {
-            "n_points": n_points,
-            "topology": topology,
-            "n_modes": n_modes,
-            "closely_spaced": bool(closely_spaced),
-            "weak_mode": bool(weak_mode),
-            "seed": seed,
-        },
-    )
-
-    # ---- FRFs ----
-    out = system_frfs(
-        truth,
-        drive,
-        source=source,
-        frequency=frequency,
-        max_frequency_hz=fmax,
-        n_frequencies=n_frequencies,
-        duration=duration,
-        n_samples=n_samples,
-        noise=noise,
-        noise_kind=noise_kind,
-        noise_seed=noise_seed,
-    )
-    out = add_history(
-        out, "ami_xr.simulate.random_system", {"source": source, "noise": noise, "seed": seed}
-    )
-    return out, truth
+    return truth, drive
 
 
 def system_frfs(

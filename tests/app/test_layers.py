@@ -1,5 +1,6 @@
-"""The package's structure (issue 19): no import cycle, no private import across modules, no
-module over 600 lines, no function over 120 lines, kernels on numpy, numba and math only.
+"""The package's structure (issues 19, 39): no import cycle, no private import across modules, no
+module over 600 lines, no function over 120 lines, kernels on numpy, numba and math only, and
+imports that point down the layers only (:data:`LAYERS`).
 
 Every module of ``ami_xr`` is parsed with :mod:`ast` (imports inside functions included); nothing
 is imported. What breaks a rule today and belongs to work in progress elsewhere is in an explicit
@@ -20,35 +21,45 @@ MAX_FUNCTION_LINES = 120  # docstring included
 
 # Known violations, each owned by ongoing work (issue 19 leftovers); remove an entry when fixed.
 ALLOWED_LONG_MODULES = {
-    "ami_xr.app.cli": "CLI parser and subcommands in one module; being edited for fault handling",
-    "ami_xr.dsp.frf": "frf and impact_frf with their shared setup; not split yet",
     "ami_xr.io.uff.read": "the UFF reader's dataset handlers; not split yet",
-    "ami_xr.simulate.modal": "modal model, FRF and impulse-response simulators; not split yet",
 }
 ALLOWED_LONG_FUNCTIONS = {
-    "ami_xr.ami.crb.cramer_rao_bound": "crb.py is owned by another engineer this round",
-    "ami_xr.app.report.report": "the HTML report's sections in sequence; not split yet",
-    "ami_xr.dsp.frf.impact_frf": "hit checks, force window and spectra; not split yet",
     "ami_xr.io.datasets.make_frf_dataset": "constructor with a long numpydoc; not split yet",
     "ami_xr.io.lvm.read_lvm": "LVM reader with a long numpydoc; not split yet",
-    "ami_xr.simulate.cluster.clustered_system": "simulator with a long numpydoc; not split yet",
-    "ami_xr.simulate.random.random_system": "simulator with a long numpydoc; not split yet",
 }
-ALLOWED_CYCLES = {
-    frozenset({"ami_xr.app.report", "ami_xr.app.report_mimo"}): (
-        "multi-reference report (issue 22) dispatches from report and reuses its sections; "
-        "owned by the report work: a shared sections module would cut it"
-    ),
-}
-ALLOWED_PRIVATE_IMPORTS = {
-    ("ami_xr.plot.stability", "ami_xr.plot.common._label_levels"): "plot package, not split yet",
-    ("ami_xr.simulate.cluster", "ami_xr.simulate.random._check_int"): "simulator checks",
-    ("ami_xr.simulate.cluster", "ami_xr.simulate.random._check_positive"): "simulator checks",
-}
+ALLOWED_CYCLES: dict[frozenset[str], str] = {}
+ALLOWED_PRIVATE_IMPORTS: dict[tuple[str, str], str] = {}
 ALLOWED_KERNEL_IMPORTS = {
     ("ami_xr.kernels.fft", "scipy.fft"): "rfft with workers; numpy.fft is the fallback to use",
     ("ami_xr.kernels.windows", "scipy.signal"): "get_window for the named cosine windows",
 }
+# The layers, bottom up (STYLE.md: data flows one way, no layer reaches up). A module may import
+# modules of its own layer and of the layers below, never one above. A module is placed by the
+# longest entry that names it or its package; every module must be placed.
+LAYERS = (
+    # the vocabulary every layer speaks: exception types, names, coordinates, the signal flag
+    (
+        "base",
+        (
+            "ami_xr.errors",
+            "ami_xr.names",
+            "ami_xr.coords",
+            "ami_xr.interrupt",
+            "ami_xr.caller",
+            "ami_xr.import_hook",
+        ),
+    ),
+    ("kernels", ("ami_xr.kernels",)),  # plain arrays, numba
+    ("core", ("ami_xr.core",)),  # plain-array algorithms on the kernels
+    # Dataset checks and the services the labeled layer shares (records, progress, tables)
+    ("schema", ("ami_xr.schema", "ami_xr.provenance", "ami_xr.progress", "ami_xr.tables")),
+    ("dsp", ("ami_xr.dsp",)),  # labeled signal processing
+    ("io", ("ami_xr.io", "ami_xr.simulate")),  # files (units through dsp.quantity); simulators
+    ("ami", ("ami_xr.ami", "ami_xr.plot")),  # identification (reads io's schema); figures
+    ("app", ("ami_xr.app", "ami_xr.accessor", "ami_xr.__main__", "ami_xr")),  # shells, API
+)
+# (module, imported module) pairs that reach up, each with its reason; remove when fixed.
+ALLOWED_UPWARD_IMPORTS: dict[tuple[str, str], str] = {}
 # What kernels may import besides numpy, numba, math and other kernels: the exception types
 # their public wrappers raise before any jitted code runs (STYLE rule 3), and the standard
 # library they use today (the numba policy module: cache folder, hashing, logging, locks; the
@@ -224,3 +235,68 @@ def test_kernels_import_numpy_numba_math_and_kernels_only(name):
         if (name, module) not in ALLOWED_KERNEL_IMPORTS:
             bad.append(f"{module} ({imported})" if imported else module)
     assert not bad, f"{name} imports {bad}"
+
+
+def _layer(name: str) -> int | None:
+    """Index in :data:`LAYERS` of module ``name`` (longest matching entry), None if unplaced."""
+    best, rank = "", None
+    for i, (_, prefixes) in enumerate(LAYERS):
+        for prefix in prefixes:
+            hit = name == prefix or (prefix != "ami_xr" and name.startswith(prefix + "."))
+            if hit and len(prefix) > len(best):
+                best, rank = prefix, i
+    return rank
+
+
+def test_every_module_has_a_layer():
+    unplaced = sorted(n for n in MODULES if _layer(n) is None)
+    assert not unplaced, f"place these modules in LAYERS: {unplaced}"
+
+
+def _upward(found: list[tuple[str, str, str | None]]) -> list[tuple[str, str]]:
+    """(module, imported module) pairs among ``(module, from, name)`` imports that reach up."""
+    up = []
+    for name, module, imported in found:
+        if module.split(".")[0] != "ami_xr":
+            continue
+        target = _target(module, imported)
+        # the version string lives in the package's __init__; reading it reaches nothing
+        if target is None or (target == "ami_xr" and imported == "__version__"):
+            continue
+        low, high = _layer(name), _layer(target)
+        if low is not None and high is not None and high > low:
+            up.append((name, target))
+    return sorted(set(up))
+
+
+def test_imports_point_down_the_layers():
+    up = _upward([(n, m, i) for n in MODULES for m, i in _imports(n)])
+    bad = [
+        f"{a} ({LAYERS[_layer(a)][0]}) imports {b} ({LAYERS[_layer(b)][0]})"
+        for a, b in up
+        if (a, b) not in ALLOWED_UPWARD_IMPORTS
+    ]
+    assert not bad, "\n".join(bad)
+    stale = set(ALLOWED_UPWARD_IMPORTS) - set(up)
+    assert not stale, f"no longer reaching up, remove from ALLOWED_UPWARD_IMPORTS: {stale}"
+
+
+def test_the_layer_check_sees_a_reach_up():
+    """The rule on made-up imports between real modules: a kernel importing dsp and schema
+    importing io are found; imports down, within a layer, of the version string or of
+    other packages are not."""
+    made_up = [
+        ("ami_xr.kernels.engine", "ami_xr.dsp.frf", "frf"),  # up
+        ("ami_xr.schema.frf", "ami_xr.io", "netcdf"),  # up (a submodule through its package)
+        ("ami_xr.core.modal", "ami_xr", "__version__"),  # the version string only
+        ("ami_xr.core.modal", "ami_xr.kernels", "engine"),  # down
+        ("ami_xr.app.cli", "ami_xr.app.options", "value"),  # same layer
+        ("ami_xr.kernels.engine", "numpy", None),  # not ami_xr
+    ]
+    assert _upward(made_up) == [
+        ("ami_xr.kernels.engine", "ami_xr.dsp.frf"),
+        ("ami_xr.schema.frf", "ami_xr.io.netcdf"),
+    ]
+    assert _layer("ami_xr.kernels.engine") < _layer("ami_xr.core.modal") < _layer("ami_xr.schema")
+    assert _layer("ami_xr") == _layer("ami_xr.app") and _layer("ami_xr.plot") > _layer("ami_xr.io")
+    assert _layer("not_ami_xr.errors") is None

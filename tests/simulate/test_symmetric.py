@@ -7,7 +7,7 @@ import pytest
 
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError
-from ami_xr.simulate import modal, symmetric_structure
+from ami_xr.simulate import eigen, modal, symmetric_structure
 from ami_xr.simulate.symmetric import ring_matrices
 
 
@@ -67,13 +67,13 @@ def test_repeated_root_mode_vectors_made_orthogonal():
     assert abs(cross) < 1e-10 * abs(phi[:, 1] @ b @ phi[:, 1])
     # an arbitrary (non-orthogonal) basis of the eigenspace is put right
     v = phi[:, 1:3] @ np.array([[1.0, 0.7 + 0.2j], [0.3, 1.0]])
-    w = modal._b_orthogonal(v.copy(), b)
+    w = eigen._b_orthogonal(v.copy(), b)
     assert abs(w[:, 0] @ b @ w[:, 1]) < 1e-12 * abs(w[:, 0] @ b @ w[:, 0])
     # isotropic vectors (phi^T B phi = 0) are mixed first
     iso = phi[:, 1:3] / np.sqrt(phi[:, 1:3].T @ b @ phi[:, 1:3]).diagonal()
     v = np.stack([iso[:, 0] + 1j * iso[:, 1], iso[:, 0] - 1j * iso[:, 1]], axis=1)
     assert abs(v[:, 0] @ b @ v[:, 0]) < 1e-12
-    w = modal._b_orthogonal(v.copy(), b)
+    w = eigen._b_orthogonal(v.copy(), b)
     d = w.T @ b @ w
     assert abs(d[0, 1]) < 1e-12 * min(abs(d[0, 0]), abs(d[1, 1]))
 
