@@ -1,4 +1,5 @@
-"""The time data model: ``response`` float with dims ``([record,] point, time)`` and ``force``,
+"""The time data model: ``response`` float with dims ``([record,] point, time)`` and ``force``
+``([record,] [reference,] time)``,
 or impulse responses (attribute ``excitation = "unit_impulse"``).
 """
 
@@ -33,7 +34,7 @@ def signal_problems(
     problems: list[str] = []
     da = ds[var]
     subject = namer.var(var)
-    if names.REFERENCE in da.dims:
+    if da.dims not in allowed and names.REFERENCE in da.dims:
         problems.append(f"{subject}: {MULTI_REFERENCE_MESSAGE}")
     elif da.dims not in allowed:
         problems.append(f"{subject}: expected dims {' or '.join(map(str, allowed))}, got {da.dims}")
@@ -56,7 +57,10 @@ def time_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool,
     else:
         problems += signal_problems(ds, names.RESPONSE, ((p, t), (r, p, t)), check_values, namer)
     if names.FORCE in ds.data_vars:
-        problems += signal_problems(ds, names.FORCE, ((t,), (r, t)), check_values, namer)
+        # several force channels (a multi-reference test) on a reference dim
+        q = names.REFERENCE
+        forces = ((t,), (r, t), (q, t), (r, q, t))
+        problems += signal_problems(ds, names.FORCE, forces, check_values, namer)
     elif ds.attrs.get(names.ATTR_EXCITATION) != names.EXCITATION_UNIT_IMPULSE:
         problems.append(
             f"{namer.var(names.FORCE)}: missing (expected float force with dims {(t,)} or "

@@ -34,7 +34,6 @@ __all__ = [
     "LABEL_RE",
     "ID_TAG",
     "MODES_ID1",
-    "KNOWN_UNIT_ALIASES",
 ]
 
 # --- UFF code tables (from the UFF dataset 58 specification) ---------------------------------
@@ -52,16 +51,6 @@ AXIS_CODES = {v: k for k, v in AXES.items()}
 LABEL_RE = re.compile(r"^\s*(\d+)\s*([+-])\s*(X|Y|Z|RX|RY|RZ)\s*$", re.IGNORECASE)
 ID_TAG = "ami_xr point="
 MODES_ID1 = "ami_xr mode shapes"  # ID line 1 of the dataset 55 write_uff writes
-KNOWN_UNIT_ALIASES = {
-    "m/s2": "m/s^2",
-    "m/s**2": "m/s^2",
-    "mm/s2": "mm/s^2",
-    "in/s2": "in/s^2",
-    "µm": "um",
-    "lbf": "lbf",
-    "n": "N",
-    "kn": "kN",
-}
 
 
 def require_pyuff():
