@@ -119,6 +119,9 @@ class ReadOptions:
         return {k: v for k, v in dataclasses.asdict(self).items() if v is not None}
 
 
+#: Words in a channel name that make it the force channel when no unit tells (the second rule of
+#: :func:`force_channels`).
+FORCE_WORDS = ("force", "hammer")
 #: The six metadata keywords: what a file says about the test, and what a caller may say instead.
 OPTION_KEYS = ("points", *METADATA_KEYS)
 #: The options of the time readers (LabVIEW, MATLAB and text time histories).
@@ -178,7 +181,7 @@ def force_channels(
 ) -> list[int]:
     """Indices of the force channel(s) among ``titles``: as given (an index or a name, a list of
     them, or names separated by commas), else the one channel with a force unit, else the one
-    whose name contains "force".
+    whose name contains "force" or "hammer" (:data:`FORCE_WORDS`).
 
     Raises
     ------
@@ -191,7 +194,7 @@ def force_channels(
     if force_channel is None:
         rules = (
             lambda c: force_unit(units[c]) is not None,
-            lambda c: "force" in shown[c].lower(),
+            lambda c: any(word in shown[c].lower() for word in FORCE_WORDS),
         )
         for test in rules:
             hits = [c for c in range(n) if test(c)]

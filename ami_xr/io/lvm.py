@@ -235,7 +235,7 @@ def read_lvm(path: str | os.PathLike, **options: Any) -> xr.Dataset:
 
         * ``force_channel`` (int, str or list): index or column title of the force channel, or
           several (a multi-reference test). Default: the channel whose unit label is a force
-          unit (Newtons, N, kN, lbf) or whose title contains "force".
+          unit (Newtons, N, kN, lbf) or whose title contains "force" or "hammer".
         * ``points`` (list): labels of the response channels (default: their column titles).
         * ``drive_point``: label (one of ``points``) of the response measured where the force
           acts. Default: the single response point if there is one; that assumption is

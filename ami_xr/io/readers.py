@@ -293,13 +293,14 @@ def _read_lvm(path: Path, options: ReadOptions, want: str | None) -> xr.Dataset:
 def _table(path: Path, options: ReadOptions, want: str | None) -> xr.Dataset:
     """A table, text or MATLAB: time histories when ``want`` says so or the file has a time
     column or a sampling rate (and no frequency), else FRFs."""
-    if path.suffix.lower() != MATLAB_SUFFIX:
-        from ami_xr.io.frf_tables import read_frf_csv
-
-        return read_frf_csv(path, **options.given())
-    from ami_xr.io.frf_tables import read_frf_mat as read_frf
-    from ami_xr.io.time_mat import holds_time_histories
-    from ami_xr.io.time_mat import read_time_mat as read_time
+    if path.suffix.lower() == MATLAB_SUFFIX:
+        from ami_xr.io.frf_tables import read_frf_mat as read_frf
+        from ami_xr.io.time_mat import holds_time_histories
+        from ami_xr.io.time_mat import read_time_mat as read_time
+    else:
+        from ami_xr.io.frf_tables import read_frf_csv as read_frf
+        from ami_xr.io.time_table import holds_time_histories
+        from ami_xr.io.time_table import read_time_csv as read_time
 
     if want == "time" or (want is None and holds_time_histories(path)):
         return read_time(path, **options.given())

@@ -10,7 +10,7 @@ layouts:
   ``channel_names`` (or ``names``, ``titles``, ``labels``: a cell array of text) and optionally
   ``channel_units`` (``units``: a cell array, e.g. ``{'N', 'm/s^2', 'm/s^2'}``); the force
   channel is the one named by ``force_channel`` (index or name), else the one channel with a
-  force unit (N, kN, lbf), else the one whose name contains "force" (several given: a
+  force unit (N, kN, lbf), else the one whose name contains "force" or "hammer" (several given: a
   multi-reference test); the others are the
   responses, labelled by their names.
 

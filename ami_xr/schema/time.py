@@ -34,7 +34,8 @@ def signal_problems(
     problems: list[str] = []
     da = ds[var]
     subject = namer.var(var)
-    if da.dims not in allowed and names.REFERENCE in da.dims:
+    takes_reference = any(names.REFERENCE in dims for dims in allowed)
+    if da.dims not in allowed and names.REFERENCE in da.dims and not takes_reference:
         problems.append(f"{subject}: {MULTI_REFERENCE_MESSAGE}")
     elif da.dims not in allowed:
         problems.append(f"{subject}: expected dims {' or '.join(map(str, allowed))}, got {da.dims}")
@@ -67,6 +68,13 @@ def time_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool,
             f"{(r, t)}, or attribute {names.ATTR_EXCITATION}="
             f"{names.EXCITATION_UNIT_IMPULSE!r} for impulse responses)"
         )
+    if names.REFERENCE in ds.coords:  # the force channels' labels
+        refs = np.asarray(ds[names.REFERENCE].values).tolist()
+        if len(set(map(str, refs))) != len(refs):
+            problems.append(
+                f"{namer.coord(names.REFERENCE)}: expected unique labels, one per force "
+                f"channel, got {refs}"
+            )
     check_axis(ds, t, names.TIME_UNITS, namer, problems, uniform=True)
     labels = check_points(ds, namer, problems)
     problems += coordinate_problems(ds, namer)
