@@ -98,7 +98,7 @@ def read_uff(
     elif not found[kind]:
         raise DataFileError(f"{path}: the file holds no {kind} dataset")
     system = units_system(sets)
-    nodes = node_coordinates(sets, system)
+    nodes = node_coordinates(sets, system, path)
     if kind == "frf":
         ds = read_frf(frfs, cohs, nodes, path, system)
         if modes and merge_modes:
