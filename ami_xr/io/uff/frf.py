@@ -18,6 +18,7 @@ from ami_xr.io.uff.records import (
     MULTI_REFERENCE_LAYOUT,
     abscissa,
     check_same_grid,
+    id_lines,
     label_of,
     mixed_labels_to_str,
     multi_reference,
@@ -120,6 +121,11 @@ def read_frf(
     )
     if drive is not None:  # set after the check: a drive point that was not measured is allowed
         ds.attrs = {names.ATTR_DRIVE_POINT: drive, **ds.attrs}
+    if refs is None:  # one record per point: its ID lines kept for a round trip
+        lines, title = id_lines(frfs)
+        ds = ds.assign_coords({k: (names.POINT, v) for k, v in lines.items()})
+        if title is not None:
+            ds.attrs.setdefault("title", title)
     coherence = _coherence(coh, points, freq.size)
     if coherence is not None:
         units = {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}

@@ -13,7 +13,9 @@ from ami_xr.errors import DataFileError
 from ami_xr.io.uff.codes import ID_TAG, point_label
 
 __all__ = [
+    "ID_LINES",
     "MULTI_REFERENCE_LAYOUT",
+    "id_lines",
     "abscissa",
     "check_same_grid",
     "label_of",
@@ -127,3 +129,27 @@ def multi_reference(records: list[dict], path: Path) -> tuple[list, list, list] 
         )
     index = [(refs.index(a), points.index(b)) for a, b in pairs]
     return points, refs, index
+
+
+#: The ID lines of a dataset-58 record, kept per point on a round trip (coordinates
+#: ``uff_id1`` ... ``uff_id5``; ID line 1 shared by every record: attribute ``title``).
+ID_LINES = ("id1", "id2", "id3", "id4", "id5")
+_EMPTY = ("", "NONE", "ami_xr")  # what ami_xr's writer puts where a record says nothing
+
+
+def id_lines(records: list[dict]) -> tuple[dict[str, list[str]], str | None]:
+    """The informative ID lines of records that are one per point: ``({"uff_id2": [...], ...},
+    title)``. A line that every record leaves empty (``NONE``) or holds ami_xr's own label tag
+    is left out; ID line 1 common to every record is the ``title``."""
+    lines: dict[str, list[str]] = {}
+    title = None
+    for key in ID_LINES:
+        texts = [str(r.get(key, "") or "").strip() for r in records]
+        texts = ["NONE" if t.startswith(ID_TAG) else t for t in texts]
+        if all(t in _EMPTY for t in texts):
+            continue
+        if key == "id1" and len(set(texts)) == 1:
+            title = texts[0]
+            continue
+        lines[f"uff_{key}"] = [t or "NONE" for t in texts]
+    return lines, title

@@ -133,6 +133,21 @@ def _units_lab(text: str) -> str:
     return text if text else "NONE"
 
 
+def _id_lines(ds: xr.Dataset, labels: list) -> dict[str, list[str]]:
+    """ID lines 1-5 of each point's records: the ``uff_id1`` ... ``uff_id5`` coordinates
+    :func:`read_uff` keeps, else the ``title`` (line 1) and ``NONE`` (UFF lines hold 80
+    characters)."""
+    title = str(ds.attrs.get("title", "ami_xr"))[:80] or "NONE"
+    out = {}
+    for key in ("id1", "id2", "id3", "id4", "id5"):
+        coord = f"uff_{key}"
+        if coord in ds.coords and ds[coord].dims == (names.POINT,):
+            out[key] = [str(t)[:80] or "NONE" for t in ds[coord].values.tolist()]
+        else:
+            out[key] = [title if key == "id1" else "NONE"] * len(labels)
+    return out
+
+
 def _frf_records(ds: xr.Dataset, binary: bool) -> list[dict]:
     pyuff = require_pyuff()
     labels = list(ds[names.POINT].values.tolist())
@@ -147,6 +162,10 @@ def _frf_records(ds: xr.Dataset, binary: bool) -> list[dict]:
     uniform = freq.size > 1 and np.allclose(step, step[0], rtol=1e-9)
     response_units = _units_lab(ds.attrs.get(names.ATTR_RESPONSE_UNITS, ""))
     force_units = _units_lab(ds.attrs.get(names.ATTR_FORCE_UNITS, ""))
+    lines = _id_lines(ds, labels)
+    # a roving-hammer file read by read_uff is written back as it was: the drive point is the
+    # response DOF, each point a reference DOF (the same FRFs by reciprocity)
+    roving = not multi and str(ds.attrs.get("uff_layout", "")).startswith("roving hammer")
     records = []
     variables = [(names.FRF, FUNC_FRF)]
     if names.COHERENCE in ds:
@@ -161,24 +180,26 @@ def _frf_records(ds: xr.Dataset, binary: bool) -> list[dict]:
             ref_node, ref_dir, ref_tag = dof[ref] if ref is not None else (0, 0, "NONE")
             for i, lab in enumerate(labels):
                 node, direction, tag = dof[lab]
+                rsp = (ref_node, ref_dir, ref_tag) if roving else (node, direction, tag)
+                ref = (node, direction, tag) if roving else (ref_node, ref_dir, ref_tag)
                 dtype = np.complex128 if func == FUNC_FRF else np.float64
                 records.append(
                     pyuff.prepare_58(
                         binary=int(binary),
-                        id1=str(ds.attrs.get("title", "ami_xr"))[:80] or "NONE",
-                        id2=tag,
-                        id3=ref_tag,
-                        id4="NONE",
-                        id5="NONE",
+                        id1=lines["id1"][i],
+                        id2=rsp[2] if rsp[2] != "NONE" else lines["id2"][i],
+                        id3=ref[2] if ref[2] != "NONE" else lines["id3"][i],
+                        id4=lines["id4"][i],
+                        id5=lines["id5"][i],
                         func_type=func,
                         ver_num=0,
                         load_case_id=0,
                         rsp_ent_name="ami_xr",
-                        rsp_node=node,
-                        rsp_dir=direction,
+                        rsp_node=rsp[0],
+                        rsp_dir=rsp[1],
                         ref_ent_name="ami_xr",
-                        ref_node=ref_node,
-                        ref_dir=ref_dir,
+                        ref_node=ref[0],
+                        ref_dir=ref[1],
                         ord_data_type=6 if func == FUNC_FRF else 4,
                         num_pts=freq.size,
                         abscissa_spacing=int(uniform),
