@@ -14,7 +14,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError, DataFileError
-from ami_xr.io.uff.codes import FUNC_COHERENCE, FUNC_FRF, FUNC_TIME
+from ami_xr.io.uff.codes import FUNC_COHERENCE, FUNC_FRF, FUNC_TIME, describe_sets
 from ami_xr.io.uff.frf import read_frf
 from ami_xr.io.uff.modes import ATTR_MODES_SKIPPED, MODE_ANALYSIS_TYPES, read_modes, with_modes
 from ami_xr.io.uff.nodes import attach_coordinates, node_coordinates
@@ -90,13 +90,14 @@ def read_uff(
     if kind is None:
         kind = next((k for k in ("frf", "time", "modes") if found[k]), None)
         if kind is None:
-            types = sorted({(s.get("type"), s.get("func_type")) for s in sets}, key=str)
             raise DataFileError(
                 f"{path}: no FRF (58, function type 4), time response (58, type 1) or mode-shape "
-                f"(55) dataset; found (dataset, function type) {types}"
+                f"(55) dataset; found datasets {describe_sets(sets)}"
             )
     elif not found[kind]:
-        raise DataFileError(f"{path}: the file holds no {kind} dataset")
+        raise DataFileError(
+            f"{path}: the file holds no {kind} dataset; found datasets {describe_sets(sets)}"
+        )
     system = units_system(sets)
     nodes = node_coordinates(sets, system, path)
     if kind == "frf":

@@ -53,6 +53,14 @@ def read_time(records: list[dict], nodes: Nodes, path: Path, system: UnitSystem)
     resp_recs = [r for r in records if not is_force(r)]
     if not resp_recs:
         raise DataFileError(f"{path}: the time records hold no response channel (only force)")
+    if not force_recs:
+        dofs = sorted({str(label_of(r, "rsp")) for r in resp_recs})
+        raise DataFileError(
+            f"{path}: the time records (dataset 58, function type 1) hold responses at "
+            f"{len(dofs)} DOF(s) {dofs[:6]}{' ...' if len(dofs) > 6 else ''} and no force record "
+            "(ordinate specific data type 13 or 9, or a force unit label such as N); ami_xr "
+            "estimates FRFs from a force and responses"
+        )
     grids = [abscissa(r) for r in records]
     check_same_grid(records, grids, path, "time")
     time = grids[0]
@@ -111,8 +119,6 @@ def read_time(records: list[dict], nodes: Nodes, path: Path, system: UnitSystem)
         force_units=force_part[0],
         **attrs,
     )
-    if force is None:  # no force record: not impulse responses, a file without its force
-        del ds.attrs[names.ATTR_EXCITATION]
     if drive is not None:  # set after the check: a force on a DOF not measured is allowed
         ds.attrs[names.ATTR_DRIVE_POINT] = drive
     label_nodes = {lab: parse_point_label(lab)[0] for lab in labels_out if parse_point_label(lab)}
