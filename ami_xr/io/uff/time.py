@@ -71,7 +71,7 @@ def read_time(records: list[dict], nodes: Nodes, path: Path, system: UnitSystem)
     if len(quantities) != 1:
         raise DataFileError(f"{path}: the responses mix quantities or units {sorted(quantities)}")
     quantity, resp_units, _ = quantities.pop()
-    resp_part, force_part = units[0].response, ("N", 1.0, "", "")
+    resp_part = units[0].response
     row = {lab: k for k, lab in enumerate(labels)}
     resp = (
         _by_case(
@@ -86,20 +86,18 @@ def read_time(records: list[dict], nodes: Nodes, path: Path, system: UnitSystem)
         * resp_part[1]
     )
     labels_out = mixed_labels_to_str(labels)
-    force, drive = None, None
-    if force_recs:
-        raw = force_recs[0].get("ordinate_axis_units_lab")
-        force_part = unit_part(force_unit(raw), raw, "N", False, system, "force")
-        drives = {label_of(r, "rsp") for r in force_recs}
-        if len(drives) != 1:
-            raise DataFileError(
-                f"{path}: force records at several DOFs {sorted(map(str, drives))}; "
-                "expected one drive point"
-            )
-        force = _by_case(force_recs, cases, [0], lambda r: 0, time.size, "force", path)
-        force = force[:, 0] * force_part[1]
-        drive = drives.pop()
-        drive = str(drive) if isinstance(labels_out[0], str) else drive
+    raw = force_recs[0].get("ordinate_axis_units_lab")
+    force_part = unit_part(force_unit(raw), raw, "N", False, system, "force")
+    drives = {label_of(r, "rsp") for r in force_recs}
+    if len(drives) != 1:
+        raise DataFileError(
+            f"{path}: force records at several DOFs {sorted(map(str, drives))}; "
+            "expected one drive point"
+        )
+    force = _by_case(force_recs, cases, [0], lambda r: 0, time.size, "force", path)
+    force = force[:, 0] * force_part[1]
+    drive = drives.pop()
+    drive = str(drive) if isinstance(labels_out[0], str) else drive
     one = len(cases) == 1
     attrs = {names.ATTR_SOURCE_FILE: path.name}
     assumed = assumed_si((resp_part, force_part))
@@ -112,14 +110,13 @@ def read_time(records: list[dict], nodes: Nodes, path: Path, system: UnitSystem)
     ds = make_time_dataset(
         resp[0] if one else resp,
         time,
-        force=None if force is None else (force[0] if one else force),
+        force=force[0] if one else force,
         points=labels_out,
         response_quantity=quantity,
         response_units=resp_units,
         force_units=force_part[0],
         **attrs,
     )
-    if drive is not None:  # set after the check: a force on a DOF not measured is allowed
-        ds.attrs[names.ATTR_DRIVE_POINT] = drive
+    ds.attrs[names.ATTR_DRIVE_POINT] = drive  # after the check: an unmeasured DOF is allowed
     label_nodes = {lab: parse_point_label(lab)[0] for lab in labels_out if parse_point_label(lab)}
     return attach_coordinates(ds, nodes, label_nodes)
