@@ -4,7 +4,6 @@ record, one unit parser for every format and one force-channel rule."""
 from __future__ import annotations
 
 import inspect
-import warnings
 
 import numpy as np
 import pytest
@@ -16,6 +15,8 @@ from ami_xr.io import readers
 from ami_xr.io.build import OPTION_KEYS, ReadOptions, force_channels
 from ami_xr.io.frf_tables import read_frf_csv
 from ami_xr.io.units import force_unit, frf_unit, response_unit
+
+from .pyuff_records import frf_record, write_sets
 
 FREQ = np.arange(1.0, 9.0)
 H = (np.arange(FREQ.size) + 1.0) + 0.5j
@@ -49,32 +50,16 @@ def _csv(path, unit):
 
 
 def _uff(path, unit):
-    pyuff = pytest.importorskip("pyuff")
-    record = pyuff.prepare_58(
-        binary=0,
-        id1="peer",
-        func_type=4,
-        rsp_node=1,
-        rsp_dir=3,
-        ref_node=1,
-        ref_dir=3,
-        ord_data_type=6,
-        num_pts=FREQ.size,
-        abscissa_spacing=1,
-        abscissa_min=float(FREQ[0]),
-        abscissa_inc=1.0,
-        abscissa_spec_data_type=18,
-        ordinate_spec_data_type=0,  # unknown: the quantity comes from the unit label
+    pytest.importorskip("pyuff")
+    # ordinate type 0 (unknown): the quantity comes from the unit label
+    record = frf_record(
+        H,
+        FREQ,
+        ordinate_spec_data_type=0,
         ordinate_axis_units_lab=unit,
-        orddenom_spec_data_type=13,
         orddenom_axis_units_lab="NONE",
-        data=H,
-        x=FREQ,
     )
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        pyuff.UFF(str(path)).write_sets([record], mode="add")
-    return path
+    return write_sets(path, [record])
 
 
 @pytest.mark.parametrize(("label", "expected"), SPELLINGS)

@@ -9,7 +9,6 @@ the modes someone fitted (datasets 58 + 55), and power spectral densities (58, f
 from __future__ import annotations
 
 import shutil
-import warnings
 
 import numpy as np
 import pytest
@@ -21,6 +20,7 @@ from ami_xr.io.formats import read_any, write_any
 from ami_xr.io.reference_modes import REFERENCE_MAC
 
 from ..reference import REPO
+from .pyuff_records import frf_record, read_sets, write_sets
 
 pyuff = pytest.importorskip("pyuff")
 
@@ -59,26 +59,15 @@ EXPECTED = {
 
 
 def _frf_record(point, values, freq, func=4):
-    return pyuff.prepare_58(
-        binary=0,
+    return frf_record(
+        values,
+        freq,
+        rsp_node=NODES[point],
         id1=f"{point} / tip",
         func_type=func,
-        rsp_node=NODES[point],
-        rsp_dir=3,
-        ref_node=1,
-        ref_dir=3,
         ord_data_type=6 if func == 4 else 4,
-        num_pts=freq.size,
-        abscissa_spacing=1,
-        abscissa_min=float(freq[0]),
-        abscissa_inc=float(freq[1] - freq[0]),
-        abscissa_spec_data_type=18,
         ordinate_spec_data_type=8,
         ordinate_axis_units_lab="m",
-        orddenom_spec_data_type=13,
-        orddenom_axis_units_lab="N",
-        data=values,
-        x=freq,
     )
 
 
@@ -107,13 +96,6 @@ def _fitted_mode(k, truth):
     )
 
 
-def _write(path, sets):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        pyuff.UFF(str(path)).write_sets(sets, mode="add")
-    return path
-
-
 @pytest.fixture(scope="module")
 def peer_folder(tmp_path_factory):
     folder = tmp_path_factory.mktemp("peer")
@@ -123,9 +105,9 @@ def peer_folder(tmp_path_factory):
     truth = ami_xr.open_dataset(SAMPLE / "benchmark_truth.nc").load()
     freq = frf[names.FREQUENCY].values
     records = [_frf_record(p, frf[names.FRF].sel(point=p).values, freq) for p in NODES]
-    _write(folder / "frf_and_modes.uff", records + [_fitted_mode(k, truth) for k in range(4)])
+    write_sets(folder / "frf_and_modes.uff", records + [_fitted_mode(k, truth) for k in range(4)])
     psd = [_frf_record(p, np.abs(frf[names.FRF].sel(point=p).values) ** 2, freq, 9) for p in NODES]
-    _write(folder / "psd.uff", psd)
+    write_sets(folder / "psd.uff", psd)
     return folder, truth
 
 
@@ -172,10 +154,7 @@ def test_the_files_own_modes_are_kept_as_the_reference_set(summary, peer_folder)
 def test_a_readable_peer_file_converts_value_by_value(peer_folder, tmp_path, name):
     folder, _ = peer_folder
     path = folder / name
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sets = pyuff.UFF(str(path)).read_sets()
-    sets = [sets] if isinstance(sets, dict) else sets  # pyuff gives one set alone
+    sets = read_sets(path)
     ds = read_any(path)
     back = ami_xr.open_dataset(write_any(ds, tmp_path / "x.nc")).load()
     if names.FRF in ds:

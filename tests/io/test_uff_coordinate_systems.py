@@ -5,14 +5,14 @@ Files written by pyuff's own writer."""
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 
 from ami_xr import names
 from ami_xr.errors import DataFileError
 from ami_xr.io.uff import read_uff
+
+from .pyuff_records import frf_record, write_sets
 
 pyuff = pytest.importorskip("pyuff")
 
@@ -25,27 +25,7 @@ GLOBAL = ORIGIN + LOCAL @ AXES
 
 
 def _frf(node):
-    return pyuff.prepare_58(
-        binary=0,
-        id1="cs test",
-        func_type=4,
-        rsp_node=node,
-        rsp_dir=3,
-        ref_node=1,
-        ref_dir=3,
-        ord_data_type=6,
-        num_pts=FREQ.size,
-        abscissa_spacing=1,
-        abscissa_min=float(FREQ[0]),
-        abscissa_inc=1.0,
-        abscissa_spec_data_type=18,
-        ordinate_spec_data_type=12,
-        ordinate_axis_units_lab="m/s^2",
-        orddenom_spec_data_type=13,
-        orddenom_axis_units_lab="N",
-        data=(np.arange(FREQ.size) + 1.0) * node + 0.5j,
-        x=FREQ,
-    )
+    return frf_record((np.arange(FREQ.size) + 1.0) * node + 0.5j, FREQ, rsp_node=node)
 
 
 def _nodes(def_cs, disp_cs=(0, 0, 0)):
@@ -90,52 +70,45 @@ def _cs_18():
     )
 
 
-def _write(path, sets):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        pyuff.UFF(str(path)).write_sets(sets, mode="add")
-    return path
-
-
 def _xyz(ds):
     return np.column_stack([ds[c].values for c in names.POINT_COORDS])
 
 
 @pytest.mark.parametrize("system", [_cs_2420, _cs_18], ids=["2420", "18"])
 def test_nodes_in_a_cartesian_system_are_moved_to_global_coordinates(tmp_path, system):
-    path = _write(tmp_path / "cs.uff", [system(), _nodes([1, 1, 1]), *map(_frf, (1, 2, 3))])
+    path = write_sets(tmp_path / "cs.uff", [system(), _nodes([1, 1, 1]), *map(_frf, (1, 2, 3))])
     ds = read_uff(path)
     assert list(ds[names.POINT].values) == ["1+Z", "2+Z", "3+Z"]
     np.testing.assert_allclose(_xyz(ds), GLOBAL, rtol=0, atol=1e-6)
 
 
 def test_the_global_system_needs_no_dataset(tmp_path):
-    path = _write(tmp_path / "g.uff", [_nodes([0, 0, 0]), *map(_frf, (1, 2, 3))])
+    path = write_sets(tmp_path / "g.uff", [_nodes([0, 0, 0]), *map(_frf, (1, 2, 3))])
     np.testing.assert_allclose(_xyz(read_uff(path)), LOCAL, rtol=0, atol=1e-12)
 
 
 def test_an_undefined_or_cylindrical_system_is_refused_naming_the_node(tmp_path):
-    path = _write(tmp_path / "u.uff", [_nodes([0, 7, 0]), *map(_frf, (1, 2, 3))])
+    path = write_sets(tmp_path / "u.uff", [_nodes([0, 7, 0]), *map(_frf, (1, 2, 3))])
     with pytest.raises(
         DataFileError,
         match=r"u\.uff: dataset 2411: node 2 is defined in coordinate system 7 which no "
         r"dataset 2420 or 18 defines",
     ):
         read_uff(path)
-    path = _write(tmp_path / "c.uff", [_cs_2420(kind=1), _nodes([1, 1, 1]), _frf(1)])
+    path = write_sets(tmp_path / "c.uff", [_cs_2420(kind=1), _nodes([1, 1, 1]), _frf(1)])
     with pytest.raises(DataFileError, match=r"node 1 is defined in coordinate system 1 \(cyl"):
         read_uff(path)
 
 
 def test_displacements_in_a_rotated_system_are_refused(tmp_path):
-    path = _write(tmp_path / "d.uff", [_cs_2420(), _nodes([0, 0, 0], [0, 1, 0]), _frf(2)])
+    path = write_sets(tmp_path / "d.uff", [_cs_2420(), _nodes([0, 0, 0], [0, 1, 0]), _frf(2)])
     with pytest.raises(
         DataFileError,
         match=r"dataset 2411: node 2 has its displacements in coordinate system 1, a rotated "
         r"one: the direction of point '2\+Z' is not the global one",
     ):
         read_uff(path)
-    identity = _write(
+    identity = write_sets(
         tmp_path / "i.uff", [_cs_2420(axes=np.eye(3)), _nodes([1, 1, 1], [1, 1, 1]), _frf(2)]
     )
     np.testing.assert_allclose(_xyz(read_uff(identity))[0], ORIGIN + LOCAL[1], atol=1e-12)

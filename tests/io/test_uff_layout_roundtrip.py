@@ -4,8 +4,6 @@ lines (channel names, dates) come back on the same DOF. Checked with pyuff readi
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 
@@ -13,6 +11,7 @@ from ami_xr import names
 from ami_xr.io.uff import read_uff, write_uff
 
 from ..reference import REPO
+from .pyuff_records import frf_record, read_sets, write_sets
 
 pyuff = pytest.importorskip("pyuff")
 
@@ -21,9 +20,7 @@ HEADER = ("id1", "id2", "id3", "id4", "id5", "rsp_node", "rsp_dir", "ref_node", 
 
 
 def _sets(path):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return [s for s in pyuff.UFF(str(path)).read_sets() if s["type"] == 58]
+    return [s for s in read_sets(path) if s["type"] == 58]
 
 
 def _header(record):
@@ -48,37 +45,17 @@ def test_a_roving_hammer_file_keeps_its_layout(tmp_path):
 def test_the_id_lines_of_each_record_come_back_on_its_dof(tmp_path):
     channels = ["Mic 01.0Scalar", "Acc 02.+Z", "Acc 03.+Z"]
     records = [
-        pyuff.prepare_58(
-            binary=0,
+        frf_record(
+            (np.arange(FREQ.size) + 1.0) * (k + 1) + 0.5j,
+            FREQ,
+            rsp_node=k + 1,
             id1=channels[k],
-            id2="NONE",
             id3=f"18-Apr-16 13:49:5{k}",
             id4="run 7",
-            id5="NONE",
-            func_type=4,
-            rsp_node=k + 1,
-            rsp_dir=3,
-            ref_node=1,
-            ref_dir=3,
-            ord_data_type=6,
-            num_pts=FREQ.size,
-            abscissa_spacing=1,
-            abscissa_min=float(FREQ[0]),
-            abscissa_inc=1.0,
-            abscissa_spec_data_type=18,
-            ordinate_spec_data_type=12,
-            ordinate_axis_units_lab="m/s^2",
-            orddenom_spec_data_type=13,
-            orddenom_axis_units_lab="N",
-            data=(np.arange(FREQ.size) + 1.0) * (k + 1) + 0.5j,
-            x=FREQ,
         )
         for k in range(3)
     ]
-    source = tmp_path / "lab.uff"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        pyuff.UFF(str(source)).write_sets(records, mode="add")
+    source = write_sets(tmp_path / "lab.uff", records)
     ds = read_uff(source)
     assert list(ds["uff_id1"].values) == channels
     assert list(ds["uff_id4"].values) == ["run 7"] * 3
@@ -86,8 +63,5 @@ def test_the_id_lines_of_each_record_come_back_on_its_dof(tmp_path):
     out = write_uff(ds, tmp_path / "again.uff")
     assert [_header(r) for r in _sets(out)] == [_header(r) for r in _sets(source)]
     shared = records[:1]  # one record: its ID line 1 is the Dataset's title
-    one = tmp_path / "one.uff"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        pyuff.UFF(str(one)).write_sets(shared, mode="add")
+    one = write_sets(tmp_path / "one.uff", shared)
     assert read_uff(one).attrs["title"] == channels[0]
