@@ -373,8 +373,9 @@ def make_time_dataset(
         Sample times in s, uniformly spaced. Give exactly one of ``time`` and ``fs``.
     fs : float, optional
         Sampling rate in Hz; the time axis is then ``arange(n_time) / fs``.
-    force : array_like of float, shape ([n_record,] [n_reference,] n_time), optional
-        Force history; with ``references``, one history per force channel. ``None`` means the
+    force : array_like of float, optional
+        Shape (n_time,) or (n_reference, n_time), either with n_record first. Force history;
+        with ``references``, one history per force channel. ``None`` means the
         responses are impulse responses to a unit impulse: the attribute
         ``excitation = "unit_impulse"`` is set.
     points, drive_point, response_quantity, response_units, force_units

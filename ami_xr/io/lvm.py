@@ -249,7 +249,7 @@ def read_lvm(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     Returns
     -------
     xarray.Dataset
-        ``response`` ([record,] point, time), ``force`` ([record,] [reference,] time) and
+        ``response`` ([record,] point, time), ``force`` (``[record,] [reference,] time``) and
         ``time`` (s, from 0 at each segment start); with several segments a ``record`` dim
         with coordinate ``record_start`` (s). Attrs ``source_file``, units, quantity, drive
         point (and ``drive_point_assumed`` when it was not given).
