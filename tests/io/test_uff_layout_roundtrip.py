@@ -7,7 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import ami_xr
 from ami_xr import names
+from ami_xr.errors import AssumptionWarning
 from ami_xr.io.uff import read_uff, write_uff
 
 from ..reference import REPO
@@ -65,3 +67,30 @@ def test_the_id_lines_of_each_record_come_back_on_its_dof(tmp_path):
     shared = records[:1]  # one record: its ID line 1 is the Dataset's title
     one = write_sets(tmp_path / "one.uff", shared)
     assert read_uff(one).attrs["title"] == channels[0]
+
+
+def test_a_dataset_55_stating_one_value_per_node_for_three_translations_is_read(tmp_path):
+    """SDynPy writes record 6 of dataset 55 with 1 value per node for three translations (data
+    characteristic 2); such a file is read with 3, and the repair is said."""
+    truth = ami_xr.open_dataset(REPO / "sample_data" / "benchmark_truth.nc").load()
+    labels = [f"{k + 1}+Z" for k in range(truth.sizes[names.POINT])]
+    truth = truth.assign_coords({names.POINT: labels}).assign_attrs(drive_point=labels[0])
+    good = write_uff(truth, tmp_path / "good.uff", include=("modes",))
+    lines = good.read_text().split("\n")
+    starts = [
+        i
+        for i in range(len(lines) - 1)
+        if lines[i].strip() == "-1" and lines[i + 1].strip() == "55"
+    ]
+    assert len(starts) == truth.sizes[names.MODE]
+    for i in starts:
+        fields = lines[i + 7].split()
+        assert fields[2] == "2" and fields[5] == "3"
+        lines[i + 7] = "".join(f.rjust(10) for f in [*fields[:5], "1"])
+    bad = tmp_path / "sdynpy_like.uff"
+    bad.write_text("\n".join(lines))
+    with pytest.warns(AssumptionWarning, match=r"record 6 states 1 value\(s\) per node for data "):
+        back = read_uff(bad, kind="modes")
+    want = read_uff(good, kind="modes")
+    np.testing.assert_allclose(back[names.EIGENVALUE].values, want[names.EIGENVALUE].values)
+    np.testing.assert_allclose(back[names.MODE_VECTOR].values, want[names.MODE_VECTOR].values)
