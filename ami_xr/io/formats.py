@@ -200,6 +200,7 @@ def write_any(
     binary: bool = False,
     function: str | None = None,
     parameters: dict[str, Any] | None = None,
+    geometry: int | str = 2411,
 ) -> Path:
     """Write a Dataset to ``path`` (atomically), choosing the writer by the file's suffix.
 
@@ -214,6 +215,9 @@ def write_any(
         UFF only: write dataset 58 in binary (exact float64) instead of ASCII.
     function, parameters : optional
         netCDF only: the provenance record (see :func:`ami_xr.to_netcdf`).
+    geometry : {2411, 15}
+        UFF only: the node dataset of the point coordinates (see
+        :func:`ami_xr.io.uff.write_uff`).
 
     Returns
     -------
@@ -230,7 +234,7 @@ def write_any(
     if suffix in UFF_SUFFIXES:
         from ami_xr.io.uff import write_uff
 
-        return write_uff(ds, path, binary=binary)
+        return write_uff(ds, path, binary=binary, geometry=geometry)
     if suffix != NETCDF_SUFFIX:
         raise AmiXrValueError(f"output {str(path)!r}: expected a .nc, .uff or .unv file name")
     from ami_xr.io.netcdf import to_netcdf
