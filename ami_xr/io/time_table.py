@@ -74,7 +74,7 @@ def _is_time_name(name: str) -> bool:
 def holds_time_histories(path: str | os.PathLike) -> bool:
     """True when a text table has a time column or a sampling-rate line and no frequency
     column: time histories, not FRFs."""
-    lines = read_lines(Path(path), _KEYS)
+    lines = read_lines(Path(path), _KEYS, max_rows=1)  # the header is enough to tell
     header = lines.rows[0][1]
     if any(is_frequency_name(name) for name in header):
         return False

@@ -96,10 +96,15 @@ def _split(line: str, sep: str | None) -> list[str]:
     return fields
 
 
-def read_lines(path: Path, keys: tuple[str, ...] = METADATA_KEYS) -> _Lines:
-    """The rows of a text table and what its ``# key: value`` lines above them say (``keys``)."""
+def read_lines(
+    path: Path, keys: tuple[str, ...] = METADATA_KEYS, max_rows: int | None = None
+) -> _Lines:
+    """The rows of a text table (the first ``max_rows``, or all) and what its ``# key: value``
+    lines above them say (``keys``)."""
     out = _Lines()
     for number, raw in enumerate(_text(path).splitlines(), start=1):
+        if max_rows is not None and len(out.rows) >= max_rows:
+            break
         line = raw.strip()
         if not line:
             continue
