@@ -76,6 +76,7 @@ from ami_xr.app.redact import relative_paths
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_folder, atomic_open, interrupts_deferred, remove_stale
 from ami_xr.io.formats import check_input, read_any
+from ami_xr.io.reference_modes import compare_modes, frfs_and_modes
 from ami_xr.progress import Progress, notice
 
 __all__ = [
@@ -235,15 +236,12 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
             warnings.simplefilter("always")
             input_sha = sha256(inp)
             st = inp.stat()
-            ds = read_any(inp)
+            ds, given = frfs_and_modes(read_any(inp), job["rel"])
             if names.FRF not in ds:
-                if names.RESPONSE not in ds:
-                    raise DataFileError(
-                        f"{job['rel']}: neither an FRF Dataset ('{names.FRF}') nor a time Dataset "
-                        f"('{names.RESPONSE}'); found variables {sorted(map(str, ds.data_vars))}"
-                    )
                 ds = estimate_frf(ds, job["frf_options"])
             result = identify(ds, **job["identify_options"])
+            if given is not None:  # the file's own modes, kept as the reference set
+                result = compare_modes(result, given)
             result.attrs.update(
                 {
                     ATTR_INPUT: job["rel"],

@@ -94,6 +94,29 @@ def _raise_problems(ds: xr.Dataset, kind: str, require_drive_point: bool, functi
         raise SchemaError(problems, what=f"{function} arguments")
 
 
+def _frf_arrays(frf: Any, frequency: Any, references: Any) -> tuple[Any, Any]:
+    """``(frf, frequency)`` as arrays of shapes that fit (a 1-D ``frf`` is one point)."""
+    values = _as_array(frf, "frf")
+    if values.ndim == 1:
+        values = values[None, :]
+    if values.ndim not in (2, 3):
+        raise AmiXrValueError(
+            "frf: expected shape (n_point, n_frequency), (n_frequency,) or "
+            f"(n_reference, n_point, n_frequency), got {values.shape}"
+        )
+    if references is not None and values.ndim != 3:
+        raise AmiXrValueError(
+            f"references: given, but frf has shape {values.shape}; multi-reference FRFs have "
+            "shape (n_reference, n_point, n_frequency)"
+        )
+    freq = _as_array(frequency, "frequency")
+    if freq.ndim != 1 or freq.shape[0] != values.shape[-1]:
+        raise AmiXrValueError(
+            f"frequency: expected {values.shape[-1]} values (frf.shape[-1]), got shape {freq.shape}"
+        )
+    return values, freq
+
+
 def make_frf_dataset(
     frf: Any,
     frequency: Any,
@@ -170,25 +193,8 @@ def make_frf_dataset(
     SchemaError
         Every other problem, each naming the argument.
     """
-    values = _as_array(frf, "frf")
-    if values.ndim == 1:
-        values = values[None, :]
-    if values.ndim not in (2, 3):
-        raise AmiXrValueError(
-            "frf: expected shape (n_point, n_frequency), (n_frequency,) or "
-            f"(n_reference, n_point, n_frequency), got {values.shape}"
-        )
+    values, freq = _frf_arrays(frf, frequency, references)
     multi = values.ndim == 3
-    if references is not None and not multi:
-        raise AmiXrValueError(
-            f"references: given, but frf has shape {values.shape}; multi-reference FRFs have "
-            "shape (n_reference, n_point, n_frequency)"
-        )
-    freq = _as_array(frequency, "frequency")
-    if freq.ndim != 1 or freq.shape[0] != values.shape[-1]:
-        raise AmiXrValueError(
-            f"frequency: expected {values.shape[-1]} values (frf.shape[-1]), got shape {freq.shape}"
-        )
     n_point = values.shape[-2]
     labels = _labels(points, n_point)
     geometry = (
@@ -264,6 +270,84 @@ def select_reference(ds: xr.Dataset, reference: Any) -> xr.Dataset:
     return out
 
 
+#: Attribute recording the channels converted from volts: ``"<channel>: <V per unit> V/<unit>"``.
+ATTR_SENSITIVITY = "volt_sensitivity"
+
+
+def _time_axis(time: Any, fs: float | None, n_time: int) -> np.ndarray:
+    if (time is None) == (fs is None):
+        raise AmiXrValueError(
+            "time, fs: give exactly one of the time axis (s) or the sampling rate"
+        )
+    if fs is not None:
+        if not is_positive_number(fs):
+            raise AmiXrValueError(f"fs: expected a positive sampling rate in Hz, got {fs!r}")
+        return np.arange(n_time) / float(fs)
+    t = _as_array(time, "time")
+    if t.ndim != 1 or t.shape[0] != n_time:
+        raise AmiXrValueError(
+            f"time: expected {n_time} values (response.shape[-1]), got shape {t.shape}"
+        )
+    return t
+
+
+def _force_dims(f: Any, values: Any, references: Any) -> tuple[tuple[str, ...], dict[str, Any]]:
+    """The dims of a force of shape ``([n_record,] [n_reference,] n_time)`` and the reference
+    coordinate (several force channels)."""
+    n_time = values.shape[-1]
+    record = values.shape[:1] if values.ndim == 3 else ()
+    lead: tuple[str, ...] = (names.RECORD,) if record else ()
+    if references is None:
+        shapes = {(n_time,): (names.TIME,), (*record, n_time): (*lead, names.TIME)}
+        refs: dict[str, Any] = {}
+    else:
+        n_ref = len(references)
+        shapes = {(*record, n_ref, n_time): (*lead, names.REFERENCE, names.TIME)}
+        if record:
+            shapes[(n_ref, n_time)] = (names.REFERENCE, names.TIME)
+        refs = {names.REFERENCE: _labels(references, n_ref, "references")}
+    if tuple(f.shape) not in shapes:
+        raise AmiXrValueError(
+            f"force: expected shape {' or '.join(map(str, shapes))}, got {tuple(f.shape)}"
+            + ("" if references is None else f" ({len(references)} references)")
+        )
+    return shapes[tuple(f.shape)], refs
+
+
+def _from_volts(
+    data: dict[str, Any], coords: dict[str, Any], sensitivity: dict, units: dict[str, str]
+) -> str:
+    """Divide each channel named in ``sensitivity`` (``"force"``, a reference or a point label)
+    by its volts per unit, in place; the record of what was converted."""
+    done = []
+    for channel, volts in sensitivity.items():
+        if not is_positive_number(volts):
+            raise AmiXrValueError(
+                f"sensitivity: channel {channel!r}: expected volts per unit > 0, got {volts!r}"
+            )
+        key = python_scalar(channel)
+        for var, dim in ((names.FORCE, names.REFERENCE), (names.RESPONSE, names.POINT)):
+            dims = data[var][0] if var in data else ()
+            if dim in dims and key in np.asarray(coords[dim]).tolist():
+                at = np.asarray(coords[dim]).tolist().index(key)
+                index = (slice(None),) * dims.index(dim) + (at,)
+            elif var == names.FORCE and var in data and dim not in dims and key == "force":
+                index = (slice(None),)
+            else:
+                continue
+            values = np.array(data[var][1], dtype=np.float64)
+            values[index] /= float(volts)
+            data[var] = (dims, values, data[var][2])
+            done.append(f"{channel}: {float(volts):g} V/{units[var]}")
+            break
+        else:
+            raise AmiXrValueError(
+                f"sensitivity: {channel!r} is no channel; expected 'force', a reference label "
+                "or a point label"
+            )
+    return "; ".join(done)
+
+
 def make_time_dataset(
     response: Any,
     time: Any = None,
@@ -275,6 +359,8 @@ def make_time_dataset(
     response_quantity: str | None = None,
     response_units: str | None = None,
     force_units: str = "N",
+    references: Any = None,
+    sensitivity: dict | None = None,
     **attrs: Any,
 ) -> xr.Dataset:
     """Build a valid time Dataset from plain arrays (validated; errors name the argument).
@@ -287,19 +373,30 @@ def make_time_dataset(
         Sample times in s, uniformly spaced. Give exactly one of ``time`` and ``fs``.
     fs : float, optional
         Sampling rate in Hz; the time axis is then ``arange(n_time) / fs``.
-    force : array_like of float, shape (n_time,) or (n_record, n_time), optional
-        Force history. ``None`` means the responses are impulse responses to a unit impulse:
-        the attribute ``excitation = "unit_impulse"`` is set.
+    force : array_like of float, optional
+        Shape (n_time,) or (n_reference, n_time), either with n_record first. Force history;
+        with ``references``, one history per force channel. ``None`` means the
+        responses are impulse responses to a unit impulse: the attribute
+        ``excitation = "unit_impulse"`` is set.
     points, drive_point, response_quantity, response_units, force_units
         As for :func:`make_frf_dataset`.
+    references : array_like of int or str, optional
+        Labels of several force channels (a multi-reference test: :func:`ami_xr.frf` then
+        gives FRFs with a ``reference`` dim); a label that is a point label marks that
+        point's drive point.
+    sensitivity : dict, optional
+        Channels recorded in volts: ``{channel: volts per unit}`` with channel ``"force"``
+        (one force), a reference label or a point label; the channel is divided by it, so
+        ``force_units`` and ``response_units`` are the units after the conversion. Recorded
+        in the attribute ``volt_sensitivity``.
     **attrs
         Further Dataset attributes.
 
     Returns
     -------
     xarray.Dataset
-        ``response`` dims ``([record,] point, time)``, ``force`` dims ``([record,] time)``,
-        ``time`` coordinate with units ``"s"``.
+        ``response`` dims ``([record,] point, time)``, ``force`` dims
+        ``([record,] [reference,] time)``, ``time`` coordinate with units ``"s"``.
     """
     values = _as_array(response, "response")
     if values.ndim == 1:
@@ -309,52 +406,33 @@ def make_time_dataset(
             f"response: expected shape (n_point, n_time), (n_record, n_point, n_time) or "
             f"(n_time,), got {values.shape}"
         )
-    n_time = values.shape[-1]
-    if (time is None) == (fs is None):
-        raise AmiXrValueError(
-            "time, fs: give exactly one of the time axis (s) or the sampling rate"
-        )
-    if fs is not None:
-        if not is_positive_number(fs):
-            raise AmiXrValueError(f"fs: expected a positive sampling rate in Hz, got {fs!r}")
-        t = np.arange(n_time) / float(fs)
-    else:
-        t = _as_array(time, "time")
-        if t.ndim != 1 or t.shape[0] != n_time:
-            raise AmiXrValueError(
-                f"time: expected {n_time} values (response.shape[-1]), got shape {t.shape}"
-            )
+    t = _time_axis(time, fs, values.shape[-1])
     dims = (
         (names.POINT, names.TIME) if values.ndim == 2 else (names.RECORD, names.POINT, names.TIME)
     )
-    labels = _labels(points, values.shape[-2])
     ds_attrs = _std_attrs(
         drive_point, response_quantity, response_units, force_units, function="make_time_dataset"
     )
     response_units = ds_attrs[names.ATTR_RESPONSE_UNITS]
     data_vars: dict[str, Any] = {names.RESPONSE: (dims, values, {names.ATTR_UNITS: response_units})}
     coords: dict[str, Any] = {
-        names.POINT: labels,
+        names.POINT: _labels(points, values.shape[-2]),
         names.TIME: (names.TIME, t, {names.ATTR_UNITS: names.TIME_UNITS}),
     }
     if values.ndim == 3:
         coords[names.RECORD] = np.arange(values.shape[0])
     if force is None:
+        if references is not None:
+            raise AmiXrValueError("references: given without a force")
         ds_attrs[names.ATTR_EXCITATION] = names.EXCITATION_UNIT_IMPULSE
     else:
         f = _as_array(force, "force")
-        want = values.shape[:1] + (n_time,) if values.ndim == 3 else (n_time,)
-        if f.shape == (n_time,):
-            fdims: tuple[str, ...] = (names.TIME,)
-        elif values.ndim == 3 and f.shape == want:
-            fdims = (names.RECORD, names.TIME)
-        else:
-            raise AmiXrValueError(
-                f"force: expected shape {(n_time,)}"
-                + (f" or {want}" if values.ndim == 3 else "")
-                + f", got {f.shape}"
-            )
+        fdims, ref_coord = _force_dims(f, values, references)
+        coords.update(ref_coord)
         data_vars[names.FORCE] = (fdims, f, {names.ATTR_UNITS: force_units})
+    if sensitivity:
+        units = {names.FORCE: force_units, names.RESPONSE: response_units}
+        ds_attrs[ATTR_SENSITIVITY] = _from_volts(data_vars, coords, dict(sensitivity), units)
     ds_attrs.update(attrs)
     ds = xr.Dataset(data_vars, coords=coords, attrs=ds_attrs)
     _raise_problems(ds, "time", drive_point is not None, "make_time_dataset")

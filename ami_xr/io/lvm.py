@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import io
 import os
-import warnings
 from pathlib import Path
 from typing import Any
 
@@ -24,42 +23,12 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.errors import AmiXrValueError, AssumptionWarning, DataFileError
-from ami_xr.provenance import add_history
+from ami_xr.errors import AmiXrValueError, DataFileError
+from ami_xr.io.build import TIME_OPTION_KEYS, ReadOptions, force_channels, time_dataset
+from ami_xr.io.units import force_unit, quantity_of_unit, response_unit
 
 _END = "***End_of_Header***"
-_UNIT_ALIASES = {
-    "newtons": "N",
-    "newton": "N",
-    "n": "N",
-    "kn": "kN",
-    "lbf": "lbf",
-    "lbs": "lbf",
-    "m/s^2": "m/s^2",
-    "m/s2": "m/s^2",
-    "m/s/s": "m/s^2",
-    "g": "g",
-    "mm/s^2": "mm/s^2",
-    "m/s": "m/s",
-    "mm/s": "mm/s",
-    "in/s": "in/s",
-    "m": "m",
-    "mm": "mm",
-    "um": "um",
-    "in": "in",
-    "in/s^2": "in/s^2",
-}
-
-
-def _unit(label: str) -> str:
-    return _UNIT_ALIASES.get(label.strip().lower(), label.strip())
-
-
-def _quantity_of(units: str) -> str | None:
-    for quantity, allowed in names.RESPONSE_UNITS.items():
-        if units in allowed:
-            return quantity
-    return None
+HOW = "give {0} (ami-xr frf --drive-point) to set it"
 
 
 def _parse(path: Path) -> tuple[dict, list[dict]]:
@@ -226,89 +195,16 @@ def _float_list(seg: dict, key: str, path: Path) -> list[float]:
     return out
 
 
-def _force_channel(
-    force_channel: int | str | None, channels: int, units: list[str], titles: list[str], path: Path
-) -> int:
-    """Index of the force channel: as given (index or title), else the one force unit or title."""
-    if force_channel is None:
-        cands = [c for c in range(channels) if units[c] in names.FORCE_UNITS]
-        if len(cands) != 1:
-            cands = [c for c in range(channels) if "force" in titles[c].lower()]
-        if len(cands) != 1:
-            raise AmiXrValueError(
-                f"force_channel: cannot tell the force channel of {path} from units {units} and "
-                f"titles {titles}; give force_channel (index or title)"
-            )
-        return cands[0]
-    if isinstance(force_channel, str):
-        if force_channel not in titles:
-            raise AmiXrValueError(f"force_channel: {force_channel!r} is not one of {titles}")
-        return titles.index(force_channel)
-    if isinstance(force_channel, (int, np.integer)) and 0 <= force_channel < channels:
-        return int(force_channel)
-    raise AmiXrValueError(
-        f"force_channel: expected a channel index 0..{channels - 1} or a title, "
-        f"got {force_channel!r}"
-    )
+def _channel_units(seg: dict, channels: int) -> list[str]:
+    """The unit label of each channel, through the one unit parser (``Newtons`` is ``N``)."""
+    raw = [u.strip() for u in seg["header"].get("Y_Unit_Label", [])][:channels]
+    raw += [""] * (channels - len(raw))
+    return [response_unit(u) or force_unit(u) or u for u in raw]
 
 
-def read_lvm(
-    path: str | os.PathLike,
-    *,
-    force_channel: int | str | None = None,
-    points: list | None = None,
-    drive_point: Any = None,
-    response_quantity: str | None = None,
-    response_units: str | None = None,
-    force_units: str | None = None,
-) -> xr.Dataset:
-    """Read a LabVIEW LVM text file into a time Dataset.
-
-    Long because the docstring documents the LVM layouts and every option; the code is 83 lines.
-
-    Parameters
-    ----------
-    path : str or path-like
-        The ``.lvm`` file.
-    force_channel : int or str, optional
-        Index or column title of the force channel. Default: the channel whose unit label is a
-        force unit (Newtons, N, kN, lbf) or whose title contains "force".
-    points : list, optional
-        Labels of the response channels (default: their column titles).
-    drive_point : label, optional
-        Label (one of ``points``) of the response measured where the force acts. Default: the
-        single response point if there is one; that assumption is recorded as the attribute
-        ``drive_point_assumed`` and announced by an :class:`~ami_xr.errors.AssumptionWarning`
-        (``ami-xr frf`` prints it as one line). Given, nothing is assumed or reported. With
-        several responses and none given, the Dataset has no drive point.
-    response_quantity : {"displacement", "velocity", "acceleration"}, optional
-        Default: from the response unit label (e.g. m/s^2 -> acceleration).
-    response_units, force_units : str, optional
-        Override the unit labels of the file.
-
-    Returns
-    -------
-    xarray.Dataset
-        ``response`` ([record,] point, time), ``force`` ([record,] time) and ``time`` (s, from
-        0 at each segment start); with several segments a ``record`` dim with coordinate
-        ``record_start`` (s). Attrs ``source_file``, units, quantity, drive point (and
-        ``drive_point_assumed`` when it was not given).
-
-    Raises
-    ------
-    DataFileError
-        Malformed file (message names the file and line), a segment with fewer (or more) rows
-        than its header's ``Samples`` count (a truncated file: the message names the segment,
-        the channel and both counts), or segments of different lengths or sampling intervals.
-    AmiXrValueError
-        Bad arguments (unknown force channel, ...).
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise DataFileError(f"{path}: no such file")
-    _, segments = _parse(path)
+def _stacked(segments: list[dict], path: Path) -> tuple[np.ndarray, float]:
+    """The samples of every segment, ``(record, time, channel)``, and the sample interval."""
     channels = segments[0]["channels"]
-    titles = [t.strip() for t in segments[0]["titles"]]
     shapes = {s["values"].shape for s in segments}
     if len(shapes) != 1 or any(s["channels"] != channels for s in segments):
         raise DataFileError(
@@ -320,80 +216,98 @@ def read_lvm(
         raise DataFileError(
             f"{path}: channels or segments have different or bad Delta_X {sorted(dts)}"
         )
-    dt = dts.pop()
-    units_raw = [u.strip() for u in segments[0]["header"].get("Y_Unit_Label", [])][:channels]
-    units = [_unit(u) for u in units_raw] + [""] * (channels - len(units_raw))
     if channels < 2:
         raise DataFileError(
             f"{path}: needs a force and at least one response channel, has {channels}"
         )
-    fc = _force_channel(force_channel, channels, units, titles, path)
-    resp = [c for c in range(channels) if c != fc]
-    ru = response_units or units[resp[0]]
-    if len({units[c] for c in resp}) != 1 and response_units is None:
+    return np.stack([s["values"] for s in segments]), dts.pop()
+
+
+def read_lvm(path: str | os.PathLike, **options: Any) -> xr.Dataset:
+    """Read a LabVIEW LVM text file into a time Dataset.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The ``.lvm`` file.
+    **options
+        :class:`~ami_xr.io.build.ReadOptions`:
+
+        * ``force_channel`` (int, str or list): index or column title of the force channel, or
+          several (a multi-reference test). Default: the channel whose unit label is a force
+          unit (Newtons, N, kN, lbf) or whose title contains "force" or "hammer".
+        * ``points`` (list): labels of the response channels (default: their column titles).
+        * ``drive_point``: label (one of ``points``) of the response measured where the force
+          acts. Default: the single response point if there is one; that assumption is
+          recorded as the attribute ``drive_point_assumed`` and announced by an
+          :class:`~ami_xr.errors.AssumptionWarning` (``ami-xr frf`` prints it as one line).
+          With several responses and none given, the Dataset has no drive point.
+        * ``response_quantity``: default from the response unit label (m/s^2 ->
+          acceleration); ``response_units``, ``force_units`` override the file's labels;
+          ``sensitivity`` converts volt channels (:func:`ami_xr.make_time_dataset`).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``response`` ([record,] point, time), ``force`` (``[record,] [reference,] time``) and
+        ``time`` (s, from 0 at each segment start); with several segments a ``record`` dim
+        with coordinate ``record_start`` (s). Attrs ``source_file``, units, quantity, drive
+        point (and ``drive_point_assumed`` when it was not given).
+
+    Raises
+    ------
+    DataFileError
+        Malformed file (message names the file and line), a segment with fewer (or more) rows
+        than its header's ``Samples`` count (a truncated file: the message names the segment,
+        the channel and both counts), or segments of different lengths or sampling intervals.
+    AmiXrValueError
+        Bad arguments (unknown force channel, ...).
+    """
+    path = Path(path)
+    given = ReadOptions.of(options, "read_lvm", TIME_OPTION_KEYS)
+    if not path.is_file():
+        raise DataFileError(f"{path}: no such file")
+    _, segments = _parse(path)
+    values, dt = _stacked(segments, path)  # (record, time, channel)
+    titles = [t.strip() for t in segments[0]["titles"]]
+    units = _channel_units(segments[0], len(titles))
+    fc = force_channels(given.force_channel, titles, units, path)
+    resp = [c for c in range(len(titles)) if c not in fc]
+    said = {"force_units": force_unit(units[fc[0]])}  # a channel chosen with another unit: N
+    if len({units[c] for c in resp}) != 1 and given.response_units is None:
         raise AmiXrValueError(
             f"response_units: the response channels of {path} have different units "
             f"{[units[c] for c in resp]}; give response_units"
         )
-    fu = force_units or units[fc]
-    quantity = response_quantity or _quantity_of(ru)
-    if quantity not in names.QUANTITY_TO_FRF_TYPE:
+    said["response_units"] = units[resp[0]] or None
+    if (
+        given.response_quantity is None
+        and quantity_of_unit(given.response_units or units[resp[0]]) is None
+    ):
         raise AmiXrValueError(
-            f"response_quantity: cannot tell it from the unit {ru!r}; give one of "
+            f"response_quantity: cannot tell it from the unit "
+            f"{given.response_units or units[resp[0]]!r}; give one of "
             f"{tuple(names.QUANTITY_TO_FRF_TYPE)}"
         )
-    labels = list(points) if points is not None else [titles[c] for c in resp]
-    if len(labels) != len(resp) or len(set(labels)) != len(labels):
-        raise AmiXrValueError(f"points: expected {len(resp)} unique labels, got {labels!r}")
-    assumed = None
-    if drive_point is None and len(labels) == 1:
-        drive_point, assumed = labels[0], "the single response channel"
-        warnings.warn(
-            f"{path.name}: drive point assumed to be {drive_point!r} ({assumed}); give "
-            "drive_point (ami-xr frf --drive-point) to set it",
-            AssumptionWarning,
-            stacklevel=2,
-        )
-    elif drive_point is not None and drive_point not in labels:
-        raise AmiXrValueError(f"drive_point: {drive_point!r} is not one of the points {labels!r}")
-    values = np.stack([s["values"] for s in segments])  # (record, time, channel)
-    nt = values.shape[1]
-    t = np.arange(nt) * dt
     response = np.ascontiguousarray(np.moveaxis(values[:, :, resp], 2, 1))
-    force = np.ascontiguousarray(values[:, :, fc])
-    coords: dict[str, Any] = {
-        names.POINT: labels,
-        names.TIME: (names.TIME, t, {names.ATTR_UNITS: names.TIME_UNITS}),
-    }
+    force = np.ascontiguousarray(np.moveaxis(values[:, :, fc], 2, 1))
+    coords: dict[str, Any] = {}
     if len(segments) > 1:
         x0 = np.array([_float_list(s, "X0", path)[0] for s in segments])
-        rdims: tuple[str, ...] = (names.RECORD, names.POINT, names.TIME)
-        fdims: tuple[str, ...] = (names.RECORD, names.TIME)
-        coords[names.RECORD] = np.arange(len(segments))
         coords[names.RECORD_START] = (names.RECORD, x0, {names.ATTR_UNITS: names.TIME_UNITS})
     else:
-        rdims, fdims = (names.POINT, names.TIME), (names.TIME,)
         response, force = response[0], force[0]
-    attrs = {
-        names.ATTR_QUANTITY: quantity,
-        names.ATTR_RESPONSE_UNITS: ru,
-        names.ATTR_FORCE_UNITS: fu,
+    forces = [titles[c] for c in fc]
+    record = {
+        "force_channel": forces if len(forces) > 1 else forces[0],
+        "n_records": len(segments),
+        "fs": 1.0 / dt,
     }
-    if drive_point is not None:
-        attrs[names.ATTR_DRIVE_POINT] = drive_point
-    if assumed is not None:
-        attrs[names.ATTR_DRIVE_POINT_ASSUMED] = assumed
-    ds = xr.Dataset(
-        {
-            names.RESPONSE: (rdims, response, {names.ATTR_UNITS: ru}),
-            names.FORCE: (fdims, force, {names.ATTR_UNITS: fu, "channel": titles[fc]}),
-        },
-        coords=coords,
-        attrs=attrs,
-    )
-    return add_history(
-        ds,
-        "ami_xr.read_lvm",
-        {"force_channel": titles[fc], "n_records": len(segments), "fs": 1.0 / dt},
-        source_file=str(path.resolve()),
-    )
+    channels = {
+        "force_names": forces,
+        "sensitivity": given.sensitivity,
+        "function": "ami_xr.read_lvm",
+        "coords": coords,
+    }
+    labels = [titles[c] for c in resp]
+    return time_dataset(path, response, force, 1.0 / dt, labels, said, given, HOW, record, channels)

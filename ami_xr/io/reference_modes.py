@@ -19,9 +19,10 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.errors import AmiXrValueError
+from ami_xr.errors import AmiXrValueError, DataFileError
 
 __all__ = [
+    "frfs_and_modes",
     "MATCH_MAC",
     "REFERENCE_MODE",
     "compare_modes",
@@ -238,3 +239,30 @@ def format_reference_table(result: xr.Dataset) -> str:
                 f"{100 * rz[j]:8.3f}  (not matched)"
             )
     return "\n".join(lines)
+
+
+def frfs_and_modes(ds: xr.Dataset, rel: str) -> tuple[xr.Dataset, xr.Dataset | None]:
+    """``(FRF or time Dataset, the modes the file holds or None)``: a file of FRFs and modes (a
+    test with the modes someone fitted) has its FRFs identified and its modes compared; a file
+    of modes alone, or of neither, is refused naming what it holds (``rel``: the file's name).
+
+    Raises
+    ------
+    DataFileError
+        Modes without FRFs, or neither FRFs nor time histories.
+    """
+    from ami_xr.io.kinds import file_kind
+
+    if file_kind(ds) == "modes":
+        if names.FRF not in ds:
+            raise DataFileError(
+                f"{rel}: a modes file ({ds.sizes.get(names.MODE, 0)} mode(s), no FRFs): nothing to "
+                "identify; 'ami-xr report' shows it, 'ami-xr convert' writes it as netCDF or UFF 55"
+            )
+        return split_frf_and_modes(ds, rel)
+    if names.FRF not in ds and names.RESPONSE not in ds:
+        raise DataFileError(
+            f"{rel}: neither an FRF Dataset ('{names.FRF}') nor a time Dataset "
+            f"('{names.RESPONSE}'); found variables {sorted(map(str, ds.data_vars))}"
+        )
+    return ds, None

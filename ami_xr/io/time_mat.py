@@ -3,14 +3,15 @@
 The file's variables, or the fields of its one struct (names case-insensitive), in one of two
 layouts:
 
-* **force and response**: ``force`` (a vector: one force channel) and ``response`` (a vector
-  or a matrix, channels x samples or samples x channels), optionally ``points`` (a label per
-  response channel);
+* **force and response**: ``force`` (a vector: one force channel, or a matrix of several: a
+  multi-reference test) and ``response`` (a vector or a matrix, channels x samples or
+  samples x channels), optionally ``points`` (a label per response channel);
 * **channels**: a matrix ``data`` (or ``channels``, ``signals``, ``y``) of all channels with
   ``channel_names`` (or ``names``, ``titles``, ``labels``: a cell array of text) and optionally
   ``channel_units`` (``units``: a cell array, e.g. ``{'N', 'm/s^2', 'm/s^2'}``); the force
   channel is the one named by ``force_channel`` (index or name), else the one channel with a
-  force unit (N, kN, lbf), else the one whose name contains "force"; the others are the
+  force unit (N, kN, lbf), else the one whose name contains "force" or "hammer" (several given: a
+  multi-reference test); the others are the
   responses, labelled by their names.
 
 And the sampling: ``fs`` (or ``sample_rate``, ``sampling_rate``, ``samplerate``; Hz), ``dt``
@@ -31,11 +32,16 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from ami_xr import names
-from ami_xr.errors import AmiXrValueError, DataFileError
-from ami_xr.io.frf_tables.build import FREQUENCY_NAMES, is_frequency_name
+from ami_xr.errors import DataFileError
+from ami_xr.io.build import (
+    FREQUENCY_NAMES,
+    TIME_OPTION_KEYS,
+    ReadOptions,
+    force_channels,
+    is_frequency_name,
+    time_dataset,
+)
 from ami_xr.io.frf_tables.matlab import describe_variables, load_variables, text_list
-from ami_xr.provenance import add_history
 
 __all__ = ["RATE_NAMES", "holds_time_histories", "read_time_mat"]
 
@@ -45,6 +51,7 @@ TIME_NAMES = ("t", "time")
 MATRIX_NAMES = ("data", "channels", "signals", "y")
 CHANNEL_NAMES = ("channel_names", "names", "titles", "labels")
 CHANNEL_UNITS = ("channel_units", "units")
+HOW = "say it with a variable {0} in the file, or pass {0}= (ami-xr frf --drive-point)"
 EXPECTED = (
     "expected time histories as 'force' and 'response' variables, or a matrix 'data' with "
     "'channel_names' (and 'channel_units'), and a sampling rate 'fs' (Hz), 'dt' (s) or a time "
@@ -115,69 +122,36 @@ def _channels(value: Any, name: str, n_time: int | None, path: Path) -> np.ndarr
     return x
 
 
-def _force_index(force_channel: Any, titles: list, units: list[str], path: Path) -> int:
-    if force_channel is not None:
-        if isinstance(force_channel, (int, np.integer)) and 0 <= force_channel < len(titles):
-            return int(force_channel)
-        if str(force_channel) in map(str, titles):
-            return [str(t) for t in titles].index(str(force_channel))
-        raise AmiXrValueError(
-            f"force_channel: expected an index 0..{len(titles) - 1} or one of {titles}, got "
-            f"{force_channel!r} ({path.name})"
-        )
-    rules = (
-        lambda c: units[c] in names.FORCE_UNITS,
-        lambda c: "force" in str(titles[c]).lower(),
-    )
-    for test in rules:
-        hits = [c for c in range(len(titles)) if test(c)]
-        if len(hits) == 1:
-            return hits[0]
-    raise AmiXrValueError(
-        f"force_channel: cannot tell the force channel of {path.name} from the channel names "
-        f"{titles} and units {units}; give force_channel (ami-xr frf --force-channel)"
-    )
-
-
-def read_time_mat(
-    path: str | os.PathLike,
-    *,
-    force_channel: int | str | None = None,
-    points: list | None = None,
-    drive_point: Any = None,
-    response_quantity: str | None = None,
-    response_units: str | None = None,
-    force_units: str | None = None,
-) -> xr.Dataset:
+def read_time_mat(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     """Read force and response time histories from a MATLAB file (layouts: module docstring).
 
     Parameters
     ----------
     path : str or path-like
         A v4 to v7 file, or v7.3 with ``h5py`` installed.
-    force_channel : int or str, optional
-        Layout "channels": the force channel's index or name.
-    points : list, optional
-        Labels of the response channels, in file order.
-    drive_point, response_quantity, response_units, force_units : optional
-        As for :func:`ami_xr.make_time_dataset`; given, they win over the file's variables.
+    **options
+        :class:`~ami_xr.io.build.ReadOptions`: ``force_channel`` (layout "channels": the force
+        channel's index or name, or several), ``points`` (labels of the response channels, in
+        file order), ``sensitivity`` (volt channels), and ``drive_point``,
+        ``response_quantity``, ``response_units``, ``force_units`` as for
+        :func:`ami_xr.make_time_dataset`; given, they win over the file's variables.
 
     Returns
     -------
     xarray.Dataset
-        A time Dataset (``response`` (point, time), ``force`` (time)) with ``source_file``.
+        A time Dataset (``response`` (point, time), ``force`` ([reference,] time)) with
+        ``source_file``.
 
     Raises
     ------
     DataFileError
         Not a MATLAB file; no sampling rate or no channels (the message lists the variables
-        found and what is expected); several force channels; shapes that do not fit.
+        found and what is expected); shapes that do not fit.
     AmiXrValueError
         A force channel that cannot be told or bad labels.
     """
-    from ami_xr.io.datasets import make_time_dataset
-
     path = Path(path)
+    given = ReadOptions.of(options, "read_time_mat", TIME_OPTION_KEYS)
     scope, where = _load(path)
     fs, n_time = _sampling(scope, where, path)
     keys = ("drive_point", "response_quantity", "response_units", "force_units")
@@ -186,15 +160,9 @@ def read_time_mat(
     if fname is not None and rname is not None:
         force = _channels(scope[fname], fname, n_time, path)
         response = _channels(scope[rname], rname, n_time, path)
-        if force.shape[0] != 1:
-            raise DataFileError(
-                f"{path}: variable {fname!r} holds {force.shape[0]} force channels; ami-xr frf "
-                "reads one force channel from a .mat file (build a multi-reference time Dataset "
-                "in Python: ami_xr.frf takes force with a 'reference' dim)"
-            )
         pname = _find(scope, ("points", "point_labels"))
         labels = text_list(scope[pname]) if pname is not None else None
-        channel = fname
+        forces = [fname] if force.shape[0] == 1 else [f"{fname}{k}" for k in range(len(force))]
     elif mname is not None:
         data = _channels(scope[mname], mname, n_time, path)
         nname, uname = _find(scope, CHANNEL_NAMES), _find(scope, CHANNEL_UNITS)
@@ -205,13 +173,13 @@ def read_time_mat(
                 f"{path}: {data.shape[0]} channels in {mname!r} but {len(titles)} names and "
                 f"{len(units)} units"
             )
-        fc = _force_index(force_channel, titles, units, path)
-        rest = [c for c in range(data.shape[0]) if c != fc]
-        force, response, labels = data[fc : fc + 1], data[rest], [titles[c] for c in rest]
-        said.setdefault("force_units", units[fc] or None)
+        fc = force_channels(given.force_channel, titles, units, path)
+        rest = [c for c in range(data.shape[0]) if c not in fc]
+        force, response, labels = data[fc], data[rest], [titles[c] for c in rest]
+        said.setdefault("force_units", units[fc[0]] or None)
         if len({units[c] for c in rest}) == 1 and units[rest[0]]:
             said.setdefault("response_units", units[rest[0]])
-        channel = str(titles[fc])
+        forces = [str(titles[c]) for c in fc]
     else:
         found = describe_variables(scope)
         raise DataFileError(f"{path}: {where} has no channels; {EXPECTED}; found: {found}")
@@ -219,17 +187,10 @@ def read_time_mat(
         raise DataFileError(
             f"{path}: the force has {force.shape[1]} samples, the responses {response.shape[1]}"
         )
-    given = {
-        "drive_point": drive_point,
-        "response_quantity": response_quantity,
-        "response_units": response_units,
-        "force_units": force_units,
+    record = {"fs": fs, "force_channel": forces if len(forces) > 1 else forces[0]}
+    channels = {
+        "force_names": forces,
+        "sensitivity": given.sensitivity,
+        "function": "ami_xr.io.time_mat.read_time_mat",
     }
-    kw = {k: v for k, v in said.items() if v is not None}
-    kw.update({k: v for k, v in given.items() if v is not None})  # the arguments win
-    labels = list(points) if points is not None else labels
-    ds = make_time_dataset(response, fs=fs, force=force[0], points=labels, **kw)
-    ds[names.FORCE].attrs["channel"] = channel
-    ds.attrs[names.ATTR_SOURCE_FILE] = path.name
-    record = {"fs": fs, "force_channel": channel}
-    return add_history(ds, "ami_xr.io.time_mat.read_time_mat", record, source_file=path.name)
+    return time_dataset(path, response, force, fs, labels, said, given, HOW, record, channels)

@@ -1,4 +1,5 @@
-"""The time data model: ``response`` float with dims ``([record,] point, time)`` and ``force``,
+"""The time data model: ``response`` float with dims ``([record,] point, time)`` and ``force``
+``([record,] [reference,] time)``,
 or impulse responses (attribute ``excitation = "unit_impulse"``).
 """
 
@@ -33,7 +34,8 @@ def signal_problems(
     problems: list[str] = []
     da = ds[var]
     subject = namer.var(var)
-    if names.REFERENCE in da.dims:
+    takes_reference = any(names.REFERENCE in dims for dims in allowed)
+    if da.dims not in allowed and names.REFERENCE in da.dims and not takes_reference:
         problems.append(f"{subject}: {MULTI_REFERENCE_MESSAGE}")
     elif da.dims not in allowed:
         problems.append(f"{subject}: expected dims {' or '.join(map(str, allowed))}, got {da.dims}")
@@ -56,13 +58,23 @@ def time_problems(ds: xr.Dataset, require_drive_point: bool, check_values: bool,
     else:
         problems += signal_problems(ds, names.RESPONSE, ((p, t), (r, p, t)), check_values, namer)
     if names.FORCE in ds.data_vars:
-        problems += signal_problems(ds, names.FORCE, ((t,), (r, t)), check_values, namer)
+        # several force channels (a multi-reference test) on a reference dim
+        q = names.REFERENCE
+        forces = ((t,), (r, t), (q, t), (r, q, t))
+        problems += signal_problems(ds, names.FORCE, forces, check_values, namer)
     elif ds.attrs.get(names.ATTR_EXCITATION) != names.EXCITATION_UNIT_IMPULSE:
         problems.append(
             f"{namer.var(names.FORCE)}: missing (expected float force with dims {(t,)} or "
             f"{(r, t)}, or attribute {names.ATTR_EXCITATION}="
             f"{names.EXCITATION_UNIT_IMPULSE!r} for impulse responses)"
         )
+    if names.REFERENCE in ds.coords:  # the force channels' labels
+        refs = np.asarray(ds[names.REFERENCE].values).tolist()
+        if len(set(map(str, refs))) != len(refs):
+            problems.append(
+                f"{namer.coord(names.REFERENCE)}: expected unique labels, one per force "
+                f"channel, got {refs}"
+            )
     check_axis(ds, t, names.TIME_UNITS, namer, problems, uniform=True)
     labels = check_points(ds, namer, problems)
     problems += coordinate_problems(ds, namer)

@@ -138,7 +138,7 @@ def test_ten_runs_give_the_modes_of_one_run_within_sigma(roving):
 
 def test_netcdf_round_trip(roving, tmp_path):
     _, runs, _ = roving
-    parts = [r.assign_attrs(operator=who) for r, who in zip(runs[:3], "AAB")]
+    parts = [r.assign_attrs(operator=who) for r, who in zip(runs[:3], "AAB", strict=True)]
     combined = combine_runs(parts)
     assert json.loads(combined.attrs["run_attributes"]) == {
         "operator": {"run0": "A", "run1": "A", "run2": "B"}

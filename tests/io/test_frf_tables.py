@@ -262,7 +262,7 @@ def test_mat_v73_without_h5py_says_what_to_do(tmp_path, monkeypatch):
 def test_open_frf_reads_the_other_formats_and_refuses_what_is_not_frfs(sample, tmp_path):
     ds = ami_xr.open_frf(SAMPLE, drive_point="m1")
     assert ds.attrs[names.ATTR_DRIVE_POINT] == "m1"
-    with pytest.raises(AmiXrValueError, match=r"response_quantity: only for FRF tables"):
+    with pytest.raises(AmiXrValueError, match=r"response_quantity: only for .*text tables"):
         ami_xr.open_frf(SAMPLE, response_quantity="velocity")
     modes = ami_xr.to_netcdf(ami_xr.simulate.benchmark()[2], tmp_path / "truth.nc")
     with pytest.raises(ModesFileError, match=r"truth\.nc: a modes file"):
@@ -276,8 +276,12 @@ def test_open_frf_reads_the_other_formats_and_refuses_what_is_not_frfs(sample, t
 def test_read_any_takes_tables_and_the_drive_point(sample, tmp_path):
     path = write_csv(tmp_path / "frf.csv", sample)
     assert read_any(path, drive_point="m3").attrs[names.ATTR_DRIVE_POINT] == "m3"
-    with pytest.raises(AmiXrValueError, match=r"points: only for LabVIEW"):
+    labels = ["a", "b", "c", "d"]  # one reader interface: read_any passes every option
+    assert list(read_any(path, points=labels, drive_point="c")[names.POINT].values) == labels
+    with pytest.raises(AmiXrValueError, match=r"points: expected 4 labels"):
         read_any(path, points=["a"])
+    with pytest.raises(AmiXrValueError, match=r"force_channel: not taken by read_frf_csv"):
+        read_any(path, want="frf", force_channel=0)
 
 
 # --- bad files -----------------------------------------------------------------------------

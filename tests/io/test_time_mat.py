@@ -91,9 +91,13 @@ def test_a_mat_file_without_time_histories_is_refused_clearly(tmp_path, capsys):
     scipy.io.savemat(path, {"fs": FS, "x": np.ones(10)})
     with pytest.raises(DataFileError, match="has no channels; expected time histories"):
         read_time_mat(path)
-    scipy.io.savemat(path, {"fs": FS, "force": np.ones((2, 100)), "response": np.ones((3, 100))})
-    with pytest.raises(DataFileError, match="'force' holds 2 force channels"):
-        read_time_mat(path)
+    rng = np.random.default_rng(0)
+    force, response = rng.standard_normal((2, 100)), rng.standard_normal((3, 100))
+    scipy.io.savemat(path, {"fs": FS, "force": force, "response": response})
+    two = read_time_mat(path, drive_point=0)  # two force channels: a multi-reference record
+    assert two[names.FORCE].dims == (names.REFERENCE, names.TIME)
+    assert list(two[names.REFERENCE].values) == ["force0", "force1"]
+    np.testing.assert_allclose(two[names.FORCE].values, force)
 
 
 def test_an_frf_table_mat_is_still_an_frf_table(tmp_path):

@@ -9,7 +9,7 @@ import pytest
 
 import ami_xr
 from ami_xr import names
-from ami_xr.errors import AssumptionWarning
+from ami_xr.errors import AmiXrValueError, AssumptionWarning
 from ami_xr.io.uff import read_uff, write_uff
 
 pyuff = pytest.importorskip("pyuff")
@@ -32,13 +32,27 @@ def _frf(coordinates=XYZ, units="m"):
     )
 
 
-def _node_sets(path):
-    return [s for s in pyuff.UFF(str(path)).read_sets() if s["type"] == 15]
+def _node_sets(path, dataset=2411):
+    return [s for s in pyuff.UFF(str(path)).read_sets() if s["type"] == dataset]
+
+
+def test_coordinates_round_trip_through_dataset_2411_exactly(tmp_path):
+    path = write_uff(_frf(), tmp_path / "g.uff")  # 2411 by default: double precision
+    (nodes,) = _node_sets(path)
+    assert _node_sets(path, 15) == []
+    with pytest.raises(AmiXrValueError, match="geometry: expected 2411 or 15"):
+        write_uff(_frf(), tmp_path / "x.uff", geometry=16)
+    back = read_uff(path)
+    for j, c in enumerate(names.POINT_COORDS):
+        np.testing.assert_allclose(back[c].values, XYZ[:, j], rtol=1e-15, atol=0)
 
 
 def test_coordinates_round_trip_through_dataset_15(tmp_path):
-    path = write_uff(_frf(), tmp_path / "g.uff")
-    (nodes,) = _node_sets(path)
+    from ami_xr.io.formats import write_any
+
+    path = write_any(_frf(), tmp_path / "g.uff", geometry=15)
+    (nodes,) = _node_sets(path, 15)
+    assert _node_sets(path) == []
     assert list(map(int, nodes["node_nums"])) == [1, 2, 3, 4]
     back = read_uff(path)
     for j, c in enumerate(names.POINT_COORDS):
@@ -60,7 +74,7 @@ def test_modes_only_file_gets_the_coordinates_too(tmp_path):
     assert len(_node_sets(path)) == 1
 
 
-def test_no_coordinates_no_dataset_15(tmp_path):
+def test_no_coordinates_no_node_dataset(tmp_path):
     path = write_uff(_frf(coordinates=None), tmp_path / "n.uff")
     assert _node_sets(path) == []
     assert names.POINT_X not in read_uff(path).coords

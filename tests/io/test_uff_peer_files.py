@@ -217,7 +217,10 @@ def test_own_files_keep_only_the_points_they_hold(tmp_path):
     assert back[names.POINT].values.tolist() == ["1+Z", "3+Y"]
 
 
-def test_a_dataset_55_with_other_than_3_or_6_values_per_node_is_refused(tmp_path):
+def test_a_dataset_55_whose_values_per_node_disagree_with_its_data_characteristic(tmp_path):
+    """Record 6 saying 1 value per node for three translations (data characteristic 2, as SDynPy
+    writes it) is read with the 3 values the lines hold, and said; a characteristic of scalars
+    (1 value per node) is refused."""
     path = _write(
         tmp_path / "ok.uff", [_normal_mode(1, 5.0, 0.0, [1, 2], [[1, 2], [0, 0], [3, 4]])]
     )
@@ -225,6 +228,20 @@ def test_a_dataset_55_with_other_than_3_or_6_values_per_node_is_refused(tmp_path
     header = [i for i, line in enumerate(text) if line.split()[:2] == ["1", "2"]][0]
     text[header] = text[header][:-10] + f"{1:10d}"  # values per node: 1
     path.write_text("\n".join(text) + "\n")
+    with pytest.warns(
+        AmiXrWarning, match=r"states 1 value\(s\) per node for data characteristic 2"
+    ):
+        ds = read_uff(path)
+    shape = ds[names.MODE_VECTOR].isel(mode=0)
+    assert {k: float(shape.sel(point=k).real) for k in ("1+X", "2+X", "1+Z", "2+Z")} == {
+        "1+X": 1.0,
+        "2+X": 2.0,
+        "1+Z": 3.0,
+        "2+Z": 4.0,
+    }
+    fields = text[header].split()
+    text[header] = "".join(f.rjust(10) for f in [fields[0], fields[1], "1", *fields[3:5], "1"])
+    path.write_text("\n".join(text) + "\n")  # scalars, 1 value per node: not a mode shape
     with pytest.raises(DataFileError, match=r"holds 1 value\(s\) per node.*expected 3"):
         read_uff(path)
 

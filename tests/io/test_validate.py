@@ -343,9 +343,9 @@ TIME_CASES = {
         r"variable 'response': has a leading 'reference' dim: multi-reference",
         None,
     ),
-    "force reference dim": (
-        lambda ds: ds.assign(force=ds.force.expand_dims({names.REFERENCE: 2})),
-        r"variable 'force': has a leading 'reference' dim: multi-reference",
+    "force reference dim last": (  # several force channels go on a reference dim before time
+        lambda ds: ds.assign(force=ds.force.expand_dims({names.REFERENCE: 2}, axis=-1)),
+        r"variable 'force': expected dims .*\('reference', 'time'\)",
         None,
     ),
     "force wrong dims": (

@@ -17,9 +17,11 @@ import xarray as xr
 
 from ami_xr.caller import warn
 from ami_xr.errors import AssumptionWarning, DataFileError
-from ami_xr.io.frf_tables.build import (
+from ami_xr.io.build import (
     FREQUENCY_NAMES,
     METADATA_KEYS,
+    OPTION_KEYS,
+    ReadOptions,
     frf_dataset,
     frf_units_of,
     is_frequency_name,
@@ -233,16 +235,7 @@ def _said(scope: dict[str, Any], path: Path) -> dict[str, Any]:
     return said
 
 
-def read_frf_mat(
-    path: str | os.PathLike,
-    *,
-    drive_point: Any = None,
-    points: list | None = None,
-    response_quantity: str | None = None,
-    frf_type: str | None = None,
-    response_units: str | None = None,
-    force_units: str | None = None,
-) -> xr.Dataset:
+def read_frf_mat(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     """Read FRFs from a MATLAB ``.mat`` file.
 
     The variables (names case-insensitive; or the fields of the file's one struct):
@@ -279,6 +272,7 @@ def read_frf_mat(
         The FRFs read break the data model (named problems).
     """
     path = Path(path)
+    given = ReadOptions.of(options, "read_frf_mat", OPTION_KEYS)
     v73 = _is_v73(path)
     variables = _load_v73(path) if v73 else _load_v5(path)
     scope, where = _scope(variables, path)
@@ -305,14 +299,6 @@ def read_frf_mat(
             raise DataFileError(
                 f"{path}: variable {pname!r}: {len(labels)} label(s) for {frf.shape[0]} FRFs"
             )
-    given = {
-        "drive_point": drive_point,
-        "points": points,
-        "response_quantity": response_quantity,
-        "frf_type": frf_type,
-        "response_units": response_units,
-        "force_units": force_units,
-    }
     record = {
         "format": "MATLAB v7.3" if v73 else "MATLAB",
         "variables": [n for n in (fname, hname, pname) if n is not None],

@@ -19,9 +19,11 @@ import xarray as xr
 
 from ami_xr.caller import warn
 from ami_xr.errors import AssumptionWarning, DataFileError
-from ami_xr.io.frf_tables.build import (
+from ami_xr.io.build import (
     FREQUENCY_NAMES,
     METADATA_KEYS,
+    OPTION_KEYS,
+    ReadOptions,
     frf_dataset,
     frf_units_of,
     is_frequency_name,
@@ -29,7 +31,7 @@ from ami_xr.io.frf_tables.build import (
     split_unit,
 )
 
-__all__ = ["read_frf_csv", "ATTR_COLUMNS_ASSUMED"]
+__all__ = ["read_frf_csv", "read_lines", "cell_values", "is_number", "ATTR_COLUMNS_ASSUMED"]
 
 #: Attribute recording the layout assumed for a table without a header line.
 ATTR_COLUMNS_ASSUMED = "table_columns_assumed"
@@ -94,27 +96,33 @@ def _split(line: str, sep: str | None) -> list[str]:
     return fields
 
 
-def _lines(path: Path) -> _Lines:
+def read_lines(
+    path: Path, keys: tuple[str, ...] = METADATA_KEYS, max_rows: int | None = None
+) -> _Lines:
+    """The rows of a text table (the first ``max_rows``, or all) and what its ``# key: value``
+    lines above them say (``keys``)."""
     out = _Lines()
     for number, raw in enumerate(_text(path).splitlines(), start=1):
+        if max_rows is not None and len(out.rows) >= max_rows:
+            break
         line = raw.strip()
         if not line:
             continue
         if line.startswith("#"):
             match = _METADATA.match(line)
             key = match["key"].strip().lower().replace(" ", "_") if match else ""
-            if key in METADATA_KEYS and not out.rows:
+            if key in keys and not out.rows:
                 out.said[key] = match["value"].strip().strip('"').strip("'")
             continue
         if not out.rows:
             out.separator = _separator(line)
         out.rows.append((number, _split(line, out.separator)))
     if not out.rows:
-        raise DataFileError(f"{path}: no header and no data rows; expected an FRF table")
+        raise DataFileError(f"{path}: no header and no data rows; expected a table")
     return out
 
 
-def _is_number(text: str) -> bool:
+def is_number(text: str) -> bool:
     try:
         float(text)
     except ValueError:
@@ -214,7 +222,7 @@ def _headerless(width: int, path: Path) -> _Columns:
 def _cell_error(path: Path, number: int, column: str, cell: str) -> DataFileError:
     if cell == "":
         what = "an empty cell"
-    elif _is_number(cell):
+    elif is_number(cell):
         what = f"{cell!r} is not a finite number"
     else:
         what = f"{cell!r} is not a number"
@@ -223,7 +231,7 @@ def _cell_error(path: Path, number: int, column: str, cell: str) -> DataFileErro
     return DataFileError(f"{path}: line {number}, column {column!r}: {what}")
 
 
-def _values(rows: list[tuple[int, list[str]]], header: list[str], path: Path) -> np.ndarray:
+def cell_values(rows: list[tuple[int, list[str]]], header: list[str], path: Path) -> np.ndarray:
     """The cells as floats, shape (n_row, n_column); a bad row or cell is named."""
     width = len(header)
     for number, fields in rows:
@@ -242,7 +250,7 @@ def _values(rows: list[tuple[int, list[str]]], header: list[str], path: Path) ->
         return values
     for number, fields in rows:  # find the first bad cell
         for name, cell in zip(header, fields, strict=True):
-            if not (_is_number(cell) and np.isfinite(float(cell))):
+            if not (is_number(cell) and np.isfinite(float(cell))):
                 raise _cell_error(path, number, name, cell)
     raise DataFileError(f"{path}: cells that are not numbers")  # not reached
 
@@ -260,16 +268,7 @@ def _frequency(freq: np.ndarray, rows: list, name: str, path: Path) -> np.ndarra
     return freq
 
 
-def read_frf_csv(
-    path: str | os.PathLike,
-    *,
-    drive_point: Any = None,
-    points: list | None = None,
-    response_quantity: str | None = None,
-    frf_type: str | None = None,
-    response_units: str | None = None,
-    force_units: str | None = None,
-) -> xr.Dataset:
+def read_frf_csv(path: str | os.PathLike, **options: Any) -> xr.Dataset:
     """Read an FRF table from a text file (``.csv``, ``.txt``, ``.dat``).
 
     The accepted layouts are described in :mod:`ami_xr.io.frf_tables`; in short: a header line
@@ -308,9 +307,10 @@ def read_frf_csv(
         The FRFs read break the data model (named problems).
     """
     path = Path(path)
-    lines = _lines(path)
+    given = ReadOptions.of(options, "read_frf_csv", OPTION_KEYS)
+    lines = read_lines(path)
     first = lines.rows[0][1]
-    has_header = not all(_is_number(f) for f in first)
+    has_header = not all(is_number(f) for f in first)
     if has_header:
         header, rows = first, lines.rows[1:]
         cols = _columns(header, path)
@@ -318,7 +318,7 @@ def read_frf_csv(
         rows = lines.rows
         cols = _headerless(len(first), path)
         header = [f"column {i + 1}" for i in range(len(first))]
-    values = _values(rows, header, path)
+    values = cell_values(rows, header, path)
     freq = _frequency(values[:, cols.frequency], rows, header[cols.frequency], path)
     frf = np.empty((len(cols.points), freq.size), dtype=np.complex128)
     for k, (label, parts) in enumerate(cols.points.items()):
@@ -338,14 +338,6 @@ def read_frf_csv(
     extra = {}
     if not has_header:
         extra[ATTR_COLUMNS_ASSUMED] = _assumed_columns(path, len(cols.points))
-    given = {
-        "drive_point": drive_point,
-        "points": points,
-        "response_quantity": response_quantity,
-        "frf_type": frf_type,
-        "response_units": response_units,
-        "force_units": force_units,
-    }
     record = {"format": "text table", "layout": cols.layout, "columns": header}
     labels = point_labels(list(cols.points)) if has_header else None
     return frf_dataset(path, frf, freq, labels, said, given, HOW, record, extra)

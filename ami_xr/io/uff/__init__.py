@@ -2,7 +2,10 @@
 
 Modules: :mod:`.codes` (UFF code tables, point labels), :mod:`.read` (:func:`read_uff`),
 :mod:`.sets` (datasets through pyuff, one at a time), :mod:`.completeness` (checks before pyuff
-reads), :mod:`.modes` (dataset 55), :mod:`.write` (:func:`write_uff`). ``pyuff`` is imported only
+reads), :mod:`.records` (dataset-58 labels, abscissae, references), :mod:`.frf` and
+:mod:`.time` (dataset 58 -> FRF and time Datasets), :mod:`.units` (quantities, units, dataset
+164), :mod:`.nodes` (datasets 15/2411), :mod:`.modes` (dataset 55), :mod:`.write`
+(:func:`write_uff`). ``pyuff`` is imported only
 when a file is read or written.
 
 What is read

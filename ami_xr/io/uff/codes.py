@@ -16,6 +16,9 @@ from ami_xr import names
 from ami_xr.errors import DataFileError
 
 __all__ = [
+    "DATASET_NAMES",
+    "FUNCTION_NAMES",
+    "describe_sets",
     "point_label",
     "parse_point_label",
     "dof_map",
@@ -34,7 +37,6 @@ __all__ = [
     "LABEL_RE",
     "ID_TAG",
     "MODES_ID1",
-    "KNOWN_UNIT_ALIASES",
 ]
 
 # --- UFF code tables (from the UFF dataset 58 specification) ---------------------------------
@@ -52,16 +54,60 @@ AXIS_CODES = {v: k for k, v in AXES.items()}
 LABEL_RE = re.compile(r"^\s*(\d+)\s*([+-])\s*(X|Y|Z|RX|RY|RZ)\s*$", re.IGNORECASE)
 ID_TAG = "ami_xr point="
 MODES_ID1 = "ami_xr mode shapes"  # ID line 1 of the dataset 55 write_uff writes
-KNOWN_UNIT_ALIASES = {
-    "m/s2": "m/s^2",
-    "m/s**2": "m/s^2",
-    "mm/s2": "mm/s^2",
-    "in/s2": "in/s^2",
-    "µm": "um",
-    "lbf": "lbf",
-    "n": "N",
-    "kn": "kN",
+
+
+#: What the datasets other tools write hold (for messages about what a file holds instead).
+DATASET_NAMES = {
+    15: "nodes",
+    18: "coordinate systems",
+    55: "data at nodes",
+    58: "function at a DOF",
+    82: "trace lines",
+    151: "header",
+    164: "units",
+    1858: "dataset 58 qualifiers",
+    2400: "model header",
+    2411: "nodes",
+    2412: "elements",
+    2414: "analysis data (FE results)",
+    2420: "coordinate systems",
+    2429: "groups",
+    2467: "groups",
 }
+#: Dataset 58 function types (ami_xr reads 1, 4 and 6).
+FUNCTION_NAMES = {
+    0: "general",
+    1: "time response",
+    2: "auto spectrum",
+    3: "cross spectrum",
+    4: "FRF",
+    5: "transmissibility",
+    6: "coherence",
+    7: "auto correlation",
+    8: "cross correlation",
+    9: "power spectral density",
+    10: "energy spectral density",
+    11: "probability density",
+    12: "spectrum",
+    18: "mode indicator function",
+    26: "multiple coherence",
+}
+
+
+def describe_sets(sets: Sequence[dict]) -> str:
+    """What a file's datasets are, for a message: ``"58 (power spectral density) x4, 2411
+    (nodes)"``."""
+    counts: dict[str, int] = {}
+    for s in sets:
+        kind = s.get("type")
+        if kind == 58:
+            func = int(s.get("func_type", 0) or 0)
+            what = FUNCTION_NAMES.get(func, f"function type {func}")
+            text = f"58 ({what}, function type {func})"
+        else:
+            text = f"{kind} ({DATASET_NAMES.get(kind, 'not read')})"
+        counts[text] = counts.get(text, 0) + 1
+    return ", ".join(f"{k} x{n}" if n > 1 else k for k, n in counts.items()) or "none"
 
 
 def require_pyuff():

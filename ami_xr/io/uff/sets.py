@@ -21,7 +21,8 @@ import re
 import tempfile
 from pathlib import Path
 
-from ami_xr.errors import DataFileError
+from ami_xr.caller import warn
+from ami_xr.errors import AssumptionWarning, DataFileError
 from ami_xr.io.uff.codes import require_pyuff
 from ami_xr.io.uff.completeness import block_tags, check_complete, check_lengths
 from ami_xr.io.uff.quiet import quiet
@@ -59,6 +60,38 @@ _TEXT_FIELDS_58 = (
         for start, suffix in ((25, "axis_lab"), (46, "axis_units_lab"))
     ),
 )
+
+
+#: Values per node of dataset 55 by its data characteristic (record 6, field 3): 1 scalar,
+#: 2 three translations, 3 three translations and three rotations.
+VALUES_PER_NODE = {1: 1, 2: 3, 3: 6}
+
+
+def repair_values_per_node(data: bytes) -> tuple[bytes, list[str]]:
+    """Dataset 55 whose record 6 states a number of values per node its data characteristic
+    does not have (SDynPy writes 1 for three translations) with the characteristic's number;
+    the repaired data and what was repaired."""
+    lines = data.split(b"\n")
+    done = []
+    for i in range(len(lines) - 7):
+        if lines[i].strip() != b"-1" or lines[i + 1].strip() != b"55":
+            continue
+        fields = lines[i + 7].split()
+        if len(fields) < 6 or not all(f.lstrip(b"-").isdigit() for f in fields[:6]):
+            continue
+        want = VALUES_PER_NODE.get(int(fields[2]))
+        if want is None or int(fields[5]) == want:
+            continue
+        done.append(
+            f"dataset 55 at line {i + 1}: record 6 states {int(fields[5])} value(s) per node for "
+            f"data characteristic {int(fields[2])}; read with {want}"
+        )
+        fields[5] = str(want).encode()
+        line = lines[i + 7]
+        end = b"\r" if line.endswith(b"\r") else b""
+        # the same length: offsets into the file stay where they were
+        lines[i + 7] = b"".join(f.rjust(10) for f in fields).ljust(len(line) - len(end)) + end
+    return b"\n".join(lines), done
 
 
 def redecode_text(sets: list[dict], data: bytes) -> None:
@@ -101,6 +134,14 @@ def _read_each(file: Path) -> list[dict]:
     return sets
 
 
+def _read_copy(data: bytes, path: Path) -> list[dict]:
+    """:func:`_read_each` of ``data`` (a repaired copy of ``path``) in a temporary file."""
+    with tempfile.TemporaryDirectory(prefix="ami_xr_uff_") as folder:
+        copy = Path(folder) / path.name
+        copy.write_bytes(data)
+        return _read_each(copy)
+
+
 def _failure(path: Path, data: bytes, failed: _SetFailed, padded: bool) -> DataFileError:
     tags = block_tags(data)
     start = tags[2 * failed.index]
@@ -136,11 +177,14 @@ def read_sets(path: Path) -> list[dict]:
     except OSError as err:
         raise DataFileError(f"{path}: cannot read the file: {err}") from err
     check_complete(data, path)
+    fixed, repaired = repair_values_per_node(data)
+    for what in repaired:  # an assumption about the file: said on the terminal
+        warn(f"{path.name}: {what}", AssumptionWarning)
     try:
-        sets = _read_each(path)
+        sets = _read_each(path) if not repaired else _read_copy(fixed, path)
     except _SetFailed as failed:
-        stripped = strip_padding(data)
-        if stripped == data:
+        stripped = strip_padding(fixed)
+        if stripped == fixed:
             raise _failure(path, data, failed, padded=False) from failed.cause
         with tempfile.TemporaryDirectory(prefix="ami_xr_uff_") as folder:
             copy = Path(folder) / path.name

@@ -1,5 +1,5 @@
 """Write UFF files: FRFs and time histories as dataset 58, identified modes as dataset 55,
-point coordinates as dataset 15.
+point coordinates as dataset 2411 (or 15).
 
 See :mod:`ami_xr.io.uff` for the mapping from ami_xr Datasets.
 """
@@ -16,7 +16,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
-from ami_xr.errors import AmiXrValueError, AssumptionWarning, SchemaError
+from ami_xr.errors import AmiXrValueError, SchemaError
 from ami_xr.io.atomic import atomic_path, interrupts_deferred
 from ami_xr.io.uff.codes import (
     FUNC_COHERENCE,
@@ -29,6 +29,7 @@ from ami_xr.io.uff.codes import (
     dof_map,
     require_pyuff,
 )
+from ami_xr.io.uff.nodes import NODE_DATASETS, node_records
 from ami_xr.io.uff.quiet import quiet
 
 __all__ = ["MODAL_A_LINE", "check_writable", "modal_a_b", "write_uff"]
@@ -132,6 +133,21 @@ def _units_lab(text: str) -> str:
     return text if text else "NONE"
 
 
+def _id_lines(ds: xr.Dataset, labels: list) -> dict[str, list[str]]:
+    """ID lines 1-5 of each point's records: the ``uff_id1`` ... ``uff_id5`` coordinates
+    :func:`read_uff` keeps, else the ``title`` (line 1) and ``NONE`` (UFF lines hold 80
+    characters)."""
+    title = str(ds.attrs.get("title", "ami_xr"))[:80] or "NONE"
+    out = {}
+    for key in ("id1", "id2", "id3", "id4", "id5"):
+        coord = f"uff_{key}"
+        if coord in ds.coords and ds[coord].dims == (names.POINT,):
+            out[key] = [str(t)[:80] or "NONE" for t in ds[coord].values.tolist()]
+        else:
+            out[key] = [title if key == "id1" else "NONE"] * len(labels)
+    return out
+
+
 def _frf_records(ds: xr.Dataset, binary: bool) -> list[dict]:
     pyuff = require_pyuff()
     labels = list(ds[names.POINT].values.tolist())
@@ -146,6 +162,10 @@ def _frf_records(ds: xr.Dataset, binary: bool) -> list[dict]:
     uniform = freq.size > 1 and np.allclose(step, step[0], rtol=1e-9)
     response_units = _units_lab(ds.attrs.get(names.ATTR_RESPONSE_UNITS, ""))
     force_units = _units_lab(ds.attrs.get(names.ATTR_FORCE_UNITS, ""))
+    lines = _id_lines(ds, labels)
+    # a roving-hammer file read by read_uff is written back as it was: the drive point is the
+    # response DOF, each point a reference DOF (the same FRFs by reciprocity)
+    roving = not multi and str(ds.attrs.get("uff_layout", "")).startswith("roving hammer")
     records = []
     variables = [(names.FRF, FUNC_FRF)]
     if names.COHERENCE in ds:
@@ -160,24 +180,26 @@ def _frf_records(ds: xr.Dataset, binary: bool) -> list[dict]:
             ref_node, ref_dir, ref_tag = dof[ref] if ref is not None else (0, 0, "NONE")
             for i, lab in enumerate(labels):
                 node, direction, tag = dof[lab]
+                rsp = (ref_node, ref_dir, ref_tag) if roving else (node, direction, tag)
+                ref = (node, direction, tag) if roving else (ref_node, ref_dir, ref_tag)
                 dtype = np.complex128 if func == FUNC_FRF else np.float64
                 records.append(
                     pyuff.prepare_58(
                         binary=int(binary),
-                        id1=str(ds.attrs.get("title", "ami_xr"))[:80] or "NONE",
-                        id2=tag,
-                        id3=ref_tag,
-                        id4="NONE",
-                        id5="NONE",
+                        id1=lines["id1"][i],
+                        id2=rsp[2] if rsp[2] != "NONE" else lines["id2"][i],
+                        id3=ref[2] if ref[2] != "NONE" else lines["id3"][i],
+                        id4=lines["id4"][i],
+                        id5=lines["id5"][i],
                         func_type=func,
                         ver_num=0,
                         load_case_id=0,
                         rsp_ent_name="ami_xr",
-                        rsp_node=node,
-                        rsp_dir=direction,
+                        rsp_node=rsp[0],
+                        rsp_dir=rsp[1],
                         ref_ent_name="ami_xr",
-                        ref_node=ref_node,
-                        ref_dir=ref_dir,
+                        ref_node=ref[0],
+                        ref_dir=ref[1],
                         ord_data_type=6 if func == FUNC_FRF else 4,
                         num_pts=freq.size,
                         abscissa_spacing=int(uniform),
@@ -367,69 +389,13 @@ def _mode_records(ds: xr.Dataset) -> list[dict]:
     return records
 
 
-# Length units of point_x/y/z that dataset 15 (written in metres) can take, as metres per unit.
-_METRES_PER_UNIT = {"m": 1.0, "": 1.0, "mm": 1e-3, "cm": 1e-2, "in": 0.0254}
-
-
-def _node_records(ds: xr.Dataset) -> list[dict]:
-    """One dataset 15 with the coordinates of the points' nodes (in metres), when they have any.
-
-    Dataset 15 stores about 6 significant digits (format E13.5). Coordinates that cannot be
-    written truthfully (unknown length units, two DOFs of one node at different places) are left
-    out with a warning rather than written wrong.
-    """
-    present = [c for c in names.POINT_COORDS if c in ds.coords]
-    if not present:
-        return []
-    labels = list(ds[names.POINT].values.tolist())
-    dof = dof_map(labels)
-    xyz = np.zeros((len(labels), 3))
-    for c in present:
-        units = str(ds[c].attrs.get(names.ATTR_UNITS, "m"))
-        if units not in _METRES_PER_UNIT:
-            warnings.warn(
-                f"write_uff: coordinate {c!r} has units {units!r}, not a length dataset 15 can "
-                f"take ({', '.join(u for u in _METRES_PER_UNIT if u)}); node coordinates not "
-                "written",
-                AssumptionWarning,
-                stacklevel=3,
-            )
-            return []
-        xyz[:, names.POINT_COORDS.index(c)] = (
-            np.asarray(ds[c].values, dtype=np.float64) * _METRES_PER_UNIT[units]
-        )
-    nodes: dict[int, np.ndarray] = {}
-    for i, lab in enumerate(labels):
-        node = dof[lab][0]
-        if node in nodes and not np.allclose(nodes[node], xyz[i], rtol=1e-12, atol=0.0):
-            warnings.warn(
-                f"write_uff: point {lab!r} shares node {node} with another point at other "
-                "coordinates; node coordinates not written",
-                AssumptionWarning,
-                stacklevel=3,
-            )
-            return []
-        nodes[node] = xyz[i]
-    order = sorted(nodes)
-    zeros = np.zeros(len(order), dtype=np.int64)
-    return [
-        {
-            "type": 15,
-            "node_nums": np.asarray(order),
-            "def_cs": zeros,
-            "disp_cs": zeros,
-            "color": zeros,
-            **{axis: np.array([nodes[n][j] for n in order]) for j, axis in enumerate("xyz")},
-        }
-    ]
-
-
 def write_uff(
     ds: xr.Dataset,
     path: str | os.PathLike,
     *,
     binary: bool = False,
     include: Sequence[str] = ("frf", "time", "modes"),
+    geometry: int | str = 2411,
 ) -> Path:
     """Write a Dataset as UFF, atomically (see :func:`ami_xr.io.atomic.atomic_path`).
 
@@ -442,9 +408,9 @@ def write_uff(
     ``mode_vector``) to one dataset 55 per mode (complex eigenvalue, displacement; modal A
     ``1/lam`` and modal B ``-1``, so that ``Phi_j Phi_k / A`` is the receptance residue and
     another tool rebuilds the FRFs from the shapes: :func:`modal_a_b`, ID line 4 says so); point
-    coordinates (``point_x/y/z``, if any) to one dataset 15 in metres, first. Reading the file
-    back with :func:`read_uff` gives the same FRFs, mode vectors and coordinates (these to the
-    6 digits dataset 15 holds).
+    coordinates (``point_x/y/z``, if any) to one dataset 2411 (double precision; dataset 15 with
+    ``geometry=15``) in metres, first. Reading the file back with :func:`read_uff` gives the
+    same FRFs, mode vectors and coordinates (with dataset 15 to the 6 digits it holds).
 
     Parameters
     ----------
@@ -457,6 +423,9 @@ def write_uff(
         Write dataset 58 in binary (exact float64) rather than ASCII (about 12 significant digits).
     include : sequence of {"frf", "time", "modes"}
         Which parts to write when present.
+    geometry : {2411, 15}
+        The node dataset of the point coordinates: 2411 (default; double precision, what
+        current tools write) or 15 (older tools; about 6 significant digits).
 
     Returns
     -------
@@ -477,16 +446,18 @@ def write_uff(
     bad = set(include) - {"frf", "time", "modes"}
     if bad:
         raise AmiXrValueError(f"include must hold 'frf', 'time' or 'modes'; got {sorted(bad)}")
+    if str(geometry) not in map(str, NODE_DATASETS):
+        raise AmiXrValueError(f"geometry: expected 2411 or 15 (the node dataset), got {geometry!r}")
     check_writable(ds, include)
     records: list[dict] = []
     if "frf" in include and names.FRF in ds:
-        records += _node_records(ds)
+        records += node_records(ds, int(geometry))
         records += _frf_records(ds, binary)
     if "time" in include and names.RESPONSE in ds:
         records += _time_records(ds, binary)
     if "modes" in include and names.MODE_VECTOR in ds and names.EIGENVALUE in ds:
-        if not any(r.get("type") == 15 for r in records):
-            records = _node_records(ds) + records
+        if not any(r.get("type") in NODE_DATASETS for r in records):
+            records = node_records(ds, int(geometry)) + records
         records += _mode_records(ds)
     if not records:
         raise AmiXrValueError(
