@@ -324,8 +324,7 @@ def _take(screened, prob, state, fit, trials, threshold, r_now, var, scatter, op
     then, should it fail on all lines, the fewest modes added first (a cluster refit that
     fails in full must not hide the single pole that explains a peak). A trial holds when its
     gain against ``var`` is above ``threshold`` per mode added, every mode it tries stays free
-    (a mode already frozen may stay so, and one far from the poles it changes may freeze where
-    it is: :func:`_near_changes`) and it makes no pair within one mode's scatter. The
+    (a mode already frozen may stay so) and it makes no pair within one mode's scatter. The
     full fit starts from the trial's own start, not from the band fit's end (the far modes held
     there made it a worse start in clusters and below-band tails)."""
     screened = sorted(screened, key=lambda s: -s[0])
@@ -337,9 +336,7 @@ def _take(screened, prob, state, fit, trials, threshold, r_now, var, scatter, op
         score = _full_gain(prob, r_now, trial[0], var) - n_add * threshold
         kept_free = np.delete(state.free, removed)
         moved = start[: kept_free.size] != np.delete(fit.lam, removed)
-        changes = np.append(moved, np.ones(start.size - kept_free.size, bool))
-        must = np.append(kept_free, np.ones(start.size - kept_free.size, bool)) | changes
-        must &= _near_changes(start, changes, opts)
+        must = np.append(kept_free | moved, np.ones(start.size - kept_free.size, bool))
         changed = trial[0].lam.size != fit.lam.size or np.max(
             np.abs(trial[0].lam - fit.lam) / np.abs(fit.lam)
         ) > np.sqrt(opts["tol"])  # a restart that returns where it was changes nothing
@@ -351,21 +348,6 @@ def _take(screened, prob, state, fit, trials, threshold, r_now, var, scatter, op
         ):
             return trial, ref, removed, moved
     return None
-
-
-def _near_changes(start: np.ndarray, changes: np.ndarray, opts: dict) -> np.ndarray:
-    """Which entries of a trial's ``start`` lie within the band of the poles it adds or moves
-    (``changes``; ``local_widths`` half-power bandwidths of them, as :func:`band_fit` judges):
-    those must stay free in its fit. A mode far from every change that freezes there is held
-    where it already was -- the trial did not move it. (A mode added earlier that leaned on its
-    region's edge froze in every later trial and so ended all additions: the hammer FRF of
-    ``scripts/real_data.py`` lost its 3.96 kHz peak that way.)"""
-    poles = start[changes]
-    if not poles.size:
-        return np.ones(start.size, bool)
-    width = np.maximum(2.0 * np.abs(poles.real), opts["min_width"])
-    margin = POLICY.local_widths * float(np.max(width))
-    return (start.imag >= poles.imag.min() - margin) & (start.imag <= poles.imag.max() + margin)
 
 
 def _full_gain(prob, r_now: np.ndarray, trial, var: np.ndarray) -> float:
