@@ -290,6 +290,7 @@ def format_plate_row(row: dict) -> str:
         + f"{_mean([g['all'] for g in got]):>5.2f}/{n}{every:>7d}/{len(got)}"
         + f"{_mean([g['spurious'] for g in got]):>6.2f}"
         + f"  fn {_mean(fn) / EFFICIENT:.2f} zeta {_mean(z) / EFFICIENT:.2f}"
+        + f" | fn {_mean(fn_t) / EFFICIENT:.2f} zeta {_mean(z_t) / EFFICIENT:.2f}"
     )
 
 
