@@ -198,15 +198,26 @@ def _trial(stacked, result, lam_set, det, cost0: float, settings) -> tuple[xr.Da
     """The refit from the poles ``lam_set`` (one more than ``result``'s; ``det`` its detection
     column), and whether the likelihood-ratio test of the refinement's objective supports the
     added pole: ``2 (cost0 - cost)`` above chi-square with ``2 + 2 n_FRF`` degrees of freedom
-    (the pole and a residue per FRF) at false-alarm probability ``add_pfa``."""
+    (the pole and a residue per FRF; two more per FRF for each residual term it switched on)
+    at false-alarm probability ``add_pfa``."""
     from scipy.stats import chi2  # lazy: scipy.stats is slow to import
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a rejected trial says nothing; a kept one is reported
         out = refit(stacked, result, lam_set, det, settings)
     cost = out.attrs.get(names.ATTR_REFINE_COST)
-    limit = chi2.isf(RefineSettings.add_pfa, 2 + 2 * stacked.sizes[names.POINT])
+    n_frf = stacked.sizes[names.POINT]
+    # residual terms the added pole switched on (:func:`_residual_terms`): a complex
+    # coefficient per FRF each, unknowns of the test too
+    terms = [_n_terms(x) for x in (result, out)]
+    dof = 2 + 2 * n_frf + 2 * n_frf * max(terms[1] - terms[0], 0)
+    limit = chi2.isf(RefineSettings.add_pfa, dof)
     return out, cost is not None and bool(2.0 * (cost0 - float(cost)) > limit)
+
+
+def _n_terms(ds: xr.Dataset) -> int:
+    """The number of residual terms the refinement of ``ds`` fitted."""
+    return len([t for t in str(ds.attrs.get(names.ATTR_REFINE_RESIDUAL_TERMS, "")).split(",") if t])
 
 
 def with_tail_poles(
@@ -265,6 +276,20 @@ def _pair_held(out: xr.Dataset, lam: np.ndarray, stacked: xr.Dataset, x: complex
     return bool(near.sum() > before and not frozen[near].any())
 
 
+def _residual_terms(given: xr.Dataset, lam: np.ndarray, settings) -> bool:
+    """Whether the refit's global fit (and so the refinement, ``residual_terms="auto"``) fits
+    residual terms: as ``settings`` say, and also on FRFs marked exact
+    (``frf_source="analytic"``, where "auto" means none) when a pole of ``lam`` lies beyond the
+    lines: modes outside the band are then in the data, and the exact model of the band's
+    modes alone is not the data's (the poles fitted beyond the lines take the nearest of
+    them, the terms the rest)."""
+    if settings.residual_terms or given.attrs.get(names.ATTR_SOURCE) != names.SOURCE_ANALYTIC:
+        return bool(settings.residual_terms)
+    f = np.asarray(given[names.FREQUENCY].values, dtype=float)
+    fn = natural_frequency(np.asarray(lam))
+    return bool(np.any((fn > f[-1]) | (fn < f[0])))
+
+
 def refit(stacked, result, lam, det_added, settings) -> xr.Dataset:
     """The shared-pole phases (global fit, refinement) on the stacked FRFs from the poles
     ``lam`` (measured): what :func:`identify_single` does after the isolation, in the working
@@ -296,7 +321,8 @@ def refit(stacked, result, lam, det_added, settings) -> xr.Dataset:
         start[names.ISO_CONVERGED] = result[names.ISO_CONVERGED]
     start.attrs = {k: v for k, v in result.attrs.items() if not k.startswith("refine_")}
     start.attrs.update(work.attrs)  # the working quantity's attributes (units, noise model)
-    out = global_fit(start, band=settings.band, residual_terms=settings.residual_terms)
+    terms = _residual_terms(given, lam, settings)
+    out = global_fit(start, band=settings.band, residual_terms=terms)
     if pl.refines(settings):
         # no order tests on the stacked FRFs here: each added pole passed those of the
         # reference that found it, and the stacked test is the one that lost it (the FRFs of

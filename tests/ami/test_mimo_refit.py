@@ -172,3 +172,20 @@ def test_the_refit_runs_in_the_first_pass_noise_model():
     a0 = first[names.RESIDUE].transpose(names.POINT, names.MODE).values
     a1 = again[names.RESIDUE].transpose(names.POINT, names.MODE).values
     np.testing.assert_allclose(a1, a0, rtol=1e-3, atol=1e-3 * np.abs(a0).max())
+
+
+def test_residual_terms_on_exact_frfs_only_when_a_pole_lies_beyond_the_lines():
+    """``frf_source="analytic"`` means no residual term ("auto"); a pole fitted beyond the lines
+    shows modes outside the band, and the refit then fits the terms; other sources and an
+    explicit choice are left as set."""
+    truth = _truth([8.0, 15.0], [0.01, 0.01])
+    f = np.linspace(2, 20, 91)
+    ds = ami_xr.simulate.frf(truth, f, references=[2, 5])
+    lam = truth[names.EIGENVALUE].values
+    beyond = np.append(lam, -0.2 + 2j * np.pi * 23.0)
+    rule = mimo_refit._residual_terms
+    assert rule(ds, lam, SETTINGS) is False
+    assert rule(ds, beyond, SETTINGS) is True
+    measured = ds.assign_attrs({names.ATTR_SOURCE: names.SOURCE_MEASURED})
+    assert rule(measured, beyond, SETTINGS) is False  # as set (measured: "auto" fits them)
+    assert rule(ds, lam, IdentifySettings(residual_terms=True)) is True
