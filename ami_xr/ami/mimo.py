@@ -26,25 +26,21 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import common as c
+from ami_xr.ami import mimo_refit as mr
 from ami_xr.ami import pipeline as pl
 from ami_xr.ami import repeated as rp
 from ami_xr.ami.global_fit import (
     ATTR_MODE_VECTOR_CONVENTION,
     MODE_VECTOR_CONVENTION,
-    global_fit,
     mode_vector_units,
     receptance_residues,
 )
 from ami_xr.ami.pipeline import identify_single, with_quality
-from ami_xr.ami.refine import refine as refine_phase
-from ami_xr.ami.settings import FrfAttributes, GlobalFitSettings, IdentifySettings, from_attrs
-from ami_xr.ami.subtract import band_of, power_of_two_scale
+from ami_xr.ami.settings import GlobalFitSettings, IdentifySettings, from_attrs
 from ami_xr.core import flags
 from ami_xr.core import mimo as cm
-from ami_xr.core.matching import match_nearest
-from ami_xr.core.modal import damping_ratio, mac_matrix, natural_frequency
+from ami_xr.core.modal import mac_matrix, natural_frequency
 from ami_xr.errors import AssumptionWarning, IdentificationError
-from ami_xr.io.datasets import select_reference
 
 # s2/s1 above this flags a repeated root. Noise alone gives s2 of the order of the residues'
 # standard errors (s2 <= ||dA||_F), far below 5 % of s1 for any mode worth reporting (1 % FRF
@@ -56,13 +52,15 @@ NOISE_FACTOR = 3.0
 
 _SEP = "@"  # stacked FRF label "reference@point"
 
-# A pole one reference alone finds is "already there" when a pole of the set lies within this
-# many |Re lam| (half the half-power bandwidth: the match radius of simulate.score_modes),
-# matched one to one, nearest first, so that the two members of a close pair each need a pole.
-UNION_TOLERANCE = 1.0
 # attribute: natural frequencies (Hz) of the poles a single reference found and the stacked
 # detection missed, added before the shared-pole fit ("" when none)
 ATTR_UNION_ADDED = "multi_reference_union_added"
+# attribute: natural frequencies (Hz) of the poles whose residue matrix was not rank one and
+# that the shared-pole refit split into two close poles ("" when none)
+ATTR_PAIRS_SPLIT = "multi_reference_close_pairs_split"
+# attribute: natural frequencies (Hz) of the poles above the lines the shared-pole refit added
+# to model the modes beyond the band (not reported; "" when none)
+ATTR_TAIL_POLES = "multi_reference_tail_poles"
 
 # SIMO outputs whose meaning the stacking changes: recomputed here from the residue matrices
 _RECOMPUTED = (
@@ -240,8 +238,13 @@ def identify_multi_reference(
     stacked = _stacked(ds, refs, points)
     result = identify_single(stacked, settings, progress, final=R == 1)
     added = np.zeros(0, np.complex128)
+    split = tail = np.zeros(0)
     if R > 1:
-        result, added = _with_single_reference_poles(ds, stacked, result, refs, settings)
+        result, added = mr.with_single_reference_poles(ds, stacked, result, refs, settings)
+        result, tail = mr.with_tail_poles(stacked, result, settings)
+        result, split = mr.with_close_pairs_split(
+            stacked, result, R, settings, RANK_ONE_RATIO_MAX, NOISE_FACTOR
+        )
         result = pl.drop_beyond_lines(result, stacked)
     out = _unstack(result, ds, R, P)
     pairs = [(points.index(r), i) for i, r in enumerate(refs) if r in points]
@@ -253,6 +256,8 @@ def identify_multi_reference(
     out.attrs[names.ATTR_RANK_ONE_RATIO_MAX] = RANK_ONE_RATIO_MAX
     if R > 1:
         out.attrs[ATTR_UNION_ADDED] = ",".join(f"{x:.6g}" for x in natural_frequency(added))
+        out.attrs[ATTR_PAIRS_SPLIT] = ",".join(f"{x:.6g}" for x in split)
+        out.attrs[ATTR_TAIL_POLES] = ",".join(f"{x:.6g}" for x in tail)
     if not pairs:
         warnings.warn(
             f"identify: no reference {refs} is a measured point; mode vectors are normalised "
@@ -440,102 +445,3 @@ def _with_mode_outputs(out: xr.Dataset, modes: _Modes, ds: xr.Dataset, scaled: b
             mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, ~(modes.best_snr >= smin))
         out[names.QUALITY_FLAGS] = out[names.QUALITY_FLAGS].copy(data=flags.encode(mask))
     return out
-
-
-def _single_reference_poles(ds: xr.Dataset, refs: list, settings: IdentifySettings):
-    """Per reference: the eigenvalues (measured, before the exponential-window correction) and
-    ``detected`` (point, mode) of the single-reference pipeline on its FRFs alone."""
-    beta = float(from_attrs(FrfAttributes, ds.attrs).exponential_window_decay)
-    got = []
-    for r in refs:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # the stacked run warns about what matters
-            one = identify_single(select_reference(ds, r), settings, final=False)
-        if one.sizes.get(names.MODE, 0) == 0:
-            got.append((np.zeros(0, np.complex128), None))
-            continue
-        lam = np.asarray(one[names.EIGENVALUE].transpose(names.MODE).values) - beta
-        det = None
-        if names.DETECTED in one:
-            det = one[names.DETECTED].transpose(names.POINT, names.MODE).values
-        got.append((lam, det))
-    return got
-
-
-def _with_single_reference_poles(
-    ds: xr.Dataset, stacked: xr.Dataset, result: xr.Dataset, refs: list, settings
-) -> tuple[xr.Dataset, np.ndarray]:
-    """``result`` (the stacked pipeline's) refitted with the union of its poles and those each
-    reference alone finds; unchanged when no reference finds a pole the set lacks.
-
-    Detection on the stacked FRFs weighs every FRF alike, so the modes one reference sees
-    clearly can drown in the FRFs of a reference that does not see them (a reference on a
-    nodal line, a noisier one). The single-reference pipeline is run on each reference; a pole
-    it finds that matches no pole of the set (one to one, nearest first, within
-    ``UNION_TOLERANCE |Re lam|``) joins the set, and the shared-pole phases (global fit and
-    refinement) run again on all FRFs from the union. Returns the result and the added
-    eigenvalues (measured, rad/s)."""
-    beta = float(from_attrs(FrfAttributes, ds.attrs).exponential_window_decay)
-    n_k = result.sizes.get(names.MODE, 0)
-    lam_set = np.zeros(0, np.complex128)
-    if n_k:
-        lam_set = np.asarray(result[names.EIGENVALUE].transpose(names.MODE).values) - beta
-    n_stacked = lam_set.size
-    P = ds.sizes[names.POINT]
-    det_added = []
-    for i, (lam, det) in enumerate(_single_reference_poles(ds, refs, settings)):
-        if lam.size == 0:
-            continue
-        _, matched = match_nearest(lam, lam_set, UNION_TOLERANCE)
-        for k in np.setdiff1d(np.arange(lam.size), matched):
-            if not np.isfinite(lam[k]) or lam[k].real >= 0:
-                continue
-            lam_set = np.append(lam_set, lam[k])
-            column = np.zeros(len(refs) * P, bool)
-            column[i * P : (i + 1) * P] = True if det is None else det[:, k]
-            det_added.append(column)
-    if not det_added:
-        return result, np.zeros(0, np.complex128)
-    refit = _refit(stacked, result, lam_set, np.array(det_added).T, settings)
-    return refit, lam_set[n_stacked:]
-
-
-def _refit(stacked, result, lam, det_added, settings) -> xr.Dataset:
-    """The shared-pole phases (global fit, refinement) on the stacked FRFs from the poles
-    ``lam`` (measured): what :func:`identify_single` does after the isolation."""
-    ds = band_of(stacked, settings.fmin, settings.fmax, "identify")
-    peak = np.abs(ds[names.FRF]).max(skipna=False).values
-    scale = float(power_of_two_scale(peak))
-    work = ds if scale == 1.0 else ds.assign({names.FRF: ds[names.FRF] * scale})
-    start = work.copy()
-    for name in (names.SUB_NOISE_FLOOR,):
-        if name in result:  # per-FRF noise floors of the subtraction (scale-free use)
-            start[name] = result[name] * scale
-    det = np.zeros((work.sizes[names.POINT], lam.size), bool)
-    if names.DETECTED in result and result.sizes.get(names.MODE, 0):
-        n0 = result.sizes[names.MODE]
-        det[:, :n0] = result[names.DETECTED].transpose(names.POINT, names.MODE).values
-    det[:, lam.size - det_added.shape[1] :] = det_added
-    start = start.assign(
-        {
-            names.EIGENVALUE: (names.MODE, lam),
-            names.NATURAL_FREQUENCY: (names.MODE, natural_frequency(lam)),
-            names.DAMPING_RATIO: (names.MODE, damping_ratio(lam)),
-            names.DETECTED: ((names.POINT, names.MODE), det),
-        }
-    ).assign_coords({names.MODE: np.arange(1, lam.size + 1)})
-    if names.ISO_CONVERGED in result:
-        start[names.ISO_CONVERGED] = result[names.ISO_CONVERGED]
-    start.attrs = {k: v for k, v in result.attrs.items() if not k.startswith("refine_")}
-    out = global_fit(start, band=settings.band, residual_terms=settings.residual_terms)
-    if pl.refines(settings):
-        # no order tests on the stacked FRFs here: each added pole passed those of the
-        # reference that found it, and the stacked test is the one that lost it (the FRFs of
-        # references that do not see a mode dilute its likelihood ratio); the stacked poles
-        # passed theirs in the first run
-        out = refine_phase(out, **{**pl.model_order(settings), "drop_modes": False})
-    if scale != 1.0:
-        out = pl.unscale(out, ds, scale)
-    out = pl.window_corrected(out, from_attrs(FrfAttributes, ds.attrs))
-    out = pl.finish_modes(out, stacked, refined=pl.refines(settings))
-    return with_quality(out)

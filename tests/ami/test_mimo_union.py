@@ -11,7 +11,7 @@ import pytest
 import ami_xr
 from ami_xr import names
 from ami_xr.ami import common as c
-from ami_xr.ami import mimo
+from ami_xr.ami import mimo, mimo_refit
 from ami_xr.ami.settings import IdentifySettings
 from ami_xr.core import mimo as cm
 from ami_xr.errors import AmiXrValueError
@@ -37,7 +37,7 @@ def test_a_pole_the_stacked_detection_missed_is_added_from_a_single_reference():
         warnings.simplefilter("ignore")
         full = mimo.identify_single(stacked, settings)
         missing = c.select_modes(full, [0, 1, 3, 4])  # the stacked detection "lost" mode 3
-        out, added = mimo._with_single_reference_poles(ds, stacked, missing, refs, settings)
+        out, added = mimo_refit.with_single_reference_poles(ds, stacked, missing, refs, settings)
     assert added.size == 1
     assert abs(added[0] - truth[names.EIGENVALUE].values[2]) < 1e-6 * abs(added[0])
     lam = np.sort_complex(out[names.EIGENVALUE].values)
@@ -46,7 +46,7 @@ def test_a_pole_the_stacked_detection_missed_is_added_from_a_single_reference():
     # nothing missed: the stacked result is returned as it is
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        same, none = mimo._with_single_reference_poles(ds, stacked, full, refs, settings)
+        same, none = mimo_refit.with_single_reference_poles(ds, stacked, full, refs, settings)
     assert none.size == 0 and same is full
 
 

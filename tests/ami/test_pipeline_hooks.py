@@ -13,7 +13,7 @@ import pytest
 
 import ami_xr
 from ami_xr import names, simulate
-from ami_xr.ami import mimo, pipeline
+from ami_xr.ami import mimo, mimo_refit, pipeline
 from ami_xr.core import flags
 from ami_xr.io.datasets import make_frf_dataset, select_reference
 
@@ -51,14 +51,15 @@ def test_simo_and_one_reference_multi_reference_carry_the_same_flags():
         assert not flagged[np.argmin(np.abs(fn - f0))]
 
 
-def test_mimo_uses_no_private_name_of_the_pipeline():
-    tree = ast.parse(inspect.getsource(mimo))
+@pytest.mark.parametrize("module", [mimo, mimo_refit])
+def test_mimo_uses_no_private_name_of_the_pipeline_or_the_noise_model(module):
+    tree = ast.parse(inspect.getsource(module))
     private = [
         n.attr
         for n in ast.walk(tree)
         if isinstance(n, ast.Attribute)
         and isinstance(n.value, ast.Name)
-        and n.value.id == "pl"
+        and n.value.id in ("pl", "whitening")
         and n.attr.startswith("_")
     ]
     assert private == []

@@ -1,0 +1,341 @@
+"""The shared-pole refit of the multi-reference path (issues 13, 41).
+
+:func:`ami_xr.ami.mimo.identify_multi_reference` runs the single-reference pipeline on the FRFs
+of every reference stacked on ``point``. Two things can leave that set of poles short, and both
+are repaired here by running the pipeline's shared-pole phases (global fit, refinement) again on
+all FRFs from a larger set of poles:
+
+* a pole one reference alone finds and the stacked detection missed (its FRFs drown in those of
+  the references that do not see the mode): :func:`with_single_reference_poles`;
+* two close poles fitted as one: the pole's residue matrix (point x reference) is then not rank
+  one, beyond the residues' noise (``A = lam1 phi1 L1^T + lam2 phi2 L2^T`` seen through one
+  pole). :func:`with_close_pairs_split` starts a second pole next to it and keeps the pair when
+  the likelihood says so (an exactly repeated root is one pole with a rank-two residue matrix:
+  the second pole does not lower the cost, and the pair is left to the drive points).
+
+The refit runs where the first pass ran: in the working quantity and with the line weights of
+the noise model (:mod:`ami_xr.ami.whitening`, decided on the stacked FRFs, as
+:func:`ami_xr.ami.pipeline.identify_single` decides it: one quantity for all references, the noise
+of each (reference, point) FRF and line), and comes back in the quantity given.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.ami import pipeline as pl
+from ami_xr.ami import whitening
+from ami_xr.ami.global_fit import global_fit
+from ami_xr.ami.pipeline import identify_single, with_quality
+from ami_xr.ami.refine import refine as refine_phase
+from ami_xr.ami.settings import FrfAttributes, IdentifySettings, RefineSettings, from_attrs
+from ami_xr.ami.subtract import band_of, power_of_two_scale
+from ami_xr.core import flags
+from ami_xr.core import mimo as cm
+from ami_xr.core.matching import match_nearest
+from ami_xr.core.modal import damping_ratio, natural_frequency
+from ami_xr.errors import AssumptionWarning
+from ami_xr.io.datasets import select_reference
+
+# A pole one reference alone finds is "already there" when a pole of the set lies within this
+# many |Re lam| (half the half-power bandwidth: the match radius of simulate.score_modes),
+# matched one to one, nearest first, so that the two members of a close pair each need a pole.
+UNION_TOLERANCE = 1.0
+# The second pole of a suspected close pair starts this many |Re lam| above the first, which
+# moves as far down: members of a pair a single pole absorbs lie well inside its half-power band
+SPLIT_START = 0.25
+# The tail pole starts this many half-power bandwidths above the last line
+TAIL_START = 4.0
+MAX_TAIL_POLES = 2
+
+
+def single_reference_poles(ds: xr.Dataset, refs: list, settings: IdentifySettings):
+    """Per reference: the eigenvalues (measured, before the exponential-window correction) and
+    ``detected`` (point, mode) of the single-reference pipeline on its FRFs alone."""
+    beta = float(from_attrs(FrfAttributes, ds.attrs).exponential_window_decay)
+    got = []
+    for r in refs:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the stacked run warns about what matters
+            one = identify_single(select_reference(ds, r), settings, final=False)
+        if one.sizes.get(names.MODE, 0) == 0:
+            got.append((np.zeros(0, np.complex128), None))
+            continue
+        lam = np.asarray(one[names.EIGENVALUE].transpose(names.MODE).values) - beta
+        det = None
+        if names.DETECTED in one:
+            det = one[names.DETECTED].transpose(names.POINT, names.MODE).values
+        got.append((lam, det))
+    return got
+
+
+def _measured_poles(ds: xr.Dataset, result: xr.Dataset) -> np.ndarray:
+    """The eigenvalues of ``result`` before the exponential-window correction (as the data
+    hold them)."""
+    beta = float(from_attrs(FrfAttributes, ds.attrs).exponential_window_decay)
+    if not result.sizes.get(names.MODE, 0):
+        return np.zeros(0, np.complex128)
+    return np.asarray(result[names.EIGENVALUE].transpose(names.MODE).values) - beta
+
+
+def with_single_reference_poles(
+    ds: xr.Dataset, stacked: xr.Dataset, result: xr.Dataset, refs: list, settings
+) -> tuple[xr.Dataset, np.ndarray]:
+    """``result`` (the stacked pipeline's) refitted with the union of its poles and those each
+    reference alone finds; unchanged when no reference finds a pole the set lacks.
+
+    Detection on the stacked FRFs weighs every FRF alike, so the modes one reference sees
+    clearly can drown in the FRFs of a reference that does not see them (a reference on a
+    nodal line, a noisier one). The single-reference pipeline is run on each reference; a pole
+    it finds that matches no pole of the set (one to one, nearest first, within
+    ``UNION_TOLERANCE |Re lam|``) joins the set, and the shared-pole phases (global fit and
+    refinement) run again on all FRFs from the union. Returns the result and the added
+    eigenvalues (measured, rad/s)."""
+    lam_set = _measured_poles(ds, result)
+    n_stacked = lam_set.size
+    P = ds.sizes[names.POINT]
+    det_added = []
+    for i, (lam, det) in enumerate(single_reference_poles(ds, refs, settings)):
+        if lam.size == 0:
+            continue
+        _, matched = match_nearest(lam, lam_set, UNION_TOLERANCE)
+        for k in np.setdiff1d(np.arange(lam.size), matched):
+            if not np.isfinite(lam[k]) or lam[k].real >= 0:
+                continue
+            lam_set = np.append(lam_set, lam[k])
+            column = np.zeros(len(refs) * P, bool)
+            column[i * P : (i + 1) * P] = True if det is None else det[:, k]
+            det_added.append(column)
+    if not det_added:
+        return result, np.zeros(0, np.complex128)
+    out = refit(stacked, result, lam_set, np.array(det_added).T, settings)
+    return out, lam_set[n_stacked:]
+
+
+def not_rank_one(result: xr.Dataset, n_ref: int, ratio_max: float, noise_factor: float):
+    """Per mode of the stacked ``result``: how far its residue matrix (point x reference) is from
+    rank one -- ``s2`` over ``noise_factor`` times the residues' standard error (``residue_std``;
+    ``s2 / s1`` over ``ratio_max`` without them) -- where ``s2 / s1`` exceeds ``ratio_max`` and
+    ``s2`` the noise; 0 elsewhere (and for every mode with one reference)."""
+    n_k = result.sizes.get(names.MODE, 0)
+    if n_ref < 2 or not n_k or names.RESIDUE not in result:
+        return np.zeros(n_k)
+    res = result[names.RESIDUE].transpose(names.POINT, names.MODE).values
+    a = res.reshape(n_ref, -1, n_k).transpose(2, 1, 0)  # stacked reference-major -> (K, P, R)
+    _, s1, _, ratio = cm.rank_one(a)
+    score = ratio / ratio_max
+    if names.RESIDUE_STD in result:
+        std = result[names.RESIDUE_STD].transpose(names.POINT, names.MODE).values
+        noise = np.sqrt(np.sum(np.abs(std) ** 2, axis=0))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            score = np.where(np.isfinite(noise), ratio * s1 / (noise_factor * noise), score)
+    with np.errstate(invalid="ignore"):
+        return np.where((ratio > ratio_max) & (score > 1), score, 0.0)
+
+
+# trials of a split in one identification, strongest evidence first
+MAX_SPLIT_TRIALS = 3
+
+
+def with_close_pairs_split(
+    stacked: xr.Dataset, result: xr.Dataset, n_ref: int, settings, ratio_max: float,
+    noise_factor: float,
+) -> tuple[xr.Dataset, np.ndarray]:
+    """``result`` refitted with a second pole next to poles whose residue matrix is not rank one
+    (:func:`not_rank_one` with ``ratio_max`` and ``noise_factor``; ``n_ref`` references stacked)
+    and that lie within the lines analysed.
+    One pole at a time, strongest evidence first (a pole fitted to a close pair biases its
+    neighbours, whose residue matrices then look rank two too): the split is kept when the
+    likelihood-ratio test of the refinement's objective (``2 (cost - cost')`` against
+    chi-square with ``2 + 2 n_FRF`` degrees of freedom, false-alarm probability ``add_pfa``)
+    supports it and the pair holds one pole more than before, none frozen at its start
+    (``refine_fallback``); after a kept split the evidence is taken anew. At most
+    ``MAX_SPLIT_TRIALS`` refits. Returns the result and the natural frequencies (Hz) of the
+    poles split (empty when none)."""
+    evidence = not_rank_one(result, n_ref, ratio_max, noise_factor)
+    if not np.any(evidence > 0) or not pl.refines(settings):
+        return result, np.zeros(0)
+    lines = band_of(stacked, settings.fmin, settings.fmax, "identify")[names.FREQUENCY].values
+    tried: list[complex] = []
+    split: list[float] = []
+    for _ in range(MAX_SPLIT_TRIALS):
+        cost0 = result.attrs.get(names.ATTR_REFINE_COST)
+        lam = _measured_poles(stacked, result)
+        fn = natural_frequency(lam)
+        # a pole beyond the lines fits the tail of what lies there: no pair can be seen in it
+        ok = (evidence > 0) & (fn >= lines[0]) & (fn <= lines[-1])
+        ok &= ~np.array([any(abs(x - t) <= abs(x.real) for t in tried) for x in lam], bool)
+        if cost0 is None or not ok.any():
+            break
+        k = int(np.argmax(np.where(ok, evidence, -np.inf)))
+        tried.append(lam[k])
+        out, held = _split_trial(stacked, result, lam, k, float(cost0), settings)
+        if held:
+            result = out
+            split.append(float(fn[k]))
+            evidence = not_rank_one(result, n_ref, ratio_max, noise_factor)
+    return result, np.asarray(split)
+
+
+def _split_trial(stacked, result, lam, k: int, cost0: float, settings):
+    """The refit with pole ``k`` split, and whether its pair held (False when the likelihood
+    ratio does not support the added pole)."""
+    step = 1j * SPLIT_START * abs(lam[k].real)
+    lam_set = np.append(lam, lam[k] + step)
+    lam_set[k] = lam[k] - step
+    det = np.ones((stacked.sizes[names.POINT], 1), bool)
+    if names.DETECTED in result:
+        det = result[names.DETECTED].transpose(names.POINT, names.MODE).values[:, [k]]
+    out, better = _trial(stacked, result, lam_set, det, cost0, settings)
+    return out, better and _pair_held(out, lam, stacked, lam[k])
+
+
+def _trial(stacked, result, lam_set, det, cost0: float, settings) -> tuple[xr.Dataset, bool]:
+    """The refit from the poles ``lam_set`` (one more than ``result``'s; ``det`` its detection
+    column), and whether the likelihood-ratio test of the refinement's objective supports the
+    added pole: ``2 (cost0 - cost)`` above chi-square with ``2 + 2 n_FRF`` degrees of freedom
+    (the pole and a residue per FRF; two more per FRF for each residual term it switched on)
+    at false-alarm probability ``add_pfa``."""
+    from scipy.stats import chi2  # lazy: scipy.stats is slow to import
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a rejected trial says nothing; a kept one is reported
+        out = refit(stacked, result, lam_set, det, settings)
+    cost = out.attrs.get(names.ATTR_REFINE_COST)
+    n_frf = stacked.sizes[names.POINT]
+    # residual terms the added pole switched on (:func:`_residual_terms`): a complex
+    # coefficient per FRF each, unknowns of the test too
+    terms = [_n_terms(x) for x in (result, out)]
+    dof = 2 + 2 * n_frf + 2 * n_frf * max(terms[1] - terms[0], 0)
+    limit = chi2.isf(RefineSettings.add_pfa, dof)
+    return out, cost is not None and bool(2.0 * (cost0 - float(cost)) > limit)
+
+
+def _n_terms(ds: xr.Dataset) -> int:
+    """The number of residual terms the refinement of ``ds`` fitted."""
+    return len([t for t in str(ds.attrs.get(names.ATTR_REFINE_RESIDUAL_TERMS, "")).split(",") if t])
+
+
+def with_tail_poles(
+    stacked: xr.Dataset, result: xr.Dataset, settings
+) -> tuple[xr.Dataset, np.ndarray]:
+    """``result`` refitted with poles above the last line analysed, one at a time (at most
+    ``MAX_TAIL_POLES``), each kept when the likelihood-ratio test supports it (:func:`_trial`)
+    and it is not frozen at its start.
+
+    Modes above the band reach into it as more than the upper residual term (a constant) can
+    take when the nearest lie within a few bandwidths of the last line: the misfit then shows
+    at the FRFs' top lines, inflates their noise estimate and biases the modes nearest the edge
+    (a pole fitted to a close pair there goes to the tail instead). A pole above the lines
+    models that tail; it is not reported (:func:`ami_xr.ami.pipeline.drop_beyond_lines`). Its
+    start: ``TAIL_START`` half-power bandwidths above the last line or the highest pole above
+    it, at the median damping ratio of the poles. Returns the result and the natural
+    frequencies (Hz) of the poles added."""
+    lines = band_of(stacked, settings.fmin, settings.fmax, "identify")[names.FREQUENCY].values
+    f_last = float(lines[-1])
+    added: list[float] = []
+    for _ in range(MAX_TAIL_POLES):
+        cost0 = result.attrs.get(names.ATTR_REFINE_COST)
+        lam = _measured_poles(stacked, result)
+        if cost0 is None or not lam.size or not pl.refines(settings):
+            break
+        fn = natural_frequency(lam)
+        zeta = float(np.median(damping_ratio(lam)))
+        w = 2.0 * np.pi * max(f_last, fn.max()) * (1.0 + 2.0 * TAIL_START * zeta)
+        start = np.append(lam, -zeta * w + 1j * w * np.sqrt(1.0 - zeta**2))
+        det = np.ones((stacked.sizes[names.POINT], 1), bool)
+        out, better = _trial(stacked, result, start, det, float(cost0), settings)
+        got = natural_frequency(_measured_poles(stacked, out))
+        above = got > f_last
+        if not better or above.sum() <= np.sum(fn > f_last) or _frozen(out)[above].any():
+            break
+        result = out
+        added.append(float(got[above].max()))
+    return result, np.asarray(added)
+
+
+def _frozen(out: xr.Dataset) -> np.ndarray:
+    """Per mode of ``out``: frozen at its start by the refinement (``refine_fallback``)."""
+    if names.QUALITY_FLAGS not in out:
+        return np.zeros(out.sizes.get(names.MODE, 0), bool)
+    mask = flags.decode(np.asarray(out[names.QUALITY_FLAGS].values), unknown="ignore")
+    return flags.has(mask, names.FLAG_REFINE_FALLBACK)
+
+
+def _pair_held(out: xr.Dataset, lam: np.ndarray, stacked: xr.Dataset, x: complex) -> bool:
+    """Whether ``out`` holds one pole more within ``|Re x|`` of the split pole ``x`` than the
+    poles ``lam`` before the split, none of them frozen (``refine_fallback``)."""
+    got = _measured_poles(stacked, out)
+    frozen = _frozen(out)
+    near = np.abs(got - x) <= abs(x.real)
+    before = int(np.sum(np.abs(lam - x) <= abs(x.real)))
+    return bool(near.sum() > before and not frozen[near].any())
+
+
+def _residual_terms(given: xr.Dataset, lam: np.ndarray, settings) -> bool:
+    """Whether the refit's global fit (and so the refinement, ``residual_terms="auto"``) fits
+    residual terms: as ``settings`` say, and also on FRFs marked exact
+    (``frf_source="analytic"``, where "auto" means none) when a pole of ``lam`` lies beyond the
+    lines: modes outside the band are then in the data, and the exact model of the band's
+    modes alone is not the data's (the poles fitted beyond the lines take the nearest of
+    them, the terms the rest)."""
+    if settings.residual_terms or given.attrs.get(names.ATTR_SOURCE) != names.SOURCE_ANALYTIC:
+        return bool(settings.residual_terms)
+    f = np.asarray(given[names.FREQUENCY].values, dtype=float)
+    fn = natural_frequency(np.asarray(lam))
+    return bool(np.any((fn > f[-1]) | (fn < f[0])))
+
+
+def refit(stacked, result, lam, det_added, settings) -> xr.Dataset:
+    """The shared-pole phases (global fit, refinement) on the stacked FRFs from the poles
+    ``lam`` (measured): what :func:`identify_single` does after the isolation, in the working
+    quantity and with the line weights of its noise model (:mod:`ami_xr.ami.whitening`)."""
+    given = band_of(stacked, settings.fmin, settings.fmax, "identify")
+    white = whitening.decide(given)
+    ds = whitening.to_working(given, white)
+    peak = np.abs(ds[names.FRF]).max(skipna=False).values
+    scale = float(power_of_two_scale(peak))
+    work = ds if scale == 1.0 else ds.assign({names.FRF: ds[names.FRF] * scale})
+    start = work.copy()
+    floor = result[names.SUB_NOISE_FLOOR] if names.SUB_NOISE_FLOOR in result else None
+    if floor is not None and not white.k:  # per-FRF noise floors (drive-point SNR), same units
+        start[names.SUB_NOISE_FLOOR] = floor * scale
+    det = np.zeros((work.sizes[names.POINT], lam.size), bool)
+    if names.DETECTED in result and result.sizes.get(names.MODE, 0):
+        n0 = min(result.sizes[names.MODE], lam.size - det_added.shape[1])
+        det[:, :n0] = result[names.DETECTED].transpose(names.POINT, names.MODE).values[:, :n0]
+    det[:, lam.size - det_added.shape[1] :] = det_added
+    start = start.assign(
+        {
+            names.EIGENVALUE: (names.MODE, lam),
+            names.NATURAL_FREQUENCY: (names.MODE, natural_frequency(lam)),
+            names.DAMPING_RATIO: (names.MODE, damping_ratio(lam)),
+            names.DETECTED: ((names.POINT, names.MODE), det),
+        }
+    ).assign_coords({names.MODE: np.arange(1, lam.size + 1)})
+    if names.ISO_CONVERGED in result:
+        start[names.ISO_CONVERGED] = result[names.ISO_CONVERGED]
+    start.attrs = {k: v for k, v in result.attrs.items() if not k.startswith("refine_")}
+    start.attrs.update(work.attrs)  # the working quantity's attributes (units, noise model)
+    terms = _residual_terms(given, lam, settings)
+    out = global_fit(start, band=settings.band, residual_terms=terms)
+    if pl.refines(settings):
+        # no order tests on the stacked FRFs here: each added pole passed those of the
+        # reference that found it, and the stacked test is the one that lost it (the FRFs of
+        # references that do not see a mode dilute its likelihood ratio); the stacked poles
+        # passed theirs in the first run
+        out = refine_phase(out, **{**pl.model_order(settings), "drop_modes": False})
+    if scale != 1.0:
+        out = pl.unscale(out, ds, scale)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AssumptionWarning)  # the first pass said it
+        out = whitening.from_working(out, given, white)
+    if floor is not None and names.SUB_NOISE_FLOOR not in out:
+        out[names.SUB_NOISE_FLOOR] = floor
+    out = pl.window_corrected(out, from_attrs(FrfAttributes, given.attrs))
+    out = pl.finish_modes(out, stacked, refined=pl.refines(settings))
+    return with_quality(out)
