@@ -225,7 +225,11 @@ def _setup(omega, lam, basis, derivative, policy: RepeatedPolicy) -> dict:
         window = np.arange(max(lo, 0), min(hi, n_line - 1) + 1)
         if window.size >= 5:
             setup["modes"][k] = (cols, var_c, window, basis[k, cols])
-    setup["x"] = x
+    # lstsq's minimum-norm solution (singular values below eps max(L, 2K) of the largest
+    # dropped) as one matrix: each chunk of points is then a product, not an SVD per call
+    u, sv, vh = np.linalg.svd(x, full_matrices=False)
+    keep = sv > np.finfo(float).eps * max(x.shape) * sv[0]
+    setup["solve"] = (vh[keep].conj().T / sv[keep]) @ u[:, keep].conj().T  # (2K, L)
     return setup
 
 
@@ -249,9 +253,9 @@ def _chunk_terms(residual, residue, noise_var, setup: dict) -> list:
     lines = setup["lines"]
     n_k = len(setup["modes"])
     out: list = [None] * n_k
-    if "x" not in setup:
+    if "solve" not in setup:
         return out
-    coef = np.linalg.lstsq(setup["x"], residual[:, lines].T, rcond=None)[0]  # (2K, p)
+    coef = setup["solve"] @ residual[:, lines].T  # (2K, p): least squares on every FRF
     for k, mode in enumerate(setup["modes"]):
         if mode is None:
             continue
