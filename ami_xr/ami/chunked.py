@@ -15,6 +15,9 @@ before) and a dask one (one call per chunk of points):
 * :func:`map_reduce`: partial results per chunk of rows combined pairwise in a tree
   (``split_every`` at a time), for statistics that pool the points.
 
+On a numpy array the work goes in blocks of :data:`ROWS` rows with an interrupt checkpoint
+between blocks (a Ctrl-C of the command line lands within a block's time).
+
 dask is imported only where an array is dask-backed (it is an optional dependency).
 """
 
@@ -25,6 +28,12 @@ from typing import Any
 
 import numpy as np
 import xarray as xr
+
+from ami_xr import interrupt
+
+ROWS = 256
+"""Rows per call on a numpy array: a pending Ctrl-C is raised between calls
+(:func:`ami_xr.interrupt.checkpoint`), at most a fraction of a second apart."""
 
 __all__ = ["broadcast_rows", "is_lazy", "map_reduce", "per_row", "rows"]
 
@@ -62,6 +71,15 @@ def per_row(
     on a numpy ``da``, one per chunk of a dask one (only the per-row values are gathered)."""
     if is_lazy(da) and len(da.chunksizes.get(dim, ())) > 1:
         da = da.chunk({dim: -1})
+    if not is_lazy(da):
+        x = np.asarray(da.transpose(..., dim).values)
+        flat = x.reshape(-1, x.shape[-1])
+        parts = []
+        for lo in range(0, flat.shape[0], ROWS):
+            interrupt.checkpoint()
+            parts.append(np.asarray(func(flat[lo : lo + ROWS], **kwargs), dtype=np.float64))
+        out = np.concatenate(parts) if parts else np.zeros(0)
+        return out.reshape(x.shape[:-1])
     out = xr.apply_ufunc(
         func,
         da,
@@ -100,14 +118,19 @@ def map_reduce(
     """``combine`` of ``func(*blocks, shared)`` over the chunks of rows of ``arrays`` (numpy or
     dask arrays, or None, with the same number of rows).
 
-    On numpy arrays ``func`` sees them whole (one call, no combine). Otherwise the row chunks of
+    On numpy arrays ``func`` sees blocks of :data:`ROWS` rows, combined once. Otherwise the row chunks of
     the first dask array decide the blocks (the others are cut alike), ``shared`` goes to the
     scheduler once, and the partial results are combined ``split_every`` at a time in a tree;
     only the final combination reaches the caller.
     """
     lazy = [a for a in arrays if a is not None and is_lazy(a)]
     if not lazy:
-        return func(*arrays, shared)
+        n_rows = next((len(a) for a in arrays if a is not None), 0)
+        parts = []
+        for lo in range(0, max(n_rows, 1), ROWS):
+            interrupt.checkpoint()
+            parts.append(func(*(None if a is None else a[lo : lo + ROWS] for a in arrays), shared))
+        return parts[0] if len(parts) == 1 else combine(parts)
     import dask
 
     sizes = lazy[0].chunks[0]

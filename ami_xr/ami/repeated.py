@@ -182,6 +182,8 @@ def band_shift(
     spread = np.full(n_k, np.nan)
     z = np.full(n_k, np.nan)
     setup = _setup(omega, lam, basis, derivative, policy)
+    if noise_var is not None:  # one value per FRF, cut into blocks with them
+        noise_var = np.broadcast_to(np.asarray(noise_var, dtype=float), residual.shape[:1])
     if setup["lines"].size >= 3:
         total = ch.map_reduce(
             _chunk_terms, _combine, [residual, residue, noise_var], setup, split_every=16
