@@ -118,9 +118,9 @@ def map_reduce(
     """``combine`` of ``func(*blocks, shared)`` over the chunks of rows of ``arrays`` (numpy or
     dask arrays, or None, with the same number of rows).
 
-    On numpy arrays ``func`` sees blocks of :data:`ROWS` rows, combined once. Otherwise the row chunks of
-    the first dask array decide the blocks (the others are cut alike), ``shared`` goes to the
-    scheduler once, and the partial results are combined ``split_every`` at a time in a tree;
+    On numpy arrays ``func`` sees blocks of :data:`ROWS` rows, combined once. Otherwise the row
+    chunks of the first dask array decide the blocks (the others are cut alike), ``shared`` goes
+    to the scheduler once, and the partial results are combined ``split_every`` at a time in a tree;
     only the final combination reaches the caller.
     """
     lazy = [a for a in arrays if a is not None and is_lazy(a)]
