@@ -1,7 +1,9 @@
 """Identification of 1e3, 1e4 (and 1e5 with --full) FRFs x 4096 lines on a dask LocalCluster.
 
     python scripts/bench_scale.py                 # 1e3 and 1e4 points, 1 and 2 workers
-    python scripts/bench_scale.py --full          # also 1e5 points (about 6.5 GB on disk)
+    python scripts/bench_scale.py --full          # 1e3, 1e4, 1e5 points (about 6.5 GB on disk)
+                                                  # x 4096 lines, and 1e3, 1e4 x 1024 lines
+                                                  # (the exponent in lines); 2 workers
     python scripts/bench_scale.py --points 1000 2000 --workers 2   # chosen sizes
     python scripts/bench_scale.py --points 1000 --lines 1024 4096 --workers 2  # lines exponent
 
@@ -10,11 +12,15 @@ the first 1000 points' FRFs scaled per point by a seeded factor in [0.5, 2], bui
 block by block so that writing never holds more than 1000 FRFs) is written to a netCDF file in
 ``--dir``, opened lazily (``--chunk`` FRFs per chunk) and identified by :func:`ami_xr.identify`
 with a ``dask.distributed`` client on a ``LocalCluster`` (single-threaded workers, ``--memory``
-each). Printed per run: wall time, peak worker memory (the largest RSS any worker reported,
-sampled every 0.2 s), client memory growth (RSS after minus before) and the client's peak
-growth (largest RSS during the run minus before, sampled likewise), modes found; at the end the
-growth exponents of time against points and against lines (least-squares slopes of log t on
-log P and on log L) per worker count.
+each). Printed per run: wall time, CPU seconds of the workers and of the client process (the
+scheduler of a LocalCluster runs there; on a shared machine the CPU time is what the wall time
+would be without the other processes, times the cores used), peak worker memory (the largest
+RSS any worker reported, sampled every 0.2 s) against the limit, client memory growth (RSS
+after minus before) and the client's peak growth (largest RSS during the run minus before,
+sampled likewise), modes found; at the end the growth exponents of wall time and of total CPU
+time against points and against lines (least-squares slopes of log t on log P and on log L)
+per worker count. Before the first run one small identification warms the client (imports,
+compiled kernels), so that the client figures are those of the run itself.
 Written against ami_xr's public API.
 """
 
@@ -26,6 +32,7 @@ import threading
 import time
 import warnings
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -70,9 +77,7 @@ def write_set(n_points: int, path: Path, chunk: int, lines: int = LINES) -> None
     ami_xr.to_netcdf(base, path)
 
 
-def run(
-    path: Path, workers: int, memory: str, chunk: int
-) -> tuple[float, float, float, float, int]:
+def run(path: Path, workers: int, memory: str, chunk: int) -> Row:
     from distributed import Client, LocalCluster
 
     with (
@@ -108,6 +113,7 @@ def run(
         threading.Thread(target=sample_client, daemon=True).start()
         sampler = threading.Thread(target=sample, daemon=True)
         sampler.start()
+        cpu0, worker0 = time.process_time(), _worker_cpu(client)
         t0 = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -115,59 +121,109 @@ def run(
         seconds = time.perf_counter() - t0
         stop.set()
         sampler.join()
+        worker_cpu = _worker_cpu(client) - worker0
+        client_cpu = time.process_time() - cpu0
         growth = _rss_mb() - before
-    return seconds, peak[0], growth, client_peak[0] - before, int(out.sizes.get("mode", 0))
+        ds.close()
+    return Row(
+        seconds,
+        worker_cpu,
+        client_cpu,
+        peak[0],
+        growth,
+        client_peak[0] - before,
+        int(out.sizes.get("mode", 0)),
+    )
+
+
+class Row(NamedTuple):
+    """One run's figures (seconds, MB)."""
+
+    wall: float
+    worker_cpu: float
+    client_cpu: float
+    worker_peak: float
+    client_growth: float
+    client_peak: float
+    modes: int
+
+
+def _worker_cpu(client) -> float:
+    """User + system CPU seconds of all worker processes so far."""
+
+    def cpu() -> float:
+        t = __import__("psutil").Process().cpu_times()
+        return t.user + t.system
+
+    return float(sum(client.run(cpu).values()))
+
+
+def warm_up() -> None:
+    """One small identification in this process (imports, compiled kernels, caches)."""
+    ds, _ = many_points(300, 512, 12, noise=0.02, seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ami_xr.identify(ds)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--full", action="store_true", help="also 1e5 points")
+    parser.add_argument("--full", action="store_true", help="1e3, 1e4, 1e5 points, 2 workers")
     parser.add_argument("--points", type=int, nargs="+", default=None)
-    parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--workers", type=int, nargs="+", default=None)
     parser.add_argument("--memory", default="2GB", help="memory limit per worker")
     parser.add_argument("--chunk", type=int, default=1000, help="FRFs per chunk")
     parser.add_argument("--dir", default="bench_scale_data", help="where the sets are written")
-    parser.add_argument("--lines", type=int, nargs="+", default=[LINES], help="lines per FRF")
+    parser.add_argument("--lines", type=int, nargs="+", default=None, help="lines per FRF")
     args = parser.parse_args(argv)
     sizes = args.points or ([1000, 10_000, 100_000] if args.full else [1000, 10_000])
+    lines = args.lines or [LINES]
+    workers = args.workers or ([2] if args.full else [1, 2])
+    runs = [(n, m) for n in sizes for m in lines]
+    if args.full and not args.lines:  # the exponent in lines, on the two smaller sizes
+        runs = sorted(runs + [(n, 1024) for n in sizes if n <= 10_000])
     folder = Path(args.dir)
     folder.mkdir(parents=True, exist_ok=True)
     print(
-        f"bench_scale: {sizes} FRFs x {args.lines} lines, 12 modes; workers {args.workers}, "
-        f"{args.memory} each; cpu_count {os.cpu_count()}"
+        f"bench_scale: {sizes} FRFs x {sorted({m for _, m in runs})} lines, 12 modes; workers "
+        f"{workers}, {args.memory} each; cpu_count {os.cpu_count()}; load average "
+        f"{os.getloadavg()[0]:.1f}"
     )
+    warm_up()
     print(
-        f"{'points':>8}{'lines':>7}{'workers':>8}{'wall s':>9}{'peak worker MB':>16}"
-        f"{'client +MB':>12}{'client peak +MB':>17}{'modes':>7}",
+        f"{'points':>8}{'lines':>7}{'workers':>8}{'wall s':>9}{'worker cpu s':>14}"
+        f"{'client cpu s':>14}{'peak worker MB':>16}{'client +MB':>12}{'client peak +MB':>17}"
+        f"{'modes':>7}",
         flush=True,
     )
-    rows: list[tuple[int, int, int, float]] = []
-    for n in sizes:
-        for lines in args.lines:
-            path = folder / (f"spread_{n}.nc" if lines == LINES else f"spread_{n}_{lines}.nc")
-            write_set(n, path, args.chunk, lines)
-            for w in args.workers:
-                seconds, peak, growth, client, modes = run(path, w, args.memory, args.chunk)
-                rows.append((n, lines, w, seconds))
-                print(
-                    f"{n:>8}{lines:>7}{w:>8}{seconds:>9.2f}{peak:>16.0f}{growth:>12.1f}"
-                    f"{client:>17.0f}{modes:>7}",
-                    flush=True,
-                )
-    for w in args.workers:
+    rows: list[tuple[int, int, int, float, float]] = []
+    for n, m in runs:
+        path = folder / (f"spread_{n}.nc" if m == LINES else f"spread_{n}_{m}.nc")
+        write_set(n, path, args.chunk, m)
+        for w in workers:
+            r = run(path, w, args.memory, args.chunk)
+            rows.append((n, m, w, r.wall, r.worker_cpu + r.client_cpu))
+            print(
+                f"{n:>8}{m:>7}{w:>8}{r.wall:>9.1f}{r.worker_cpu:>14.1f}{r.client_cpu:>14.1f}"
+                f"{r.worker_peak:>16.0f}{r.client_growth:>12.1f}{r.client_peak:>17.0f}"
+                f"{r.modes:>7}",
+                flush=True,
+            )
+    print(f"worker memory limit: {args.memory}; load average now {os.getloadavg()[0]:.1f}")
+    for w in workers:
         for label, axis, fixed in (("points", 0, 1), ("lines", 1, 0)):
-            # slope at the largest value of the other size (the one that grew least)
+            # slope at the largest value of the other size that has two or more runs
             mine = [r for r in rows if r[2] == w]
-            if not mine:
-                continue
-            other = max(r[fixed] for r in mine)
-            pts = [(r[axis], r[3]) for r in mine if r[fixed] == other]
-            if len({p for p, _ in pts}) > 1:
-                x, t = np.log([p for p, _ in pts]), np.log([t for _, t in pts])
-                print(
-                    f"growth exponent of time against {label}, {w} worker(s): "
-                    f"{np.polyfit(x, t, 1)[0]:.2f}"
-                )
+            for other in sorted({r[fixed] for r in mine}, reverse=True):
+                pts = [r for r in mine if r[fixed] == other]
+                if len({r[axis] for r in pts}) > 1:
+                    x = np.log([r[axis] for r in pts])
+                    slopes = [np.polyfit(x, np.log([r[k] for r in pts]), 1)[0] for k in (3, 4)]
+                    print(
+                        f"growth exponent against {label} ({'lines' if axis == 0 else 'points'}"
+                        f" = {other}), {w} worker(s): wall {slopes[0]:.2f}, cpu {slopes[1]:.2f}"
+                    )
+                    break
     return 0
 
 

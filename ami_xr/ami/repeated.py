@@ -65,6 +65,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.ami import chunked as ch
 from ami_xr.core.model import resolve_model
 from ami_xr.kernels.modal_basis import pole_basis
 
@@ -144,7 +145,9 @@ def band_shift(
     Parameters
     ----------
     residual : ndarray of complex (P, F)
-        Data minus the fitted model.
+        Data minus the fitted model: a numpy array, or a dask array chunked along the points,
+        reduced chunk by chunk (:func:`ami_xr.ami.chunked.map_reduce`; only per-mode 3 x 3
+        factors reach the caller).
     omega : ndarray (F,)
         Angular frequencies, ascending (rad/s).
     lam : ndarray of complex (K,)
@@ -178,6 +181,23 @@ def band_shift(
     n_k = lam.size
     spread = np.full(n_k, np.nan)
     z = np.full(n_k, np.nan)
+    setup = _setup(omega, lam, basis, derivative, policy)
+    if noise_var is not None:  # one value per FRF, cut into blocks with them
+        noise_var = np.broadcast_to(np.asarray(noise_var, dtype=float), residual.shape[:1])
+    if setup["lines"].size >= 3:
+        total = ch.map_reduce(
+            _chunk_terms, _combine, [residual, residue, noise_var], setup, split_every=16
+        )
+        for k, part in enumerate(total):
+            if part is not None:
+                spread[k], z[k] = _finish(part, lam[k], policy)
+    return spread, z, setup["alone"]
+
+
+def _setup(omega, lam, basis, derivative, policy: RepeatedPolicy) -> dict:
+    """What every chunk of points shares: the lines of all bands and each mode's own lines,
+    the least-squares design on them and the noise window of each mode."""
+    n_k = lam.size
     half = policy.band_widths * np.abs(lam.real)
     alone = np.array(
         [not np.any(np.abs(np.delete(lam.imag, k) - lam[k].imag) <= half[k]) for k in range(n_k)],
@@ -185,13 +205,13 @@ def band_shift(
     )
     in_band = np.abs(omega[None, :] - lam.imag[:, None]) <= half[:, None]
     lines = np.flatnonzero(in_band.any(axis=0))
+    setup = {"alone": alone, "lines": lines, "policy": policy, "modes": [None] * n_k}
     if lines.size < 3:
-        return spread, z, alone
+        return setup
     # one least-squares fit of every FRF on the lines of all bands: each mode's basis (its
     # residue's correction) and its derivative (that FRF's own shift of the mode), so that a
     # neighbour's shifts, whose tails reach into a mode's band, are not counted as its own
     x = np.concatenate([basis[:, lines], derivative[:, lines]]).T  # (L, 2K)
-    coef = np.linalg.lstsq(x, residual[:, lines].T, rcond=None)[0]  # (2K, P)
     cov = np.linalg.pinv(x.conj().T @ x)  # per unit noise variance
     n_line = omega.size
     for k in range(n_k):
@@ -205,33 +225,96 @@ def band_shift(
         lo = min(near.min() if near.size else centre, centre - policy.noise_lines // 2)
         hi = max(near.max() if near.size else centre, centre + policy.noise_lines // 2)
         window = np.arange(max(lo, 0), min(hi, n_line - 1) + 1)
-        if window.size < 5:
+        if window.size >= 5:
+            setup["modes"][k] = (cols, var_c, window, basis[k, cols])
+    # lstsq's minimum-norm solution (singular values below eps max(L, 2K) of the largest
+    # dropped) as one matrix: each chunk of points is then a product, not an SVD per call
+    u, sv, vh = np.linalg.svd(x, full_matrices=False)
+    keep = sv > np.finfo(float).eps * max(x.shape) * sv[0]
+    setup["solve"] = (vh[keep].conj().T / sv[keep]) @ u[:, keep].conj().T  # (2K, L)
+    return setup
+
+
+class _Part(NamedTuple):
+    """A chunk's (or several chunks') share of one mode's weighted fit of the shifts: the R
+    factor of ``sqrt(w) [xs | c]`` with the shape column scaled by ``top``, the information
+    ``sum w |a|^2``, the number of points and ``top``, their largest ``|a|``."""
+
+    r: np.ndarray
+    info: float
+    count: int
+    top: float
+
+
+def _chunk_terms(residual, residue, noise_var, setup: dict) -> list:
+    """Each mode's :class:`_Part` of the FRFs ``residual`` (p, F) with residues ``residue``
+    (p, K) (None where the mode has no statistic)."""
+    residual = np.asarray(residual)
+    residue = np.asarray(residue)
+    policy = setup["policy"]
+    lines = setup["lines"]
+    n_k = len(setup["modes"])
+    out: list = [None] * n_k
+    if "solve" not in setup:
+        return out
+    coef = setup["solve"] @ residual[:, lines].T  # (2K, p): least squares on every FRF
+    for k, mode in enumerate(setup["modes"]):
+        if mode is None:
             continue
+        cols, var_c, window, basis_k = mode
         s2 = noise_variance(residual, window) if noise_var is None else np.asarray(noise_var)
         a = residue[:, k] + coef[k]
         ok = np.isfinite(s2) & (s2 > 0) & np.isfinite(a) & (a != 0)
-        if ok.sum() < policy.min_points:
-            continue
         a, c = a[ok], coef[n_k + k, ok]
-        data = residual[np.ix_(ok, cols)] + np.outer(residue[ok, k], basis[k, cols])
+        if not a.size:
+            out[k] = _Part(None, 0.0, 0, 0.0)
+            continue
+        data = residual[np.ix_(ok, cols)] + np.outer(residue[ok, k], basis_k)
         floor = (policy.noise_floor * np.abs(data).max(axis=1)) ** 2
         w = 1.0 / (np.maximum(s2[ok], floor) * var_c)  # 1 / var(c_p)
-        info = np.sum(w * np.abs(a) ** 2)
+        top = float(np.abs(a).max())
         # the shift every FRF shares (the fitted eigenvalue absorbs it) and, with a
         # transducer's mass, the one proportional to the shape squared at the point
-        xs = a[:, None]
-        if policy.transducer_mass:
-            xs = np.column_stack([a, a * (np.abs(a) / np.abs(a).max()) ** 2])
-        dof = a.size - xs.shape[1]
-        if dof < 1:
+        xs = [a, a * (np.abs(a) / top) ** 2] if policy.transducer_mass else [a]
+        r = np.linalg.qr(np.column_stack([*xs, c]) * np.sqrt(w)[:, None], mode="r")
+        out[k] = _Part(r, float(np.sum(w * np.abs(a) ** 2)), int(a.size), top)
+    return out
+
+
+def _combine(parts: list) -> list:
+    """The :class:`_Part` of several chunks, mode by mode: their R factors stacked (the shape
+    column brought to the largest ``top``) and factored again."""
+    out = []
+    for per_mode in zip(*parts, strict=True):
+        got = [p for p in per_mode if p is not None and p.r is not None]
+        if not got:
+            out.append(next((p for p in per_mode if p is not None), None))
             continue
-        sw = np.sqrt(w)
-        fit = xs @ np.linalg.lstsq(xs * sw[:, None], c * sw, rcond=None)[0]
-        t = float(np.sum(w * np.abs(c - fit) ** 2))
-        z[k] = (t - dof) / np.sqrt(dof)
-        beyond = max(t - dof - 3.0 * np.sqrt(dof), 0.0)
-        spread[k] = np.sqrt(beyond / info * a.size / dof) / abs(lam[k].real)
-    return spread, z, alone
+        top = max(p.top for p in got)
+        stack = []
+        for p in got:
+            r = p.r.copy()
+            if r.shape[1] == 3:
+                r[:, 1] *= (p.top / top) ** 2  # the shape column of the largest |a|
+            stack.append(r)
+        r = np.linalg.qr(np.vstack(stack), mode="r")
+        out.append(_Part(r, sum(p.info for p in got), sum(p.count for p in got), top))
+    return out
+
+
+def _finish(part: _Part, lam_k: complex, policy: RepeatedPolicy) -> tuple[float, float]:
+    """``spread`` and ``z`` of one mode from its pooled :class:`_Part` (NaN where too few
+    points or no degree of freedom is left)."""
+    dof = part.count - (2 if policy.transducer_mass else 1)
+    if part.r is None or part.count < policy.min_points or dof < 1:
+        return np.nan, np.nan
+    # |sqrt(w) (xs beta - c)|^2 = |R[:, :-1] beta - R[:, -1]|^2 for every beta
+    x, y = part.r[:, :-1], part.r[:, -1]
+    beta = np.linalg.lstsq(x, y, rcond=None)[0]
+    t = float(np.sum(np.abs(x @ beta - y) ** 2))
+    z = (t - dof) / np.sqrt(dof)
+    beyond = max(t - dof - 3.0 * np.sqrt(dof), 0.0)
+    return np.sqrt(beyond / part.info * part.count / dof) / abs(lam_k.real), z
 
 
 def band_shift_statistics(
@@ -267,16 +350,16 @@ def band_shift_statistics(
     for i, r in enumerate(refs):
         pick = {} if r is None else {names.REFERENCE: r}
 
-        def block(name: str, *dims: str, pick: dict = pick) -> np.ndarray:
+        def block(name: str, *dims: str, pick: dict = pick):
             da = result[name]
             da = da.sel(pick) if pick and names.REFERENCE in da.dims else da
-            return da.transpose(*dims).values
+            return da.transpose(*dims).data  # a dask residual stays lazy: reduced per chunk
 
         spread[i], z[i], alone[i] = band_shift(
             block(names.FRF_RESIDUAL, names.POINT, names.FREQUENCY),
             omega,
             lam,
-            block(names.RESIDUE, names.POINT, names.MODE),
+            np.asarray(block(names.RESIDUE, names.POINT, names.MODE)),
             basis,
             derivative,
             policy,

@@ -35,7 +35,7 @@ import dataclasses
 import numpy as np
 import xarray as xr
 
-from ami_xr import names
+from ami_xr import interrupt, names
 from ami_xr.ami import common as c
 from ami_xr.ami.global_fit import (
     RESIDUAL_KIND,
@@ -64,8 +64,9 @@ AUTO_FACTOR = 4
 """``compress="auto"`` compresses when there are more than ``AUTO_FACTOR * DEFAULT_RANK``
 points (192): below that the phases on every point cost about as much."""
 
-CHUNK_POINTS = 1024
-"""Points per chunk of a numpy-backed Dataset (a dask-backed one keeps its own chunks)."""
+CHUNK_POINTS = 256
+"""Points per chunk of a numpy-backed Dataset (a dask-backed one keeps its own chunks); an
+interrupt checkpoint between chunks (256 x 4096 lines: about 0.1 s of work)."""
 
 VIRTUAL_POINT = "virtual_point"
 ATTR_COMPRESS_RANK = "compress_rank"
@@ -157,9 +158,11 @@ def _map_sum(data, z: np.ndarray, peaks: bool = False) -> tuple[np.ndarray, np.n
         tops = [dask.delayed(_row_peaks, pure=True)(block) for block in blocks] if peaks else []
         total, tops = dask.compute(_tree_sum(parts), tops)
         return np.asarray(total), np.concatenate(tops) if peaks else None
-    starts = range(0, data.shape[0], CHUNK_POINTS)
-    total = sum(_weighted_terms(data[lo : lo + CHUNK_POINTS], z) for lo in starts)
-    tops = [_row_peaks(data[lo : lo + CHUNK_POINTS]) for lo in starts] if peaks else []
+    total, tops = 0.0, []
+    for lo in range(0, data.shape[0], CHUNK_POINTS):
+        interrupt.checkpoint()  # a Ctrl-C lands between chunks
+        total = total + _weighted_terms(data[lo : lo + CHUNK_POINTS], z)
+        tops += [_row_peaks(data[lo : lo + CHUNK_POINTS])] if peaks else []
     return total, np.concatenate(tops) if peaks else None
 
 
@@ -222,7 +225,11 @@ def _residue_block(g, *, omega, lam, use, dt, n_samples, kind):
     residual (...) of FRFs ``g`` (..., F) at the eigenvalues ``lam``."""
     shape = g.shape[:-1]
     g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
-    coef = kr.residues_fixed(g2, omega, lam, use, dt, n_samples, kind)
+    coef = np.zeros((g2.shape[0], lam.size + (2 if kind >= 0 else 0)), np.complex128)
+    for lo in range(0, g2.shape[0], CHUNK_POINTS):
+        interrupt.checkpoint()  # numpy-backed: one call for all points; a Ctrl-C lands here
+        part = g2[lo : lo + CHUNK_POINTS]
+        coef[lo : lo + CHUNK_POINTS] = kr.residues_fixed(part, omega, lam, use, dt, n_samples, kind)
     n_k = lam.size
     res = np.ascontiguousarray(coef[:, :n_k])
     # every FRF shares the basis: one (n, F) basis and a product, not a basis per FRF

@@ -32,6 +32,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.ami import chunked as ch
 from ami_xr.ami import common as c
 from ami_xr.caller import warn
 from ami_xr.errors import AssumptionWarning
@@ -54,6 +55,26 @@ def _contribution(res: np.ndarray, lam: complex, omega: np.ndarray) -> np.ndarra
     return res[:, None] / (s - lam) + np.conj(res)[:, None] / (s - np.conj(lam))
 
 
+def _median_abs(r: np.ndarray) -> np.ndarray:
+    """``median |r|`` along the last axis."""
+    return np.median(np.abs(r), axis=-1)
+
+
+def _contributions(result: xr.Dataset, modes: np.ndarray, like: xr.DataArray) -> xr.DataArray:
+    """The summed contribution of ``modes`` (indices) at every point and line, (point,
+    frequency): lazy, in ``like``'s chunks of points, when ``like`` is dask-backed."""
+    res = result[names.RESIDUE].transpose(names.POINT, names.MODE).isel({names.MODE: modes})
+    res = res.drop_vars(names.MODE, errors="ignore")
+    if ch.is_lazy(like):
+        res = res.chunk({names.POINT: like.chunksizes[names.POINT]})
+    lam = np.asarray(result[names.EIGENVALUE].transpose(names.MODE).values)[modes]
+    s = 2j * np.pi * np.asarray(result[names.FREQUENCY].values, dtype=float)
+    dims = (names.MODE, names.FREQUENCY)
+    up = xr.DataArray(1.0 / (s[None, :] - lam[:, None]), dims=dims)
+    down = xr.DataArray(1.0 / (s[None, :] - np.conj(lam)[:, None]), dims=dims)
+    return xr.dot(res, up, dim=names.MODE) + xr.dot(np.conj(res), down, dim=names.MODE)
+
+
 def spike_modes(result: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
     """Which modes of ``result`` the rule (module docstring) drops, and each mode's largest
     peak SNR over the points (NaN where the mode is not narrow)."""
@@ -72,7 +93,8 @@ def spike_modes(result: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
     zeta = np.asarray(result[names.DAMPING_RATIO].transpose(names.MODE).values, dtype=float)
     lam = np.asarray(result[names.EIGENVALUE].transpose(names.MODE).values)
     res = result[names.RESIDUE].transpose(names.POINT, names.MODE).values
-    resid = result[names.FRF_RESIDUAL].transpose(names.POINT, names.FREQUENCY).values
+    # the residual is read a few lines per mode (per chunk of points when it is lazy)
+    resid = result[names.FRF_RESIDUAL].transpose(names.POINT, names.FREQUENCY)
     n_point = resid.shape[0]
     threshold = math.sqrt(math.log(f.size * n_point / PFA))
     width = 2.0 * np.abs(zeta) * fn / df
@@ -81,7 +103,8 @@ def spike_modes(result: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
         at = int(np.argmin(np.abs(f - fn[k])))
         near = slice(max(at - 2, 0), at + 3)
         local = slice(max(at - NOISE_HALF_WIDTH, 0), at + NOISE_HALF_WIDTH + 1)
-        sigma = np.median(np.abs(resid[:, local]), axis=1) / math.sqrt(math.log(2.0))
+        near_lines = resid.isel({names.FREQUENCY: local})
+        sigma = ch.per_row(_median_abs, near_lines, names.FREQUENCY) / math.sqrt(math.log(2.0))
         # narrow poles within a line of each other act as one (two poles of opposite residue
         # at one frequency cancel: each alone looks strong, together they are noise)
         group = [m for m in range(n_mode) if abs(fn[m] - fn[k]) < df and narrow[m]]
@@ -105,15 +128,10 @@ def drop_noise_spikes(result: xr.Dataset) -> xr.Dataset:
     fn = np.asarray(result[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
     zeta = np.asarray(result[names.DAMPING_RATIO].transpose(names.MODE).values, dtype=float)
     if names.FRF_SYNTHESIZED in result and names.FRF_RESIDUAL in result:
-        omega = 2.0 * np.pi * np.asarray(result[names.FREQUENCY].values, dtype=float)
-        res = result[names.RESIDUE].transpose(names.POINT, names.MODE).values
-        lam = np.asarray(result[names.EIGENVALUE].transpose(names.MODE).values)
-        gone = sum(_contribution(res[:, k], lam[k], omega) for k in np.flatnonzero(drop))
-        dims = (names.POINT, names.FREQUENCY)
+        gone = _contributions(result, np.flatnonzero(drop), result[names.FRF_RESIDUAL])
         for v, sign in ((names.FRF_SYNTHESIZED, -1.0), (names.FRF_RESIDUAL, 1.0)):
             da = result[v]
-            new = da.transpose(*dims).values + sign * gone
-            result[v] = da.copy(data=xr.DataArray(new, dims=dims).transpose(*da.dims).values)
+            result[v] = (da + sign * gone).transpose(*da.dims).assign_attrs(da.attrs)
     out = c.keep_modes(result, ~drop)
     listed = [x for x in str(result.attrs.get(ATTR_DROPPED, "")).split(",") if x]
     out.attrs[ATTR_DROPPED] = ",".join(listed + [f"{x:.6g}" for x in fn[drop]])

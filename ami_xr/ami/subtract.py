@@ -220,9 +220,9 @@ def subtract(
         if _has_significant_peak(ds[names.FRF], r.sigma, settings):
             # significant peaks, no fit accepted: the other sign convention? then say so
             flipped = _run(np.conj(ds[names.FRF]), omega, data_model, settings)
-            if int(flipped.n_modes.sum()) > 0:
-                n_frfs = int(np.prod(r.n_modes.shape))
-                raise conjugate_error("subtract", n_frfs, int(flipped.n_modes.sum()))
+            found = _conjugate_resonances(ds[names.FRF], flipped, r.sigma, omega, settings)
+            if found:
+                raise conjugate_error("subtract", int(np.prod(r.n_modes.shape)), found)
         _explain_no_modes(out, ds[names.FRF], r.sigma, settings.pfa, settings.zeta_max, omega.size)
     return c.finish(out, "ami_xr.subtract", "subtract", parameters(settings))
 
@@ -338,6 +338,51 @@ def _has_significant_peak(frf, sigma, settings: SubtractSettings) -> bool:
     t = float(kn.peak_threshold(frf.sizes[names.FREQUENCY], settings.pfa))
     ratio = np.asarray((np.abs(frf).max(names.FREQUENCY) / sigma).values, dtype=np.float64)
     return bool(np.any(ratio**2 >= t))
+
+
+def _conjugate_resonances(frf, flipped, sigma, omega: np.ndarray, settings) -> int:
+    """How many candidates of the conjugated FRFs (``flipped``, the kernel's result on them)
+    are resonances of the data, when they are the evidence of the other sign convention; 0
+    when they are not (then nothing is advised).
+
+    Conjugating changes no magnitude: data in the other convention have their resonances
+    where the conjugated run accepts its candidates. A candidate counts only at a hump of
+    ``|G|`` of that FRF -- the largest line within the candidate's half-power half-bandwidth
+    (at least 2 lines) either side lies strictly inside that window and at least 3 noise
+    floors above both its ends -- and only when its half-power bandwidth spans a line or
+    more (a narrower fit is a noise excursion). A band without a resonance (tails of modes
+    outside it), where a fit to a tail passes once conjugated, has no such hump. The advice
+    needs counted candidates at half or more of the FRFs with a significant peak and, with
+    two or more such FRFs, each counted pole seen within ``merge_tol`` half-power
+    half-bandwidths at another FRF (a mode shows at more than one point).
+    """
+    g = np.abs(np.asarray(frf.transpose(..., names.FREQUENCY).values)).reshape(-1, omega.size)
+    sig = np.asarray(sigma.values, dtype=np.float64).reshape(-1)
+    lam = np.asarray(flipped.lam.values).reshape(g.shape[0], -1)
+    t = float(kn.peak_threshold(omega.size, settings.pfa))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        peaked = (g.max(axis=1) / sig) ** 2 >= t
+    step = float(np.median(np.diff(omega))) if omega.size > 1 else np.inf
+    poles: list[tuple[int, complex]] = []
+    for j in np.flatnonzero(peaked):
+        for lk in lam[j][np.isfinite(lam[j])]:
+            half = abs(lk.real)
+            if 2.0 * half < step:
+                continue
+            at = int(np.argmin(np.abs(omega - lk.imag)))
+            reach = max(2, int(np.ceil(half / step)))
+            lo, hi = max(at - reach, 0), min(at + reach, omega.size - 1)
+            top = lo + int(np.argmax(g[j, lo : hi + 1]))
+            if lo < top < hi and g[j, top] - max(g[j, lo], g[j, hi]) >= 3.0 * sig[j]:
+                poles.append((int(j), complex(lk)))
+    if len(poles) and int(peaked.sum()) >= 2:
+        poles = [
+            (j, lk)
+            for j, lk in poles
+            if any(i != j and abs(m - lk) <= settings.merge_tol * abs(lk.real) for i, m in poles)
+        ]
+    frfs = {j for j, _ in poles}
+    return len(poles) if poles and 2 * len(frfs) >= int(peaked.sum()) else 0
 
 
 def _explain_no_modes(out, frf, sigma, pfa, zeta_max, n_lines) -> None:

@@ -51,6 +51,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.ami import chunked as ch
 from ami_xr.caller import warn
 from ami_xr.core import frf_noise as fn
 from ami_xr.dsp.quantity import convert_units
@@ -91,15 +92,14 @@ def _data(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray | None, str]:
     """The FRFs (P', L) the noise model is estimated on (at most ``MAX_POINTS`` of them) and
     the stored noise std of the same rows (None without one)."""
     h = ds[names.FRF].transpose(..., names.POINT, names.FREQUENCY)
-    x = np.asarray(h.values).reshape(-1, h.shape[-1])
-    rows = _points(x.shape[0])
+    rows = _points(int(np.prod(h.shape[:-1])))
+    x = ch.rows(h, rows)  # of a lazy FRF only these rows are read
     if names.FRF_LINE_NOISE_STD in ds and ds[names.FRF_LINE_NOISE_STD].dims == h.dims:
-        sd = ds[names.FRF_LINE_NOISE_STD].transpose(*h.dims).values
-        sd = sd.reshape(-1, sd.shape[-1])[rows]
+        sd = ch.rows(ds[names.FRF_LINE_NOISE_STD].transpose(*h.dims), rows)
         if np.isfinite(sd).mean() > 0.5:
             how = ds[names.FRF_LINE_NOISE_STD].attrs.get(names.ATTR_NOISE_MODEL, "")
-            return x[rows], sd, "stored frf_line_noise_std" + (f" ({how})" if how else "")
-    return x[rows], None, "roughness"
+            return x, sd, "stored frf_line_noise_std" + (f" ({how})" if how else "")
+    return x, None, "roughness"
 
 
 def _quantity(power: int) -> str:
@@ -194,15 +194,18 @@ def to_working(ds: xr.Dataset, w: Whitening) -> xr.Dataset:
     if w.line_noise is not None:
         h = work[names.FRF].transpose(..., names.POINT, names.FREQUENCY)
         sd = w.line_noise[:, -work.sizes[names.FREQUENCY] :]
-        if sd.shape[0] != int(np.prod(h.shape[:-1])):  # estimated on a subset of the points
-            sd = np.broadcast_to(np.nanmedian(sd, axis=0), h.shape)
+        subset = sd.shape[0] != int(np.prod(h.shape[:-1]))  # estimated on some points only
+        if subset:  # every point gets their median: one row, broadcast at the end
+            sd = np.nanmedian(sd, axis=0)[None, :]
         sd = np.where(np.isfinite(sd) & (sd > 0), sd, np.nan).reshape(-1, h.shape[-1])
         if not np.isfinite(sd).any():
             return work.assign_attrs(w.attrs)
         # a line without a level (0 Hz, NaN): the point's median level (the data model asks
         # for finite values; the refinement takes each line's level relative to the others)
         row = np.nanmedian(np.where(np.isfinite(sd).any(axis=1)[:, None], sd, np.nanmedian(sd)), 1)
-        sd = np.where(np.isfinite(sd), sd, row[:, None]).reshape(h.shape)
+        sd = np.where(np.isfinite(sd), sd, row[:, None])
+        # (a lazy FRF gets a lazy broadcast in its chunks, not a (P, L) array in memory)
+        sd = ch.broadcast_rows(sd[0], h) if subset else sd.reshape(h.shape)
         work = work.assign(
             {names.FRF_LINE_NOISE_STD: (h.dims, sd, {names.ATTR_NOISE_MODEL: w.attrs[ATTR_SOURCE]})}
         )
@@ -218,6 +221,18 @@ _RESIDUES = (
 )
 
 
+def _level(x: np.ndarray, factor, divisor) -> np.ndarray:
+    """The noise level of each FRF of ``x`` (..., L) (:func:`_with_noise_model`): the
+    0.15-quantile of ``|4th difference of x * factor| / divisor``, scaled to a std."""
+    q, k4 = fn.BLOCK_QUANTILE, fn.ROUGHNESS_ORDER
+    xw = x * factor
+    xw = np.where(np.isfinite(xw), xw, 0.0)
+    d = np.abs(np.diff(xw, n=k4, axis=-1)) / np.broadcast_to(divisor, x.shape[-1:])[
+        k4 // 2 : -(k4 // 2)
+    ]
+    return np.quantile(d, q, axis=-1) / np.sqrt(-np.log(1 - q) * math.comb(2 * k4, k4))
+
+
 def _with_noise_model(out: xr.Dataset, w: Whitening) -> xr.Dataset:
     """``out`` with the noise model in compact form, in the quantity given: ``noise_model_shape``
     (frequency; median 1) and ``noise_model_level`` (point), the noise std of one line of FRF
@@ -231,17 +246,13 @@ def _with_noise_model(out: xr.Dataset, w: Whitening) -> xr.Dataset:
     f = out[names.FREQUENCY]
     shape = w.shape[-f.size :]
     h = out[names.FRF].transpose(..., names.FREQUENCY)
-    x = np.asarray(h.values).reshape(-1, f.size)
-    q, k4 = fn.BLOCK_QUANTILE, fn.ROUGHNESS_ORDER
     # in the working quantity, where the noise is closest to white (in the quantity given the
     # FRF's own curvature would outweigh the noise where that is far below it)
     fw = np.asarray(f.values, dtype=float)
     conv = np.where(fw > 0, abs(w.scale) * (2.0 * np.pi * fw) ** w.k, np.nan) if w.k else 1.0
     phase = np.exp(0.5j * np.pi * w.k)  # (i w)^k = i^k w^k
-    xw = x * (conv * phase if w.k else 1.0)
-    xw = np.where(np.isfinite(xw), xw, 0.0)
-    d = np.abs(np.diff(xw, n=k4, axis=-1)) / (shape * conv)[None, k4 // 2 : -(k4 // 2)]
-    level = np.quantile(d, q, axis=-1) / np.sqrt(-np.log(1 - q) * math.comb(2 * k4, k4))
+    factor = conv * phase if w.k else 1.0
+    level = ch.per_row(_level, h, names.FREQUENCY, factor=factor, divisor=shape * conv)
     units = h.attrs.get(names.ATTR_UNITS, "")
     return out.assign(
         {
@@ -255,7 +266,7 @@ def _with_noise_model(out: xr.Dataset, w: Whitening) -> xr.Dataset:
             ),
             VAR_LEVEL: (
                 h.dims[:-1],
-                level.reshape(h.shape[:-1]),
+                level,
                 {
                     names.ATTR_LONG_NAME: "noise std of one FRF line where noise_model_shape is 1",
                     **({names.ATTR_UNITS: units} if units else {}),
@@ -284,7 +295,7 @@ def from_working(result: xr.Dataset, ds: xr.Dataset, w: Whitening) -> xr.Dataset
             out[v] = (out[v] * back).assign_attrs(out[v].attrs)
     if names.FRF_SYNTHESIZED in out and names.FRF_RESIDUAL in out:
         res = (out[names.FRF] - out[names.FRF_SYNTHESIZED]).transpose(*out[names.FRF_RESIDUAL].dims)
-        out[names.FRF_RESIDUAL] = out[names.FRF_RESIDUAL].copy(data=res.values)
+        out[names.FRF_RESIDUAL] = out[names.FRF_RESIDUAL].copy(data=res.data)  # lazy stays lazy
     for v, lam_name in _RESIDUES:
         if v in out and lam_name in out:
             lam = out[lam_name]
