@@ -116,7 +116,7 @@ ROOT_ITERATIONS = 200
 close roots converge linearly, a multiple root only to its conditioning)."""
 
 
-@jit
+@jit(inline="always")
 def poly_roots(coef):
     """Roots of ``coef[0] v^n + coef[1] v^(n-1) + ... + coef[n]`` (complex, ``coef[0] != 0``),
     ordered by decreasing imaginary part (then decreasing real part).

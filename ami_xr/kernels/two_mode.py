@@ -29,7 +29,7 @@ from ami_xr.kernels.single_mode import (
 )
 
 
-@jit
+@jit(inline="always")
 def _upper_poles(roots, dt, ws, limits, lam_out, vsel):
     """The poles of the roots ``v`` of the two-mode polynomial: exactly two eigenvalues in the
     upper half plane, both physical (:func:`~.single_mode.pole_code`), written to ``lam_out``
