@@ -1,10 +1,15 @@
 """Small dense solvers of the AMI kernels (no LAPACK call: the systems are 2x2 to ~40x40).
 
-``gauss_solve`` and ``solve_normal`` are jitted and unchecked, for the other kernel modules;
-:func:`solve_normal_equations` is the checked wrapper.
+``gauss_solve``, ``solve_normal`` and ``poly_roots`` are jitted and unchecked, for the other
+kernel modules; :func:`solve_normal_equations` and :func:`polynomial_roots` are the checked
+wrappers.
 
 Normal equations are solved after Jacobi (diagonal) scaling, with one step of iterative
-refinement, by Gaussian elimination with partial pivoting.
+refinement, by Gaussian elimination with partial pivoting. Roots of a low-degree polynomial come
+from the Aberth-Ehrlich iteration (simultaneous Newton steps with a repulsion term that keeps
+the estimates of close roots apart), each root kept once its residual is at the rounding level
+of the polynomial's evaluation there: the accuracy of ``np.roots`` (a backward-stable companion
+eigensolve) without compiling numba's LAPACK eigenvalue wrappers on a first run.
 """
 
 from __future__ import annotations
@@ -102,6 +107,107 @@ def solve_normal(nmat, rhs):
             if not np.isfinite(x[i, c]):
                 return x, False
     return x, True
+
+
+_EPS = float(np.finfo(np.float64).eps)
+
+ROOT_ITERATIONS = 200
+"""Most Aberth sweeps of :func:`poly_roots` (degree 4 needs fewer than 10 for simple roots;
+close roots converge linearly, a multiple root only to its conditioning)."""
+
+
+@jit(inline="always")
+def poly_roots(coef):
+    """Roots of ``coef[0] v^n + coef[1] v^(n-1) + ... + coef[n]`` (complex, ``coef[0] != 0``),
+    ordered by decreasing imaginary part (then decreasing real part).
+
+    Aberth-Ehrlich iteration from ``n`` points on a circle (radius: the largest
+    ``|coef[k] / coef[0]|^(1/k)``, at angles ``2 pi k / n + pi / (2 n)``, none real); a root
+    stops moving once ``|p(z)| <= 4 eps sum_k |coef[k]| |z|^(n-k)`` (its backward error at the
+    rounding level: the accuracy of a backward-stable eigensolve of the companion matrix, as in
+    ``np.roots``). The ordering is the one numba's ``np.roots`` gives two conjugate pairs of
+    nearby roots; a zero ``coef[n]`` gives a root exactly 0.
+    """
+    n = coef.shape[0] - 1
+    a = np.empty(n + 1, dtype=np.complex128)
+    for k in range(n + 1):
+        a[k] = coef[k] / coef[0]
+    z = np.zeros(n, dtype=np.complex128)
+    n_zero = 0  # trailing zero coefficients: roots exactly 0 (as np.roots gives them)
+    while n_zero < n and a[n - n_zero] == 0.0:
+        n_zero += 1
+    m = n - n_zero
+    radius = 0.0
+    for k in range(1, m + 1):
+        radius = max(radius, abs(a[k]) ** (1.0 / k))
+    done = np.zeros(n, dtype=np.bool_)
+    for k in range(m):
+        angle = 2.0 * np.pi * k / m + 0.5 * np.pi / m
+        z[k] = radius * complex(np.cos(angle), np.sin(angle))
+    eps = _EPS
+    for _sweep in range(ROOT_ITERATIONS if m > 0 else 0):
+        moving = False
+        for k in range(m):
+            if done[k]:
+                continue
+            zk = z[k]
+            p = 1.0 + 0j
+            dp = 0j
+            bound = 1.0
+            for j in range(1, m + 1):
+                dp = dp * zk + p
+                p = p * zk + a[j]
+                bound = bound * abs(zk) + abs(a[j])
+            if p == 0.0:
+                done[k] = True
+                continue
+            # at the rounding level: one last correction (it can only polish), then kept
+            done[k] = abs(p) <= 4.0 * eps * bound
+            moving = True
+            ratio = p / dp
+            s = 0j
+            for j in range(m):
+                if j != k:
+                    s += 1.0 / (zk - z[j])
+            step = ratio / (1.0 - ratio * s)
+            if not (np.isfinite(step.real) and np.isfinite(step.imag)):
+                step = ratio if np.isfinite(ratio.real) and np.isfinite(ratio.imag) else 0j
+            z[k] = zk - step
+        if not moving:
+            break
+    # decreasing imaginary part, then decreasing real part (insertion sort of n values)
+    for i in range(1, n):
+        v = z[i]
+        j = i
+        while j > 0 and (
+            v.imag > z[j - 1].imag or (v.imag == z[j - 1].imag and v.real > z[j - 1].real)
+        ):
+            z[j] = z[j - 1]
+            j -= 1
+        z[j] = v
+    return z
+
+
+def polynomial_roots(coef: np.ndarray) -> np.ndarray:
+    """Roots of the polynomial with coefficients ``coef`` (highest power first), as ``np.roots``
+    (checked wrapper of ``poly_roots``).
+
+    Parameters
+    ----------
+    coef : ndarray of complex, shape (n + 1,)
+        Coefficients, ``coef[0] != 0``, all finite, ``n >= 1``.
+
+    Returns
+    -------
+    ndarray of complex, shape (n,)
+        The roots, by decreasing imaginary part (then decreasing real part).
+    """
+    coef = np.ascontiguousarray(coef, dtype=np.complex128)
+    if coef.ndim != 1 or coef.size < 2:
+        raise AmiXrValueError(f"coef: expected a 1-D array of >= 2 coefficients, got {coef.shape}")
+    if coef[0] == 0 or not np.all(np.isfinite(coef)):
+        raise AmiXrValueError("coef: expected finite coefficients with coef[0] != 0")
+    return poly_roots(coef)
 
 
 def solve_normal_equations(nmat: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, bool]:

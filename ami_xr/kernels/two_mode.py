@@ -15,7 +15,7 @@ import numpy as np
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
-from ami_xr.kernels.linalg import gauss_solve, solve_normal
+from ami_xr.kernels.linalg import gauss_solve, poly_roots, solve_normal
 from ami_xr.kernels.modal_basis import Grid, as_dt, checked_omega, line_variable, pole_factor
 from ami_xr.kernels.single_mode import (
     FIT_NOT_OSCILLATORY,
@@ -27,6 +27,33 @@ from ami_xr.kernels.single_mode import (
     check_zeta_max,
     pole_code,
 )
+
+
+@jit(inline="always")
+def _upper_poles(roots, dt, ws, limits, lam_out, vsel):
+    """The poles of the roots ``v`` of the two-mode polynomial: exactly two eigenvalues in the
+    upper half plane, both physical (:func:`~.single_mode.pole_code`), written to ``lam_out``
+    with their roots in ``vsel``, in the order of ``roots``. Returns a FIT_* code."""
+    cnt = 0
+    for r in range(roots.shape[0]):
+        vr = roots[r]
+        if dt > 0.0:
+            q = 1.0 - dt * ws * vr
+            if abs(q) == 0.0:
+                return FIT_UNSTABLE
+            lam = np.log(1.0 / q) / dt
+        else:
+            lam = ws * vr
+        if lam.imag > 0.0:
+            if cnt >= 2:
+                return FIT_NOT_OSCILLATORY
+            code = pole_code(lam, limits)
+            if code != FIT_OK:
+                return code
+            lam_out[cnt] = lam
+            vsel[cnt] = vr
+            cnt += 1
+    return FIT_OK if cnt == 2 else FIT_NOT_OSCILLATORY
 
 
 @jit
@@ -46,7 +73,9 @@ def fit_two(data, grid, lo, hi, ws, limits, wts, lam_out, res_out):
     rl_all = np.zeros((n_p, m))
     vp = np.empty(m + 1, dtype=np.complex128)
     # v of every line of the band: (1 - q) / (dt ws) (discrete) or i w / ws
-    v_band = (1.0 - x[lo:hi]) / (dt * ws) if dt > 0.0 else x[lo:hi] / ws
+    v_band = np.empty(hi - lo, dtype=np.complex128)
+    for i in range(lo, hi):
+        v_band[i - lo] = (1.0 - x[i]) / (dt * ws) if dt > 0.0 else x[i] / ws
     for i in range(lo, hi):
         v = v_band[i - lo]
         vp[0] = 1.0
@@ -55,14 +84,19 @@ def fit_two(data, grid, lo, hi, ws, limits, wts, lam_out, res_out):
         for a in range(m):
             for b in range(m):
                 nll[a, b] += (np.conj(vp[a]) * vp[b]).real
-    nll_inv, ok = gauss_solve(nll, np.eye(m))
+    eye = np.zeros((m, m))
+    for a in range(m):
+        eye[a, a] = 1.0
+    nll_inv, ok = gauss_solve(nll, eye)
     if not ok:
         return FIT_SINGULAR
+    nss = np.empty((m, m))
+    t = np.empty((m, m))
+    rs = np.empty(m)
     for j in range(n_p):
-        nss = np.zeros((m, m))
-        nsl = np.zeros((m, m))
-        rs = np.zeros(m)
-        rl = np.zeros(m)
+        nss[:] = 0.0
+        rs[:] = 0.0
+        nsl, rl = nsl_all[j], rl_all[j]  # zeros: accumulated in place
         for i in range(lo, hi):
             g = data[j, i] * wts[j]
             v = v_band[i - lo]
@@ -77,19 +111,24 @@ def fit_two(data, grid, lo, hi, ws, limits, wts, lam_out, res_out):
                     nsl[a, b] += (ca * vp[b]).real
                 rs[a] += (ca * rhs).real
                 rl[a] += (np.conj(vp[a]) * rhs).real
-        t = nsl @ nll_inv
-        tn = t @ nsl.T
+        # red += nss - nsl nll^-1 nsl^T; redr += rs - nsl nll^-1 rl (4x4 loops: a BLAS call on
+        # 4x4 costs more than it saves, and its first-run compilation more still)
         for a in range(m):
             for b in range(m):
-                red[a, b] += nss[a, b] - tn[a, b]
+                acc = 0.0
+                for c in range(m):
+                    acc += nsl[a, c] * nll_inv[c, b]
+                t[a, b] = acc
+        for a in range(m):
+            for b in range(m):
+                acc = 0.0
+                for c in range(m):
+                    acc += t[a, c] * nsl[b, c]
+                red[a, b] += nss[a, b] - acc
             acc = 0.0
             for b in range(m):
                 acc += t[a, b] * rl[b]
             redr[a, 0] += rs[a] - acc
-        for a in range(m):
-            for b in range(m):
-                nsl_all[j, a, b] = nsl[a, b]
-            rl_all[j, a] = rl[a]
     sol, ok = solve_normal(red, redr)
     if not ok:
         return FIT_SINGULAR
@@ -97,44 +136,30 @@ def fit_two(data, grid, lo, hi, ws, limits, wts, lam_out, res_out):
     coef[0] = 1.0
     for a in range(m):
         coef[m - a] = sol[a, 0]
-    roots = np.roots(coef)
-    # poles: roots whose eigenvalue lies in the upper half plane
-    cnt = 0
+    roots = poly_roots(coef)  # by decreasing imaginary part, as np.roots orders them
     vsel = np.empty(2, dtype=np.complex128)
-    for r in range(m):
-        vr = roots[r]
-        if dt > 0.0:
-            q = 1.0 - dt * ws * vr
-            if abs(q) == 0.0:
-                return FIT_UNSTABLE
-            lam = np.log(1.0 / q) / dt
-        else:
-            lam = ws * vr
-        if lam.imag > 0.0:
-            if cnt >= 2:
-                return FIT_NOT_OSCILLATORY
-            code = pole_code(lam, limits)
-            if code != FIT_OK:
-                return code
-            lam_out[cnt] = lam
-            vsel[cnt] = vr
-            cnt += 1
-    if cnt != 2:
-        return FIT_NOT_OSCILLATORY
+    code = _upper_poles(roots, dt, ws, limits, lam_out, vsel)
+    if code != FIT_OK:
+        return code
+    b = np.empty(m)
+    e = np.empty(m)
     for j in range(n_p):
-        b = np.empty((m, 1))
         for a in range(m):
             acc = rl_all[j, a]
             for c in range(m):
                 acc -= nsl_all[j, c, a] * sol[c, 0]
-            b[a, 0] = acc
-        e = nll_inv @ b
+            b[a] = acc
+        for a in range(m):
+            acc = 0.0
+            for c in range(m):
+                acc += nll_inv[a, c] * b[c]
+            e[a] = acc
         for kk in range(2):
             vr = vsel[kk]
             num = 0j
             vpow = 1.0 + 0j
             for a in range(m):
-                num += e[a, 0] * vpow
+                num += e[a] * vpow
                 vpow *= vr
             den = 1.0 + 0j
             for r in range(m):

@@ -139,8 +139,10 @@ def test_two_mode_fit_exact(dt, n):
     assert code == k.FIT_OK
     order = np.argsort(lam.imag)
     # two overlapping modes (1.4 % apart) from exact data: the 2-mode polynomial is ill-conditioned;
-    # measured 2.6e-11
-    np.testing.assert_allclose(lam[order], [l1, l2], rtol=1e-10)
+    # rounding alone moves the poles by up to ~2e-10 (measured: the data perturbed by 2e-16
+    # relative gives 1.3e-10 with numba's np.roots and BLAS, 1.7e-10 with the loops and
+    # poly_roots of today's fit_two; 2.3e-10 unperturbed, discrete model)
+    np.testing.assert_allclose(lam[order], [l1, l2], rtol=5e-10)
     # residues of close modes are ~|lam| / |l1 - l2| ~ 1e2 more sensitive than the poles: measured
     # 2.8e-9
     np.testing.assert_allclose(res[:, order], r, rtol=1e-7)

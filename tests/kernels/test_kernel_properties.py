@@ -331,6 +331,64 @@ def test_solve_normal_equations_matches_numpy(n, m, seed):
     )
 
 
+def _backward_error(coef, z):
+    """``|p(z)| / sum_k |coef_k| |z|^(n-k)``: the relative change of the coefficients that makes
+    ``z`` an exact root (rounding level for a backward-stable root finder)."""
+    powers = z ** np.arange(coef.size - 1, -1, -1)
+    return abs(np.dot(coef, powers)) / np.dot(np.abs(coef), np.abs(powers))
+
+
+@_SETTINGS
+@given(
+    degree=st.integers(1, 6),
+    scale=st.floats(-3, 3),
+    seed=st.integers(0, 2**32 - 1),
+    pairs=st.booleans(),
+)
+def test_poly_roots_are_the_roots_of_np_roots(degree, scale, seed, pairs):
+    rng = np.random.default_rng(seed)
+    if pairs:  # two modes: conjugate pairs of close poles, the two-mode fit's quartic
+        w = 1.0 + rng.uniform(0.0, 0.1, 2)
+        sig = -rng.uniform(1e-3, 3e-2, 2)
+        want = np.concatenate([sig + 1j * w, sig - 1j * w]) * 10.0**scale
+        coef = np.poly(want).real.astype(np.complex128)
+    else:
+        coef = (rng.normal(size=degree + 1) + 1j * rng.normal(size=degree + 1)) * 10.0**scale
+        want = np.roots(coef)
+    got = linalg.polynomial_roots(coef)
+    assert got.shape == want.shape
+    for z in got:
+        assert _backward_error(coef, z) < 1e-14
+    # same roots: each matched to the nearest of np.roots within its conditioning
+    # (separation from the other roots; every root here is simple)
+    for z in want:
+        d = np.abs(got - z)
+        sep = np.sort(np.abs(want - z))[1] if want.size > 1 else abs(z) + 1.0
+        assert d.min() <= 1e-10 * max(abs(z), 1.0) * max(1.0, 1.0 / sep)
+    # ordered by decreasing imaginary part, then decreasing real part
+    assert all(
+        (a.imag > b.imag) or (a.imag == b.imag and a.real >= b.real)
+        for a, b in zip(got[:-1], got[1:])
+    )
+
+
+def test_poly_roots_of_multiple_and_zero_roots():
+    # a double root: any backward-stable method finds it only to sqrt(eps)
+    got = linalg.polynomial_roots(np.array([1.0, -2.0, 1.0]))
+    np.testing.assert_allclose(got, [1.0, 1.0], atol=1e-7)
+    # trailing zero coefficients are exact zero roots, as np.roots gives them
+    got = linalg.polynomial_roots(np.array([1.0, 3.0, 0.0, 0.0]))
+    assert np.count_nonzero(got == 0) == 2
+    np.testing.assert_allclose(got[got != 0], [-3.0], rtol=1e-15)
+    np.testing.assert_array_equal(linalg.polynomial_roots(np.array([2.0, 0.0])), [0.0])
+
+
+@pytest.mark.parametrize("coef", [[0.0, 1.0, 2.0], [1.0], [[1.0, 2.0]], [1.0, np.nan, 2.0]])
+def test_poly_roots_bad_coefficients_are_named(coef):
+    with pytest.raises(AmiXrValueError, match="coef"):
+        linalg.polynomial_roots(np.array(coef))
+
+
 @_SETTINGS
 @given(n=st.integers(1, 30), m=st.integers(1, 6), k=st.integers(1, 6), seed=st.integers(0, 99))
 def test_gram_and_matmul_small_match_numpy(n, m, k, seed):
