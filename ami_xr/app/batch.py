@@ -260,6 +260,10 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
                 folder = out.with_name(out.name[: -len(OUTPUT_SUFFIX)] + REPORT_SUFFIX)
                 with atomic_folder(folder) as tmp:  # swapped in whole: never a partial report
                     report(result, tmp)
+            # a stop held since identify's last checkpoint ends the file here, before its write
+            # starts: a worker whose parent died exits after PARENT_GRACE_SECONDS, and a write
+            # begun at the end of that grace left its temporary folder (min-versions run)
+            interrupt.checkpoint()
             ami_xr.to_netcdf(result, out, parameters=job["parameters"])  # BATCH_FUNCTION's
         row["modes"], row["frequencies_hz"] = _modal_summary(result)
         caps = str(result.attrs.get(names.ATTR_AMI_CAPPED, "") or "")
@@ -306,7 +310,10 @@ def _worker_init(stop_event, parent: int | None = None) -> None:
         import threading
 
         threading.Thread(
-            target=_watch_parent, args=(parent,), name="ami_xr-parent-watch", daemon=True
+            target=_watch_parent,
+            args=(parent, stop_event),
+            name="ami_xr-parent-watch",
+            daemon=True,
         ).start()
 
 
@@ -316,13 +323,18 @@ PARENT_POLL_SECONDS = 0.25
 PARENT_GRACE_SECONDS = 2.0
 
 
-def _watch_parent(parent: int) -> None:
+def _watch_parent(parent: int, stop_event=None) -> None:
     """Stop this worker once process ``parent`` is no longer its parent (killed, also by
     SIGKILL, which it cannot catch): the file in progress stops at its next checkpoint with its
     output rolled back, as for SIGTERM; after :data:`PARENT_GRACE_SECONDS` the worker exits
-    regardless (a worker idle between files, or in a long kernel)."""
+    regardless (a worker idle between files, or in a long kernel). ``stop_event`` (the batch's
+    stop request) is set too, so that the stop holds at every later checkpoint: a held signal
+    is raised once, and the worker then took the next queued file and was cut off inside its
+    write, leaving the temporary folder."""
     while os.getppid() == parent:
         time.sleep(PARENT_POLL_SECONDS)
+    if stop_event is not None:
+        stop_event.set()
     interrupt.hold(signal.SIGTERM, None)
     time.sleep(PARENT_GRACE_SECONDS)
     os._exit(interrupt.EXIT_TERMINATED)
