@@ -239,14 +239,15 @@ def test_two_first_runs_at_once_both_succeed_and_leave_a_good_cache(tmp_path):
         stdout, stderr = proc.communicate(timeout=600)
         assert proc.returncode == 0, stderr
         results.append(json.loads(stdout.strip().splitlines()[-1]))
-    # at least one compiled into the empty folder; on a busy machine the other may start late
-    # enough to load some kernels the first already wrote (a hit is then right, not a fault)
-    assert any(r["misses"] >= 2 and r["hits"] == 0 for r in results)
     again = subprocess.run(
         cmd, env=environ, capture_output=True, text=True, timeout=300, check=True
     )
     warm = json.loads(again.stdout.strip().splitlines()[-1])
     assert warm["misses"] == 0 and warm["hits"] >= 2  # the cache the two first runs wrote
+    # the folder was empty: every kernel the warm run loads was compiled by one of the two at
+    # least. Which one compiled which depends on timing: each may load kernels the other wrote
+    # first (both had hits in a min-versions run), so no single run need have compiled them all
+    assert sum(r["misses"] for r in results) >= warm["hits"]
 
     w = np.linspace(1.0, 60.0, 41)
     lam = np.array([-0.5 + 20j, -1.0 + 45j])
