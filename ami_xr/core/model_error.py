@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ami_xr.core.policy import POLICY
+from ami_xr.core.policy import POLICY, OrderPolicy
 from ami_xr.core.regions import complex_rows, residual_rows
 
 
@@ -53,6 +53,7 @@ def error_variance(
     skip: np.ndarray,
     local: bool = False,
     resid: np.ndarray | None = None,
+    policy: OrderPolicy = POLICY,
 ):
     """Variance ``E|e|^2`` (P, L) of noise and model error on each line, from the residual.
 
@@ -84,7 +85,7 @@ def error_variance(
         # a missed mode or a peak's model error is smooth there and cancels; a missed mode's
         # tails no longer count as noise on noise-free data)
         dw = prob.omega[1] - prob.omega[0] if prob.omega.size > 1 else 1.0
-        size = int(np.clip(POLICY.noise_widths * np.median(width) / dw, 21, prob.omega.size)) | 1
+        size = int(np.clip(policy.noise_widths * np.median(width) / dw, 21, prob.omega.size)) | 1
         s2 = _block_median(_white_part(resid), size)
         # never below the FRF's overall level: the fits minimise the residual with one weight
         # per FRF, and a gain weighted by levels far below it (noise-free data, where the
@@ -108,7 +109,11 @@ def error_variance(
 
 
 def eigenvalue_scatter(
-    prob, proj, width: np.ndarray, resid: np.ndarray | None = None
+    prob,
+    proj,
+    width: np.ndarray,
+    resid: np.ndarray | None = None,
+    policy: OrderPolicy = POLICY,
 ) -> np.ndarray:
     """FRF-to-FRF scatter of each mode's eigenvalue, relative to ``|lam_k|`` (K,): the model
     error of a measured peak as a number, estimated the same way at every peak.
@@ -127,7 +132,7 @@ def eigenvalue_scatter(
     """
     n_point, n_mode = prob.n_points, proj.lam.size
     out = np.full(n_mode, np.nan)
-    if n_point < POLICY.scatter_points or not proj.ok:
+    if n_point < policy.scatter_points or not proj.ok:
         return out
     resid = complex_rows(residual_rows(prob, proj)) if resid is None else resid
     s2 = np.maximum(np.median(np.abs(resid) ** 2, axis=1), 1e-300) / np.log(2.0)  # E|e|^2
@@ -149,14 +154,14 @@ def eigenvalue_scatter(
         g[:, 0, 1] = g[:, 1, 0] = np.sum((d_re.conj() * d_im).real, axis=1)
         b = np.stack([np.sum((d_re.conj() * r).real, 1), np.sum((d_im.conj() * r).real, 1)], 1)
         ok = np.linalg.det(g) > 1e-12 * np.maximum(g[:, 0, 0] * g[:, 1, 1], 1e-300)
-        if ok.sum() < POLICY.scatter_points:
+        if ok.sum() < policy.scatter_points:
             continue
         shift = np.linalg.solve(g[ok], b[ok][..., None])[..., 0]
         # only a misfit that shifts explain is a peak's model error (a missed mode beside it is
         # not): the shifts must explain POLICY.shift_share of the residual power beyond the noise
         explained = np.sum(shift * b[ok])
         beyond = np.sum(np.abs(r) ** 2) - band.sum() * np.sum(s2)
-        if explained < POLICY.shift_share * beyond:
+        if explained < policy.shift_share * beyond:
             continue
         d = shift[:, 0] + 1j * shift[:, 1]
         w = 0.5 * (g[ok, 0, 0] + g[ok, 1, 1]) / (0.5 * s2[ok])  # information of one component
@@ -168,7 +173,7 @@ def eigenvalue_scatter(
     return out
 
 
-def within_scatter(trial_lam, old_lam, scatter: np.ndarray) -> bool:
+def within_scatter(trial_lam, old_lam, scatter: np.ndarray, policy: OrderPolicy = POLICY) -> bool:
     """Whether a trial puts a new or moved pole closer to another than ``scatter_range`` times
     the typical FRF-to-FRF scatter of a peak (``scatter`` of the present modes, its lower
     quartile over the modes away from the pole, at least ``scatter_peaks`` of them): a split of
@@ -187,9 +192,9 @@ def within_scatter(trial_lam, old_lam, scatter: np.ndarray) -> bool:
         away = np.abs(old_lam.imag - trial_lam[k].imag) > gap + 1e-12
         typical = scatter[away & np.isfinite(scatter)]
         # a typical value needs several peaks
-        if typical.size < POLICY.scatter_peaks:
+        if typical.size < policy.scatter_peaks:
             continue
-        level = np.quantile(typical, POLICY.scatter_quantile)
-        if gap < POLICY.scatter_range * level * abs(trial_lam[k]):
+        level = np.quantile(typical, policy.scatter_quantile)
+        if gap < policy.scatter_range * level * abs(trial_lam[k]):
             return True
     return False

@@ -30,6 +30,11 @@ class OrderPolicy:
     exact_rss: float = 1e-20
 
     # -- proposals --
+    # residual peaks proposed as one extra pole each per step (a cluster refit covers the rest)
+    residual_peaks: int = 2
+    # a split starts the two poles this many decay rates apart (half the half-power bandwidth:
+    # both inside the mode's band, far enough apart for the fit to move them separately)
+    split_shift: float = 0.5
     # splits tried per step at most (twice as many cluster refits): the modes whose band holds
     # the most residual power first; one per mode made a 23-mode FRF take minutes
     max_trials: int = 3
@@ -69,7 +74,15 @@ class OrderPolicy:
     # points needed to estimate a scatter (two give one difference, no spread)
     scatter_points: int = 3
 
+    # -- dropping modes --
+    # on an exact fit, the weakest modes tried for removal per pass (a noise-free fit has few
+    # superfluous modes, and each try is a fit with three times the trial iterations)
+    superfluous_tries: int = 3
+
     # -- close pairs --
+    # the band a close pair is judged on: its modes' half-power bandwidths times this on each
+    # side (a resonance's contribution has fallen to ~5 % of its peak three bandwidths away)
+    pair_widths: float = 3.0
     # the one-pole model error at a close pair must exceed every other peak's by this factor:
     # measured peaks' model errors spread over a decade (measurement.uff)
     pair_excess: float = 2.0

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ami_xr.core.policy import POLICY
+from ami_xr.core.policy import POLICY, OrderPolicy
 
 
 def local_poles(frf, omega, lo, hi, order, extra=2):
@@ -46,7 +46,7 @@ def local_poles(frf, omega, lo, hi, order, extra=2):
     return 1j * (centre + half * roots)
 
 
-def cluster_band(lam, width, centre, half):
+def cluster_band(lam, width, centre, half, policy: OrderPolicy = POLICY):
     """The band around ``centre`` grown to a cluster: every mode whose half-power band
     (``Im lam +- width``, ``width = 2 |Re lam|``) reaches the band joins, and the band then
     covers it with a margin of ``cluster_margin`` bandwidths: ``(lo, hi, inside)``. (Joining
@@ -55,7 +55,7 @@ def cluster_band(lam, width, centre, half):
     lo, hi = centre - half, centre + half
     while True:
         inside = (lam.imag + width >= lo) & (lam.imag - width <= hi)
-        reach = POLICY.cluster_margin * width[inside]
+        reach = policy.cluster_margin * width[inside]
         new_lo = min(lo, float(np.min(lam.imag[inside] - reach, initial=lo)))
         new_hi = max(hi, float(np.max(lam.imag[inside] + reach, initial=hi)))
         if new_lo >= lo and new_hi <= hi:
@@ -63,7 +63,17 @@ def cluster_band(lam, width, centre, half):
         lo, hi = new_lo, new_hi
 
 
-def cluster_starts(data, omega, lam, free, lam0, decay: float, min_width: float, centres):
+def cluster_starts(
+    data,
+    omega,
+    lam,
+    free,
+    lam0,
+    decay: float,
+    min_width: float,
+    centres,
+    policy: OrderPolicy = POLICY,
+):
     """Start vectors that refit the modes of a cluster with a local multi-pole fit.
 
     Around each centre the band is grown to cover every mode within three half-power
@@ -82,7 +92,7 @@ def cluster_starts(data, omega, lam, free, lam0, decay: float, min_width: float,
     typical = max(float(np.median(width[ok])), 4.0 * min_width) if lam.size else 8 * min_width
     out, seen = [], set()
     for w0 in centres:
-        lo, hi, inside = cluster_band(lam, width, w0, 3.0 * typical)
+        lo, hi, inside = cluster_band(lam, width, w0, 3.0 * typical, policy)
         lo, hi = max(lo, omega[0]), min(hi, omega[-1])
         if (round(lo, 6), round(hi, 6)) in seen:
             continue
@@ -91,7 +101,7 @@ def cluster_starts(data, omega, lam, free, lam0, decay: float, min_width: float,
         idx = idx[np.argsort(~free[idx], kind="stable")]  # refinable modes first
         n_ok = int(np.sum(free[idx]))
         counts = set()
-        for order in range(max(n_ok - 1, 1), n_ok + POLICY.extra_poles + 1):
+        for order in range(max(n_ok - 1, 1), n_ok + policy.extra_poles + 1):
             poles = local_poles(data, omega, lo, hi, order)
             good = poles[
                 (poles.real < 0)

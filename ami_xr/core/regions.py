@@ -14,7 +14,7 @@ import numpy as np
 
 from ami_xr.core import varpro
 from ami_xr.core.matching import match_by_distance
-from ami_xr.core.policy import POLICY
+from ami_xr.core.policy import POLICY, OrderPolicy
 from ami_xr.kernels.modal_basis import model_columns
 from ami_xr.kernels.projection import project_points
 
@@ -119,7 +119,15 @@ def weighted_gain(before: np.ndarray, after: np.ndarray, var: np.ndarray) -> flo
     return float(2.0 * np.sum((np.abs(before) ** 2 - np.abs(after) ** 2) / var))
 
 
-def band_fit(prob, fit, trial, opts: dict, min_width: float, var: np.ndarray | None = None):
+def band_fit(
+    prob,
+    fit,
+    trial,
+    opts: dict,
+    min_width: float,
+    var: np.ndarray | None = None,
+    policy: OrderPolicy = POLICY,
+):
     """Fit one completion trial on its own band: the lines within ``local_widths`` half-power
     bandwidths of the modes it changes (moved, added or removed), the data less the present
     fit's far modes (residues held), the modes in the band free.
@@ -142,7 +150,7 @@ def band_fit(prob, fit, trial, opts: dict, min_width: float, var: np.ndarray | N
     if not (changed.any() or removed.size):
         return None, start, 0
     poles = np.concatenate([start[changed], lam[removed]])
-    margin = POLICY.local_widths * float(np.max(np.maximum(2.0 * np.abs(poles.real), min_width)))
+    margin = policy.local_widths * float(np.max(np.maximum(2.0 * np.abs(poles.real), min_width)))
     lo, hi = poles.imag.min() - margin, poles.imag.max() + margin
     sel = np.flatnonzero((omega >= lo) & (omega <= hi))
     # the old modes the band model holds: inside the band, changed or removed by the trial
@@ -151,7 +159,7 @@ def band_fit(prob, fit, trial, opts: dict, min_width: float, var: np.ndarray | N
     near[removed] = True
     entry = np.append(near[kept], np.ones(start.size - n_old, bool))  # trial entries in band
     n_col = 2 * max(int(entry.sum()), int(near.sum())) + 2 * len(prob.residual_terms)
-    if sel.size > POLICY.local_max_share * omega.size or 2 * sel.size < 3 * n_col:
+    if sel.size > policy.local_max_share * omega.size or 2 * sel.size < 3 * n_col:
         return None, start, 0
     n_line = omega.size
     far = np.flatnonzero(~near)

@@ -1,0 +1,242 @@
+"""Each mechanism of the model-order step (ami_xr.core.order, core.pairs, core.order_state) on
+its own: the per-mode record, the residual screen, the extra-sum-of-squares drop screen, the
+drops, the proposals, the acceptance of a fitted trial, the well-posed start, exactness, and
+the policy passed down as a parameter (a test runs the step with another policy)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from ami_xr.ami.settings import RefineSettings
+from ami_xr.core import order, varpro
+from ami_xr.core.order_state import Fitted, Modes, State, Trial
+from ami_xr.core.policy import POLICY
+from ami_xr.core.regions import complex_rows, fit_modes, residual_rows
+
+from ..reference import frf_from_residues
+from .test_local_trials import _opts, _problem
+
+MISSING = 4  # the 52 Hz mode of test_local_trials._problem
+
+
+def _state(prob, lam, opts, keep=None):
+    """A state fitted to the modes ``keep`` of ``lam`` (every mode by default)."""
+    lam = lam if keep is None else lam[keep]
+    fitted = Fitted(*fit_modes(prob, lam, lam, **opts))
+    n_point = prob.n_points
+    return State(
+        fitted.fit, fitted.free, lam, np.zeros((n_point, lam.size), complex), np.arange(lam.size), 0
+    )
+
+
+def _clean_problem():
+    """Three modes at two points, noise-free."""
+    fn = np.array([20.0, 35.0, 60.0])
+    wn = 2 * np.pi * fn
+    lam = -0.01 * wn + 1j * wn * np.sqrt(1 - 1e-4)
+    residue = lam[None, :] * np.array([[1.0, 0.5, -0.8], [0.3, -1.0, 0.6]])
+    omega = 2 * np.pi * np.linspace(5.0, 80.0, 1500)
+    frf = frf_from_residues(omega, lam, residue)
+    return varpro.make_problem(frf, omega, None, None), lam, omega
+
+
+# -- the record of the modes --------------------------------------------------------------
+
+
+def test_modes_take_keeps_every_field_in_step_and_the_ami_modes_first():
+    res0 = np.arange(6.0).reshape(2, 3) + 0j
+    m = Modes.start([True, False, True, True], np.arange(4) + 1j, res0, [7, 8, 9])
+    m.merged_fn[1] = 5.0
+    kept = m.without([1])
+    assert kept.n_modes == 3 and kept.n_ami == 2
+    np.testing.assert_array_equal(kept.free, [True, True, True])
+    np.testing.assert_array_equal(kept.lam0, np.array([0, 2, 3]) + 1j)
+    np.testing.assert_array_equal(kept.origin, [7, 9])
+    np.testing.assert_array_equal(kept.res0, res0[:, [0, 2]])
+    assert np.isnan(kept.merged_fn).all()
+    grown = kept.appended(np.array([9 + 9j]))
+    assert grown.n_modes == 4 and grown.n_ami == 2  # an added mode has no AMI reference
+    assert grown.free[-1] and not grown.at_ami[-1] and not grown.supported[-1]
+    kept.free[0] = False  # a copy: the original record is untouched
+    assert m.free[0]
+    with pytest.raises(ValueError, match="keep"):
+        m.take([2, 0])
+
+
+def test_state_reads_and_sets_the_record_fields_as_attributes():
+    prob, lam, omega = _clean_problem()
+    state = _state(prob, lam, _opts(omega))
+    assert state.free is state.modes.free
+    state.free = np.array([True, False, True])
+    np.testing.assert_array_equal(state.modes.free, [True, False, True])
+    state.supported[1] = True  # in place, as the close-pair test marks a pair
+    assert state.modes.supported[1]
+    with pytest.raises(AttributeError):
+        _ = state.not_a_field
+
+
+# -- screens ---------------------------------------------------------------------------------
+
+
+def test_residual_candidates_point_at_a_missed_mode_and_not_at_noise():
+    prob, lam, omega = _problem(noise=1e-3)
+    opts = _opts(omega)
+    missing = _state(prob, lam, opts, np.delete(np.arange(lam.size), MISSING))
+    peaks, power = order._residual_candidates(prob, missing.fit, 2)
+    assert power.shape == omega.shape
+    width = 2 * abs(lam[MISSING].real)
+    assert abs(peaks[0].imag - lam[MISSING].imag) < width
+    complete = _state(prob, lam, opts)
+    assert order._residual_candidates(prob, complete.fit, 2, screen_pfa=1e-6)[0] == []
+
+
+def test_costs_without_each_mode_equal_a_projection_without_it():
+    prob, lam, omega = _problem(noise=1e-2)
+    fit = _state(prob, lam, _opts(omega)).fit
+    costs = order._costs_without_each_mode(prob, fit.proj)
+    floor = (varpro.RSS_FLOOR**2) * prob.y_norm2
+    for k in (0, MISSING, lam.size - 1):
+        proj = varpro.project(prob, np.delete(fit.lam, k))
+        direct = 0.5 * prob.n_rows * np.sum(np.log(np.maximum(proj.rss, floor)))
+        assert costs[k] == pytest.approx(direct, rel=1e-9)
+    assert np.all(costs > fit.cost)  # every real mode explains something
+
+
+# -- drops -----------------------------------------------------------------------------------
+
+
+def test_a_pole_that_fits_noise_is_dropped_and_real_modes_stay():
+    prob, lam, omega = _problem(noise=1e-3)
+    opts = _opts(omega)
+    spurious = 2 * np.pi * 70.0 * (-0.01 + 1j)  # between two modes, only noise there
+    state = _state(prob, np.append(lam, spurious), opts)
+    threshold = chi2.isf(1e-3 / omega.size, 2 + 2 * prob.n_points)
+    order._drop_insignificant(prob, state, threshold, opts)
+    assert state.fit.lam.size == lam.size and state.changed
+    assert state.modes.n_modes == lam.size and state.origin.size == lam.size
+    assert np.min(np.abs(state.fit.lam - spurious)) > 2 * np.pi * 5.0
+    again = _state(prob, lam, opts)
+    order._drop_insignificant(prob, again, threshold, opts)
+    assert again.fit.lam.size == lam.size and not again.changed
+
+
+def test_on_an_exact_fit_a_duplicate_mode_is_removed():
+    prob, lam, omega = _clean_problem()
+    opts = dict(_opts(omega), max_iter=30)
+    dup = lam[1] * (1 + 0.05j)  # a second pole near the 35 Hz mode
+    state = _state(prob, np.append(lam, dup), opts)
+    order._drop_superfluous(prob, state, opts)
+    assert state.fit.lam.size == lam.size
+    assert order.is_exact(prob, state.fit)
+    none = dataclasses.replace(POLICY, superfluous_tries=0)
+    state = _state(prob, np.append(lam, dup), opts)
+    order._drop_superfluous(prob, state, opts, none)
+    assert state.fit.lam.size == lam.size + 1
+
+
+# -- proposals and their acceptance ----------------------------------------------------------
+
+
+def test_proposals_put_a_pole_at_the_missed_peak_within_the_policy_bounds():
+    prob, lam, omega = _problem(noise=1e-3)
+    opts = _opts(omega)
+    state = _state(prob, lam, opts, np.delete(np.arange(lam.size), MISSING))
+    trials, _ = order._proposals(prob, state, 0.0, opts["min_width"], POLICY)
+    assert all(isinstance(t, Trial) for t in trials)
+    first = trials[0]
+    assert first.n_add == 1 and first.removed.size == 0
+    assert abs(first.start[-1].imag - lam[MISSING].imag) < 2 * abs(lam[MISSING].real)
+    assert len(trials) <= POLICY.residual_peaks + 3 * POLICY.max_trials
+    few = dataclasses.replace(POLICY, residual_peaks=0, max_trials=0)
+    assert order._proposals(prob, state, 0.0, opts["min_width"], few)[0] == []
+
+
+def _judge(prob, state, opts, trials):
+    fit = state.fit
+    width = np.maximum(2.0 * np.abs(fit.lam.real), opts["min_width"])
+    r_now = complex_rows(residual_rows(prob, fit.proj))
+    var = order.error_variance(prob, fit.proj, width, np.zeros(fit.lam.size, bool), True, r_now)
+    threshold = chi2.isf(1e-3 / prob.omega.size, 2 + 2 * prob.n_points)
+    scatter = np.full(fit.lam.size, np.nan)
+    return order.Judge(prob, state, fit, trials, threshold, r_now, var[0], scatter, opts, POLICY)
+
+
+def test_a_fitted_trial_holds_only_when_it_adds_the_missed_mode_and_stays_free():
+    prob, lam, omega = _problem(noise=1e-3)
+    opts = _opts(omega)
+    state = _state(prob, lam, opts, np.delete(np.arange(lam.size), MISSING))
+    fit = state.fit
+    none = np.empty(0, int)
+    good = Trial(np.append(fit.lam, lam[MISSING]), np.append(state.lam0, lam[MISSING]), 1, none)
+    same = Trial(fit.lam.copy(), state.lam0.copy(), 0, none)
+    judge = _judge(prob, state, opts, [good, same])
+    fitted = Fitted(*fit_modes(prob, good.start, good.ref, **opts))
+    ok, moved = order._holds(judge, good, fitted)
+    assert ok and not moved.any()
+    frozen = fitted._replace(free=np.append(fitted.free[:-1], False))
+    assert not order._holds(judge, good, frozen)[0]  # the mode it tries must stay free
+    refit = Fitted(*fit_modes(prob, same.start, same.ref, **opts))
+    assert not order._holds(judge, same, refit)[0]  # returns where it was: changes nothing
+    taken = order._take([(1.0, 1), (2.0, 0)], judge)
+    assert taken is not None and taken[0] is good
+    no_fits = judge._replace(policy=dataclasses.replace(POLICY, screen_keep=0))
+    assert order._take([(2.0, 0)], no_fits) is None
+
+
+def test_quick_screen_keeps_the_trial_that_explains_the_residual():
+    prob, lam, omega = _problem(noise=1e-3)
+    opts = _opts(omega)
+    none = np.empty(0, int)
+    state = _state(prob, lam, opts, np.delete(np.arange(lam.size), MISSING))
+    fit = state.fit
+    good = Trial(np.append(fit.lam, lam[MISSING]), np.append(state.lam0, lam[MISSING]), 1, none)
+    out = order._quick_screen([0], _judge(prob, state, opts, [good]))
+    assert [i for _, i in out] == [0]
+    complete = _state(prob, lam, opts)  # nothing missing: a pole in the noise gains too little
+    noise = 2 * np.pi * 70.0 * (-0.01 + 1j)
+    bad = Trial(np.append(complete.fit.lam, noise), np.append(lam, noise), 1, none)
+    assert order._quick_screen([0], _judge(prob, complete, opts, [bad])) == []
+
+
+# -- start and end ---------------------------------------------------------------------------
+
+
+def test_well_posed_drops_one_of_two_coincident_poles():
+    prob, lam, omega = _clean_problem()
+    mu = np.append(lam, lam[1])
+    keep = order.well_posed(prob, mu)
+    assert keep.sum() == lam.size
+    assert order.well_posed(prob, lam).all()
+
+
+def test_exactness_follows_the_policy():
+    prob, lam, omega = _clean_problem()
+    fit = _state(prob, lam, dict(_opts(omega), max_iter=30)).fit
+    assert order.is_exact(prob, fit)
+    assert not order.is_exact(prob, fit, dataclasses.replace(POLICY, exact_rss=0.0))
+    noisy_prob = _problem(noise=1e-3)[0]
+    noisy = _state(noisy_prob, _problem()[1], _opts(_problem()[2])).fit
+    assert not order.is_exact(noisy_prob, noisy)
+
+
+@pytest.mark.parametrize("no_proposals", [False, True])
+def test_order_tests_run_with_the_policy_they_are_given(no_proposals):
+    """The same missed mode: found with the default policy, not when the policy proposes
+    nothing (the step reads its numbers from the parameter, not from a global)."""
+    prob, lam, omega = _problem(noise=1e-3)
+    opts = _opts(omega)
+    state = _state(prob, lam, opts, np.delete(np.arange(lam.size), MISSING))
+    policy = dataclasses.replace(POLICY, residual_peaks=0, max_trials=0) if no_proposals else POLICY
+    settings = RefineSettings()
+    order.order_tests(
+        prob, state, settings, opts, prob.n_points, chi2, opts["min_width"], policy=policy
+    )
+    n = state.fit.lam.size
+    assert n == (lam.size - 1 if no_proposals else lam.size)
+    if not no_proposals:
+        assert np.min(np.abs(state.fit.lam - lam[MISSING])) < 2e-3 * abs(lam[MISSING])
+        assert state.modes.n_modes == n and state.origin.size == lam.size - 1
