@@ -42,6 +42,11 @@ class Judge(NamedTuple):
     scatter: np.ndarray
     opts: dict
     policy: OrderPolicy
+    # per present mode, the full fits of trials far from it in which it froze (filled by
+    # _take): after two, the model, not the trials, moves it out of its region, and every
+    # trial that leaves it alone would fail the same way -- it is not fitted (the hammer FRF:
+    # one mode froze in every trial of its last two steps; full fits 22 -> 18, same modes)
+    stuck: np.ndarray
 
 
 def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=POLICY.screen_pfa):
@@ -315,7 +320,10 @@ def _add_missed(
             refined, fit.lam, scatter, policy
         ):
             screened.append((gain - trial.n_add * threshold, i))
-    judge = Judge(prob, state, fit, trials, threshold, r_now, var, scatter, trial_opts, policy)
+    stuck = np.zeros(fit.lam.size, int)
+    judge = Judge(
+        prob, state, fit, trials, threshold, r_now, var, scatter, trial_opts, policy, stuck
+    )
     # a trial that removes modes is screened on all lines at once (a simpler model that fits as
     # well wins); the others the band could not judge only when no band-screened trial holds
     fewer = [i for i in deferred if trials[i].n_add < 0]
@@ -387,12 +395,38 @@ def _take(screened, judge: Judge):
     screened = screened[:1] + sorted(screened[1:], key=lambda s: (trials[s[1]].n_add, -s[0]))
     for _, i in screened[: judge.policy.screen_keep]:
         trial = trials[i]
+        touched, far = _reach(judge, trial)
+        if ((judge.stuck >= 2) & ~touched).any():
+            continue  # a mode the model moves out of its region would freeze here too
         fitted = Fitted(*fit_modes(judge.prob, trial.start, trial.ref, **judge.opts))
         judge.state.n_iter += fitted.n_iter
         ok, moved = _holds(judge, trial, fitted)
         if ok:
             return trial, fitted, moved
+        kept = np.delete(np.arange(judge.fit.lam.size), trial.removed)
+        froze = np.zeros(judge.fit.lam.size, bool)
+        froze[kept] = judge.state.free[kept] & ~fitted.free[: kept.size] & ~moved
+        judge.stuck[froze & far] += 1
     return None
+
+
+def _reach(judge: Judge, trial: Trial) -> tuple[np.ndarray, np.ndarray]:
+    """Which present modes a trial moves or removes, and which lie beyond its band (more than
+    ``local_widths`` half-power bandwidths of its changed poles from every one of them)."""
+    lam = judge.fit.lam
+    kept = np.delete(np.arange(lam.size), trial.removed)
+    n_old = kept.size
+    moved = trial.start[:n_old] != lam[kept]
+    touched = np.zeros(lam.size, bool)
+    touched[kept[moved]] = True
+    touched[trial.removed] = True
+    poles = np.concatenate([trial.start[:n_old][moved], trial.start[n_old:], lam[trial.removed]])
+    if poles.size == 0:
+        return touched, ~touched
+    min_width = judge.opts["min_width"]
+    margin = judge.policy.local_widths * np.max(np.maximum(2.0 * np.abs(poles.real), min_width))
+    far = np.min(np.abs(lam.imag[:, None] - poles.imag[None, :]), axis=1) > margin
+    return touched, far & ~touched
 
 
 def _full_gain(prob, r_now: np.ndarray, trial, var: np.ndarray) -> float:

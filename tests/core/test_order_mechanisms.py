@@ -162,7 +162,10 @@ def _judge(prob, state, opts, trials):
     var = order.error_variance(prob, fit.proj, width, np.zeros(fit.lam.size, bool), True, r_now)
     threshold = chi2.isf(1e-3 / prob.omega.size, 2 + 2 * prob.n_points)
     scatter = np.full(fit.lam.size, np.nan)
-    return order.Judge(prob, state, fit, trials, threshold, r_now, var[0], scatter, opts, POLICY)
+    stuck = np.zeros(fit.lam.size, int)
+    return order.Judge(
+        prob, state, fit, trials, threshold, r_now, var[0], scatter, opts, POLICY, stuck
+    )
 
 
 def test_a_fitted_trial_holds_only_when_it_adds_the_missed_mode_and_stays_free():
@@ -200,6 +203,31 @@ def test_quick_screen_keeps_the_trial_that_explains_the_residual():
     noise = 2 * np.pi * 70.0 * (-0.01 + 1j)
     bad = Trial(np.append(complete.fit.lam, noise), np.append(lam, noise), 1, none)
     assert order._quick_screen([0], _judge(prob, complete, opts, [bad])) == []
+
+
+def test_a_mode_frozen_far_from_two_failed_trials_spares_the_fits_of_the_others():
+    """A present mode that froze in the full fits of two trials far from it is moved out of its
+    region by the model, not by the trials: the trials that leave it alone are not fitted."""
+    prob, lam, omega = _problem(noise=1e-3)
+    opts = _opts(omega)
+    state = _state(prob, lam, opts, np.delete(np.arange(lam.size), MISSING))
+    fit = state.fit
+    none = np.empty(0, int)
+    good = Trial(np.append(fit.lam, lam[MISSING]), np.append(state.lam0, lam[MISSING]), 1, none)
+    judge = _judge(prob, state, opts, [good])
+    touched, far = order._reach(judge, good)
+    assert not touched.any()
+    assert far.all()  # every present mode is beyond six bandwidths (6.2 Hz) of 52 Hz
+    beside = 2 * np.pi * 43.0 * (-0.01 + 1j)
+    near = Trial(np.append(fit.lam, beside), np.append(state.lam0, beside), 1, none)
+    assert not order._reach(judge, near)[1][3] and order._reach(judge, near)[1][0]  # 41 vs 12 Hz
+    n_fits = prob.n_fits
+    judge.stuck[0] = 2
+    assert order._take([(1.0, 0)], judge) is None
+    assert prob.n_fits == n_fits  # not fitted
+    judge.stuck[0] = 1  # one trial's fit is not yet evidence
+    assert order._take([(1.0, 0)], judge) is not None
+    assert prob.n_fits == n_fits + 1
 
 
 # -- start and end ---------------------------------------------------------------------------
