@@ -45,7 +45,7 @@ class Judge(NamedTuple):
     # per present mode, the full fits of trials far from it in which it froze (filled by
     # _take): after two, the model, not the trials, moves it out of its region, and every
     # trial that leaves it alone would fail the same way -- it is not fitted (the hammer FRF:
-    # one mode froze in every trial of its last two steps; full fits 22 -> 18, same modes)
+    # one mode froze in every trial of its last two steps; full fits 22 -> 14, same modes)
     stuck: np.ndarray
 
 
@@ -346,11 +346,14 @@ def _add_missed(
 
 def _quick_screen(indices, judge: Judge) -> list:
     """Screen trials with ``screen_iterations`` iterations on all lines: ``(score, index)`` of
-    those whose gain against ``var`` beats ``threshold`` per mode added."""
+    those whose gain against ``var`` beats ``threshold`` per mode added. A trial that
+    :func:`_take` would not fit (it leaves a stuck mode alone) is not screened either."""
     out = []
     opts = dict(judge.opts, max_iter=judge.policy.screen_iterations)
     for i in indices:
         trial = judge.trials[i]
+        if _spared(judge, trial):
+            continue
         quick = Fitted(*fit_modes(judge.prob, trial.start, trial.ref, **opts))
         judge.state.n_iter += quick.n_iter
         score = _full_gain(judge.prob, judge.r_now, quick.fit, judge.var)
@@ -395,8 +398,7 @@ def _take(screened, judge: Judge):
     screened = screened[:1] + sorted(screened[1:], key=lambda s: (trials[s[1]].n_add, -s[0]))
     for _, i in screened[: judge.policy.screen_keep]:
         trial = trials[i]
-        touched, far = _reach(judge, trial)
-        if ((judge.stuck >= 2) & ~touched).any():
+        if _spared(judge, trial):
             continue  # a mode the model moves out of its region would freeze here too
         fitted = Fitted(*fit_modes(judge.prob, trial.start, trial.ref, **judge.opts))
         judge.state.n_iter += fitted.n_iter
@@ -406,8 +408,13 @@ def _take(screened, judge: Judge):
         kept = np.delete(np.arange(judge.fit.lam.size), trial.removed)
         froze = np.zeros(judge.fit.lam.size, bool)
         froze[kept] = judge.state.free[kept] & ~fitted.free[: kept.size] & ~moved
-        judge.stuck[froze & far] += 1
+        judge.stuck[froze & _reach(judge, trial)[1]] += 1
     return None
+
+
+def _spared(judge: Judge, trial: Trial) -> bool:
+    """The trial leaves alone a mode that froze, far from them, in two earlier trials' fits."""
+    return bool(((judge.stuck >= 2) & ~_reach(judge, trial)[0]).any())
 
 
 def _reach(judge: Judge, trial: Trial) -> tuple[np.ndarray, np.ndarray]:
