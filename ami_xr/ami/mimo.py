@@ -35,8 +35,8 @@ from ami_xr.ami.global_fit import (
     mode_vector_units,
     receptance_residues,
 )
+from ami_xr.ami.line_noise import NOISE_GROUP
 from ami_xr.ami.pipeline import identify_single, with_quality
-from ami_xr.ami.refine import NOISE_GROUP
 from ami_xr.ami.settings import GlobalFitSettings, IdentifySettings, from_attrs
 from ami_xr.core import flags
 from ami_xr.core import mimo as cm

@@ -62,6 +62,7 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.ami import common as c
 from ami_xr.ami.global_fit import RESIDUAL_KIND, receptance_mode_vectors, residue_units
+from ami_xr.ami.line_noise import line_noise_shape
 from ami_xr.ami.settings import (
     FrfAttributes,
     GlobalFitSettings,
@@ -123,51 +124,6 @@ def _refine_block(frf, freq, lam0, res0, *, settings, model, trace) -> tuple[np.
     if trace is not None:
         detail(f"standard errors, {result.lam.size} modes, {int(result.n_iter)} iterations")
     return tuple(getattr(result, name) for name in _OUTPUTS)
-
-
-# Coordinate on ``point``: the FRFs of one group share a line shape of the noise model, each
-# group its own (the multi-reference path stacks one group per reference)
-NOISE_GROUP = "noise_group"
-
-
-def _line_noise_shape(ds: xr.Dataset, frf: xr.DataArray):
-    """Relative noise level of each line of ``frf`` from the stored per-line noise model
-    (``frf_line_noise_std`` of a measured FRF, from its coherence and averages): the median
-    over points of each point's noise relative to its median, scaled to median 1; with a
-    ``noise_group`` coordinate on ``point`` (two groups or more), one such shape per group.
-    Returns ``(shape (L,) or shapes (G, L), group of each point (P,) or None)``; ``(None,
-    None)`` when the FRF has no per-line noise model (the lines are then weighted alike)."""
-    if names.FRF_LINE_NOISE_STD not in ds:
-        return None, None
-    sd = ds[names.FRF_LINE_NOISE_STD].transpose(P, F).sel({F: frf[F].values})
-    sd = np.asarray(sd.values, dtype=np.float64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rel = sd / np.nanmedian(sd, axis=1, keepdims=True)
-    index = None
-    if NOISE_GROUP in frf.coords and frf[NOISE_GROUP].dims == (P,):
-        _, index = np.unique(np.asarray(frf[NOISE_GROUP].values), return_inverse=True)
-        index = index.ravel()
-    if index is None or index.max() < 1:
-        shape = _shape(rel)
-        return shape, None
-    shapes = [_shape(rel[index == g]) for g in range(index.max() + 1)]
-    if any(x is None for x in shapes):  # a group without a noise model: one shape for all
-        return _shape(rel), None
-    return np.array(shapes), index
-
-
-def _shape(rel: np.ndarray) -> np.ndarray | None:
-    """The median over points of their relative noise (P, L), median 1; None without two lines
-    of known level."""
-    with np.errstate(invalid="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN lines
-        shape = np.nanmedian(rel, axis=0)
-    ok = np.isfinite(shape) & (shape > 0)
-    if ok.sum() < 2:
-        return None
-    shape = np.where(ok, shape, np.median(shape[ok]))  # lines without a level: a typical one
-    shape = np.clip(shape / np.median(shape), 1e-3, 1e3)  # no line ignored, none dominant
-    return shape
 
 
 def _as(da: xr.DataArray, dtype) -> xr.DataArray:
@@ -394,7 +350,7 @@ def refine(
         drive_index=c.drive_index(ds),
         decay=float(data.exponential_window_corrected),
     )
-    shape, group = _line_noise_shape(ds, frf)
+    shape, group = line_noise_shape(ds, frf)
     model = model._replace(line_noise=shape, line_group=group)
     if n_mode == 0:
         out = ds.assign_coords({names.RESIDUAL_TERM: _LOWER_UPPER}) if terms else ds.copy()

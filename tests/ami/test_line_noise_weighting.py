@@ -9,7 +9,7 @@ import xarray as xr
 
 import ami_xr
 from ami_xr import names
-from ami_xr.ami.refine import _line_noise_shape
+from ami_xr.ami.line_noise import line_noise_shape as _line_noise_shape
 from ami_xr.simulate import clustered_system
 
 
