@@ -119,3 +119,49 @@ def test_standard_errors_are_those_of_the_grouped_fit():
     # at the truth with the true noise the reported std is the bound; at the estimate with the
     # estimated levels it agrees within the noise of the level estimates
     np.testing.assert_allclose(out[names.NATURAL_FREQUENCY_STD].values, _bound(res, sd), rtol=0.2)
+
+
+def test_multi_reference_identify_weights_each_reference_by_its_own_shape(monkeypatch):
+    """``identify`` on (reference, point, frequency) FRFs with a stored noise model: the stacked
+    FRFs carry one noise group per reference, and the refinement fits with both shapes."""
+    from ami_xr.core import grouped
+
+    res, sd, group = _system()
+    flat = _dataset(res, sd, group, seed=1, groups=False)
+    shape = (2, N_POINT, FREQ.size)
+    ds = xr.Dataset(
+        {
+            names.FRF: (
+                (names.REFERENCE, names.POINT, names.FREQUENCY),
+                flat[names.FRF].values.reshape(shape),
+            ),
+            names.FRF_LINE_NOISE_STD: (
+                (names.REFERENCE, names.POINT, names.FREQUENCY),
+                sd.reshape(shape),
+            ),
+        },
+        coords={
+            names.REFERENCE: [101, 102],
+            names.POINT: list(range(1, N_POINT + 1)),
+            names.FREQUENCY: FREQ,
+        },
+        attrs={names.ATTR_SOURCE: names.SOURCE_ANALYTIC},
+    )
+    sizes = []
+    split = grouped.split
+
+    def recording(prob, shapes, index):
+        sizes.append(np.bincount(index).tolist())
+        return split(prob, shapes, index)
+
+    monkeypatch.setattr(grouped, "split", recording)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = ami_xr.identify(ds)
+    assert sizes and all(s == [N_POINT, N_POINT] for s in sizes)
+    # every mode found within a few bounds (a pole the noisier reference alone reports at the
+    # band's edge, where its noise is 300 times the other's, may join the union: not tested)
+    fn = out[names.NATURAL_FREQUENCY].values
+    true = np.abs(LAM) / (2 * np.pi)
+    nearest = fn[np.argmin(np.abs(fn[None, :] - true[:, None]), axis=1)]
+    np.testing.assert_allclose(nearest, true, atol=4 * _bound(res, sd).max())
