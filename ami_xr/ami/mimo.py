@@ -35,6 +35,7 @@ from ami_xr.ami.global_fit import (
     mode_vector_units,
     receptance_residues,
 )
+from ami_xr.ami.line_noise import NOISE_GROUP
 from ami_xr.ami.pipeline import identify_single, with_quality
 from ami_xr.ami.settings import GlobalFitSettings, IdentifySettings, from_attrs
 from ami_xr.core import flags
@@ -129,7 +130,9 @@ def _stacked(ds: xr.Dataset, refs: list, points: list) -> xr.Dataset:
             )
         else:
             out[name] = da
-    out = out.assign_coords({names.POINT: labels})
+    # each reference's FRFs share a line shape of the noise model (its force's), not the others'
+    group = (names.POINT, np.repeat(np.arange(R), P))
+    out = out.assign_coords({names.POINT: labels, NOISE_GROUP: group})
     out.attrs = {k: v for k, v in ds.attrs.items() if k != names.ATTR_DRIVE_POINT}
     drives = [i * P + points.index(r) for i, r in enumerate(refs) if r in points]
     if drives:  # the SIMO phases' own drive point (flags, provisional scaling): the first one

@@ -51,6 +51,10 @@ SPLIT_START = 0.25
 # The tail pole starts this many half-power bandwidths above the last line
 TAIL_START = 4.0
 MAX_TAIL_POLES = 2
+# The tail pole is tried only when a pole of the band lies within this many of its half-power
+# bandwidths of the last line: farther, what lies above reaches the band as a smooth tail the
+# upper residual term takes (the refits of the trial cost as much as the first pass)
+TAIL_NEAR = 5.0
 
 
 def single_reference_poles(ds: xr.Dataset, refs: list, settings: IdentifySettings):
@@ -233,10 +237,13 @@ def with_tail_poles(
     (a pole fitted to a close pair there goes to the tail instead). A pole above the lines
     models that tail; it is not reported (:func:`ami_xr.ami.pipeline.drop_beyond_lines`). Its
     start: ``TAIL_START`` half-power bandwidths above the last line or the highest pole above
-    it, at the median damping ratio of the poles. Returns the result and the natural
-    frequencies (Hz) of the poles added."""
+    it, at the median damping ratio of the poles. Tried only when a pole of the band lies
+    within ``TAIL_NEAR`` half-power bandwidths of the last line (:func:`near_the_edge`).
+    Returns the result and the natural frequencies (Hz) of the poles added."""
     lines = band_of(stacked, settings.fmin, settings.fmax, "identify")[names.FREQUENCY].values
     f_last = float(lines[-1])
+    if not near_the_edge(_measured_poles(stacked, result), f_last):
+        return result, np.zeros(0)
     added: list[float] = []
     for _ in range(MAX_TAIL_POLES):
         cost0 = result.attrs.get(names.ATTR_REFINE_COST)
@@ -256,6 +263,14 @@ def with_tail_poles(
         result = out
         added.append(float(got[above].max()))
     return result, np.asarray(added)
+
+
+def near_the_edge(lam: np.ndarray, f_last: float) -> bool:
+    """Whether a pole of ``lam`` (measured) at or below ``f_last`` (Hz) lies within
+    ``TAIL_NEAR`` of its half-power bandwidths ``2 zeta f_n`` of it."""
+    fn, zeta = natural_frequency(lam), damping_ratio(lam)
+    inside = np.isfinite(fn) & (fn <= f_last)
+    return bool(np.any(inside & (f_last - fn <= TAIL_NEAR * 2.0 * zeta * fn)))
 
 
 def _frozen(out: xr.Dataset) -> np.ndarray:

@@ -62,6 +62,7 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.ami import common as c
 from ami_xr.ami.global_fit import RESIDUAL_KIND, receptance_mode_vectors, residue_units
+from ami_xr.ami.line_noise import line_noise_shape
 from ami_xr.ami.settings import (
     FrfAttributes,
     GlobalFitSettings,
@@ -123,25 +124,6 @@ def _refine_block(frf, freq, lam0, res0, *, settings, model, trace) -> tuple[np.
     if trace is not None:
         detail(f"standard errors, {result.lam.size} modes, {int(result.n_iter)} iterations")
     return tuple(getattr(result, name) for name in _OUTPUTS)
-
-
-def _line_noise_shape(ds: xr.Dataset, frf: xr.DataArray) -> np.ndarray | None:
-    """Relative noise level of each line of ``frf`` from the stored per-line noise model
-    (``frf_line_noise_std`` of a measured FRF, from its coherence and averages): the median
-    over points of each point's noise relative to its median, scaled to median 1. None when
-    the FRF has no per-line noise model (the lines are then weighted alike)."""
-    if names.FRF_LINE_NOISE_STD not in ds:
-        return None
-    sd = ds[names.FRF_LINE_NOISE_STD].transpose(P, F).sel({F: frf[F].values})
-    sd = np.asarray(sd.values, dtype=np.float64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        shape = np.nanmedian(sd / np.nanmedian(sd, axis=1, keepdims=True), axis=0)
-    ok = np.isfinite(shape) & (shape > 0)
-    if ok.sum() < 2:
-        return None
-    shape = np.where(ok, shape, np.median(shape[ok]))  # lines without a level: a typical one
-    shape = np.clip(shape / np.median(shape), 1e-3, 1e3)  # no line ignored, none dominant
-    return shape
 
 
 def _as(da: xr.DataArray, dtype) -> xr.DataArray:
@@ -367,8 +349,9 @@ def refine(
         residual_kind=RESIDUAL_KIND.get(data.frf_type, 0),
         drive_index=c.drive_index(ds),
         decay=float(data.exponential_window_corrected),
-        line_noise=_line_noise_shape(ds, frf),
     )
+    shape, group = line_noise_shape(ds, frf)
+    model = model._replace(line_noise=shape, line_group=group)
     if n_mode == 0:
         out = ds.assign_coords({names.RESIDUAL_TERM: _LOWER_UPPER}) if terms else ds.copy()
     else:

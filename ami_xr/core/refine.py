@@ -15,7 +15,7 @@ from typing import NamedTuple, Protocol
 
 import numpy as np
 
-from ami_xr.core import varpro
+from ami_xr.core import grouped, varpro
 from ami_xr.core.matching import match_by_distance
 from ami_xr.core.modal import modal_std, mode_vectors
 from ami_xr.core.model import RESIDUAL_TERMS
@@ -47,7 +47,9 @@ class RefineModel(NamedTuple):
     mobility, 2 accelerance), the drive point's row (None: no drive point) and the decay rate
     (1/s) of an exponential window already corrected in the starting eigenvalues;
     ``line_noise``: the noise level of each line relative to the others (L,), from the per-line
-    noise model (None: the same on every line)."""
+    noise model (None: the same on every line), or one such shape per group of FRFs (G, L)
+    with ``line_group`` (P,) the group of each FRF (:mod:`ami_xr.core.grouped`: the FRFs of
+    each reference of a multi-reference test)."""
 
     dt: float
     n_samples: int
@@ -56,6 +58,7 @@ class RefineModel(NamedTuple):
     drive_index: int | None
     decay: float
     line_noise: np.ndarray | None = None
+    line_group: np.ndarray | None = None
 
 
 class Trace(Protocol):
@@ -117,7 +120,7 @@ def refine_arrays(
     n_point = frf.shape[0]
     decay = model.decay
     omega = 2.0 * np.pi * np.asarray(freq, dtype=np.float64)
-    prob = varpro.make_problem(
+    base = varpro.make_problem(
         frf,
         omega,
         model.dt,
@@ -126,8 +129,10 @@ def refine_arrays(
         nyquist=np.pi / model.dt if model.dt else None,
         residual_kind=model.residual_kind,
     )
-    if model.line_noise is not None:
-        prob = _whitened(prob, model.line_noise)
+    shapes, index = _noise_groups(model, n_point)
+    # the order tests need one basis: they run on one shape for all FRFs (the median)
+    common = model.line_noise if shapes is None else _common_shape(shapes, index)
+    prob = base if common is None else grouped.whitened(base, common)
     # An exponential window multiplies exp(lam t) by exp(-decay t): data poles are lam - decay.
     lam0 = np.asarray(lam0, dtype=np.complex128)
     min_width = 2.0 * (omega[1] - omega[0]) if omega.size > 1 else 0.0
@@ -159,23 +164,73 @@ def refine_arrays(
             # a mode the polish froze stays at its start: at AMI's value only if it was there
             state.fit, state.free = polish[0], free & polish[1]
             state.at_ami = state.at_ami & ~polish[1]
-    return _result(prob, state, n_ami, start_cost, model.drive_index, decay, min_width)
+    groups = None
+    if shapes is not None and state.fit.proj.ok and np.isfinite(state.fit.cost):
+        set_stage(trace, "noise per group")
+        groups = grouped.split(base, shapes, index)
+        start_cost = _grouped_fit(groups, state, lam0[keep] - decay, settings, min_width, trace)
+        prob = dataclasses.replace(prob, y=grouped.stitched(groups, n_point, groups.fit[1])[0])
+    return _result(prob, state, n_ami, start_cost, model.drive_index, decay, min_width, groups)
 
 
-def _whitened(prob: varpro.Problem, line_noise: np.ndarray) -> varpro.Problem:
-    """The problem with every line divided by its relative noise level (data and model alike,
-    through the line weights): the likelihood of noise whose level varies along frequency by
-    the same shape at every point (a per-point level times a per-line shape)."""
-    w = 1.0 / np.asarray(line_noise, dtype=np.float64)
-    y = prob.y * np.concatenate([w, w])[None, :]
-    return dataclasses.replace(prob, y=np.ascontiguousarray(y), line_weight=prob.line_weight * w)
+def _noise_groups(model: RefineModel, n_point: int):
+    """The line shapes (G, L) and the group of each FRF (P,) when the FRFs come in two groups or
+    more with a shape each; ``(None, None)`` otherwise."""
+    if model.line_noise is None or model.line_group is None:
+        return None, None
+    shapes = np.atleast_2d(np.asarray(model.line_noise, dtype=np.float64))
+    index = np.asarray(model.line_group, dtype=np.int64)
+    if index.shape != (n_point,) or index.min() < 0 or index.max() >= shapes.shape[0]:
+        raise ValueError(f"line_group: expected {n_point} indices into {shapes.shape[0]} shapes")
+    if np.unique(index).size < 2:
+        return None, None
+    return shapes, index
+
+
+def _common_shape(shapes: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """One line shape for all FRFs (median over the FRFs of their group's shape, median 1)."""
+    shape = np.median(shapes[index], axis=0)
+    return shape / np.median(shape)
+
+
+def _grouped_fit(groups, state: State, start, settings, min_width, trace) -> float:
+    """The eigenvalues of ``state`` polished with each group's line shape
+    (:func:`ami_xr.core.grouped.fit`); a polish that takes a mode farther than ``max_shift``
+    half-power bandwidths is not kept (the fit of the common shape stays). Stores the fit in
+    ``groups.fit`` (as ``(lam, projections)``) and ``state.fit``; returns the objective at the
+    starting eigenvalues ``start`` (the data's poles of the first fit's start)."""
+    fit = state.fit
+    free = state.free
+    got = grouped.fit(groups, fit.lam, free, max_iter=settings.max_iter, tol=settings.tol)
+    state.n_iter += got.n_iter
+    if trace is not None:
+        trace.append(got.n_iter)
+    width = np.maximum(2.0 * np.abs(fit.lam.real), min_width)
+    moved = np.abs(got.lam - fit.lam) > settings.max_shift * width
+    if not np.all(np.isfinite(got.lam)) or moved.any():
+        lam, converged = fit.lam, fit.converged
+        projections, cost = grouped.project(groups, lam)
+    else:
+        lam, converged, projections, cost = got.lam, got.converged, got.projections, got.cost
+    rss = grouped.stitched(groups, state.fit.proj.rss.size, projections)[1]
+    coef = np.empty((rss.size, projections[0].coef.shape[1]))
+    for r, proj in zip(groups.rows, projections, strict=True):
+        coef[r] = proj.coef
+    ok = all(p.ok for p in projections)
+    proj = dataclasses.replace(projections[0], lam=lam, coef=coef, rss=rss, ok=ok)
+    state.fit = dataclasses.replace(
+        fit, lam=lam, proj=proj, cost=cost, converged=converged, mode_step=None
+    )
+    groups.fit[:] = [lam, projections]
+    return grouped.project(groups, start)[1]
 
 
 def _result(
-    prob, state: State, n_ami: int, start_cost, drive_index, decay, min_width
+    prob, state: State, n_ami: int, start_cost, drive_index, decay, min_width, groups=None
 ) -> RefineResult:
     """Statuses, standard errors, mode vectors and residual terms of the final fit, with the
-    output modes matched to their AMI modes."""
+    output modes matched to their AMI modes (``groups``: the FRFs' groups of
+    :func:`_grouped_fit`, whose Fisher information gives the standard errors)."""
     fit, free, lam0 = state.fit, state.free, state.lam0
     n_point = prob.n_points
     residual_terms = prob.residual_terms
@@ -201,7 +256,10 @@ def _result(
     if proj.ok:
         dof = max(prob.n_rows - n_coef - 2.0 * free.sum() / max(n_point, 1), 1.0)
         noise_var = np.maximum(proj.rss, 1e-300) / dof
-        cov = varpro.covariance(prob, proj, noise_var, drive_index, lam_shift=decay)
+        if groups is None:
+            cov = varpro.covariance(prob, proj, noise_var, drive_index, lam_shift=decay)
+        else:
+            cov = grouped.covariance(groups, groups.fit[1], noise_var, drive_index, decay)
         residue = cov.residue
         cov_theta = cov.cov_theta
         res_std = np.sqrt(np.maximum(cov.residue_var, 0.0))

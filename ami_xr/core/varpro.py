@@ -385,6 +385,7 @@ class Covariance:
     dc_dtheta: np.ndarray  # (P, p, 2K) derivative of the coefficients by the eigenvalues
     cov_c_theta: np.ndarray  # (P, p, 2K) cov(coefficients, eigenvalues)
     cov_lin: np.ndarray  # (p, p) (R'R)^-1
+    residue_cov: np.ndarray | None = None  # (P, K, 2, 2) of (Re A_jk, Im A_jk)
     mode_vector: np.ndarray | None = None  # (P, K) eq. 8, with a drive point only
     mode_vector_var: np.ndarray | None = None  # (P, K) E|dPhi|^2, with a drive point only
 
@@ -397,6 +398,7 @@ def covariance(
     *,
     quantity_power: int = 0,
     lam_shift: float = 0.0,
+    cov_theta: np.ndarray | None = None,
 ) -> Covariance:
     """Covariances of eigenvalues, residues and mode vectors at ``proj`` (Gauss-Newton / Fisher).
 
@@ -405,14 +407,17 @@ def covariance(
     ``proj.lam``; the physical eigenvalues used for the mode vectors are ``proj.lam + lam_shift``
     (an exponential window of decay rate ``b`` shifts every pole by ``-b``).
 
+    ``cov_theta`` (2K, 2K): the eigenvalues' covariance when they are shared with FRFs outside
+    ``prob`` (:mod:`ami_xr.core.grouped`: a problem per group of FRFs with its own line
+    weights); default the inverse of this problem's Fisher information.
+
     Returns a :class:`Covariance`; its mode-vector fields are None without a drive point.
     """
     lam = proj.lam
     n_mode = lam.shape[0]
     n_point = proj.coef.shape[0]
-    weight = 1.0 / noise_var
-    h, _ = gauss_newton(prob, proj, weight)
-    cov_theta = np.linalg.pinv(h)
+    if cov_theta is None:
+        cov_theta = np.linalg.pinv(gauss_newton(prob, proj, 1.0 / noise_var)[0])
     # c_j = R^-1 Q' (y_j - V M_j dtheta) -> dc_j/dtheta = -G0 M_j with G0 = R^-1 Q' V
     g0 = np.linalg.solve(proj.r, proj.qtv)  # (p, 2K)
     rinv = np.linalg.inv(proj.r)
@@ -447,12 +452,24 @@ def covariance(
         dc_dtheta=hj,
         cov_c_theta=hc,
         cov_lin=cov_lin,
+        residue_cov=cov_cc_blocks,
     )
     if drive_index is None:
         return out
+    return with_mode_vectors(out, lam + lam_shift, drive_index, quantity_power)
+
+
+def with_mode_vectors(
+    out: Covariance, lam: np.ndarray, drive_index: int, quantity_power: int = 0
+) -> Covariance:
+    """``out`` with the mode vectors (eq. 8 at the drive point ``drive_index``) of its residues
+    and their variances, from its per-point blocks (``residue_cov``, ``dc_dtheta``,
+    ``cov_c_theta``) and ``cov_theta``; ``lam`` the physical eigenvalues."""
+    residue, cov_theta = out.residue, out.cov_theta
+    hj, hc, cov_cc_blocks = out.dc_dtheta, out.cov_c_theta, out.residue_cov
+    n_point, n_mode = residue.shape
     # Mode vectors (eq. 8) from displacement residues A_disp = A / lam^q.
     P_ = drive_index
-    lam = lam + lam_shift
     lam_b = lam[None, :]
     a_disp = residue / lam_b**quantity_power
     phi_p = np.sqrt(a_disp[P_] / lam)

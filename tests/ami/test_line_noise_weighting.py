@@ -9,7 +9,7 @@ import xarray as xr
 
 import ami_xr
 from ami_xr import names
-from ami_xr.ami.refine import _line_noise_shape
+from ami_xr.ami.line_noise import line_noise_shape as _line_noise_shape
 from ami_xr.simulate import clustered_system
 
 
@@ -37,10 +37,30 @@ def test_line_noise_shape_is_relative_and_robust():
     frf = xr.DataArray(
         np.zeros((2, 6)), dims=(names.POINT, names.FREQUENCY), coords={names.FREQUENCY: f}
     )
-    shape = _line_noise_shape(ds, frf)
+    shape, group = _line_noise_shape(ds, frf)
     # per-point levels divided out (1 and 10), median over points, median scaled to 1
     np.testing.assert_allclose(shape, [1, 1, 2, 2, 1, 1], rtol=1e-12)
-    assert _line_noise_shape(xr.Dataset(coords={names.FREQUENCY: f}), frf) is None
+    assert group is None
+    assert _line_noise_shape(xr.Dataset(coords={names.FREQUENCY: f}), frf) == (None, None)
+
+
+def test_line_noise_shape_per_group():
+    f = np.arange(6.0)
+    sd = np.array([[1.0, 1, 2, 2, 4, 4], [10.0, 10, 20, 20, 40, 40], [3.0, 3, 3, 1, 1, 1]])
+    ds = xr.Dataset(
+        {names.FRF_LINE_NOISE_STD: ((names.POINT, names.FREQUENCY), sd)},
+        coords={names.FREQUENCY: f},
+    )
+    frf = xr.DataArray(
+        np.zeros((3, 6)),
+        dims=(names.POINT, names.FREQUENCY),
+        coords={names.FREQUENCY: f, "noise_group": (names.POINT, ["b", "b", "a"])},
+    )
+    shapes, group = _line_noise_shape(ds, frf)
+    # one shape per group (labels sorted: "a" is group 0), each of median 1
+    np.testing.assert_array_equal(group, [1, 1, 0])
+    np.testing.assert_allclose(shapes[1], [0.5, 0.5, 1, 1, 2, 2], rtol=1e-12)
+    np.testing.assert_allclose(shapes[0], [1.5, 1.5, 1.5, 0.5, 0.5, 0.5], rtol=1e-12)
 
 
 def test_noisy_lines_are_discounted():

@@ -189,3 +189,18 @@ def test_residual_terms_on_exact_frfs_only_when_a_pole_lies_beyond_the_lines():
     measured = ds.assign_attrs({names.ATTR_SOURCE: names.SOURCE_MEASURED})
     assert rule(measured, beyond, SETTINGS) is False  # as set (measured: "auto" fits them)
     assert rule(ds, lam, IdentifySettings(residual_terms=True)) is True
+
+
+def test_no_tail_pole_is_tried_when_no_pole_is_near_the_last_line(monkeypatch):
+    """The band's last pole 12 half-power bandwidths below the last line: what lies above
+    reaches the band as a smooth tail, and no refit is spent on a tail pole (issue 41 item 3)."""
+    truth = _truth([8.0, 15.0, 17.5, 26.0], [0.01, 0.01, 0.01, 0.01])
+    lam = truth[names.EIGENVALUE].values
+    f = np.linspace(2, 22, 501)  # 17.5 Hz: (22 - 17.5) / 0.35 = 12.9 bandwidths below
+    _, stacked, inband = _start(truth, f, [2, 5], 0.001, 0, lam[:3])
+    assert not mimo_refit.near_the_edge(lam[:3], 22.0)
+    assert mimo_refit.near_the_edge(lam[:3], 19.0)  # 4.3 bandwidths: tried
+    calls = []
+    monkeypatch.setattr(mimo_refit, "_trial", lambda *a, **k: calls.append(a))
+    out, added = mimo_refit.with_tail_poles(stacked, inband, SETTINGS)
+    assert not calls and added.size == 0 and out is inband

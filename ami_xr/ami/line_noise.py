@@ -1,0 +1,64 @@
+"""The refinement's line weights from the stored per-line noise model (issues 20, 41).
+
+``frf_line_noise_std`` (point, frequency) of a measured FRF (its coherence and averages, or the
+noise model :mod:`ami_xr.ami.whitening` passes on) is a level per point times a shape along
+frequency. The level of each FRF is profiled out by the refinement's likelihood; the shape
+weights the lines. FRFs that share a force share a shape; FRFs of several references do not:
+a ``noise_group`` coordinate on ``point`` gives each group (reference) its own shape
+(:mod:`ami_xr.core.grouped`).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+
+P, F = names.POINT, names.FREQUENCY
+
+# Coordinate on ``point``: the FRFs of one group share a line shape of the noise model, each
+# group its own (the multi-reference path stacks one group per reference)
+NOISE_GROUP = "noise_group"
+
+
+def line_noise_shape(ds: xr.Dataset, frf: xr.DataArray):
+    """Relative noise level of each line of ``frf`` from the stored per-line noise model
+    (``frf_line_noise_std`` of a measured FRF, from its coherence and averages): the median
+    over points of each point's noise relative to its median, scaled to median 1; with a
+    ``noise_group`` coordinate on ``point`` (two groups or more), one such shape per group.
+    Returns ``(shape (L,) or shapes (G, L), group of each point (P,) or None)``; ``(None,
+    None)`` when the FRF has no per-line noise model (the lines are then weighted alike)."""
+    if names.FRF_LINE_NOISE_STD not in ds:
+        return None, None
+    sd = ds[names.FRF_LINE_NOISE_STD].transpose(P, F).sel({F: frf[F].values})
+    sd = np.asarray(sd.values, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rel = sd / np.nanmedian(sd, axis=1, keepdims=True)
+    index = None
+    if NOISE_GROUP in frf.coords and frf[NOISE_GROUP].dims == (P,):
+        _, index = np.unique(np.asarray(frf[NOISE_GROUP].values), return_inverse=True)
+        index = index.ravel()
+    if index is None or index.max() < 1:
+        shape = _shape(rel)
+        return shape, None
+    shapes = [_shape(rel[index == g]) for g in range(index.max() + 1)]
+    if any(x is None for x in shapes):  # a group without a noise model: one shape for all
+        return _shape(rel), None
+    return np.array(shapes), index
+
+
+def _shape(rel: np.ndarray) -> np.ndarray | None:
+    """The median over points of their relative noise (P, L), median 1; None without two lines
+    of known level."""
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN lines
+        shape = np.nanmedian(rel, axis=0)
+    ok = np.isfinite(shape) & (shape > 0)
+    if ok.sum() < 2:
+        return None
+    shape = np.where(ok, shape, np.median(shape[ok]))  # lines without a level: a typical one
+    shape = np.clip(shape / np.median(shape), 1e-3, 1e3)  # no line ignored, none dominant
+    return shape
