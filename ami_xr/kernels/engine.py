@@ -499,10 +499,79 @@ def _order_check(scene, params, modes, n, work, masked):
     return n, False, -1
 
 
+class Resume(NamedTuple):
+    """Where :func:`isolate_groups` goes on after it returned early (arrays, updated in place):
+    the group and restart it was at and the state of that group's isolation."""
+
+    counts: np.ndarray
+    """(8,) int64: group, started (0/1), restarts done, modes, added modes remembered, last
+    (0/1), finished (0/1), converged (0/1) (the ``_G``... indices)."""
+    masked: np.ndarray
+    """(F,) bool: lines the model-order check has tried."""
+    tried: np.ndarray
+    """(max_modes + 4,) complex: modes the order check added."""
+    fails: np.ndarray
+    """(max_modes,) int64: failed fits of each mode."""
+    work: Work
+    """The group's work arrays (``data`` a copy of the group's FRFs)."""
+
+
+# indices of Resume.counts
+_GROUP, _STARTED, _RESTART, _N, _N_TRIED, _LAST, _FINISHED, _CONVERGED = range(8)
+
+
+def new_resume(n_p: int, n_f: int, max_modes: int) -> Resume:
+    """A :class:`Resume` record for groups of ``n_p`` FRFs of ``n_f`` lines, at its start."""
+    m = int(max_modes)
+    return Resume(
+        counts=np.zeros(8, dtype=np.int64),
+        masked=np.zeros(n_f, dtype=np.bool_),
+        tried=np.empty(m + 4, dtype=np.complex128),
+        fails=np.zeros(m, dtype=np.int64),
+        work=_work(np.empty((n_p, n_f), dtype=np.complex128), m),
+    )
+
+
+def new_result(n_g: int, n_p: int, max_modes: int) -> IsolateResult:
+    """An :class:`IsolateResult` of ``n_g`` groups of ``n_p`` FRFs, NaN-padded, to fill."""
+    nan = complex(np.nan, np.nan)
+    return IsolateResult(
+        lam=np.full((n_g, max_modes), nan),
+        res=np.full((n_g, n_p, max_modes), nan),
+        n_modes=np.zeros(n_g, dtype=np.int64),
+        iterations=np.zeros(n_g, dtype=np.int64),
+        converged=np.zeros(n_g, dtype=np.bool_),
+    )
+
+
+@jit(inline="always")
+def _start_group(data, lam0, res0, n0, g, out, st, m):
+    """Group ``g``'s starting modes into ``out`` and a fresh state in ``st``."""
+    n_p = data.shape[1]
+    n = min(n0[g], m)
+    for k in range(n):
+        out.lam[g, k] = lam0[g, k]
+        for j in range(n_p):
+            out.res[g, j, k] = res0[g, j, k]
+    work = st.work
+    work.data[:, :] = data[g]
+    work.wts[:] = 1.0
+    work.wts_all[:, :] = 1.0
+    work.power[:] = 0.0
+    work.back[:] = complex(np.nan, np.nan)
+    work.pinned[:] = False
+    st.fails[:] = 0
+    st.masked[:] = False
+    c = st.counts
+    c[_STARTED], c[_RESTART], c[_N], c[_N_TRIED] = 1, 0, n, 0
+    c[_LAST], c[_FINISHED], c[_CONVERGED] = 0, 0, 0
+
+
 @jit
-def isolate_groups(data, lam0, res0, n0, scene, params):
+def isolate_groups(data, lam0, res0, n0, scene, params, out, st, budget):
     """Isolation with the model-order check of every group ``data[g]`` (P, F) (noise units),
-    from the first ``n0[g]`` of the eigenvalues ``lam0[g]`` and residues ``res0[g]``.
+    from the first ``n0[g]`` of the eigenvalues ``lam0[g]`` and residues ``res0[g]``, into
+    ``out`` (:func:`new_result`), with the state ``st`` (:func:`new_resume`).
 
     A restart follows every change of the model (merge, prune, added or split mode). A mode the
     order check adds and then loses (merged into a neighbour the sweeps ran it into, or pruned
@@ -512,62 +581,64 @@ def isolate_groups(data, lam0, res0, n0, scene, params):
     error of its fit, not new modes): otherwise (and with ``paper_sweeps``, as in the paper) the
     loop cycles until the restart budget is spent. ``converged``: the last sweeps met their
     stopping rule and no change is pending.
+
+    With ``budget > 0`` the call returns ``False`` before a restart once the restarts it ran
+    have cost ``budget`` (sweeps times FRFs times lines, at least one restart per call): called
+    again with the same arguments it goes on where it stopped (a caller can handle interrupts
+    in between; the results are those of one call). Returns ``True`` when every group is done.
     """
     n_g, n_p, n_f = data.shape
     m = params.max_modes
-    nan = complex(np.nan, np.nan)
-    out = IsolateResult(
-        lam=np.full((n_g, m), nan),
-        res=np.full((n_g, n_p, m), nan),
-        n_modes=np.zeros(n_g, dtype=np.int64),
-        iterations=np.zeros(n_g, dtype=np.int64),
-        converged=np.zeros(n_g, dtype=np.bool_),
-    )
-    masked = np.empty(n_f, dtype=np.bool_)
-    tried = np.empty(m + 4, dtype=np.complex128)
-    for g in range(n_g):
-        n = min(n0[g], m)
-        for k in range(n):
-            out.lam[g, k] = lam0[g, k]
-            for j in range(n_p):
-                out.res[g, j, k] = res0[g, j, k]
-        modes = ModeSet(out.lam[g], out.res[g], np.zeros(m, dtype=np.int64))
-        work = _work(data[g], m)
-        masked[:] = False
-        n_tried = 0
-        last = False
-        finished = False
-        converged = False
-        for _restart in range(m + 4):
+    c = st.counts
+    work = st.work
+    masked = st.masked
+    tried = st.tried
+    spent = 0
+    while c[_GROUP] < n_g:
+        g = c[_GROUP]
+        if c[_STARTED] == 0:
+            _start_group(data, lam0, res0, n0, g, out, st, m)
+        modes = ModeSet(out.lam[g], out.res[g], st.fails)
+        n = c[_N]
+        while c[_RESTART] < m + 4:
+            if budget > 0 and spent >= budget:
+                c[_N] = n
+                return False
+            c[_RESTART] += 1
             it, converged = _sweeps(scene, params, modes, n, work)
+            c[_CONVERGED] = converged
+            spent += (it + 1) * n_p * n_f
             out.iterations[g] += it
             n, changed = _merge_prune(scene, params, modes, n, work.pinned)
             if changed:
                 continue
-            finished = n >= m or last
-            if finished:
+            if n >= m or c[_LAST] != 0:
+                c[_FINISHED] = 1
                 break
             n, added, ks = _order_check(scene, params, modes, n, work, masked)
             if not added:
-                finished = True
+                c[_FINISHED] = 1
                 break
             if ks >= 0:
                 continue
             # an added mode near one added before (and lost since: no mode is near that one)
             new = modes.lam[n - 1]
             one, none = np.int64(1), np.int64(-1)  # typed ints: one specialisation each
+            n_tried = c[_N_TRIED]
             for t in range(0 if params.paper_sweeps else n_tried):
                 again = nearest_within(tried[t : t + 1], one, new, params.merge_tol, none) >= 0
                 if again and nearest_within(modes.lam, n - 1, tried[t], params.merge_tol, none) < 0:
                     work.pinned[n - 1] = True
-                    last = True
+                    c[_LAST] = 1
                     break
             if n_tried < tried.shape[0]:
                 tried[n_tried] = new
-                n_tried += 1
+                c[_N_TRIED] = n_tried + 1
         out.n_modes[g] = n
-        out.converged[g] = converged and finished
-    return out
+        out.converged[g] = c[_CONVERGED] != 0 and c[_FINISHED] != 0
+        c[_GROUP] += 1
+        c[_STARTED] = 0
+    return True
 
 
 @jit
