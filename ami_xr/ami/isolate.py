@@ -193,6 +193,10 @@ def _isolate_per_frf(ds, omega, data_model, sub, settings, sigma) -> _Isolated:
     )
 
 
+def _checkpoint() -> None:
+    interrupt.checkpoint()  # looked up at each call (a test may replace it)
+
+
 def _isolate_simo_modes(ds, omega, data_model, sub, settings, sigma) -> _Isolated:
     """Global SIMO isolation: the subtraction candidates matched into starting modes, each
     single-mode fit shared by all FRFs; per-point estimates where the mode is detected."""
@@ -216,8 +220,7 @@ def _isolate_simo_modes(ds, omega, data_model, sub, settings, sigma) -> _Isolate
     params = kernel_params(sub, settings)
     # the kernel returns between restarts to a checkpoint: a held Ctrl-C waits for one piece
     r = ki.isolate_simo(
-        g, omega, dt, n_samples, lam0, min(n0, sub.max_modes), sigma, params,
-        between=lambda: interrupt.checkpoint(),
+        g, omega, dt, n_samples, lam0, min(n0, sub.max_modes), sigma, params, between=_checkpoint
     )
     order = np.argsort(np.abs(r.lam[: r.n_modes]))
     eig = r.lam[: r.n_modes][order]

@@ -35,7 +35,6 @@ from ami_xr.kernels.peak import (
 )
 from ami_xr.kernels.single_mode import FIT_OK, fit_single
 from ami_xr.kernels.sorting import argsort_first
-from ami_xr.kernels.two_mode import fit_two
 
 FREEZE_CHANGE = 1e-3
 """A mode's fit band is kept fixed once its eigenvalue changes less than this (relative)."""
@@ -76,7 +75,7 @@ class IsolateParams(NamedTuple):
     (:data:`STOP_FRACTION`); 0: the relative change ``tol`` alone (the paper's criterion)."""
     paper_sweeps: bool
     """The paper's plain sweeps (per-FRF): order fixed per restart, bands over all lines, no
-    cycle averaging, no pinning of re-added modes (the SIMO measures of :func:`_sweeps`)."""
+    cycle averaging, no pinning of re-added modes (the SIMO measures of :func:`sweeps`)."""
 
 
 class ModeSet(NamedTuple):
@@ -145,8 +144,22 @@ class SweepState(NamedTuple):
     """Sweeps in which its fit ran and failed."""
 
 
+# entries of ``groups.Resume.counts``: group; its isolation started (0/1); restarts done;
+# modes; added modes remembered; last restart (0/1); finished (0/1); converged (0/1); in the
+# order check (0/1, waiting for a two-mode fit); the order check's try; the split's state,
+# mode, band (lines AT_WL..AT_WH-1) and the fit's code (written by the caller)
+AT_GROUP, AT_STARTED, AT_RESTART, AT_N, AT_N_TRIED, AT_LAST, AT_FINISHED, AT_CONVERGED = range(8)
+AT_IN_CHECK, AT_TRY, AT_SPLIT, AT_KS, AT_WL, AT_WH, AT_SPLIT_CODE = range(8, 15)
+SPLIT_NONE, SPLIT_ASKED, SPLIT_FITTED = 0, 1, 2
+
+DONE, PAUSED, SPLIT_WANTED = 0, 1, -2
+"""What :func:`~.groups.isolate_groups` returns: every group done; paused between restarts
+(its work budget spent); a two-mode fit wanted (see :func:`~.groups.split_fit`).
+``SPLIT_WANTED`` is also the order check's ``ks`` for it."""
+
+
 @jit
-def _work(data, max_modes):
+def new_work(data, max_modes):
     """A :class:`Work` record for the group ``data`` (P, F) in noise units."""
     n_p, n_f = data.shape
     return Work(
@@ -248,7 +261,7 @@ def _mode_snr(grid, lam, res, k):
 
 
 @jit(inline="always")
-def _merge_prune(scene, params, modes, n, pinned):
+def merge_prune(scene, params, modes, n, pinned):
     """Duplicates (closer than ``merge_tol`` bandwidths) keep the mode with the larger total SNR;
     modes not above the noise floor in any FRF, or that failed too often, are removed.
     Returns ``(n, changed)``."""
@@ -289,7 +302,7 @@ def _merge_prune(scene, params, modes, n, pinned):
 def _fit_mode(scene, params, modes, n, k, work, state, it):
     """One sweep's update of mode ``k``: its band (kept while frozen), the fit on the isolated
     data of the group (FRFs weighted by the mode's SNR with ``reweight``), the two-state cycle
-    test. Returns the step's score (< 1: settled, see :func:`_sweeps`), -1 when not updated."""
+    test. Returns the step's score (< 1: settled, see :func:`sweeps`), -1 when not updated."""
     omega, x, dt, n_samples = scene.grid
     lam, res, fails = modes
     n_p = res.shape[0]
@@ -360,7 +373,7 @@ def _fit_mode(scene, params, modes, n, k, work, state, it):
 
 
 @jit(inline="always")
-def _sweeps(scene, params, modes, n, work):
+def sweeps(scene, params, modes, n, work):
     """Isolation sweeps until every eigenvalue has settled, or the early pruning after 3 sweeps
     finds an insignificant mode. Returns ``(iterations, converged)``.
 
@@ -421,15 +434,22 @@ def _sweeps(scene, params, modes, n, work):
 
 
 @jit(inline="always")
-def _order_check(scene, params, modes, n, work, masked):
+def order_check(scene, params, modes, n, work, masked, st):
     """Model-order check: a significant peak of the residual's power (over the noise and the
     residual that eigenvalue errors of size ``tol`` leave) where a physical mode fits adds it; a
     coherent residual inside a mode's ``+- 3 |Re lam|`` band splits that mode by a two-mode fit.
-    A window tried is masked. Returns ``(n, added, ks)``: ``ks`` the mode split, -1 for an added
-    mode."""
+    A window tried is masked. Returns ``(n, added, ks, iso)``: ``ks`` the mode split, -1 for an
+    added mode.
+
+    The two-mode fit is the caller's (compiled only when a split is tried): the check returns
+    ``ks = SPLIT_WANTED`` with the isolated data ``iso`` (P, F) of the mode to split (its band
+    in ``st.counts``); called again once ``st.split_lam``, ``st.split_res`` and the fit's code
+    are in ``st``, it takes the split or goes on with its next try, as in one pass."""
     omega, x, dt, n_samples = scene.grid
     lam, res, fails = modes
     n_p, n_f = work.data.shape
+    c = st.counts
+    no_iso = np.empty((0, 0), dtype=np.complex128)
     for k in range(n):
         mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
     _isolated_lines(work, res, n, np.int64(-1), np.int64(0), n_f)
@@ -438,7 +458,23 @@ def _order_check(scene, params, modes, n, work, masked):
         env = tolerance_envelope(omega, lam, res[j], n, params.tol)
         for i in range(n_f):
             stat[i] += abs(work.xn[j, i]) ** 2 / (1.0 + env[i] ** 2)
-    for _try in range(8):
+    first = c[AT_TRY]
+    if c[AT_SPLIT] == SPLIT_FITTED:  # the caller's two-mode fit of try ``first``
+        c[AT_SPLIT] = SPLIT_NONE
+        first += 1
+        ks = c[AT_KS]
+        if c[AT_SPLIT_CODE] == FIT_OK:
+            lam[ks] = st.split_lam[0]
+            for j in range(n_p):
+                res[j, ks] = st.split_res[j, 0]
+            lam[n] = st.split_lam[1]
+            for j in range(n_p):
+                res[j, n] = st.split_res[j, 1]
+            fails[n] = 0
+            c[AT_TRY] = 0
+            return n + 1, True, ks, no_iso
+    c[AT_TRY] = 0
+    for _try in range(first, 8):
         peak = -1
         for i in range(n_f):
             if not masked[i] and (peak < 0 or stat[i] > stat[peak]):
@@ -462,16 +498,8 @@ def _order_check(scene, params, modes, n, work, masked):
             for j in range(n_p):
                 add_mode(iso[j], x, lam[ks], res[j, ks], dt, n_samples, 1.0, np.int64(0), n_f)
                 work.wts[j] = work.wts_all[ks, j] if params.reweight else 1.0
-            l2 = np.empty(2, dtype=np.complex128)
-            r2 = np.empty((n_p, 2), dtype=np.complex128)
-            ws = omega[(wl + wh) // 2]
-            if fit_two(iso, scene.grid, wl, wh, ws, scene.limits, work.wts, l2, r2) != FIT_OK:
-                continue
-            lam[ks] = l2[0]
-            for j in range(n_p):
-                res[j, ks] = r2[j, 0]
-                r_new[j] = r2[j, 1]
-            new = l2[1]
+            c[AT_SPLIT], c[AT_KS], c[AT_WL], c[AT_WH], c[AT_TRY] = SPLIT_ASKED, ks, wl, wh, _try
+            return n, False, SPLIT_WANTED, iso
         else:
             # no duplicate test here: a coherent residual next to a mode (two close modes fitted
             # as one) must be able to split it; true duplicates merge after the restart
@@ -495,150 +523,8 @@ def _order_check(scene, params, modes, n, work, masked):
         for j in range(n_p):
             res[j, n] = r_new[j]
         fails[n] = 0
-        return n + 1, True, ks
-    return n, False, -1
-
-
-class Resume(NamedTuple):
-    """Where :func:`isolate_groups` goes on after it returned early (arrays, updated in place):
-    the group and restart it was at and the state of that group's isolation."""
-
-    counts: np.ndarray
-    """(8,) int64: group, started (0/1), restarts done, modes, added modes remembered, last
-    (0/1), finished (0/1), converged (0/1) (the ``_G``... indices)."""
-    masked: np.ndarray
-    """(F,) bool: lines the model-order check has tried."""
-    tried: np.ndarray
-    """(max_modes + 4,) complex: modes the order check added."""
-    fails: np.ndarray
-    """(max_modes,) int64: failed fits of each mode."""
-    work: Work
-    """The group's work arrays (``data`` a copy of the group's FRFs)."""
-
-
-# indices of Resume.counts
-_GROUP, _STARTED, _RESTART, _N, _N_TRIED, _LAST, _FINISHED, _CONVERGED = range(8)
-
-
-def new_resume(n_p: int, n_f: int, max_modes: int) -> Resume:
-    """A :class:`Resume` record for groups of ``n_p`` FRFs of ``n_f`` lines, at its start."""
-    m = int(max_modes)
-    return Resume(
-        counts=np.zeros(8, dtype=np.int64),
-        masked=np.zeros(n_f, dtype=np.bool_),
-        tried=np.empty(m + 4, dtype=np.complex128),
-        fails=np.zeros(m, dtype=np.int64),
-        work=_work(np.empty((n_p, n_f), dtype=np.complex128), m),
-    )
-
-
-def new_result(n_g: int, n_p: int, max_modes: int) -> IsolateResult:
-    """An :class:`IsolateResult` of ``n_g`` groups of ``n_p`` FRFs, NaN-padded, to fill."""
-    nan = complex(np.nan, np.nan)
-    return IsolateResult(
-        lam=np.full((n_g, max_modes), nan),
-        res=np.full((n_g, n_p, max_modes), nan),
-        n_modes=np.zeros(n_g, dtype=np.int64),
-        iterations=np.zeros(n_g, dtype=np.int64),
-        converged=np.zeros(n_g, dtype=np.bool_),
-    )
-
-
-@jit(inline="always")
-def _start_group(data, lam0, res0, n0, g, out, st, m):
-    """Group ``g``'s starting modes into ``out`` and a fresh state in ``st``."""
-    n_p = data.shape[1]
-    n = min(n0[g], m)
-    for k in range(n):
-        out.lam[g, k] = lam0[g, k]
-        for j in range(n_p):
-            out.res[g, j, k] = res0[g, j, k]
-    work = st.work
-    work.data[:, :] = data[g]
-    work.wts[:] = 1.0
-    work.wts_all[:, :] = 1.0
-    work.power[:] = 0.0
-    work.back[:] = complex(np.nan, np.nan)
-    work.pinned[:] = False
-    st.fails[:] = 0
-    st.masked[:] = False
-    c = st.counts
-    c[_STARTED], c[_RESTART], c[_N], c[_N_TRIED] = 1, 0, n, 0
-    c[_LAST], c[_FINISHED], c[_CONVERGED] = 0, 0, 0
-
-
-@jit
-def isolate_groups(data, lam0, res0, n0, scene, params, out, st, budget):
-    """Isolation with the model-order check of every group ``data[g]`` (P, F) (noise units),
-    from the first ``n0[g]`` of the eigenvalues ``lam0[g]`` and residues ``res0[g]``, into
-    ``out`` (:func:`new_result`), with the state ``st`` (:func:`new_resume`).
-
-    A restart follows every change of the model (merge, prune, added or split mode). A mode the
-    order check adds and then loses (merged into a neighbour the sweeps ran it into, or pruned
-    after its fits failed: a weak mode beside a strong one takes up the strong one's residual)
-    is, when the check adds it again, kept at its order-check fit (pinned, not re-fitted) and
-    the order check ends after the next sweeps (the residual next to a pinned mode holds the
-    error of its fit, not new modes): otherwise (and with ``paper_sweeps``, as in the paper) the
-    loop cycles until the restart budget is spent. ``converged``: the last sweeps met their
-    stopping rule and no change is pending.
-
-    With ``budget > 0`` the call returns ``False`` before a restart once the restarts it ran
-    have cost ``budget`` (sweeps times FRFs times lines, at least one restart per call): called
-    again with the same arguments it goes on where it stopped (a caller can handle interrupts
-    in between; the results are those of one call). Returns ``True`` when every group is done.
-    """
-    n_g, n_p, n_f = data.shape
-    m = params.max_modes
-    c = st.counts
-    work = st.work
-    masked = st.masked
-    tried = st.tried
-    spent = 0
-    while c[_GROUP] < n_g:
-        g = c[_GROUP]
-        if c[_STARTED] == 0:
-            _start_group(data, lam0, res0, n0, g, out, st, m)
-        modes = ModeSet(out.lam[g], out.res[g], st.fails)
-        n = c[_N]
-        while c[_RESTART] < m + 4:
-            if budget > 0 and spent >= budget:
-                c[_N] = n
-                return False
-            c[_RESTART] += 1
-            it, converged = _sweeps(scene, params, modes, n, work)
-            c[_CONVERGED] = converged
-            spent += (it + 1) * n_p * n_f
-            out.iterations[g] += it
-            n, changed = _merge_prune(scene, params, modes, n, work.pinned)
-            if changed:
-                continue
-            if n >= m or c[_LAST] != 0:
-                c[_FINISHED] = 1
-                break
-            n, added, ks = _order_check(scene, params, modes, n, work, masked)
-            if not added:
-                c[_FINISHED] = 1
-                break
-            if ks >= 0:
-                continue
-            # an added mode near one added before (and lost since: no mode is near that one)
-            new = modes.lam[n - 1]
-            one, none = np.int64(1), np.int64(-1)  # typed ints: one specialisation each
-            n_tried = c[_N_TRIED]
-            for t in range(0 if params.paper_sweeps else n_tried):
-                again = nearest_within(tried[t : t + 1], one, new, params.merge_tol, none) >= 0
-                if again and nearest_within(modes.lam, n - 1, tried[t], params.merge_tol, none) < 0:
-                    work.pinned[n - 1] = True
-                    c[_LAST] = 1
-                    break
-            if n_tried < tried.shape[0]:
-                tried[n_tried] = new
-                c[_N_TRIED] = n_tried + 1
-        out.n_modes[g] = n
-        out.converged[g] = c[_CONVERGED] != 0 and c[_FINISHED] != 0
-        c[_GROUP] += 1
-        c[_STARTED] = 0
-    return True
+        return n + 1, True, ks, no_iso
+    return n, False, -1, no_iso
 
 
 @jit
@@ -650,7 +536,7 @@ def point_estimates_kernel(data, lam, res, scene, delta, min_points):
     n_p, n_f = data.shape
     n_k = lam.shape[0]
     out = np.full((n_p, n_k), complex(np.nan, np.nan))
-    work = _work(np.empty((1, n_f), dtype=np.complex128), max(n_k, 1))
+    work = new_work(np.empty((1, n_f), dtype=np.complex128), max(n_k, 1))
     for k in range(n_k):
         mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
     for j in range(n_p):

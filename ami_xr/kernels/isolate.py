@@ -15,14 +15,14 @@ import numpy as np
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels.engine import (
+    DONE,
+    SPLIT_WANTED,
     STOP_FRACTION,
     IsolateParams,
     IsolateResult,
-    isolate_groups,
-    new_result,
-    new_resume,
     point_estimates_kernel,
 )
+from ami_xr.kernels.groups import isolate_groups, new_result, new_resume, split_fit
 from ami_xr.kernels.peak import check_inputs, scene
 from ami_xr.kernels.residues import residues_fixed_kernel
 
@@ -115,17 +115,23 @@ BETWEEN_WORK = 2_000_000
 
 
 def _isolate(data, lam_in, res_in, n0, where, params, between):
-    """:func:`~.engine.isolate_groups` on ``data`` (G, P, F); with ``between`` the kernel returns
-    between its restarts every :data:`BETWEEN_WORK` and ``between()`` runs (a pending interrupt
-    raised there), then it goes on where it stopped (the same results as one call)."""
-    n_g, n_p, n_f = data.shape
+    """:func:`~.groups.isolate_groups` on ``data`` (G, P, F), with the two-mode fits it asks for
+    (:func:`~.groups.split_fit`); with ``between`` the kernel also returns between its restarts
+    every :data:`BETWEEN_WORK` and ``between()`` runs (a pending interrupt raised there). The
+    results are those of one pass."""
+    n_g, n_p, _ = data.shape
     m = int(params.max_modes)
     out = new_result(n_g, n_p, m)
-    state = new_resume(n_p, n_f, m)
+    state = new_resume(data, m)
     budget = BETWEEN_WORK if between is not None else 0
-    while not isolate_groups(data, lam_in, res_in, n0, where, params, out, state, budget):
-        between()
-    return out
+    while True:
+        status, iso = isolate_groups(data, lam_in, res_in, n0, where, params, out, state, budget)
+        if status == DONE:
+            return out
+        if status == SPLIT_WANTED:
+            split_fit(iso, where, state)
+        elif between is not None:
+            between()
 
 
 def isolate_batch(
@@ -184,7 +190,7 @@ def isolate_batch(
     lam_in[:, :s] = lam0[:, :s]
     res_in[:, 0, :s] = res0[:, :s] / sigma[:, None]
     where = scene(omega, dt, n, params.zeta_max, params.pfa, 1)
-    scaled = np.ascontiguousarray((data / sigma[:, None])[:, None, :])
+    scaled = (data / sigma[:, None])[:, None, :]
     out = _isolate(scaled, lam_in, res_in, np.minimum(n0, m), where, params, between)
     return out._replace(res=out.res[:, 0, :] * sigma[:, None])
 

@@ -97,3 +97,33 @@ def test_an_exception_from_between_stops_the_isolation(every_restart):
 
     with pytest.raises(KeyboardInterrupt):
         ki.isolate_simo(g, OMEGA, None, None, start, 1, np.full(6, 1e-4), _params(), between=stop)
+
+
+def test_two_mode_fits_of_the_order_check_run_in_python_between_calls(monkeypatch):
+    """A close pair started as one mode: the order check asks for two-mode fits (the kernel
+    returns, :func:`split_fit` runs, the kernel goes on); splitting the work over more calls
+    changes nothing."""
+    rng = np.random.default_rng(0)
+    lam = np.array([-0.1 + 2j * np.pi * 9.0, -0.1 + 2j * np.pi * 9.05])
+    res = (rng.standard_normal((5, 2)) + 1j * rng.standard_normal((5, 2))) * 1e-2
+    g = kb.synthesize(OMEGA, lam, res)
+    g = g + 1e-4 * (rng.standard_normal(g.shape) + 1j * rng.standard_normal(g.shape))
+    sigma = np.full(5, 1e-4)
+    lam0 = np.full((5, 8), np.nan + 0j)
+    lam0[:, 0] = lam[0]
+    res0 = np.zeros((5, 8), complex)
+    n0 = np.ones(5, int)
+    asked = []
+    real = ki.split_fit
+    monkeypatch.setattr(ki, "split_fit", lambda *a: asked.append(1) or real(*a))
+    params = _params(reweight=False)
+    one = ki.isolate_batch(g, OMEGA, None, None, lam0, res0, n0, sigma, params)
+    assert asked  # a split was tried
+    # FRF 0: the pair, split (1e-4 noise on peaks of ~1e-1: well inside a bandwidth, 0.2 rad/s)
+    found = one.lam[0, :2]
+    np.testing.assert_allclose(found[np.argsort(found.imag)], lam, atol=0.02)
+    monkeypatch.setattr(ki, "BETWEEN_WORK", 1)
+    split = ki.isolate_batch(
+        g, OMEGA, None, None, lam0, res0, n0, sigma, params, between=lambda: None
+    )
+    _same(one, split)
