@@ -8,8 +8,9 @@ duplicates merge, insignificant modes drop, and the model-order check looks at t
 a significant peak (:mod:`.peak`) or a coherent residual in a mode's band (a split), restarting
 the sweeps with one mode more. Data are in units of each FRF's noise floor; the two isolations
 differ in their groups and in ``reweight``, ``se_fraction``, ``paper_sweeps`` (records:
-:class:`IsolateParams`, :class:`ModeSet`, :class:`Work`, :class:`IsolateResult`; jitted entry
-points, checked wrappers in :mod:`.isolate`).
+:class:`IsolateParams`, :class:`ModeSet`, :class:`Work`, :class:`IsolateResult`; the jitted
+steps here, the restarts of every group in :mod:`.groups` (which returns to its caller between
+restarts and for the split's two-mode fit), checked wrappers in :mod:`.isolate`).
 """
 
 from __future__ import annotations
