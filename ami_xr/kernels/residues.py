@@ -61,7 +61,11 @@ def _residue_normal_equations(data, omega, lam, dt, n_samples, use, residual_kin
     stacked = np.concatenate((cols.real, cols.imag), axis=1)  # Re(conj a b) = a.re b.re + a.im b.im
     nmat = stacked @ stacked.T
     used = data if use.all() else data[:, use]
-    rhs = np.ascontiguousarray((cols.conj() @ used.T).real)
+    rhs = np.empty((cols.shape[0], data.shape[0]))
+    for j in range(data.shape[0]):
+        # one product per FRF: its residues do not depend on the other rows given with it (a
+        # matrix product's blocking does), so chunked and whole inputs agree to the bit
+        rhs[:, j] = stacked @ np.concatenate((used[j].real, used[j].imag))
     return np.ascontiguousarray(nmat), rhs
 
 

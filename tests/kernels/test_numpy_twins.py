@@ -87,3 +87,14 @@ def test_residue_normal_equations_equal_the_per_line_sums(dt, n, kind):
     assert np.all(np.abs(nmat - want_n) <= 1e-13 * scale_n)
     assert np.all(np.abs(rhs - want_r) <= 1e-13 * scale_r)
     np.testing.assert_array_equal(nmat, nmat.T)
+
+
+def test_residues_of_a_row_do_not_depend_on_the_rows_given_with_it():
+    """Chunked (dask) and whole inputs give bit-identical residues (the labeled layer's
+    dask-equals-memory tests rely on it)."""
+    lam, _ = _modes()
+    rng = np.random.default_rng(2)
+    data = rng.standard_normal((5, OMEGA.size)) + 1j * rng.standard_normal((5, OMEGA.size))
+    whole = kr.residues_fixed(data, OMEGA, lam[:3], residual_kind=1)
+    alone = np.vstack([kr.residues_fixed(row, OMEGA, lam[:3], residual_kind=1) for row in data])
+    np.testing.assert_array_equal(whole, alone)
