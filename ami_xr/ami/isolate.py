@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from ami_xr import names
+from ami_xr import interrupt, names
 from ami_xr.ami import common as c
 from ami_xr.ami import subtract as sub_phase
 from ami_xr.ami.settings import IsolateSettings, SubtractSettings, from_attrs, parameters, to_attrs
@@ -193,6 +193,10 @@ def _isolate_per_frf(ds, omega, data_model, sub, settings, sigma) -> _Isolated:
     )
 
 
+def _checkpoint() -> None:
+    interrupt.checkpoint()  # looked up at each call (a test may replace it)
+
+
 def _isolate_simo_modes(ds, omega, data_model, sub, settings, sigma) -> _Isolated:
     """Global SIMO isolation: the subtraction candidates matched into starting modes, each
     single-mode fit shared by all FRFs; per-point estimates where the mode is detected."""
@@ -214,7 +218,10 @@ def _isolate_simo_modes(ds, omega, data_model, sub, settings, sigma) -> _Isolate
     w0 = np.where(np.isfinite(start), np.nan_to_num(gather(snr_c + 0j, label, n0).real) ** 2, 0.0)
     lam0, _ = weighted_average(start, w0)
     params = kernel_params(sub, settings)
-    r = ki.isolate_simo(g, omega, dt, n_samples, lam0, min(n0, sub.max_modes), sigma, params)
+    # the kernel returns between restarts to a checkpoint: a held Ctrl-C waits for one piece
+    r = ki.isolate_simo(
+        g, omega, dt, n_samples, lam0, min(n0, sub.max_modes), sigma, params, between=_checkpoint
+    )
     order = np.argsort(np.abs(r.lam[: r.n_modes]))
     eig = r.lam[: r.n_modes][order]
     res_m = np.ascontiguousarray(r.res[:, : r.n_modes][:, order])

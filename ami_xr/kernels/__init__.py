@@ -21,7 +21,8 @@ Modules (numba policy in ``_numba``):
 * ``residues``: residues with fixed eigenvalues (eq. 9).
 * ``peak``: the peak trial (band, fit, energy drop) and fit bands, shared by the AMI phases.
 * ``subtract``: the Subtraction Phase. ``engine``: the one isolation engine (sweeps, merge and
-  prune, model-order check, restarts) for per-FRF and SIMO isolation; ``isolate``: its checked
-  wrappers.
+  prune, model-order check) for per-FRF and SIMO isolation; ``groups``: its restarts, in calls
+  that return to the caller between restarts (interrupts) and for a split's two-mode fit;
+  ``isolate``: its checked wrappers.
 * ``projection``: variable-projection refinement kernels.
 """

@@ -8,8 +8,9 @@ duplicates merge, insignificant modes drop, and the model-order check looks at t
 a significant peak (:mod:`.peak`) or a coherent residual in a mode's band (a split), restarting
 the sweeps with one mode more. Data are in units of each FRF's noise floor; the two isolations
 differ in their groups and in ``reweight``, ``se_fraction``, ``paper_sweeps`` (records:
-:class:`IsolateParams`, :class:`ModeSet`, :class:`Work`, :class:`IsolateResult`; jitted entry
-points, checked wrappers in :mod:`.isolate`).
+:class:`IsolateParams`, :class:`ModeSet`, :class:`Work`, :class:`IsolateResult`; the jitted
+steps here, the restarts of every group in :mod:`.groups` (which returns to its caller between
+restarts and for the split's two-mode fit), checked wrappers in :mod:`.isolate`).
 """
 
 from __future__ import annotations
@@ -35,7 +36,6 @@ from ami_xr.kernels.peak import (
 )
 from ami_xr.kernels.single_mode import FIT_OK, fit_single
 from ami_xr.kernels.sorting import argsort_first
-from ami_xr.kernels.two_mode import fit_two
 
 FREEZE_CHANGE = 1e-3
 """A mode's fit band is kept fixed once its eigenvalue changes less than this (relative)."""
@@ -76,7 +76,7 @@ class IsolateParams(NamedTuple):
     (:data:`STOP_FRACTION`); 0: the relative change ``tol`` alone (the paper's criterion)."""
     paper_sweeps: bool
     """The paper's plain sweeps (per-FRF): order fixed per restart, bands over all lines, no
-    cycle averaging, no pinning of re-added modes (the SIMO measures of :func:`_sweeps`)."""
+    cycle averaging, no pinning of re-added modes (the SIMO measures of :func:`sweeps`)."""
 
 
 class ModeSet(NamedTuple):
@@ -145,8 +145,22 @@ class SweepState(NamedTuple):
     """Sweeps in which its fit ran and failed."""
 
 
+# entries of ``groups.Resume.counts``: group; its isolation started (0/1); restarts done;
+# modes; added modes remembered; last restart (0/1); finished (0/1); converged (0/1); in the
+# order check (0/1, waiting for a two-mode fit); the order check's try; the split's state,
+# mode, band (lines AT_WL..AT_WH-1) and the fit's code (written by the caller)
+AT_GROUP, AT_STARTED, AT_RESTART, AT_N, AT_N_TRIED, AT_LAST, AT_FINISHED, AT_CONVERGED = range(8)
+AT_IN_CHECK, AT_TRY, AT_SPLIT, AT_KS, AT_WL, AT_WH, AT_SPLIT_CODE = range(8, 15)
+SPLIT_NONE, SPLIT_ASKED, SPLIT_FITTED = 0, 1, 2
+
+DONE, PAUSED, SPLIT_WANTED = 0, 1, -2
+"""What :func:`~.groups.isolate_groups` returns: every group done; paused between restarts
+(its work budget spent); a two-mode fit wanted (see :func:`~.groups.split_fit`).
+``SPLIT_WANTED`` is also the order check's ``ks`` for it."""
+
+
 @jit
-def _work(data, max_modes):
+def new_work(data, max_modes):
     """A :class:`Work` record for the group ``data`` (P, F) in noise units."""
     n_p, n_f = data.shape
     return Work(
@@ -248,7 +262,7 @@ def _mode_snr(grid, lam, res, k):
 
 
 @jit(inline="always")
-def _merge_prune(scene, params, modes, n, pinned):
+def merge_prune(scene, params, modes, n, pinned):
     """Duplicates (closer than ``merge_tol`` bandwidths) keep the mode with the larger total SNR;
     modes not above the noise floor in any FRF, or that failed too often, are removed.
     Returns ``(n, changed)``."""
@@ -289,7 +303,7 @@ def _merge_prune(scene, params, modes, n, pinned):
 def _fit_mode(scene, params, modes, n, k, work, state, it):
     """One sweep's update of mode ``k``: its band (kept while frozen), the fit on the isolated
     data of the group (FRFs weighted by the mode's SNR with ``reweight``), the two-state cycle
-    test. Returns the step's score (< 1: settled, see :func:`_sweeps`), -1 when not updated."""
+    test. Returns the step's score (< 1: settled, see :func:`sweeps`), -1 when not updated."""
     omega, x, dt, n_samples = scene.grid
     lam, res, fails = modes
     n_p = res.shape[0]
@@ -360,7 +374,7 @@ def _fit_mode(scene, params, modes, n, k, work, state, it):
 
 
 @jit(inline="always")
-def _sweeps(scene, params, modes, n, work):
+def sweeps(scene, params, modes, n, work):
     """Isolation sweeps until every eigenvalue has settled, or the early pruning after 3 sweeps
     finds an insignificant mode. Returns ``(iterations, converged)``.
 
@@ -421,15 +435,22 @@ def _sweeps(scene, params, modes, n, work):
 
 
 @jit(inline="always")
-def _order_check(scene, params, modes, n, work, masked):
+def order_check(scene, params, modes, n, work, masked, st):
     """Model-order check: a significant peak of the residual's power (over the noise and the
     residual that eigenvalue errors of size ``tol`` leave) where a physical mode fits adds it; a
     coherent residual inside a mode's ``+- 3 |Re lam|`` band splits that mode by a two-mode fit.
-    A window tried is masked. Returns ``(n, added, ks)``: ``ks`` the mode split, -1 for an added
-    mode."""
+    A window tried is masked. Returns ``(n, added, ks, iso)``: ``ks`` the mode split, -1 for an
+    added mode.
+
+    The two-mode fit is the caller's (compiled only when a split is tried): the check returns
+    ``ks = SPLIT_WANTED`` with the isolated data ``iso`` (P, F) of the mode to split (its band
+    in ``st.counts``); called again once ``st.split_lam``, ``st.split_res`` and the fit's code
+    are in ``st``, it takes the split or goes on with its next try, as in one pass."""
     omega, x, dt, n_samples = scene.grid
     lam, res, fails = modes
     n_p, n_f = work.data.shape
+    c = st.counts
+    no_iso = np.empty((0, 0), dtype=np.complex128)
     for k in range(n):
         mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
     _isolated_lines(work, res, n, np.int64(-1), np.int64(0), n_f)
@@ -438,7 +459,23 @@ def _order_check(scene, params, modes, n, work, masked):
         env = tolerance_envelope(omega, lam, res[j], n, params.tol)
         for i in range(n_f):
             stat[i] += abs(work.xn[j, i]) ** 2 / (1.0 + env[i] ** 2)
-    for _try in range(8):
+    first = c[AT_TRY]
+    if c[AT_SPLIT] == SPLIT_FITTED:  # the caller's two-mode fit of try ``first``
+        c[AT_SPLIT] = SPLIT_NONE
+        first += 1
+        ks = c[AT_KS]
+        if c[AT_SPLIT_CODE] == FIT_OK:
+            lam[ks] = st.split_lam[0]
+            for j in range(n_p):
+                res[j, ks] = st.split_res[j, 0]
+            lam[n] = st.split_lam[1]
+            for j in range(n_p):
+                res[j, n] = st.split_res[j, 1]
+            fails[n] = 0
+            c[AT_TRY] = 0
+            return n + 1, True, ks, no_iso
+    c[AT_TRY] = 0
+    for _try in range(first, 8):
         peak = -1
         for i in range(n_f):
             if not masked[i] and (peak < 0 or stat[i] > stat[peak]):
@@ -462,16 +499,8 @@ def _order_check(scene, params, modes, n, work, masked):
             for j in range(n_p):
                 add_mode(iso[j], x, lam[ks], res[j, ks], dt, n_samples, 1.0, np.int64(0), n_f)
                 work.wts[j] = work.wts_all[ks, j] if params.reweight else 1.0
-            l2 = np.empty(2, dtype=np.complex128)
-            r2 = np.empty((n_p, 2), dtype=np.complex128)
-            ws = omega[(wl + wh) // 2]
-            if fit_two(iso, scene.grid, wl, wh, ws, scene.limits, work.wts, l2, r2) != FIT_OK:
-                continue
-            lam[ks] = l2[0]
-            for j in range(n_p):
-                res[j, ks] = r2[j, 0]
-                r_new[j] = r2[j, 1]
-            new = l2[1]
+            c[AT_SPLIT], c[AT_KS], c[AT_WL], c[AT_WH], c[AT_TRY] = SPLIT_ASKED, ks, wl, wh, _try
+            return n, False, SPLIT_WANTED, iso
         else:
             # no duplicate test here: a coherent residual next to a mode (two close modes fitted
             # as one) must be able to split it; true duplicates merge after the restart
@@ -495,79 +524,8 @@ def _order_check(scene, params, modes, n, work, masked):
         for j in range(n_p):
             res[j, n] = r_new[j]
         fails[n] = 0
-        return n + 1, True, ks
-    return n, False, -1
-
-
-@jit
-def isolate_groups(data, lam0, res0, n0, scene, params):
-    """Isolation with the model-order check of every group ``data[g]`` (P, F) (noise units),
-    from the first ``n0[g]`` of the eigenvalues ``lam0[g]`` and residues ``res0[g]``.
-
-    A restart follows every change of the model (merge, prune, added or split mode). A mode the
-    order check adds and then loses (merged into a neighbour the sweeps ran it into, or pruned
-    after its fits failed: a weak mode beside a strong one takes up the strong one's residual)
-    is, when the check adds it again, kept at its order-check fit (pinned, not re-fitted) and
-    the order check ends after the next sweeps (the residual next to a pinned mode holds the
-    error of its fit, not new modes): otherwise (and with ``paper_sweeps``, as in the paper) the
-    loop cycles until the restart budget is spent. ``converged``: the last sweeps met their
-    stopping rule and no change is pending.
-    """
-    n_g, n_p, n_f = data.shape
-    m = params.max_modes
-    nan = complex(np.nan, np.nan)
-    out = IsolateResult(
-        lam=np.full((n_g, m), nan),
-        res=np.full((n_g, n_p, m), nan),
-        n_modes=np.zeros(n_g, dtype=np.int64),
-        iterations=np.zeros(n_g, dtype=np.int64),
-        converged=np.zeros(n_g, dtype=np.bool_),
-    )
-    masked = np.empty(n_f, dtype=np.bool_)
-    tried = np.empty(m + 4, dtype=np.complex128)
-    for g in range(n_g):
-        n = min(n0[g], m)
-        for k in range(n):
-            out.lam[g, k] = lam0[g, k]
-            for j in range(n_p):
-                out.res[g, j, k] = res0[g, j, k]
-        modes = ModeSet(out.lam[g], out.res[g], np.zeros(m, dtype=np.int64))
-        work = _work(data[g], m)
-        masked[:] = False
-        n_tried = 0
-        last = False
-        finished = False
-        converged = False
-        for _restart in range(m + 4):
-            it, converged = _sweeps(scene, params, modes, n, work)
-            out.iterations[g] += it
-            n, changed = _merge_prune(scene, params, modes, n, work.pinned)
-            if changed:
-                continue
-            finished = n >= m or last
-            if finished:
-                break
-            n, added, ks = _order_check(scene, params, modes, n, work, masked)
-            if not added:
-                finished = True
-                break
-            if ks >= 0:
-                continue
-            # an added mode near one added before (and lost since: no mode is near that one)
-            new = modes.lam[n - 1]
-            one, none = np.int64(1), np.int64(-1)  # typed ints: one specialisation each
-            for t in range(0 if params.paper_sweeps else n_tried):
-                again = nearest_within(tried[t : t + 1], one, new, params.merge_tol, none) >= 0
-                if again and nearest_within(modes.lam, n - 1, tried[t], params.merge_tol, none) < 0:
-                    work.pinned[n - 1] = True
-                    last = True
-                    break
-            if n_tried < tried.shape[0]:
-                tried[n_tried] = new
-                n_tried += 1
-        out.n_modes[g] = n
-        out.converged[g] = converged and finished
-    return out
+        return n + 1, True, ks, no_iso
+    return n, False, -1, no_iso
 
 
 @jit
@@ -579,7 +537,7 @@ def point_estimates_kernel(data, lam, res, scene, delta, min_points):
     n_p, n_f = data.shape
     n_k = lam.shape[0]
     out = np.full((n_p, n_k), complex(np.nan, np.nan))
-    work = _work(np.empty((1, n_f), dtype=np.complex128), max(n_k, 1))
+    work = new_work(np.empty((1, n_f), dtype=np.complex128), max(n_k, 1))
     for k in range(n_k):
         mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
     for j in range(n_p):

@@ -76,16 +76,12 @@ def nearest_line(omega, w):
     return lo if (w - omega[lo]) <= (omega[hi] - w) else hi
 
 
-@jit
 def line_variable(omega, dt):
-    """``q = exp(-i w dt)`` for the discrete model, ``i w`` for the continuous one (dt <= 0)."""
-    out = np.empty(omega.shape[0], dtype=np.complex128)
-    for i in range(omega.shape[0]):
-        if dt > 0.0:
-            out[i] = np.exp(-1j * omega[i] * dt)
-        else:
-            out[i] = 1j * omega[i]
-    return out
+    """``q = exp(-i w dt)`` for the discrete model, ``i w`` for the continuous one (dt <= 0),
+    (F,) complex. Plain numpy: only Python code calls it (the kernels get it in a :class:`Grid`),
+    so it costs no compilation."""
+    omega = np.asarray(omega, dtype=np.float64)
+    return np.exp(-1j * omega * dt) if dt > 0.0 else 1j * omega
 
 
 @jit
@@ -187,20 +183,39 @@ def contribution_peak(omega, x, lam, res, dt, n_samples):
     return best
 
 
-@jit
 def _contribution_peaks(omega, dt, n_samples, lam, res):
-    """Peak |contribution| of every (point, mode): ``lam`` (P or 1, K), ``res`` (P, K)."""
-    n_p = res.shape[0]
-    n_k = res.shape[1]
+    """Peak |contribution| of every (point, mode): ``lam`` (P or 1, K), ``res`` (P, K); the
+    arithmetic of :func:`contribution_peak` on whole arrays (only Python calls it: no
+    compilation)."""
+    n_f = omega.shape[0]
+    lam = np.broadcast_to(lam, res.shape)
+    valid = ~(np.isnan(lam.real) | np.isnan(res.real))
+    lam = np.where(valid, lam, 0.0j)  # placeholders, NaN again at the end
+    # nearest line to Im lam (the lower on a tie), as nearest_line
+    w = lam.imag
+    lo = np.clip(np.searchsorted(omega, w, side="right") - 1, 0, n_f - 2)
+    centre = np.where((w - omega[lo]) <= (omega[lo + 1] - w), lo, lo + 1)
+    centre = np.where(w <= omega[0], 0, np.where(w >= omega[-1], n_f - 1, centre))
     x = line_variable(omega, dt)
-    out = np.full((n_p, n_k), np.nan)
-    for j in range(n_p):
-        jl = j if lam.shape[0] == n_p else 0
-        for kk in range(n_k):
-            if np.isnan(lam[jl, kk].real) or np.isnan(res[j, kk].real):
-                continue
-            out[j, kk] = contribution_peak(omega, x, lam[jl, kk], res[j, kk], dt, n_samples)
-    return out
+    best = np.zeros(res.shape)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if dt > 0.0:  # pole_factor
+            p = np.exp(lam * dt)
+            sc = dt * (1.0 - np.exp(lam * (n_samples * dt))) if n_samples > 0 else dt + 0j
+        else:
+            p, sc = lam, 1.0 + 0j
+        pc, scc, rc = np.conj(p), np.conj(sc), np.conj(res)
+        for off in (-1, 0, 1):
+            line = centre + off
+            inside = (line >= 0) & (line < n_f)
+            xi = x[np.clip(line, 0, n_f - 1)]
+            if dt > 0.0:
+                v = res * (sc / (1.0 - p * xi)) + rc * (scc / (1.0 - pc * xi))
+            else:
+                v = res * (1.0 / (xi - p)) + rc * (1.0 / (xi - pc))
+            size = np.abs(v)
+            best = np.where(inside & (size > best), size, best)  # max() as the kernel takes it
+    return np.where(valid, best, np.nan)
 
 
 @jit

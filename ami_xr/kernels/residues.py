@@ -6,7 +6,8 @@ real unknowns each (``residual_kind`` 0 receptance, 1 mobility, 2 accelerance; t
 :func:`ami_xr.kernels.modal_basis.model_columns`). Every FRF shares the columns, so the normal
 matrix is formed once and only the right sides are per FRF.
 
-Jitted, unchecked helper for the other kernel modules: ``residues_fixed_kernel``. Checked
+Plain numpy (only Python calls it, so nothing here is jitted: no first-run compilation); the
+solve is the jitted :func:`~.linalg.solve_normal` the single-mode fit compiles anyway. Checked
 wrappers: :func:`residue_normal_equations`, :func:`residues_fixed`.
 """
 
@@ -15,99 +16,71 @@ from __future__ import annotations
 import numpy as np
 
 from ami_xr.errors import AmiXrValueError
-from ami_xr.kernels._numba import jit
 from ami_xr.kernels.linalg import solve_normal
-from ami_xr.kernels.modal_basis import as_dt, checked_omega, line_variable, pole_factor
+from ami_xr.kernels.modal_basis import as_dt, checked_omega, line_variable
 
 
-@jit(inline="always")
-def _residue_normal_equations(data, omega, lam, dt, n_samples, use, residual_kind):
-    """Normal matrix (n_u, n_u) shared by all FRFs, and right sides (n_u, P), of eq. 9.
-
-    Unknowns per mode ``(A1, A2)``: complex columns ``b + conj-b`` and ``i (b - conj-b)`` on the
-    used lines; with ``residual_kind >= 0`` two complex residual terms (lower, upper) follow, 2
-    real unknowns each: 0 receptance ``1/(i w)^2``, ``1``; 1 mobility ``1/(i w)``, ``i w``;
-    2 accelerance ``1``, ``(i w)^2`` (a term singular at 0 rad/s is 0 there).
-    """
+def _residue_columns(omega, lam, dt, n_samples, use, residual_kind):
+    """The model's columns (n_u, n_used) on the used lines: per mode ``b + conj-b`` and
+    ``i (b - conj-b)`` (the arithmetic of :func:`~.modal_basis.add_mode`), then with
+    ``residual_kind >= 0`` the residual terms ``lo, i lo, up, i up``: 0 receptance
+    ``1/(i w)^2``, ``1``; 1 mobility ``1/(i w)``, ``i w``; 2 accelerance ``1``, ``(i w)^2`` (a
+    term singular at 0 rad/s is 0 there)."""
     n_k = lam.shape[0]
-    n_f = omega.shape[0]
-    n_used = 0
-    for i in range(n_f):
-        if use[i]:
-            n_used += 1
-    idx = np.empty(n_used, dtype=np.int64)
-    m = 0
-    for i in range(n_f):
-        if use[i]:
-            idx[m] = i
-            m += 1
+    w = omega[use]
+    x = line_variable(w, dt)[None, :]
+    lam = lam[:, None]
+    if dt > 0.0:
+        p = np.exp(lam * dt)
+        sc = dt * (1.0 - np.exp(lam * (n_samples * dt))) if n_samples > 0 else np.full(lam.shape, dt + 0j)
+        b = sc / (1.0 - p * x)
+        bc = np.conj(sc) / (1.0 - np.conj(p) * x)
+    else:
+        b = 1.0 / (x - lam)
+        bc = 1.0 / (x - np.conj(lam))
     n_u = 2 * n_k + (4 if residual_kind >= 0 else 0)
-    cols = np.empty((n_u, n_used), dtype=np.complex128)
-    x = line_variable(omega, dt)
-    for k in range(n_k):
-        p, sc = pole_factor(lam[k], dt, n_samples)
-        pc = np.conj(p)
-        scc = np.conj(sc)
-        for m in range(n_used):
-            xi = x[idx[m]]
-            if dt > 0.0:
-                b = sc / (1.0 - p * xi)
-                bc = scc / (1.0 - pc * xi)
-            else:
-                b = 1.0 / (xi - p)
-                bc = 1.0 / (xi - pc)
-            cols[2 * k, m] = b + bc
-            cols[2 * k + 1, m] = 1j * (b - bc)
+    cols = np.empty((n_u, w.size), dtype=np.complex128)
+    cols[0 : 2 * n_k : 2] = b + bc
+    cols[1 : 2 * n_k : 2] = 1j * (b - bc)
     if residual_kind >= 0:
-        for m in range(n_used):
-            w = omega[idx[m]]
-            s = 1j * w
-            if residual_kind == 0:
-                lo = 1.0 / (s * s) if w != 0.0 else 0.0j
-                up = 1.0 + 0j
-            elif residual_kind == 1:
-                lo = 1.0 / s if w != 0.0 else 0.0j
-                up = s
-            else:
-                lo = 1.0 + 0j
-                up = s * s
-            cols[2 * n_k, m] = lo
-            cols[2 * n_k + 1, m] = 1j * lo
-            cols[2 * n_k + 2, m] = up
-            cols[2 * n_k + 3, m] = 1j * up
-    n_p = data.shape[0]
-    nmat = np.zeros((n_u, n_u))
-    for a in range(n_u):
-        for b in range(a, n_u):
-            acc = 0.0
-            for m in range(n_used):
-                acc += (np.conj(cols[a, m]) * cols[b, m]).real
-            nmat[a, b] = acc
-            nmat[b, a] = acc
-    rhs = np.zeros((n_u, n_p))
-    for j in range(n_p):
-        for a in range(n_u):
-            acc = 0.0
-            for m in range(n_used):
-                acc += (np.conj(cols[a, m]) * data[j, idx[m]]).real
-            rhs[a, j] = acc
-    return nmat, rhs
+        s = 1j * w
+        nonzero = w != 0.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lo = (1.0 / (s * s), 1.0 / s, np.ones_like(s))[residual_kind]
+        up = (np.ones_like(s), s, s * s)[residual_kind]
+        if residual_kind < 2:
+            lo = np.where(nonzero, lo, 0.0j)
+        cols[2 * n_k :] = (lo, 1j * lo, up, 1j * up)
+    return cols
 
 
-@jit
+def _residue_normal_equations(data, omega, lam, dt, n_samples, use, residual_kind):
+    """Normal matrix (n_u, n_u) shared by all FRFs, and right sides (n_u, P), of eq. 9:
+    ``Re(C^H C)`` and ``Re(C^H g)`` of the columns ``C`` (:func:`_residue_columns`)."""
+    cols = _residue_columns(omega, lam, dt, n_samples, use, residual_kind)
+    stacked = np.concatenate((cols.real, cols.imag), axis=1)  # Re(conj a b) = a.re b.re + a.im b.im
+    nmat = stacked @ stacked.T
+    used = data if use.all() else data[:, use]
+    rhs = np.empty((cols.shape[0], data.shape[0]))
+    for j in range(data.shape[0]):
+        # one product per FRF: its residues do not depend on the other rows given with it (a
+        # matrix product's blocking does), so chunked and whole inputs agree to the bit
+        rhs[:, j] = stacked @ np.concatenate((used[j].real, used[j].imag))
+    return np.ascontiguousarray(nmat), rhs
+
+
 def residues_fixed_kernel(data, omega, lam, dt, n_samples, use, residual_kind):
-    """Residues (P, K) (and residual coefficients (P, 2) when ``residual_kind >= 0``) of eq. 9."""
+    """Residues (P, K) (and residual coefficients (P, 2) when ``residual_kind >= 0``) of eq. 9,
+    all NaN when the normal equations are singular."""
     n_k = lam.shape[0]
     nmat, rhs = _residue_normal_equations(data, omega, lam, dt, n_samples, use, residual_kind)
     sol, ok = solve_normal(nmat, rhs)
     n_p = data.shape[0]
     n_r = 2 if residual_kind >= 0 else 0
     out = np.full((n_p, n_k + n_r), complex(np.nan, np.nan))
-    if not ok:
-        return out
-    for j in range(n_p):
-        for k in range(n_k + n_r):
-            out[j, k] = complex(sol[2 * k, j], sol[2 * k + 1, j])
+    if ok:
+        out.real = sol[0::2].T
+        out.imag = sol[1::2].T
     return out
 
 

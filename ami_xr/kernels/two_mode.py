@@ -6,7 +6,8 @@
 with shared ``c`` and per-FRF ``e`` (eliminated by Schur complements). The model-order check of
 the Isolation Phase uses it to split a band that holds two close modes fitted as one.
 
-Jitted, unchecked helper: ``fit_two``. Checked wrapper: :func:`fit_two_modes`.
+Unchecked helper (plain numpy: only Python calls it): ``fit_two``. Checked wrapper:
+:func:`fit_two_modes`.
 """
 
 from __future__ import annotations
@@ -14,8 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ami_xr.errors import AmiXrValueError
-from ami_xr.kernels._numba import jit
-from ami_xr.kernels.linalg import gauss_solve, poly_roots, solve_normal
+from ami_xr.kernels.linalg import gauss_solve, solve_normal
 from ami_xr.kernels.modal_basis import Grid, as_dt, checked_omega, line_variable, pole_factor
 from ami_xr.kernels.single_mode import (
     FIT_NOT_OSCILLATORY,
@@ -29,14 +29,12 @@ from ami_xr.kernels.single_mode import (
 )
 
 
-@jit(inline="always")
 def _upper_poles(roots, dt, ws, limits, lam_out, vsel):
     """The poles of the roots ``v`` of the two-mode polynomial: exactly two eigenvalues in the
     upper half plane, both physical (:func:`~.single_mode.pole_code`), written to ``lam_out``
     with their roots in ``vsel``, in the order of ``roots``. Returns a FIT_* code."""
     cnt = 0
-    for r in range(roots.shape[0]):
-        vr = roots[r]
+    for vr in roots:
         if dt > 0.0:
             q = 1.0 - dt * ws * vr
             if abs(q) == 0.0:
@@ -47,7 +45,7 @@ def _upper_poles(roots, dt, ws, limits, lam_out, vsel):
         if lam.imag > 0.0:
             if cnt >= 2:
                 return FIT_NOT_OSCILLATORY
-            code = pole_code(lam, limits)
+            code = pole_code(complex(lam), limits)
             if code != FIT_OK:
                 return code
             lam_out[cnt] = lam
@@ -56,121 +54,65 @@ def _upper_poles(roots, dt, ws, limits, lam_out, vsel):
     return FIT_OK if cnt == 2 else FIT_NOT_OSCILLATORY
 
 
-@jit
 def fit_two(data, grid, lo, hi, ws, limits, wts, lam_out, res_out):
     """Two-mode linear least squares (order-4 analogue of (*)), SIMO over the rows of ``data``:
-    ``G (v^4 + c3 v^3 + c2 v^2 + c1 v + c0) = e3 v^3 + e2 v^2 + e1 v + e0`` with shared ``c`` and
-    per-FRF ``e`` (eliminated by Schur complements). Used by the model-order check to split a
-    band that holds two close modes fitted as one. Writes ``lam_out`` (2,), ``res_out`` (P, 2);
-    returns a FIT_* code."""
+    ``G (v^4 + c3 v^3 + c2 v^2 + c1 v + c0) = e3 v^3 + e2 v^2 + e1 v + e0`` on lines
+    ``lo..hi-1`` with shared ``c`` and per-FRF ``e`` (eliminated by Schur complements), row
+    ``j`` weighted by ``wts[j]``. Used by the model-order check to split a band that holds two
+    close modes fitted as one. Writes ``lam_out`` (2,), ``res_out`` (P, 2); returns a FIT_*
+    code.
+
+    Plain numpy (the isolation calls it from Python, and only when it tries a split: nothing to
+    compile for a run that never does); the small solves are the jitted ones of
+    :mod:`.linalg` the single-mode fit compiles anyway, the roots ``np.roots``'s.
+    """
     x, dt, n_samples = grid.x, grid.dt, grid.n_samples
-    n_p = data.shape[0]
     m = 4
-    nll = np.zeros((m, m))
-    red = np.zeros((m, m))
-    redr = np.zeros((m, 1))
-    nsl_all = np.zeros((n_p, m, m))
-    rl_all = np.zeros((n_p, m))
-    vp = np.empty(m + 1, dtype=np.complex128)
-    # v of every line of the band: (1 - q) / (dt ws) (discrete) or i w / ws
-    v_band = np.empty(hi - lo, dtype=np.complex128)
-    for i in range(lo, hi):
-        v_band[i - lo] = (1.0 - x[i]) / (dt * ws) if dt > 0.0 else x[i] / ws
-    for i in range(lo, hi):
-        v = v_band[i - lo]
-        vp[0] = 1.0
-        for a in range(1, m + 1):
-            vp[a] = vp[a - 1] * v
-        for a in range(m):
-            for b in range(m):
-                nll[a, b] += (np.conj(vp[a]) * vp[b]).real
-    eye = np.zeros((m, m))
-    for a in range(m):
-        eye[a, a] = 1.0
-    nll_inv, ok = gauss_solve(nll, eye)
+    # v of every line of the band: (1 - q) / (dt ws) (discrete) or i w / ws; vp[a] = v^a
+    xb = x[lo:hi]
+    v = (1.0 - xb) / (dt * ws) if dt > 0.0 else xb / ws
+    vp = np.empty((m + 1, v.size), dtype=np.complex128)
+    vp[0] = 1.0
+    for a in range(1, m + 1):
+        vp[a] = vp[a - 1] * v
+    loc = vp[:m]
+    nll = np.ascontiguousarray(np.einsum("al,bl->ab", loc.conj(), loc).real)
+    nll_inv, ok = gauss_solve(nll, np.eye(m))
     if not ok:
         return FIT_SINGULAR
-    nss = np.empty((m, m))
-    t = np.empty((m, m))
-    rs = np.empty(m)
-    for j in range(n_p):
-        nss[:] = 0.0
-        rs[:] = 0.0
-        nsl, rl = nsl_all[j], rl_all[j]  # zeros: accumulated in place
-        for i in range(lo, hi):
-            g = data[j, i] * wts[j]
-            v = v_band[i - lo]
-            vp[0] = 1.0
-            for a in range(1, m + 1):
-                vp[a] = vp[a - 1] * v
-            rhs = g * vp[m]
-            for a in range(m):
-                ca = np.conj(-g * vp[a])
-                for b in range(m):
-                    nss[a, b] += (ca * (-g * vp[b])).real
-                    nsl[a, b] += (ca * vp[b]).real
-                rs[a] += (ca * rhs).real
-                rl[a] += (np.conj(vp[a]) * rhs).real
-        # red += nss - nsl nll^-1 nsl^T; redr += rs - nsl nll^-1 rl (4x4 loops: a BLAS call on
-        # 4x4 costs more than it saves, and its first-run compilation more still)
-        for a in range(m):
-            for b in range(m):
-                acc = 0.0
-                for c in range(m):
-                    acc += nsl[a, c] * nll_inv[c, b]
-                t[a, b] = acc
-        for a in range(m):
-            for b in range(m):
-                acc = 0.0
-                for c in range(m):
-                    acc += t[a, c] * nsl[b, c]
-                red[a, b] += nss[a, b] - acc
-            acc = 0.0
-            for b in range(m):
-                acc += t[a, b] * rl[b]
-            redr[a, 0] += rs[a] - acc
+    g = data[:, lo:hi] * wts[:, None]
+    rhs = g * vp[m]
+    shared = -g[:, None, :] * loc[None, :, :]  # (P, 4, L)
+    nss = np.einsum("pal,pbl->pab", shared.conj(), shared).real
+    nsl = np.einsum("pal,bl->pab", shared.conj(), loc).real
+    rs = np.einsum("pal,pl->pa", shared.conj(), rhs).real
+    rl = np.einsum("al,pl->pa", loc.conj(), rhs).real
+    # red = sum_j nss - nsl nll^-1 nsl^T; redr = sum_j rs - nsl nll^-1 rl
+    t = nsl @ nll_inv
+    red = np.ascontiguousarray(np.sum(nss - t @ nsl.transpose(0, 2, 1), axis=0))
+    redr = np.ascontiguousarray(np.sum(rs - np.einsum("pab,pb->pa", t, rl), axis=0)[:, None])
     sol, ok = solve_normal(red, redr)
     if not ok:
         return FIT_SINGULAR
-    coef = np.empty(m + 1, dtype=np.complex128)
-    coef[0] = 1.0
-    for a in range(m):
-        coef[m - a] = sol[a, 0]
-    roots = poly_roots(coef)  # by decreasing imaginary part, as np.roots orders them
+    coef = np.concatenate(([1.0], sol[::-1, 0])).astype(np.complex128)
+    with np.errstate(all="ignore"):
+        roots = np.roots(coef) if np.all(np.isfinite(coef)) else np.full(m, np.nan + 0j)
+    roots = roots[np.lexsort((-roots.real, -roots.imag))]  # decreasing Im, then Re
     vsel = np.empty(2, dtype=np.complex128)
     code = _upper_poles(roots, dt, ws, limits, lam_out, vsel)
     if code != FIT_OK:
         return code
-    b = np.empty(m)
-    e = np.empty(m)
-    for j in range(n_p):
-        for a in range(m):
-            acc = rl_all[j, a]
-            for c in range(m):
-                acc -= nsl_all[j, c, a] * sol[c, 0]
-            b[a] = acc
-        for a in range(m):
-            acc = 0.0
-            for c in range(m):
-                acc += nll_inv[a, c] * b[c]
-            e[a] = acc
-        for kk in range(2):
-            vr = vsel[kk]
-            num = 0j
-            vpow = 1.0 + 0j
-            for a in range(m):
-                num += e[a] * vpow
-                vpow *= vr
-            den = 1.0 + 0j
-            for r in range(m):
-                if roots[r] != vr:
-                    den *= vr - roots[r]
-            rr = num / den / wts[j]
-            if dt > 0.0:
-                p, sc = pole_factor(lam_out[kk], dt, n_samples)
-                res_out[j, kk] = p * dt * ws * rr / sc
-            else:
-                res_out[j, kk] = ws * rr
+    e = (rl - nsl.transpose(0, 2, 1) @ sol[:, 0]) @ nll_inv.T  # (P, 4)
+    for kk in range(2):
+        vr = vsel[kk]
+        num = e @ (vr ** np.arange(m))
+        den = np.prod([vr - r for r in roots if r != vr])
+        rr = num / den / wts
+        if dt > 0.0:
+            p, sc = pole_factor(complex(lam_out[kk]), dt, n_samples)
+            res_out[:, kk] = p * dt * ws * rr / sc
+        else:
+            res_out[:, kk] = ws * rr
     return FIT_OK
 
 

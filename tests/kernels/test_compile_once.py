@@ -172,15 +172,15 @@ def test_identify_compiles_each_kernel_once():
 def test_public_wrappers_take_any_layout():
     """The checked wrappers hand the kernels C-contiguous float64 arrays: a Fortran-ordered,
     strided or integer input adds no specialisation."""
-    from ami_xr.kernels import modal_basis
+    from ami_xr.kernels import single_mode
 
-    omega = np.linspace(0.0, 60.0, 33)
-    lam = np.array([[-1.0 + 20j]])
-    variants = (omega, np.asfortranarray(omega), np.repeat(omega, 2)[::2], np.arange(33))
-    for w in variants:
-        for res in (np.array([[1.0 + 0j]]), np.array([[1, 2]])[:, ::2], np.ones((1, 1), int)):
-            modal_basis.contribution_peaks(w, None, None, lam, res)
-            assert len(modal_basis._contribution_peaks.signatures) == 1
+    omega = np.linspace(1.0, 60.0, 33)
+    lam = -1.0 + 20j
+    clean = 1.0 / (1j * omega - lam) + 1.0 / (1j * omega - np.conj(lam))
+    for w in (omega, np.asfortranarray(omega), np.repeat(omega, 2)[::2]):
+        for data in (clean, np.repeat(clean, 2)[::2], np.asfortranarray(np.vstack([clean] * 2))):
+            single_mode.fit_single_mode(data, w)
+            assert len(single_mode.fit_single.signatures) == 1
 
 
 SUBTRACT = """
