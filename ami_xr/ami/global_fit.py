@@ -251,7 +251,7 @@ def global_fit(
     points, each mode vector is normalised to a unit largest entry and flagged
     ``unscaled_no_drive_point``.
 
-    Quality flags per mode (comma-separated in ``quality_flags``, "" when none):
+    Quality flags per mode (bits of the int32 ``quality_flags``, :data:`ami_xr.core.flags.TABLE`):
     ``low_drive_point_snr`` (the mode's peak contribution at the drive point is below
     ``drive_snr_min`` times the drive point's noise floor: its scale, and every entry, is
     unreliable, the paper's modes 1 and 2), ``unscaled_no_drive_point``, ``not_converged``
@@ -320,7 +320,7 @@ def global_fit(
         names.FRF_RESIDUAL: residual.assign_attrs({names.ATTR_UNITS: units}),
         names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi), _ONE),
         names.DRIVE_POINT_SNR: ((names.MODE,), snr_drive, _ONE),
-        names.QUALITY_FLAGS: ((names.MODE,), flags.encode(mask)),
+        names.QUALITY_FLAGS: ((names.MODE,), mask),
     }
     if kind >= 0:
         out = out.assign_coords({names.RESIDUAL_TERM: list(names.RESIDUAL_TERM_LABELS)})

@@ -373,7 +373,7 @@ def identify_compressed(
         names.FRF_NOISE_STD: rms.assign_attrs({names.ATTR_UNITS: units} if units else {}),
         names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi), one),
         names.DRIVE_POINT_SNR: ((names.MODE,), snr, one),
-        names.QUALITY_FLAGS: ((names.MODE,), flags.encode(mask)),
+        names.QUALITY_FLAGS: ((names.MODE,), mask),
     }
     out = out.assign_coords({names.MODE_2: out[names.MODE].values})
     if kind >= 0:
