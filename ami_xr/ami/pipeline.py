@@ -119,7 +119,11 @@ def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progres
     steps = [names.PHASE_SUBTRACT, names.PHASE_ISOLATE, names.PHASE_GLOBAL_FIT]
     steps += [names.PHASE_REFINE] if refined else []
     label = f"identify: {work.sizes.get(names.POINT, 0)} FRFs x {work.sizes[names.FREQUENCY]} lines"
-    with phases(progress, label, steps) as step, warnings.catch_warnings(record=True) as said:
+    with (
+        phases(progress, label, steps) as step,
+        warnings.catch_warnings(record=True) as said,
+        c.frf_checked(work),  # identify validated it (or built it from validated FRFs)
+    ):
         warnings.simplefilter("always")  # held until the refinement says whether caps mattered
         step(names.PHASE_SUBTRACT)
         out = subtract(
