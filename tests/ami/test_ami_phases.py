@@ -271,7 +271,9 @@ def test_drive_point_missing_unscaled():
     ds = _dataset(lam, res)
     ds.attrs.pop(names.ATTR_DRIVE_POINT, None)  # a drive point naming no point is an error (#42)
     out = ami_xr.identify(ds, refine=False)
-    assert all("unscaled_no_drive_point" in f for f in qf.flag_text(out[names.QUALITY_FLAGS].values))
+    assert all(
+        "unscaled_no_drive_point" in f for f in qf.flag_text(out[names.QUALITY_FLAGS].values)
+    )
     phi = out[names.MODE_VECTOR].values
     # unscaled vectors are normalised to unit peak by one division: default rtol 1e-7 is loose, but
     # any other scaling is off by O(1)

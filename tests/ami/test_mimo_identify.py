@@ -73,7 +73,9 @@ def test_noise_free_exact_poles_mode_vectors_and_participation(chain):
     np.testing.assert_allclose(part.values, at_refs, rtol=1e-6, atol=1e-9 * np.abs(phi).max())
     assert np.all(out[names.DRIVE_POINT_CONSISTENCY].values < 1e-8)
     assert np.all(out[names.RANK_ONE_RATIO].values < 1e-8)
-    assert not any(names.FLAG_REPEATED_ROOT in f for f in qf.flag_text(out[names.QUALITY_FLAGS].values))
+    assert not any(
+        names.FLAG_REPEATED_ROOT in f for f in qf.flag_text(out[names.QUALITY_FLAGS].values)
+    )
 
 
 def test_outputs_are_on_reference_and_point(chain):
@@ -142,7 +144,9 @@ def test_one_percent_noise_finds_every_mode_with_consistent_scaling():
     assert np.all(out[names.DRIVE_POINT_CONSISTENCY].values < 0.15)
     # the residues' noise, not a second mode: no flag although s2/s1 of the weak modes is
     # a few percent
-    assert not any(names.FLAG_REPEATED_ROOT in f for f in qf.flag_text(out[names.QUALITY_FLAGS].values))
+    assert not any(
+        names.FLAG_REPEATED_ROOT in f for f in qf.flag_text(out[names.QUALITY_FLAGS].values)
+    )
     # L_r = phi at the reference's point: exactly where the scale came from, within the
     # drive-point spread elsewhere
     part = out[names.PARTICIPATION].values

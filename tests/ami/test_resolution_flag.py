@@ -58,7 +58,10 @@ def _unwidened(monkeypatch, frf: xr.Dataset, **kwargs) -> xr.Dataset:
 
 def _flagged(modes: xr.Dataset) -> np.ndarray:
     return np.array(
-        [names.FLAG_UNDER_RESOLVED in f.split(",") for f in flags.flag_text(modes.quality_flags.values)]
+        [
+            names.FLAG_UNDER_RESOLVED in f.split(",")
+            for f in flags.flag_text(modes.quality_flags.values)
+        ]
     )
 
 

@@ -188,7 +188,9 @@ def test_complete_false_keeps_the_ami_mode_count():
     assert fn.size == FN.size
     np.testing.assert_allclose(fn, FN, rtol=2e-3)
     assert out.attrs[names.ATTR_REFINE_FULL_FITS] == 1  # the one joint fit
-    assert not any("added_by_refine" in str(f) for f in qf.flag_text(out[names.QUALITY_FLAGS].values))
+    assert not any(
+        "added_by_refine" in str(f) for f in qf.flag_text(out[names.QUALITY_FLAGS].values)
+    )
     with pytest.raises(ValueError, match="complete: expected True or False"):
         ami_xr.identify(ds, complete="no")
 
