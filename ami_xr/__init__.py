@@ -66,6 +66,9 @@ _PUBLIC: dict[str, str] = {
     "report": "ami_xr.app.report",
     "modal_table": "ami_xr.tables",
     "format_modal_table": "ami_xr.tables",
+    # status as data: quality flags (int bits) in words, the caps of a run
+    "flag_text": "ami_xr.core.flags",
+    "RunStatus": "ami_xr.core.flags",
 }
 # Public submodules, also imported on first use.
 _SUBMODULES = ("names", "simulate")

@@ -46,6 +46,16 @@ class ConvergenceWarning(AmiXrWarning):
     """An iteration stopped at its cap before meeting its tolerance."""
 
 
+class CapWarning(ConvergenceWarning):
+    """A phase stopped at a cap. ``status`` holds the cap's bits (an int of
+    :class:`ami_xr.core.flags.RunStatus`), so that a caller tells the caps apart by value, never
+    by the text of the message."""
+
+    def __init__(self, message: str, status: int = 0) -> None:
+        super().__init__(message)
+        self.status = int(status)
+
+
 class NoModesWarning(AmiXrWarning):
     """No mode could be identified (for example an FRF that is pure noise)."""
 

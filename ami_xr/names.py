@@ -110,7 +110,7 @@ ATTR_NOISE_MODEL = "noise_model"
 NATURAL_FREQUENCY_ERROR = "natural_frequency_error"  # CRB: expected |error| / f_n
 DAMPING_RATIO_ERROR = "damping_ratio_error"  # CRB: expected |error| / zeta
 MODE_VECTOR_ERROR = "mode_vector_error"  # CRB: expected |dPhi_k| / |Phi_k| (Euclidean norms)
-# quality flags of a mode, joined by FLAG_SEPARATOR in QUALITY_FLAGS
+# quality flags of a mode (bits of QUALITY_FLAGS); their text joins them by FLAG_SEPARATOR
 FLAG_SEPARATOR = ","
 FLAG_LOW_DRIVE_SNR = "low_drive_point_snr"  # global_fit: scale unreliable (weak at the drive point)
 FLAG_UNSCALED = "unscaled_no_drive_point"  # global_fit: mode vector normalised, not scaled
@@ -159,7 +159,7 @@ FRF_RESIDUAL = "frf_residual"  # (point, frequency) complex frf - frf_synthesize
 RESIDUAL_COEFFICIENT = "residual_coefficient"  # (point, residual_term) complex
 MAC = "mac"  # (mode, mode_2) modal assurance criterion
 DRIVE_POINT_SNR = "drive_point_snr"  # (mode) drive-point peak contribution / noise floor
-QUALITY_FLAGS = "quality_flags"  # (mode) str, comma-separated flags ("" when none)
+QUALITY_FLAGS = "quality_flags"  # (mode) int32 bit field of FLAG_MEANINGS (0 when none)
 ATTR_AMI_MODEL = "ami_model"  # "discrete" | "continuous": basis used by the phases
 ATTR_AMI_PHASE = "ami_phase"  # last AMI phase run: subtract | isolate | global_fit | identify
 # the phases of identify, as a progress report names them
@@ -199,7 +199,7 @@ ATTR_BAND_FORCE_DROP_DB = "analysis_band_force_drop_db"  # force rule: dB below 
 ATTR_BAND_COHERENCE_MIN = "analysis_band_coherence_min"  # coherence rule: level
 ATTR_BAND_COHERENCE_FRACTION = "analysis_band_coherence_fraction"  # ... fraction of lines
 ATTR_BAND_DROPPED = "analysis_band_dropped_modes"  # Hz of modes outside the band, dropped
-# Caps that ended a phase ("subtract:max_modes", "isolate:max_iter", "refine:max_iter", ...)
+# Caps that ended a phase: an int, the bits of ami_xr.core.flags.RunStatus (words in its CAPS)
 ATTR_AMI_CAPPED = "ami_capped"
 # caps that did not decide the result: subtraction caps when the refinement completed the model,
 # isolate:max_iter when the converged refinement re-fitted every mode
@@ -253,8 +253,9 @@ STABILITY_FREQUENCY_SPREAD = "stability_frequency_spread"  # (mode) Hz, std of m
 ATTR_STABILITY_RULE = "stability_rule"  # one sentence: variants, match radius, fraction
 ATTR_STABILITY_TOLERANCE = "stability_match_tolerance"  # match radius in units of |Re lam|
 # The quality flags of a mode as named bits, bit k = 2**k for FLAG_MEANINGS[k]: the one encoding
-# of QUALITY_FLAGS (ami_xr.core.flags). In memory the text joins the flags set, in this order,
-# with FLAG_SEPARATOR; on disk ami_xr.io.cf also writes the CF flag_masks/flag_meanings bit field.
+# of QUALITY_FLAGS (ami_xr.core.flags), in memory and on disk (where ami_xr.io.cf adds the CF
+# flag_masks/flag_meanings); text (the flags set, in this order, joined by FLAG_SEPARATOR) only
+# in tables and reports.
 # Never reorder, only append (files hold the bits).
 FLAG_MEANINGS = (
     FLAG_LOW_DRIVE_SNR,

@@ -33,17 +33,9 @@ __all__ = [
 #: ``added_by_refine``), instead of "none".
 FOUND_BY_REFINEMENT = "found by the refinement"
 
-#: What each entry of the attributes ``ami_capped`` / ``ami_capped_superseded`` means, in words.
-CAP_DESCRIPTIONS: dict[str, str] = {
-    "subtract:max_modes": "the subtraction phase stopped at its limit of candidate modes per FRF "
-    "(max_modes)",
-    "subtract:max_rejected_peaks": "the subtraction phase stopped after examining its limit of "
-    "peaks (3 max_modes + 10)",
-    "isolate:max_iter": "the isolation phase reached its iteration limit (max_iter) at some FRF "
-    "(its modes carry not_converged; the refinement, refine=True, re-fits them)",
-    "refine:max_iter": "the refinement stopped at its iteration limit before converging",
-    "refine:add_modes": "the refinement stopped adding modes at its limit (add_modes)",
-}
+#: What each cap of the attributes ``ami_capped`` / ``ami_capped_superseded`` means, in words
+#: (the table of :data:`ami_xr.core.flags.CAPS`, by name).
+CAP_DESCRIPTIONS: dict[str, str] = {cap.name: cap.description for cap in qf.CAPS}
 
 
 def _text(value: Any) -> str:
@@ -94,7 +86,7 @@ def modal_table(ds: xr.Dataset) -> list[dict[str, Any]]:
         else list(range(1, fn.size + 1))
     )
     flags = (
-        [_text(f) for f in np.atleast_1d(ds[names.QUALITY_FLAGS].values)]
+        [str(f) for f in qf.flag_text(np.atleast_1d(ds[names.QUALITY_FLAGS].values))]
         if names.QUALITY_FLAGS in ds
         else [""] * fn.size
     )
@@ -169,7 +161,7 @@ def cap_notes(ds: xr.Dataset) -> list[tuple[str, str]]:
     """
 
     def entries(attr: str) -> list[str]:
-        return [e.strip() for e in str(ds.attrs.get(attr, "") or "").split(",") if e.strip()]
+        return qf.run_status(ds.attrs, attr).entries
 
     def words(caps: list[str]) -> str:
         return "; ".join(f"{CAP_DESCRIPTIONS.get(e, e)} [{e}]" for e in caps)

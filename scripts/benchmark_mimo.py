@@ -138,7 +138,7 @@ def run(seeds: int, levels=NOISE_LEVELS) -> list[dict]:
                     row["pfn"].extend(sc.frequency_error[in_pair])
                     row["pz"].extend(sc.damping_error[in_pair])
                     row["dpc"].extend(np.asarray(out["drive_point_consistency"].values).ravel())
-                    flags = [str(x) for x in np.asarray(out["quality_flags"].values)]
+                    flags = [str(x) for x in ami_xr.flag_text(out["quality_flags"].values)]
                     row["susp"] += sum("repeated_root_suspected" in x for x in flags)
                     row["sep"] += sum("repeated_root_separated" in x for x in flags)
                     row["t"].append(t)
@@ -394,7 +394,7 @@ def pair_outcome(out, lam) -> str:
     near = np.abs(got - lam) < 2 * abs(lam.real)
     if near.sum() >= 2:
         return "resolved"
-    flagged = np.array(["repeated_root_suspected" in str(x) for x in out["quality_flags"].values])
+    flagged = np.array(["repeated_root_suspected" in str(x) for x in ami_xr.flag_text(out["quality_flags"].values)])
     return "flagged" if np.any(flagged & near) else "missed"
 
 
@@ -493,7 +493,7 @@ def measured_beam_flags(n_sets: int) -> dict | None:
         )
         out, _ = _identify(ds)
         total += out.sizes["mode"]
-        flagged += sum("repeated_root_suspected" in str(x) for x in out["quality_flags"].values)
+        flagged += sum("repeated_root_suspected" in str(x) for x in ami_xr.flag_text(out["quality_flags"].values))
     label = f"measured beam, {min(n_sets, data['frf'].shape[1])} sets"
     return {"label": label, "level": float("nan"), "flagged": flagged, "modes": total}
 
@@ -508,7 +508,7 @@ def run_single_modes(seeds: int) -> list[dict]:
             ds = beam_frf(amount, level, seed) if kind == "beam" else chain_frf(amount, level, seed)
             out, _ = _identify(ds)
             total += out.sizes["mode"]
-            flagged += sum("repeated_root_suspected" in str(x) for x in out["quality_flags"].values)
+            flagged += sum("repeated_root_suspected" in str(x) for x in ami_xr.flag_text(out["quality_flags"].values))
         rows.append({"label": label, "level": level, "flagged": flagged, "modes": total})
     measured = measured_beam_flags(seeds)
     return rows + ([measured] if measured else [])

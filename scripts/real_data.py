@@ -105,7 +105,7 @@ def describe(modes, warnings_text: str) -> None:
         f"{a.get('analysis_band_fmax', float('nan')):.1f} Hz, rule "
         f"{a.get('analysis_band_rule', '?')!r}: {a.get('analysis_band_reason', '')}"
     )
-    print(f"  caps: {a.get('ami_capped') or 'none'}")
+    print(f"  caps: {ami_xr.RunStatus.of(a.get('ami_capped')).text() or 'none'}")
     print(f"  modes: {modes.sizes.get(names.MODE, 0)}")
     print(ami_xr.format_modal_table(modes))
     lines = [ln for ln in warnings_text.splitlines() if "warning" in ln]
@@ -119,7 +119,7 @@ def above_band(modes) -> tuple[int, float]:
     fn = modes[names.NATURAL_FREQUENCY].values
     fmax = modes.attrs.get("analysis_band_fmax", np.inf)
     flags = (
-        modes[names.QUALITY_FLAGS].values.astype(str)
+        ami_xr.flag_text(modes[names.QUALITY_FLAGS].values)
         if names.QUALITY_FLAGS in modes
         else np.full(fn.size, "")
     )
@@ -263,7 +263,7 @@ def main(argv: list[str] | None = None) -> int:
             )
             fmax = hm.attrs.get("analysis_band_fmax", np.inf)
             flags = (
-                hm[names.QUALITY_FLAGS].values.astype(str)
+                ami_xr.flag_text(hm[names.QUALITY_FLAGS].values)
                 if names.QUALITY_FLAGS in hm
                 else np.full(fn.size, "")
             )

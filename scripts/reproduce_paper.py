@@ -166,7 +166,7 @@ def tables(seed: int) -> None:
                 + "   | (Gauss-Newton standard errors of the real and imaginary parts)"
             )
         if "quality_flags" in res:
-            flags = res["quality_flags"].values
+            flags = ami_xr.flag_text(res["quality_flags"].values)
             print(
                 "  flags: "
                 + "; ".join(
@@ -245,7 +245,9 @@ def monte_carlo(noise: float, seeds: int) -> dict:
                 fn[k] = 100 * (np.abs(lam[i]) - fn_t[k]) / fn_t[k]
                 ze[k] = 100 * (-lam[i].real / np.abs(lam[i]) - zeta_t[k]) / zeta_t[k]
                 mv[k] = 100 * mode_vector_error(phi[:, i], phi_t[:, k])
-                if "quality_flags" in res and "drive" in str(res["quality_flags"].values[i]):
+                if "quality_flags" in res and "drive" in str(
+                    ami_xr.flag_text(res["quality_flags"].values)[i]
+                ):
                     stats[m]["flag_dp"][k] += 1
             stats[m]["fn"].append(fn)
             stats[m]["zeta"].append(ze)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+import contextlib
+import contextvars
+from collections.abc import Hashable, Iterator
 from functools import partial
 from typing import Any
 
@@ -53,6 +55,23 @@ GLOBAL_VARS = (
 )
 
 
+# The FRF array identify validated, while its phases run on it (see frf_checked)
+_CHECKED: contextvars.ContextVar[Any] = contextvars.ContextVar("ami_xr_checked_frf", default=None)
+
+
+@contextlib.contextmanager
+def frf_checked(ds: xr.Dataset) -> Iterator[None]:
+    """Within this block, :func:`check_frf` does not validate again a Dataset whose FRF is this
+    very array (the same object, not an equal one): :func:`ami_xr.identify` validates its input
+    once and its phases receive that FRF unchanged, so the one validation covers them. Any
+    other Dataset (another array, a transposed or edited FRF) is validated as always."""
+    token = _CHECKED.set(ds[names.FRF].data)
+    try:
+        yield
+    finally:
+        _CHECKED.reset(token)
+
+
 def check_frf(ds: Any, function: str) -> xr.Dataset:
     """The input checks every phase makes before any work.
 
@@ -84,6 +103,8 @@ def check_frf(ds: Any, function: str) -> xr.Dataset:
             f"or ami_xr.io.datasets.select_reference(ds, {first!r}) (which also sets "
             f"{names.ATTR_DRIVE_POINT!r} when the reference is a measured point)"
         )
+    if frf.data is _CHECKED.get() and frf.dims == (names.POINT, names.FREQUENCY):
+        return ds  # identify's own input, validated once (frf_checked)
     if set(frf.dims) == {names.POINT, names.FREQUENCY}:  # either order: phases transpose
         ds = ds.transpose(names.POINT, names.FREQUENCY, ...)
     ds = whole_lines(ds)

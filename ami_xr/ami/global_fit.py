@@ -9,6 +9,15 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import common as c
+
+# the mode-vector convention lives with the derived outputs; named here as before
+from ami_xr.ami.derive import ATTR_MODE_VECTOR_CONVENTION as ATTR_MODE_VECTOR_CONVENTION
+from ami_xr.ami.derive import MODE_VECTOR_CONVENTION as MODE_VECTOR_CONVENTION
+from ami_xr.ami.derive import ResidueFit, derive
+from ami_xr.ami.derive import mode_vector_units as mode_vector_units
+from ami_xr.ami.derive import receptance_mode_vectors as receptance_mode_vectors
+from ami_xr.ami.derive import receptance_residues as receptance_residues
+from ami_xr.ami.derive import residue_units as residue_units
 from ami_xr.ami.settings import (
     FrfAttributes,
     GlobalFitSettings,
@@ -17,7 +26,6 @@ from ami_xr.ami.settings import (
     to_attrs,
 )
 from ami_xr.core import flags
-from ami_xr.core.modal import mac_matrix, mode_vectors
 from ami_xr.core.model import resolve_model
 from ami_xr.errors import AssumptionWarning, IdentificationError
 from ami_xr.kernels import modal_basis as kb
@@ -25,80 +33,6 @@ from ami_xr.kernels import noise as kn
 from ami_xr.kernels import residues as kr
 
 RESIDUAL_KIND = {"receptance": 0, "mobility": 1, "accelerance": 2}
-_ONE = {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
-
-
-def residue_units(frf_units: str) -> dict:
-    """``units`` of residues: FRF units times rad/s (empty when the FRF has no units)."""
-    return {names.ATTR_UNITS: f"{frf_units} {names.ANGULAR_UNITS}"} if frf_units else {}
-
-
-def mode_vector_units(frf_units: str, scaled: bool) -> dict:
-    """``units`` of mode vectors: ``sqrt(FRF units)`` when scaled at the drive point (eq. 8,
-    ``Phi_P = sqrt(A_P / lam)``), ``"1"`` when normalised to a unit largest entry."""
-    if not scaled:
-        return dict(_ONE)
-    return {names.ATTR_UNITS: f"sqrt({frf_units})"} if frf_units else {}
-
-
-# --- the mode-vector convention: displacement (receptance) mode vectors whatever was measured ---
-ATTR_MODE_VECTOR_CONVENTION = "convention"  # on MODE_VECTOR
-MODE_VECTOR_CONVENTION = (
-    "displacement: Phi_j Phi_P = A_jP / lam with A the residues of the receptance (the FRF "
-    "residues divided by lam^k, k = 1 for mobility, 2 for accelerance); units sqrt(receptance "
-    "units), e.g. sqrt(m/N) = s/sqrt(kg); for a lightly damped normal mode with mass-normalised "
-    "real shape psi (1/sqrt(kg)), Phi = i psi / (sqrt(2) omega_d)"
-)
-
-
-def receptance_residues(
-    residue: np.ndarray, lam: np.ndarray, attrs, frf_units: str
-) -> tuple[np.ndarray, str]:
-    """The receptance residues (..., K) of FRF residues (..., K) at the poles ``lam`` (K,), and
-    the receptance units (see :func:`receptance_mode_vectors`; every path that turns residues
-    into mode vectors or participation factors goes through here)."""
-    from ami_xr.dsp.quantity import convert_units  # the one unit rule of convert_quantity
-
-    quantity = attrs.get(names.ATTR_QUANTITY)
-    if quantity not in names.QUANTITY_POWER:
-        quantity = names.FRF_TYPE_TO_QUANTITY.get(
-            from_attrs(FrfAttributes, attrs).frf_type, "displacement"
-        )
-    k = names.QUANTITY_POWER[quantity]
-    units, scale = frf_units, 1.0
-    ru, fu = attrs.get(names.ATTR_RESPONSE_UNITS), attrs.get(names.ATTR_FORCE_UNITS)
-    if k and ru and fu:
-        try:
-            base, scale = convert_units(str(ru), k, 0)
-            units = names.frf_units(base, str(fu))
-        except ValueError:  # units that do not say their derivative: keep them, say so
-            units = f"({frf_units}) s^{k}" if frf_units else ""
-    elif k:
-        units = f"({frf_units}) s^{k}" if frf_units else ""
-    return np.asarray(residue) * scale / np.asarray(lam) ** k, units
-
-
-def receptance_mode_vectors(
-    residue: np.ndarray, lam: np.ndarray, drive_index: int | None, attrs, frf_units: str
-) -> tuple[np.ndarray, dict]:
-    """Mode vectors (P, K) in the displacement convention, and their attributes.
-
-    The residue of ``(i w)^k G`` at a pole ``lam`` is ``lam^k A`` (``(i w)^k = (i w - lam +
-    lam)^k``; the polynomial rest is a residual term), so the receptance residues are the FRF's
-    residues over ``lam^k`` (times 9.80665 for accelerance in g). Eq. 8 on them gives the same
-    mode vectors whether receptance, mobility or accelerance was measured.
-    """
-    receptance, units = receptance_residues(residue, lam, attrs, frf_units)
-    phi = mode_vectors(receptance, lam, drive_index)
-    scaled = drive_index is not None
-    out = {
-        names.ATTR_SCALING: "eq. 8 at the drive point"
-        if scaled
-        else "unit largest entry (no drive point)",
-        ATTR_MODE_VECTOR_CONVENTION: MODE_VECTOR_CONVENTION,
-        **mode_vector_units(units, scaled),
-    }
-    return phi, out
 
 
 def band_mask(omega: np.ndarray, lam: np.ndarray, band) -> np.ndarray:
@@ -203,30 +137,17 @@ def _fit(frf: xr.DataArray, use, omega, lam, data_model, kind: int):
     return outs
 
 
-def _quality(ds: xr.Dataset, data_model, omega, lam, res, drive_index, drive_snr_min: float):
-    """Drive-point SNR per mode and the quality-flag bits decided here."""
-    n_k = lam.size
-    dt, n_samples = data_model.dt, data_model.n_samples
-    # drive-point SNR: peak of the mode's fitted contribution over the drive point noise floor
-    if names.SUB_NOISE_FLOOR in ds:
-        sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, float)
-    else:
-        sigma = kn.noise_floor(c.frf_values(ds))
-    peaks = kb.contribution_peaks(omega, dt, n_samples, lam[None, :], np.ascontiguousarray(res))
+def _isolation_flags(ds: xr.Dataset, n_k: int) -> np.ndarray:
+    """The flag bits the isolation's detections decide: ``not_converged`` (it stopped at
+    ``max_iter`` at a point that detected the mode) and ``single_frf``."""
     mask = np.zeros(n_k, np.int32)
-    if drive_index is None:
-        snr_drive = np.full(n_k, np.nan)
-        mask = flags.set_where(mask, names.FLAG_UNSCALED, True)
-    else:
-        snr_drive = peaks[drive_index] / sigma[drive_index]
-        mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, ~(snr_drive >= drive_snr_min))
     if names.DETECTED in ds and names.ISO_CONVERGED in ds:
         det = np.asarray(ds[names.DETECTED].transpose(names.POINT, names.MODE).values, bool)
         conv = np.asarray(ds[names.ISO_CONVERGED].transpose(names.POINT).values, bool)
         capped = np.any(det & ~conv[:, None], axis=0) | (~np.any(det, axis=0) & ~np.all(conv))
         mask = flags.set_where(mask, names.FLAG_NOT_CONVERGED, capped)
         mask = flags.set_where(mask, names.FLAG_SINGLE_FRF, det.sum(axis=0) == 1)
-    return snr_drive, mask
+    return mask
 
 
 def global_fit(
@@ -251,7 +172,7 @@ def global_fit(
     points, each mode vector is normalised to a unit largest entry and flagged
     ``unscaled_no_drive_point``.
 
-    Quality flags per mode (comma-separated in ``quality_flags``, "" when none):
+    Quality flags per mode (bits of the int32 ``quality_flags``, :data:`ami_xr.core.flags.TABLE`):
     ``low_drive_point_snr`` (the mode's peak contribution at the drive point is below
     ``drive_snr_min`` times the drive point's noise floor: its scale, and every entry, is
     unreliable, the paper's modes 1 and 2), ``unscaled_no_drive_point``, ``not_converged``
@@ -300,35 +221,22 @@ def global_fit(
     res_da, synth_da, rc_da = (o.compute() for o in outs)
     synth_da = synth_da.rename({names.FREQUENCY_OUT: names.FREQUENCY})
     res = np.asarray(res_da.transpose(names.POINT, names.MODE).values)
-    drive_index = c.drive_index(ds)
-    units = frf.attrs.get(names.ATTR_UNITS, "")
-    phi, phi_attrs = receptance_mode_vectors(res, lam, drive_index, ds.attrs, units)
-    snr_drive, mask = _quality(ds, data_model, omega, lam, res, drive_index, drive_snr_min)
-    residual = frf - synth_da.transpose(*frf.dims)
-    out = c.drop_results(ds, (c.GLOBAL_VARS,))
-    out = out.assign_coords({names.MODE_2: out[names.MODE].values})
-    new = {
-        names.RESIDUE: (
-            (names.POINT, names.MODE),
-            res,
-            {names.ATTR_UNITS: f"{units} {names.ANGULAR_UNITS}"},
-        ),
-        names.MODE_VECTOR: ((names.POINT, names.MODE), phi, phi_attrs),
-        names.FRF_SYNTHESIZED: synth_da.transpose(*frf.dims).assign_attrs(
-            {names.ATTR_UNITS: units}
-        ),
-        names.FRF_RESIDUAL: residual.assign_attrs({names.ATTR_UNITS: units}),
-        names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi), _ONE),
-        names.DRIVE_POINT_SNR: ((names.MODE,), snr_drive, _ONE),
-        names.QUALITY_FLAGS: ((names.MODE,), flags.encode(mask)),
-    }
-    if kind >= 0:
-        out = out.assign_coords({names.RESIDUAL_TERM: list(names.RESIDUAL_TERM_LABELS)})
-        new[names.RESIDUAL_COEFFICIENT] = rc_da.transpose(names.POINT, names.RESIDUAL_TERM)
-    out = out.assign(new)
-    out[names.FRF_RESIDUAL] = out[names.FRF_RESIDUAL].drop_vars(
-        [v for v in out[names.FRF_RESIDUAL].coords if v not in out[names.FRF].coords]
+    if names.SUB_NOISE_FLOOR in ds:
+        sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, float)
+    else:
+        sigma = kn.noise_floor(c.frf_values(ds))
+    fit = ResidueFit(
+        eigenvalue=lam,
+        residue=res,
+        synthesized=synth_da,
+        residual_coefficient=rc_da if kind >= 0 else None,
+        dt=data_model.dt,
+        n_samples=data_model.n_samples,
+        noise_floor=sigma,
+        mask=_isolation_flags(ds, n_k),
+        drive_snr_min=drive_snr_min,
     )
+    out = derive(fit, c.drop_results(ds, (c.GLOBAL_VARS,)))
     settings = GlobalFitSettings(
         band if isinstance(band, str) else float(band), bool(residual_terms), drive_snr_min
     )

@@ -12,9 +12,10 @@ from ami_xr.ami import common as c
 from ami_xr.ami import subtract as sub_phase
 from ami_xr.ami.settings import IsolateSettings, SubtractSettings, from_attrs, parameters, to_attrs
 from ami_xr.caller import warn
+from ami_xr.core import flags
 from ami_xr.core.matching import gather, match_modes, n_labels, weighted_average
 from ami_xr.core.model import resolve_model
-from ami_xr.errors import ConvergenceWarning, IdentificationError, NoModesWarning
+from ami_xr.errors import CapWarning, IdentificationError, NoModesWarning
 from ami_xr.kernels import isolate as ki
 from ami_xr.kernels import modal_basis as kb
 from ami_xr.kernels import noise as kn
@@ -253,8 +254,7 @@ def _isolate_simo_modes(ds, omega, data_model, sub, settings, sigma) -> _Isolate
     )
 
 
-#: How the warning of an isolation stopped at ``max_iter`` begins (the pipeline drops it when
-#: a converged refinement re-fitted every mode).
+#: How the warning of an isolation stopped at ``max_iter`` begins.
 NOT_CONVERGED = "isolate: not converged"
 
 
@@ -349,16 +349,18 @@ def isolate(
     to_attrs(settings, out.attrs)
     if not np.all(res.converged):
         bad = points[~res.converged].tolist()
-        warn(  # at the user's line, also when reached through identify
+        message = (
             f"{NOT_CONVERGED} within max_iter={max_iter} sweeps at point(s) {bad} (tol={tol}; "
             f"see {names.ISO_CONVERGED}): the eigenvalues of the modes detected there still "
             "moved between sweeps (often a mode that alternates between two fits, which more "
             f"sweeps do not settle), so they carry {names.FLAG_NOT_CONVERGED}. The refinement "
             "(identify's default, refine=True; not --no-refine or --method paper) re-fits "
             "every mode and replaces these estimates when it converges; on isolate's own "
-            "output run ami_xr.global_fit and ami_xr.refine, or loosen tol",
-            ConvergenceWarning,
+            "output run ami_xr.global_fit and ami_xr.refine, or loosen tol"
         )
+        # at the user's line, also when reached through identify; the pipeline tells it by
+        # its status bit (it drops it when a converged refinement re-fitted every mode)
+        warn(CapWarning(message, flags.RunStatus.ISOLATE_MAX_ITER), CapWarning)
     if res.n_modes == 0:
         warn("isolate: no mode identified", NoModesWarning)
     return c.finish(out, "ami_xr.isolate", "isolate", parameters(settings))

@@ -20,7 +20,6 @@ from ami_xr.ami import scale as scale_out
 from ami_xr.ami import spikes, whitening
 from ami_xr.ami.global_fit import global_fit, receptance_mode_vectors
 from ami_xr.ami.isolate import METHODS as ISOLATE_METHODS
-from ami_xr.ami.isolate import NOT_CONVERGED as ISOLATION_NOT_CONVERGED
 from ami_xr.ami.isolate import isolate
 from ami_xr.ami.refine import refine as refine_phase
 from ami_xr.ami.resolution import resolution_checked
@@ -37,7 +36,12 @@ from ami_xr.core.modal import (
     phase_normalised,
 )
 from ami_xr.dsp import band as bd
-from ami_xr.errors import AssumptionWarning, ConvergenceWarning, IdentificationError
+from ami_xr.errors import (
+    AssumptionWarning,
+    CapWarning,
+    ConvergenceWarning,
+    IdentificationError,
+)
 from ami_xr.progress import phases
 from ami_xr.provenance import nested_calls
 
@@ -115,7 +119,11 @@ def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progres
     steps = [names.PHASE_SUBTRACT, names.PHASE_ISOLATE, names.PHASE_GLOBAL_FIT]
     steps += [names.PHASE_REFINE] if refined else []
     label = f"identify: {work.sizes.get(names.POINT, 0)} FRFs x {work.sizes[names.FREQUENCY]} lines"
-    with phases(progress, label, steps) as step, warnings.catch_warnings(record=True) as said:
+    with (
+        phases(progress, label, steps) as step,
+        warnings.catch_warnings(record=True) as said,
+        c.frf_checked(work),  # identify validated it (or built it from validated FRFs)
+    ):
         warnings.simplefilter("always")  # held until the refinement says whether caps mattered
         step(names.PHASE_SUBTRACT)
         out = subtract(
@@ -140,35 +148,28 @@ def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progres
             if refined:
                 step(names.PHASE_REFINE)
                 out = refine_phase(out, **model_order(s))
-    superseded = _caps_superseded(out, refined)
-    refitted = _isolation_superseded(out, refined)
-    for w in said:
-        text = str(w.message)
-        if not (
-            (superseded and text.startswith("subtract: stopped at the cap"))
-            or (refitted and text.startswith(ISOLATION_NOT_CONVERGED))
-        ):
+    dropped = _caps_superseded(out, refined)
+    if _isolation_superseded(out, refined):
+        dropped |= flags.RunStatus.ISOLATE_MAX_ITER
+    for w in said:  # a cap's warning is told apart by its status bits, not by its text
+        if not (isinstance(w.message, CapWarning) and w.message.status & dropped):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
     return out
 
 
-# Caps of the Subtraction Phase: they end the list of candidate peaks, not the identification
-# when the refinement then completes the model until its statistics say stop.
-_SUBTRACT_CAPS = ("subtract:max_modes", "subtract:max_rejected_peaks")
-
-
-def _caps_superseded(out: xr.Dataset, refined: bool) -> bool:
-    """Drop the subtraction's caps from ``ami_capped`` when the refinement ran and completed
-    the model by its statistics (it was not stopped by its own cap): the residual it leaves
-    shows no further mode, so the candidate cap did not decide the mode count. They are kept
-    in ``ami_capped_superseded``. Returns whether they were superseded."""
-    caps = [e for e in str(out.attrs.get(names.ATTR_AMI_CAPPED, "")).split(",") if e]
-    hit = [e for e in caps if e in _SUBTRACT_CAPS]
-    if not (refined and hit) or "refine:add_modes" in caps or out.sizes.get(names.MODE, 0) == 0:
-        return False
-    out.attrs[names.ATTR_AMI_CAPPED] = ",".join(e for e in caps if e not in _SUBTRACT_CAPS)
-    out.attrs[names.ATTR_AMI_CAPPED_SUPERSEDED] = ",".join(hit)
-    return True
+def _caps_superseded(out: xr.Dataset, refined: bool) -> flags.RunStatus:
+    """Move the subtraction's caps from ``ami_capped`` to ``ami_capped_superseded`` when the
+    refinement ran and completed the model by its statistics (it was not stopped by its own
+    cap): the residual it leaves shows no further mode, so the candidate cap did not decide the
+    mode count. Returns the caps superseded (none: ``RunStatus.NONE``)."""
+    caps = flags.run_status(out.attrs)
+    hit = caps & flags.SUBTRACT_CAPS
+    moot = refined and hit and out.sizes.get(names.MODE, 0) > 0
+    if not moot or caps & flags.RunStatus.REFINE_ADD_MODES:
+        return flags.RunStatus.NONE
+    out.attrs[names.ATTR_AMI_CAPPED] = int(caps & ~flags.SUBTRACT_CAPS)
+    flags.add_caps(out.attrs, hit, names.ATTR_AMI_CAPPED_SUPERSEDED)
+    return hit
 
 
 def _isolation_superseded(out: xr.Dataset, refined: bool) -> bool:
@@ -195,7 +196,7 @@ def repeated_flagged(result: xr.Dataset) -> xr.Dataset:
     if not np.any(suspected):
         return result
     mask = flags.set_where(c.flag_mask(result), names.FLAG_REPEATED_ROOT, suspected)
-    result[names.QUALITY_FLAGS] = result[names.QUALITY_FLAGS].copy(data=flags.encode(mask))
+    result[names.QUALITY_FLAGS] = result[names.QUALITY_FLAGS].copy(data=mask)
     return result
 
 
@@ -348,16 +349,16 @@ def finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dat
         result, dropped = c.drop_outside_band(result, band.fmin, band.fmax)
         result.attrs[names.ATTR_BAND_DROPPED] = ",".join(f"{f:.6g}" for f in dropped)
     result = c.sort_modes(result)
-    caps = []
+    caps = flags.RunStatus.NONE
     if _isolation_superseded(result, refined):  # the converged refinement re-fitted every mode
-        gone = str(result.attrs.get(names.ATTR_AMI_CAPPED_SUPERSEDED, "")).split(",")
-        gone = [e for e in gone if e and e != "isolate:max_iter"] + ["isolate:max_iter"]
-        result.attrs[names.ATTR_AMI_CAPPED_SUPERSEDED] = ",".join(gone)
+        flags.add_caps(
+            result.attrs, flags.RunStatus.ISOLATE_MAX_ITER, names.ATTR_AMI_CAPPED_SUPERSEDED
+        )
     elif names.ISO_CONVERGED in result and not bool(np.all(result[names.ISO_CONVERGED].values)):
-        caps.append("isolate:max_iter")  # isolate warned already
+        caps |= flags.RunStatus.ISOLATE_MAX_ITER  # isolate warned already
     if refined and names.ATTR_REFINE_CONVERGED in result.attrs:
         if not int(result.attrs[names.ATTR_REFINE_CONVERGED]):
-            caps.append("refine:max_iter")
+            caps |= flags.RunStatus.REFINE_MAX_ITER
             warnings.warn(
                 "identify: the refinement stopped at its iteration cap before converging "
                 f"({result.attrs.get(names.ATTR_REFINE_ITERATIONS, '?')} iterations in all; "

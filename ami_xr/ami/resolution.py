@@ -204,7 +204,7 @@ def resolution_checked(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
         under = 2.0 * np.abs(zeta) * fn < RESOLUTION_LINES * df
     result = result.copy()
     mask = flags.set_where(c.flag_mask(result), names.FLAG_UNDER_RESOLVED, under)
-    result[names.QUALITY_FLAGS] = result[names.QUALITY_FLAGS].copy(data=flags.encode(mask))
+    result[names.QUALITY_FLAGS] = result[names.QUALITY_FLAGS].copy(data=mask)
     if not under.any():
         return result
     welch = welch_window(whole.attrs)

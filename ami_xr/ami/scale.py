@@ -6,7 +6,8 @@ that span their dominant column space), which gives the eigenvalues; then one la
 points fits every FRF's residues at those eigenvalues by linear least squares (the fixed-pole
 solver of eq. 9, :func:`ami_xr.kernels.residues.residues_fixed`), with mode vectors (eq. 8 at the
 drive point, in the displacement convention of the uncompressed path:
-:func:`ami_xr.ami.global_fit.receptance_mode_vectors`), synthesized FRFs, residuals and a
+:func:`ami_xr.ami.derive.receptance_mode_vectors`; the outputs built by
+:func:`ami_xr.ami.derive.derive`, as the global fit's), synthesized FRFs, residuals and a
 per-point noise estimate. The pole work does not grow with the number of points; the data are
 read ``power_iterations + 2`` times plus once for the power-of-two scale, whatever ``P`` (the
 first pass also finds all-zero FRFs, an error as on the uncompressed path).
@@ -37,16 +38,11 @@ import xarray as xr
 
 from ami_xr import interrupt, names
 from ami_xr.ami import common as c
-from ami_xr.ami.global_fit import (
-    RESIDUAL_KIND,
-    band_mask,
-    receptance_mode_vectors,
-    residue_units,
-)
+from ami_xr.ami.derive import ResidueFit, derive
+from ami_xr.ami.global_fit import RESIDUAL_KIND, band_mask
 from ami_xr.ami.settings import FrfAttributes, GlobalFitSettings, IdentifySettings, from_attrs
 from ami_xr.core import compress as cz
 from ami_xr.core import flags
-from ami_xr.core.modal import mac_matrix
 from ami_xr.core.model import resolve_model
 from ami_xr.errors import IdentificationError
 from ami_xr.kernels import modal_basis as kb
@@ -340,45 +336,28 @@ def identify_compressed(
         work, lam, use=use, residual_kind=kind, model_attrs=dict(vres.attrs)
     )
     res = res.transpose(names.POINT, names.MODE).compute()
-    drive = c.drive_index(work)
     units = work[names.FRF].attrs.get(names.ATTR_UNITS, "")
-    # the displacement convention of every other path (residues over lam^k for mobility and
-    # accelerance), so compressed and uncompressed mode vectors are the same quantity
-    phi, phi_attrs = receptance_mode_vectors(res.values, lam, drive, work.attrs, units)
-    synth = synth.rename({names.FREQUENCY_OUT: names.FREQUENCY}).transpose(
-        names.POINT, names.FREQUENCY
-    )
-    frf = work[names.FRF].transpose(names.POINT, names.FREQUENCY)
+    drive = c.drive_index(work)
     mask = c.flag_mask(vres)
     for flag in (names.FLAG_UNSCALED, names.FLAG_SINGLE_FRF, names.FLAG_LOW_DRIVE_SNR):
         mask = flags.set_where(mask, flag, False)  # decided for virtual FRFs: decide again
     dt_model = resolve_model(dict(vres.attrs), vres.attrs.get(names.ATTR_REFINE_MODEL, "auto"))
-    if drive is None:
-        snr = np.full(lam.size, np.nan)
-        mask = flags.set_where(mask, names.FLAG_UNSCALED, True)
-    else:
-        g_drive = np.asarray(frf.isel({names.POINT: drive}).values, np.complex128)[None, :]
-        peaks = kb.contribution_peaks(
-            c.omega_of(work), dt_model.dt, dt_model.n_samples, lam[None, :], res.values[[drive]]
-        )[0]
-        snr = peaks / kn.noise_floor(g_drive)[0]
-        threshold = from_attrs(GlobalFitSettings, vres.attrs).drive_snr_min
-        mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, ~(snr >= threshold))
-    one = {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
-    new = {
-        names.RESIDUE: res.assign_attrs(residue_units(units)),
-        names.MODE_VECTOR: ((names.POINT, names.MODE), phi, phi_attrs),
-        names.FRF_SYNTHESIZED: synth.assign_attrs({names.ATTR_UNITS: units}),
-        names.FRF_RESIDUAL: (frf - synth).assign_attrs({names.ATTR_UNITS: units}),
-        names.FRF_NOISE_STD: rms.assign_attrs({names.ATTR_UNITS: units} if units else {}),
-        names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi), one),
-        names.DRIVE_POINT_SNR: ((names.MODE,), snr, one),
-        names.QUALITY_FLAGS: ((names.MODE,), flags.encode(mask)),
-    }
-    out = out.assign_coords({names.MODE_2: out[names.MODE].values})
-    if kind >= 0:
-        out = out.assign_coords({names.RESIDUAL_TERM: list(names.RESIDUAL_TERM_LABELS)})
-        new[names.RESIDUAL_COEFFICIENT] = rc.transpose(names.POINT, names.RESIDUAL_TERM)
-    out = out.assign(new)
+    noise = np.full(work.sizes[names.POINT], np.nan)
+    if drive is not None:  # only the drive point's noise floor is needed (its SNR)
+        g_drive = work[names.FRF].transpose(names.POINT, names.FREQUENCY).isel({names.POINT: drive})
+        noise[drive] = kn.noise_floor(np.asarray(g_drive.values, np.complex128)[None, :])[0]
+    fit = ResidueFit(
+        eigenvalue=lam,
+        residue=res.values,
+        synthesized=synth.rename({names.FREQUENCY_OUT: names.FREQUENCY}),
+        residual_coefficient=rc if kind >= 0 else None,
+        dt=dt_model.dt,
+        n_samples=dt_model.n_samples,
+        noise_floor=noise,
+        mask=mask,
+        drive_snr_min=from_attrs(GlobalFitSettings, vres.attrs).drive_snr_min,
+    )
+    out = derive(fit, out)
+    out[names.FRF_NOISE_STD] = rms.assign_attrs({names.ATTR_UNITS: units} if units else {})
     out.attrs[ATTR_COMPRESS_RANK] = vres.attrs[ATTR_COMPRESS_RANK]
     return out

@@ -12,10 +12,11 @@ from ami_xr import progress as pg
 from ami_xr.ami import common as c
 from ami_xr.ami.settings import SubtractSettings, parameters, to_attrs
 from ami_xr.caller import warn
+from ami_xr.core import flags
 from ami_xr.core.model import resolve_model
 from ami_xr.dsp import band as bd
 from ami_xr.dsp.convention import conjugate_error
-from ami_xr.errors import AssumptionWarning, ConvergenceWarning, NoModesWarning
+from ami_xr.errors import AssumptionWarning, CapWarning, NoModesWarning
 from ami_xr.kernels import noise as kn
 from ami_xr.kernels import subtract as ks
 
@@ -193,9 +194,10 @@ def subtract(
         When no FRF has any candidate (e.g. pure noise).
     AssumptionWarning
         When the band is chosen from the excitation (says which and why).
-    ConvergenceWarning
-        When a cap (``max_modes``, ``max_rejected_peaks``) ended the phase at some FRF; the
-        point's ``subtraction_stop_reason`` and attr ``ami_capped`` record it.
+    CapWarning
+        (a ConvergenceWarning) When a cap (``max_modes``, ``max_rejected_peaks``) ended the phase
+        at some FRF; the point's ``subtraction_stop_reason`` and attr ``ami_capped`` (a
+        :class:`~ami_xr.core.flags.RunStatus`) record it.
     """
     c.check_frf(ds, "subtract")
     settings = SubtractSettings(
@@ -303,9 +305,9 @@ def band_of(ds: xr.Dataset, fmin, fmax, function: str) -> xr.Dataset:
 
 
 def add_capped(attrs, entries) -> None:
-    """Append ``entries`` ("phase:cap") to attr ``ami_capped`` (comma-separated, no repeats)."""
-    old = [e for e in str(attrs.get(names.ATTR_AMI_CAPPED, "")).split(",") if e]
-    attrs[names.ATTR_AMI_CAPPED] = ",".join(old + [e for e in entries if e not in old])
+    """Set the bits of ``entries`` (a :class:`~ami_xr.core.flags.RunStatus`, or cap names
+    "phase:cap") in attr ``ami_capped`` (an int RunStatus)."""
+    flags.add_caps(attrs, entries)
 
 
 def _warn_caps(out: xr.Dataset, max_modes: int) -> None:
@@ -317,20 +319,20 @@ def _warn_caps(out: xr.Dataset, max_modes: int) -> None:
         ks.STOP_REASONS[ks.STOP_MAX_ATTEMPTS]: f"{3 * max_modes + 10} examined peaks "
         "(max_rejected_peaks = 3 max_modes + 10)",
     }
-    hit = []
+    hit = flags.RunStatus.NONE
     for reason, what in caps.items():
         at = points[reasons == reason]
         if at.size:
-            hit.append(f"subtract:{reason}")
-            warn(
+            status = flags.RunStatus.of(f"subtract:{reason}")
+            hit |= status
+            message = (
                 f"subtract: stopped at the cap of {what} at point(s) {c.shorten(at.tolist())}, "
                 "before the remaining peaks fell below the noise floor; modes may be missing "
                 "(raise max_modes, or narrow the band with fmin/fmax); see "
-                f"{names.SUB_STOP_REASON}",
-                ConvergenceWarning,
+                f"{names.SUB_STOP_REASON}"
             )
-    out.attrs[names.ATTR_AMI_CAPPED] = ""
-    add_capped(out.attrs, hit)
+            warn(CapWarning(message, status), CapWarning)
+    out.attrs[names.ATTR_AMI_CAPPED] = int(hit)
 
 
 def _has_significant_peak(frf, sigma, settings: SubtractSettings) -> bool:

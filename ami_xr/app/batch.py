@@ -73,6 +73,7 @@ from ami_xr.app.batch_files import (
     up_to_date,
 )
 from ami_xr.app.redact import relative_paths
+from ami_xr.core import flags
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_folder, atomic_open, interrupts_deferred, remove_stale
 from ami_xr.io.formats import check_input, read_any
@@ -266,7 +267,7 @@ def _process_one(job: dict[str, Any]) -> dict[str, Any]:
             interrupt.checkpoint()
             ami_xr.to_netcdf(result, out, parameters=job["parameters"])  # BATCH_FUNCTION's
         row["modes"], row["frequencies_hz"] = _modal_summary(result)
-        caps = str(result.attrs.get(names.ATTR_AMI_CAPPED, "") or "")
+        caps = flags.run_status(result.attrs).text()
         row["status"] = STATUS_CAPPED if caps else STATUS_OK
         messages = sorted(
             {
@@ -417,7 +418,7 @@ def _reconcile(rows: dict[str, dict], jobs: list[dict]) -> None:
         except OSError:
             continue
         count, freqs = _modal_summary_from_file(out)
-        caps = str((output_attrs(out) or {}).get(names.ATTR_AMI_CAPPED, "") or "")
+        caps = flags.run_status(output_attrs(out) or {}).text()
         status = STATUS_CAPPED if caps else STATUS_OK
         rows[job["rel"]] = _row(
             job["rel"],
@@ -457,7 +458,7 @@ def _plan(
             continue
         if not force and up_to_date(inp, out, shared["params_sha"]):
             count, freqs = _modal_summary_from_file(out)
-            caps = str((output_attrs(out) or {}).get(names.ATTR_AMI_CAPPED, "") or "")
+            caps = flags.run_status(output_attrs(out) or {}).text()
             status, message = STATUS_UP_TO_DATE, ""
             if caps:  # an up-to-date incomplete result stays incomplete
                 status, message = STATUS_CAPPED, f"up to date; stopped at cap(s): {caps}"

@@ -164,7 +164,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
     if args.output:  # one record, the running command's (main), with identify as its step
         write_any(result, args.output, parameters={"input": args.input, **options})
         say(f"wrote modes to {args.output}")
-    caps = str(result.attrs.get(names.ATTR_AMI_CAPPED, "") or "")
+    from ami_xr.core.flags import run_status  # numpy: not on the --help path
+
+    caps = run_status(result.attrs).text()
     if caps:  # the last line says the result is incomplete (batch: status "capped")
         say(f"incomplete: stopped at cap(s) {caps}; modes may be missing (see the warnings)")
     return EXIT_OK

@@ -100,11 +100,20 @@ def resolve_residual_terms(
 ) -> tuple[str, ...]:
     """Residual terms of the joint model, in canonical order ("lower", "upper").
 
-    ``"auto"``: none where the modal model is exact (impulse-response and analytic FRFs) unless
-    the global fit used them (``fitted_before``), both otherwise. The value is assumed checked.
+    ``"auto"``: none where the modal model is exact (impulse-response and analytic FRFs of
+    receptance or mobility) unless the global fit used them (``fitted_before``), both otherwise.
+    An accelerance is never exact without them: ``(i w)^2 / (i w - lam) = i w + lam +
+    lam^2 / (i w - lam)``, so the modes of a complete model leave the constant
+    ``sum_k 2 Re(A_k lam_k)`` (the inverse mass), which only the upper residual term holds (the
+    ``i w`` terms cancel: the residues sum to zero). Without it the fit spends poles on that
+    constant, differently on the compressed and the full path (issue 39). The value is assumed
+    checked.
     """
     if residual_terms == "auto":
-        exact = attrs.get(names.ATTR_SOURCE) in (names.SOURCE_IMPULSE, names.SOURCE_ANALYTIC)
+        exact = attrs.get(names.ATTR_SOURCE) in (
+            names.SOURCE_IMPULSE,
+            names.SOURCE_ANALYTIC,
+        ) and attrs.get(names.ATTR_FRF_TYPE) != "accelerance"
         terms: tuple[str, ...] = () if exact and not fitted_before else RESIDUAL_TERMS
     elif isinstance(residual_terms, str):
         terms = (residual_terms,)

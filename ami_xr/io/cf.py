@@ -17,11 +17,11 @@ what is missing (attributes a function set are kept) and never changes a value:
   string, boolean and flag variables carry none (CF: units are not for strings or flags);
   ``residual_coefficient`` holds two quantities of different units along ``residual_term``, so
   it carries ``units_lower`` and ``units_upper`` instead of ``units``;
-* ``quality_flag_mask`` (int32, dims ``mode``): the comma-joined ``quality_flags`` as a CF bit
-  field with ``flag_masks`` and ``flag_meanings``: the one table of :mod:`ami_xr.core.flags`
+* ``quality_flags`` (int32, dims ``mode``), the bit field it is in memory too, gets the CF
+  ``flag_masks`` and ``flag_meanings`` of the one table of :mod:`ami_xr.core.flags`
   (:data:`FLAG_MEANINGS` and :data:`FLAG_MASKS` are its ``MEANINGS`` and ``MASKS``, every flag,
-  bit k = 2**k). ``quality_flags`` stays as it was, for compatibility; a flag CF cannot name (not
-  in :data:`FLAG_MEANINGS`) is only in ``quality_flags``.
+  bit k = 2**k). Files of earlier versions hold the comma-joined text there and the bit field
+  in ``quality_flag_mask`` (:data:`QUALITY_FLAG_MASK`); :func:`flags_as_bits` reads them;
 
 * the CF global attribute ``history``: one line per ``ami_xr_history`` record (UTC time,
   function, ami_xr version; :func:`ami_xr.provenance.cf_history`), after any ``history`` text
@@ -58,12 +58,14 @@ from __future__ import annotations
 
 import json
 import re
+import warnings
 
 import numpy as np
 import xarray as xr
 
 from ami_xr import names
 from ami_xr.core import flags
+from ami_xr.errors import AssumptionWarning
 from ami_xr.provenance import cf_history
 
 __all__ = [
@@ -86,6 +88,7 @@ __all__ = [
     "ATTR_UNITS_LOWER",
     "ATTR_UNITS_UPPER",
     "flag_mask",
+    "flags_as_bits",
 ]
 
 ATTR_CONVENTIONS = "Conventions"
@@ -104,12 +107,13 @@ _SQRT_UNITS = re.compile(r"^sqrt\((.+)\)$")
 LABEL_SUFFIX = "_label"  # a dim coordinate CF cannot hold is stored as <dim>_label
 # on disk, a time axis without a date (s from the record start): CF's "time" needs an epoch
 ELAPSED_TIME = "elapsed_time"
-QUALITY_FLAG_MASK = "quality_flag_mask"  # int32 bit field of quality_flags (CF flag_masks)
+QUALITY_FLAG_MASK = "quality_flag_mask"  # files before issue 39: the bits beside the text
 ATTR_FLAG_MASKS = "flag_masks"
 ATTR_FLAG_MEANINGS = "flag_meanings"
 # the bits of the one table (ami_xr.core.flags, bit k = 2**k for MEANINGS[k]), not a copy of it
 FLAG_MEANINGS = flags.MEANINGS
 FLAG_MASKS = flags.MASKS
+_FLAG_ATTRS = {ATTR_FLAG_MASKS: FLAG_MASKS, ATTR_FLAG_MEANINGS: " ".join(FLAG_MEANINGS)}
 
 _ONE = names.DIMENSIONLESS_UNITS
 UNITS = {
@@ -176,8 +180,7 @@ LONG_NAMES = {
     names.RESIDUAL_COEFFICIENT: "coefficient of the residual term",
     names.MAC: "modal assurance criterion",
     names.DRIVE_POINT_SNR: "peak contribution of the mode at the drive point over the noise floor",
-    names.QUALITY_FLAGS: "quality flags of the mode, comma-separated (empty: none)",
-    QUALITY_FLAG_MASK: "quality flags of the mode as a bit field",
+    names.QUALITY_FLAGS: "quality flags of the mode as a bit field (0: none)",
     names.FORCE_AUTOSPECTRUM: "force autospectrum (one-sided density)",
     names.RESPONSE_AUTOSPECTRUM: "response autospectrum (one-sided density)",
     names.CROSS_SPECTRUM: "force-response cross spectrum",
@@ -191,10 +194,37 @@ for _axis in "xyz":
 
 
 def flag_mask(text: np.ndarray) -> np.ndarray:
-    """int32 bit field of comma-joined flag strings (:func:`ami_xr.core.flags.decode`; a flag
-    not in :data:`FLAG_MEANINGS`, e.g. from a newer or foreign file, has no bit and is left out).
-    """
-    return flags.decode(text, unknown="ignore")
+    """int32 bit field of comma-joined flag strings (the ``quality_flags`` of files written
+    before issue 39; :func:`ami_xr.core.flags.from_text`): a flag not in :data:`FLAG_MEANINGS`,
+    e.g. from a foreign file, has no bit and is left out."""
+    return flags.from_text(text, unknown="ignore")
+
+
+def flags_as_bits(ds: xr.Dataset) -> xr.Dataset:
+    """``ds`` read from a file, with ``quality_flags`` as the int32 bit field: a file of an
+    earlier version holds the comma text (and a ``quality_flag_mask`` beside it, which
+    :func:`strip` removed); a flag this version cannot name is left out with a warning."""
+    if names.QUALITY_FLAGS not in ds.variables:
+        return ds
+    var = ds.variables[names.QUALITY_FLAGS]
+    if var.dtype.kind not in "USO":
+        return ds
+    values = np.asarray(var.values).astype(str)
+    known = flag_mask(values)
+    foreign = sorted(
+        {f.strip() for v in values.ravel() for f in v.split(names.FLAG_SEPARATOR)}
+        - set(FLAG_MEANINGS)
+        - {""}
+    )
+    if foreign:
+        warnings.warn(
+            f"{names.QUALITY_FLAGS}: flag(s) {foreign} are not flags of this version of ami_xr "
+            "and were left out",
+            AssumptionWarning,
+            stacklevel=2,
+        )
+    attrs = {k: v for k, v in var.attrs.items() if k not in _FLAG_ATTRS}
+    return ds.assign({names.QUALITY_FLAGS: xr.Variable(var.dims, known, attrs)})
 
 
 def _base(name: str) -> str | None:
@@ -342,18 +372,14 @@ def annotate(ds: xr.Dataset) -> xr.Dataset:
     out = ds.copy()
     out.attrs = {k: v for k, v in ds.attrs.items() if k != ATTR_CF_ADDED}
     added: dict = {"variables": [], "attrs": {}, "global": {}}
-    if names.QUALITY_FLAGS in ds and ds[names.QUALITY_FLAGS].dtype.kind in "US":
-        if QUALITY_FLAG_MASK not in ds.variables:
-            added["variables"].append(QUALITY_FLAG_MASK)
-        text = ds[names.QUALITY_FLAGS]
-        out[QUALITY_FLAG_MASK] = xr.Variable(
-            text.dims,
-            flag_mask(text.values),
-            {
-                ATTR_FLAG_MASKS: FLAG_MASKS.copy(),
-                ATTR_FLAG_MEANINGS: " ".join(FLAG_MEANINGS),
-            },
-        )
+    if names.QUALITY_FLAGS in ds:
+        # the bit field with its CF table (a Dataset built by hand may still hold the text)
+        var = out[names.QUALITY_FLAGS].variable
+        out[names.QUALITY_FLAGS] = var.copy(data=flags.decode(var.values))
+        out[names.QUALITY_FLAGS].attrs.update(_FLAG_ATTRS)
+        added["attrs"][names.QUALITY_FLAGS] = [
+            k for k in _FLAG_ATTRS if k not in ds[names.QUALITY_FLAGS].attrs
+        ]
     moved = {}
     for name in list(out.variables):
         var = out.variables[name]
@@ -368,7 +394,7 @@ def annotate(ds: xr.Dataset) -> xr.Dataset:
                 new[names.ATTR_UNITS] = units
         new = {k: v for k, v in new.items() if k not in attrs}
         if new and name not in added["variables"]:
-            added["attrs"][str(name)] = sorted(new)
+            added["attrs"][str(name)] = sorted({*added["attrs"].get(str(name), []), *new})
         attrs = {**attrs, **new}
         root = _SQRT_UNITS.match(str(attrs.get(names.ATTR_UNITS, "")))
         if root and ATTR_UNITS_OF_SQUARE not in attrs:

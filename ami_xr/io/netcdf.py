@@ -22,8 +22,9 @@ On-disk conventions (readable without ami_xr, see the README's "netCDF files" se
 * CF metadata (:mod:`ami_xr.io.cf`): ``Conventions = "CF-1.11"``, ``title``, ``source``, a CF
   ``history`` line per step, ``long_name`` on every variable, ``units`` (UDUNITS) on every
   numeric one (mode vectors in ``sqrt(X)``: ``units_of_square = X`` instead), string or
-  unsorted dim coordinates as label variables ``<dim>_label``, and the quality flags also as a
-  CF bit field ``quality_flag_mask`` (``flag_masks``/``flag_meanings``). The IOOS compliance
+  unsorted dim coordinates as label variables ``<dim>_label``, and the int32 bit field
+  ``quality_flags`` with the CF ``flag_masks``/``flag_meanings`` (a file of an earlier version,
+  flags as comma text, reads as the same bits). The IOOS compliance
   checker (``cf:1.11``) finds no issue in these files (``tests/io/test_cf_compliance.py``).
 * No machine path: ``source_file`` and the history records hold file names only. In memory,
   :func:`open_dataset` sets ``source_file`` to the absolute path read.
@@ -45,7 +46,7 @@ from ami_xr import names
 from ami_xr.coords import uniform_coords
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_path, interrupts_deferred
-from ami_xr.io.cf import ATTR_CF_ADDED, annotate, on_disk_name, strip
+from ami_xr.io.cf import ATTR_CF_ADDED, annotate, flags_as_bits, on_disk_name, strip
 from ami_xr.io.lazy_source import NETCDF_LOCK, locked_call, source_guard
 from ami_xr.io.netcdf_codec import (
     ATTR_COMPLEX,
@@ -77,7 +78,6 @@ FORMAT = "NETCDF4"  # needed for int64 and variable-length strings
 
 # Files larger than this open lazily (dask-backed) when neither ``chunks`` nor ``lazy`` is given.
 LAZY_THRESHOLD_BYTES = 256 * 2**20
-
 
 
 def _is_dask(data: Any) -> bool:
@@ -379,6 +379,7 @@ def open_dataset(
             ds = ds.assign_coords(time_axis)
         check_cf_marker(ds.attrs.get(ATTR_CF_ADDED))
         ds = strip(ds)  # the CF metadata to_netcdf added is an on-disk encoding
+        ds = flags_as_bits(ds)  # a file of an earlier version: the flags as text
     except DataFileError as err:  # decode() names what is wrong: add the file, nothing else
         raise DataFileError(f"{path}: {err}") from err
     except (

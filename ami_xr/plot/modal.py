@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import os
 from collections.abc import Hashable, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.core import flags
 from ami_xr.core.modal import mac_matrix
 from ami_xr.errors import AmiXrValueError
 
@@ -57,6 +58,7 @@ MIN_PANEL_IN = 1.6  # narrowest Nyquist panel: beyond, the figure grows wider th
 
 
 # --- Bode --------------------------------------------------------------------------------------
+
 
 def plot_bode(
     ds: xr.Dataset,
@@ -552,14 +554,7 @@ def plot_mac(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure
 def _flags(ds: xr.Dataset) -> list[str]:
     if names.QUALITY_FLAGS not in ds:
         return []
-    return [_as_text(f) for f in np.atleast_1d(ds[names.QUALITY_FLAGS].values)]
-
-
-def _as_text(value: Any) -> str:
-    if isinstance(value, bytes):
-        value = value.decode()
-    text = str(value)
-    return "" if text in ("nan", "None") else text
+    return [str(f) for f in flags.flag_text(np.atleast_1d(ds[names.QUALITY_FLAGS].values))]
 
 
 def plot_modal_table(ds: xr.Dataset, *, path: str | os.PathLike | None = None) -> Figure:

@@ -10,6 +10,7 @@ import xarray as xr
 
 import ami_xr
 from ami_xr import names
+from ami_xr.core import flags as qf
 from ami_xr.errors import (
     AssumptionWarning,
     ConvergenceWarning,
@@ -129,7 +130,7 @@ def test_benchmark_15_percent_four_modes(seed):
     # 15 % noise: the damped frequencies scatter by ~1e-3 (the paper's table); 3e-3 still fails a
     # mode matched to the wrong peak (modes 10-30 % apart)
     np.testing.assert_allclose(lam.imag, lam_t.imag, rtol=3e-3)
-    flags = out[names.QUALITY_FLAGS].values
+    flags = qf.flag_text(out[names.QUALITY_FLAGS].values)
     assert "low_drive_point_snr" in flags[0] and "low_drive_point_snr" in flags[1]
     assert out[names.DETECTED].dims == (names.POINT, names.MODE)
 
@@ -270,7 +271,9 @@ def test_drive_point_missing_unscaled():
     ds = _dataset(lam, res)
     ds.attrs.pop(names.ATTR_DRIVE_POINT, None)  # a drive point naming no point is an error (#42)
     out = ami_xr.identify(ds, refine=False)
-    assert all("unscaled_no_drive_point" in f for f in out[names.QUALITY_FLAGS].values)
+    assert all(
+        "unscaled_no_drive_point" in f for f in qf.flag_text(out[names.QUALITY_FLAGS].values)
+    )
     phi = out[names.MODE_VECTOR].values
     # unscaled vectors are normalised to unit peak by one division: default rtol 1e-7 is loose, but
     # any other scaling is off by O(1)

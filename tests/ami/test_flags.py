@@ -3,6 +3,7 @@ from ``ami_xr.refine`` on the phases' output as from ``ami_xr.identify``."""
 
 from __future__ import annotations
 
+import json
 import re
 import warnings
 
@@ -14,23 +15,33 @@ import ami_xr
 from ami_xr import names
 from ami_xr.ami import resolution
 from ami_xr.core import flags
-from ami_xr.errors import AmiXrValueError
+from ami_xr.errors import AmiXrValueError, AssumptionWarning
 from ami_xr.io import cf
 from ami_xr.io.netcdf import open_dataset, to_netcdf
 
 from ..reference import REPO
 
 
-def test_encode_decode_round_trip_in_bit_order():
+def test_text_and_from_text_round_trip_in_bit_order():
     mask = np.array([0, 1 | 4, 2**8, 2 ** len(names.FLAG_MEANINGS) - 1], np.int32)
-    text = flags.encode(mask)
+    text = flags.flag_text(mask)
     assert text[0] == ""
     assert text[1] == f"{names.FLAG_LOW_DRIVE_SNR},{names.FLAG_NOT_CONVERGED}"
     assert text[2] == names.FLAG_REPEATED_ROOT_SEPARATED
     assert text[3].split(",") == list(names.FLAG_MEANINGS)
-    np.testing.assert_array_equal(flags.decode(text), mask)
+    np.testing.assert_array_equal(flags.from_text(text), mask)
     # order and blanks do not matter when reading
-    assert flags.decode([f"{names.FLAG_NOT_CONVERGED}, {names.FLAG_LOW_DRIVE_SNR}"])[0] == 5
+    assert flags.from_text([f"{names.FLAG_NOT_CONVERGED}, {names.FLAG_LOW_DRIVE_SNR}"])[0] == 5
+    # decode: the bit field as it is, or the text of an earlier file
+    np.testing.assert_array_equal(flags.decode(mask), mask)
+    np.testing.assert_array_equal(flags.decode(text), mask)
+
+
+def test_the_table_is_one_record_per_bit():
+    assert [f.name for f in flags.TABLE] == list(names.FLAG_MEANINGS)
+    assert [f.mask for f in flags.TABLE] == [1 << k for k in range(len(flags.TABLE))]
+    assert all(f.description == flags.DESCRIPTIONS[f.name] for f in flags.TABLE)
+    assert flags.ALL == 2 ** len(flags.TABLE) - 1
 
 
 def test_set_where_sets_and_clears_one_bit_only():
@@ -42,18 +53,25 @@ def test_set_where_sets_and_clears_one_bit_only():
     np.testing.assert_array_equal(flags.has(out, names.FLAG_SINGLE_FRF), [True, False, True])
 
 
-def test_unknown_flag_is_an_error_naming_it():
+def test_unknown_flag_or_bit_is_an_error_naming_it():
     with pytest.raises(AmiXrValueError, match="quality flag: expected one of .* got 'bogus'"):
-        flags.decode(["not_converged,bogus"])
+        flags.from_text(["not_converged,bogus"])
+    with pytest.raises(AmiXrValueError, match="quality_flags: bits 0x400 are not in the flag"):
+        flags.decode(np.array([1 << len(flags.TABLE)], np.int32))
+    with pytest.raises(AmiXrValueError, match="quality_flags: expected an integer bit field"):
+        flags.decode(np.array([1.5]))
+    # a mode xarray's reindex added (NaN in the promoted floats) has no flag yet
+    assert flags.decode(np.array([5.0, np.nan])).tolist() == [5, 0]
+    assert flags.decode(np.array([5, flags.MISSING])).tolist() == [5, 0]
 
 
 def test_every_flag_round_trips():
     for k, flag in enumerate(names.FLAG_MEANINGS):
         mask = np.array([1 << k], np.int32)
-        assert flags.encode(mask)[0] == flag
-        np.testing.assert_array_equal(flags.decode(flags.encode(mask)), mask)
+        assert flags.flag_text(mask)[0] == flag
+        np.testing.assert_array_equal(flags.from_text(flags.flag_text(mask)), mask)
     every = np.arange(2 ** len(names.FLAG_MEANINGS), dtype=np.int32)
-    np.testing.assert_array_equal(flags.decode(flags.encode(every)), every)
+    np.testing.assert_array_equal(flags.from_text(flags.flag_text(every)), every)
 
 
 def test_the_file_bits_are_the_same_bits():
@@ -61,34 +79,110 @@ def test_the_file_bits_are_the_same_bits():
     assert tuple(cf.FLAG_MEANINGS) == names.FLAG_MEANINGS == flags.MEANINGS
     np.testing.assert_array_equal(cf.FLAG_MASKS, flags.MASKS)
     every = np.arange(2 ** len(names.FLAG_MEANINGS), dtype=np.int32)
-    np.testing.assert_array_equal(cf.flag_mask(flags.encode(every)), every)
+    np.testing.assert_array_equal(cf.flag_mask(flags.flag_text(every)), every)
     # a flag the table cannot name has no bit in the file (and is an error in memory)
     assert cf.flag_mask([f"{names.FLAG_SINGLE_FRF},from_the_future"]).tolist() == [8]
     with pytest.raises(AmiXrValueError, match="unknown: expected 'raise' or 'ignore'"):
-        flags.decode([""], unknown="skip")
+        flags.from_text([""], unknown="skip")
+
+
+def _every_flag_mask() -> np.ndarray:
+    """One mode per flag, one with none and one with all."""
+    n = len(names.FLAG_MEANINGS)
+    return np.array([1 << k for k in range(n)] + [0, 2**n - 1], np.int32)
 
 
 def test_written_file_holds_every_flag(tmp_path):
-    """A file written by to_netcdf: flag_meanings/flag_masks are the core table, each mode's
-    bits decode to its flags, and open_dataset gives the flags back unchanged."""
-    n = len(names.FLAG_MEANINGS)
-    # one mode per flag, one with none and one with all
-    mask = np.array([1 << k for k in range(n)] + [0, 2**n - 1], np.int32)
-    text = flags.encode(mask)
+    """A file written by to_netcdf: ``quality_flags`` is the bit field in memory and on disk,
+    flag_meanings/flag_masks are the core table, and open_dataset gives the bits back."""
+    mask = _every_flag_mask()
     ds = xr.Dataset(
-        {names.QUALITY_FLAGS: ((names.MODE,), text)},
+        {names.QUALITY_FLAGS: ((names.MODE,), mask)},
         coords={names.MODE: np.arange(1, mask.size + 1)},
     )
     path = to_netcdf(ds, tmp_path / "flags.nc")
     with xr.open_dataset(path, engine="netcdf4") as raw:
-        var = raw[cf.QUALITY_FLAG_MASK]
+        var = raw[names.QUALITY_FLAGS]
+        assert var.dtype == np.int32
         assert var.attrs["flag_meanings"].split() == list(flags.MEANINGS)
         np.testing.assert_array_equal(var.attrs["flag_masks"], flags.MASKS)
         np.testing.assert_array_equal(var.values, mask)
-        np.testing.assert_array_equal(flags.decode(raw[names.QUALITY_FLAGS].values), mask)
+        assert cf.QUALITY_FLAG_MASK not in raw.variables  # no second copy of the bits
     back = open_dataset(path)
-    assert list(back[names.QUALITY_FLAGS].values) == list(text)
-    np.testing.assert_array_equal(flags.decode(back[names.QUALITY_FLAGS].values), mask)
+    assert back[names.QUALITY_FLAGS].dtype == np.int32
+    np.testing.assert_array_equal(back[names.QUALITY_FLAGS].values, mask)
+    assert back[names.QUALITY_FLAGS].attrs == {}  # the CF table is an on-disk encoding
+
+
+def _old_format_file(path, text, caps: str):
+    """A modal file as versions before issue 39 wrote it: ``quality_flags`` the comma text, the
+    bits beside it in ``quality_flag_mask`` (listed in ``ami_xr_cf_added``), caps as text."""
+    n = len(text)
+    mask = cf.flag_mask(text)
+    ds = xr.Dataset(
+        {
+            names.QUALITY_FLAGS: ((names.MODE,), np.asarray(text, dtype=str)),
+            cf.QUALITY_FLAG_MASK: (
+                (names.MODE,),
+                mask,
+                {"flag_masks": flags.MASKS, "flag_meanings": " ".join(flags.MEANINGS)},
+            ),
+            names.NATURAL_FREQUENCY: ((names.MODE,), np.linspace(10.0, 20.0, n)),
+        },
+        coords={names.MODE: np.arange(1, n + 1)},
+        attrs={
+            names.ATTR_AMI_CAPPED: caps,
+            names.ATTR_AMI_CAPPED_SUPERSEDED: "",
+            cf.ATTR_CF_ADDED: json.dumps(
+                {"variables": [cf.QUALITY_FLAG_MASK], "attrs": {}, "global": {}}
+            ),
+        },
+    )
+    ds.to_netcdf(path, engine="netcdf4")
+    return mask
+
+
+def test_a_file_of_the_previous_version_reads_as_bits(tmp_path):
+    """Text flags and text caps (the previous format) read back as the same bits, and a file
+    written again from them holds the bit field: the round trip keeps every flag."""
+    text = list(flags.flag_text(_every_flag_mask()))
+    mask = _old_format_file(tmp_path / "old.nc", text, "subtract:max_modes,refine:max_iter")
+    old = open_dataset(tmp_path / "old.nc")
+    assert old[names.QUALITY_FLAGS].dtype == np.int32
+    assert cf.QUALITY_FLAG_MASK not in old
+    np.testing.assert_array_equal(old[names.QUALITY_FLAGS].values, _every_flag_mask())
+    np.testing.assert_array_equal(mask, _every_flag_mask())
+    caps = flags.run_status(old.attrs)
+    assert caps == flags.RunStatus.SUBTRACT_MAX_MODES | flags.RunStatus.REFINE_MAX_ITER
+    assert flags.run_status(old.attrs, names.ATTR_AMI_CAPPED_SUPERSEDED) == 0
+    new = open_dataset(to_netcdf(old, tmp_path / "new.nc"))
+    np.testing.assert_array_equal(new[names.QUALITY_FLAGS].values, _every_flag_mask())
+    assert flags.run_status(new.attrs) == caps
+    # the tables show the same words as before
+    from ami_xr.tables import modal_table
+
+    assert [r["flags"] for r in modal_table(new)] == text
+
+
+def test_a_foreign_flag_in_an_old_file_is_left_out_with_a_warning(tmp_path):
+    _old_format_file(tmp_path / "old.nc", [f"{names.FLAG_SINGLE_FRF},from_the_future", ""], "")
+    with pytest.warns(AssumptionWarning, match="from_the_future"):
+        old = open_dataset(tmp_path / "old.nc")
+    assert old[names.QUALITY_FLAGS].values.tolist() == [flags.bit(names.FLAG_SINGLE_FRF), 0]
+
+
+def test_run_status_is_bits_with_one_word_table():
+    s = flags.RunStatus
+    assert [c.status for c in flags.CAPS] == [1 << k for k in range(len(flags.CAPS))]
+    assert s.of("refine:add_modes, isolate:max_iter") == s.REFINE_ADD_MODES | s.ISOLATE_MAX_ITER
+    assert s.of(None) == s.of("") == s.of(0) == s.NONE
+    assert s.of(5).text() == "subtract:max_modes,isolate:max_iter"
+    with pytest.raises(AmiXrValueError, match="run status: expected caps among .* 'bogus'"):
+        s.of("bogus")
+    attrs: dict = {}
+    flags.add_caps(attrs, ["refine:max_iter"])
+    flags.add_caps(attrs, s.SUBTRACT_MAX_MODES)
+    assert attrs[names.ATTR_AMI_CAPPED] == 9 and isinstance(attrs[names.ATTR_AMI_CAPPED], int)
 
 
 def _quiet(function, *args, **kwargs):
@@ -109,7 +203,7 @@ def test_refine_and_identify_report_the_same_flags(capped):
     sub = _quiet(ami_xr.subtract, capped)
     iso = _quiet(ami_xr.isolate, sub, max_iter=1)
     glob = _quiet(ami_xr.global_fit, iso)
-    assert any(names.FLAG_NOT_CONVERGED in f for f in glob[names.QUALITY_FLAGS].values)
+    assert flags.has(glob[names.QUALITY_FLAGS].values, names.FLAG_NOT_CONVERGED).any()
     ref = _quiet(ami_xr.refine, glob)
     ref = ref.sortby(names.NATURAL_FREQUENCY)
     # under_resolved is identify's, decided on the final modes (issue 37 item 4)
@@ -125,7 +219,7 @@ def test_refine_supersedes_the_isolation_cap_where_it_converged(capped):
     sub = _quiet(ami_xr.subtract, capped)
     glob = _quiet(ami_xr.global_fit, _quiet(ami_xr.isolate, sub, max_iter=1))
     ref = _quiet(ami_xr.refine, glob)
-    mask = flags.decode(ref[names.QUALITY_FLAGS].values)
+    mask = ref[names.QUALITY_FLAGS].values
     trouble = flags.has(mask, names.FLAG_REFINE_FALLBACK) | flags.has(
         mask, names.FLAG_REFINE_NOT_CONVERGED
     )

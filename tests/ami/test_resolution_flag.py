@@ -17,6 +17,7 @@ from scipy.signal import fftconvolve
 import ami_xr
 from ami_xr import names
 from ami_xr.ami import pipeline, resolution
+from ami_xr.core import flags
 from ami_xr.errors import AssumptionWarning, ConvergenceWarning
 from ami_xr.io.netcdf import open_dataset, to_netcdf
 from ami_xr.tables import cap_notes
@@ -56,7 +57,12 @@ def _unwidened(monkeypatch, frf: xr.Dataset, **kwargs) -> xr.Dataset:
 
 
 def _flagged(modes: xr.Dataset) -> np.ndarray:
-    return np.array([names.FLAG_UNDER_RESOLVED in f.split(",") for f in modes.quality_flags.values])
+    return np.array(
+        [
+            names.FLAG_UNDER_RESOLVED in f.split(",")
+            for f in flags.flag_text(modes.quality_flags.values)
+        ]
+    )
 
 
 @pytest.fixture(scope="module")
@@ -207,8 +213,9 @@ def test_isolation_cap_superseded_by_a_converged_refinement(coarse):
     modes, said = _identify(coarse)  # the isolation cycles on this under-resolved peak
     assert not np.all(modes[names.ISO_CONVERGED].values)
     assert int(modes.attrs[names.ATTR_REFINE_CONVERGED]) == 1
-    assert "isolate:max_iter" not in modes.attrs.get(names.ATTR_AMI_CAPPED, "")
-    assert "isolate:max_iter" in modes.attrs[names.ATTR_AMI_CAPPED_SUPERSEDED].split(",")
+    assert "isolate:max_iter" not in flags.run_status(modes.attrs).entries
+    superseded = flags.run_status(modes.attrs, names.ATTR_AMI_CAPPED_SUPERSEDED)
+    assert "isolate:max_iter" in superseded.entries
     assert not _isolate_warnings(said)
     notes = dict(cap_notes(modes))
     assert "incomplete" not in notes and "re-fitted every mode" in notes["superseded"]
@@ -216,11 +223,11 @@ def test_isolation_cap_superseded_by_a_converged_refinement(coarse):
 
 def test_isolation_cap_without_refinement_says_what_to_do(coarse):
     modes, said = _identify(coarse, refine=False)
-    assert "isolate:max_iter" in modes.attrs[names.ATTR_AMI_CAPPED].split(",")
+    assert "isolate:max_iter" in flags.run_status(modes.attrs).entries
     assert names.ATTR_AMI_CAPPED_SUPERSEDED not in modes.attrs
     (text,) = _isolate_warnings(said)
     assert "refine=True" in text and names.FLAG_NOT_CONVERGED in text
-    assert any(names.FLAG_NOT_CONVERGED in f for f in modes.quality_flags.values)
+    assert flags.has(modes.quality_flags.values, names.FLAG_NOT_CONVERGED).any()
 
 
 def test_the_advice_resolves_the_narrowest_bandwidth_not_only_the_lowest_damping():
@@ -236,14 +243,14 @@ def test_the_advice_resolves_the_narrowest_bandwidth_not_only_the_lowest_damping
             names.EIGENVALUE: (mode, lam),
             names.DAMPING_RATIO_STD: (mode, np.full(3, 1e-4)),
             names.EIGENVALUE_STD: (mode, np.full(3, 0.01 + 0.02j)),
-            names.QUALITY_FLAGS: (mode, np.array(["", names.FLAG_SINGLE_FRF, ""])),
+            names.QUALITY_FLAGS: (mode, flags.from_text(["", names.FLAG_SINGLE_FRF, ""])),
         },
         coords={names.MODE: [1, 2, 3]},
     )
     whole = xr.Dataset(coords={names.FREQUENCY: np.arange(0.0, 100.5, 0.5)})
     with pytest.warns(AssumptionWarning) as said:
         out = resolution.resolution_checked(result, whole)
-    assert out[names.QUALITY_FLAGS].values.tolist() == [
+    assert flags.flag_text(out[names.QUALITY_FLAGS].values).tolist() == [
         names.FLAG_UNDER_RESOLVED,
         f"{names.FLAG_SINGLE_FRF},{names.FLAG_UNDER_RESOLVED}",
         "",
