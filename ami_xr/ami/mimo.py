@@ -446,5 +446,5 @@ def _with_mode_outputs(out: xr.Dataset, modes: _Modes, ds: xr.Dataset, scaled: b
         if scaled:
             smin = from_attrs(GlobalFitSettings, out.attrs).drive_snr_min
             mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, ~(modes.best_snr >= smin))
-        out[names.QUALITY_FLAGS] = out[names.QUALITY_FLAGS].copy(data=flags.encode(mask))
+        out[names.QUALITY_FLAGS] = out[names.QUALITY_FLAGS].copy(data=np.asarray(mask, np.int32))
     return out

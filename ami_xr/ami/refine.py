@@ -539,6 +539,8 @@ def _with_added_modes(ds, n_added):
                 fill[name] = False
             elif var.dtype.kind in "US":
                 fill[name] = ""
+            elif name == names.QUALITY_FLAGS:
+                fill[name] = 0  # an added mode has no flag yet (its own are set below)
             elif var.dtype.kind in "iu":
                 fill[name] = -1
     drop = [v for v in ds.data_vars if names.MODE_2 in ds[v].dims]
@@ -572,5 +574,5 @@ def _merge_flags(ds, status, lam0, low_snr=None, added=None):
     if low_snr is not None:
         mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, low_snr)
     return xr.DataArray(
-        flags.encode(mask), dims=(names.MODE,), coords={names.MODE: lam0[names.MODE].values}
+        np.asarray(mask, np.int32), dims=(names.MODE,), coords={names.MODE: lam0[names.MODE].values}
     )

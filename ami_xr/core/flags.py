@@ -185,12 +185,6 @@ def decode(value: Any, *, unknown: str = "raise") -> np.ndarray:
     return out
 
 
-def encode(mask: np.ndarray) -> np.ndarray:
-    """The value ``quality_flags`` stores for ``mask``: the int32 bit field itself (since issue
-    39 the flags are bits in memory too; kept for callers that still wrap their mask)."""
-    return decode(mask)
-
-
 class RunStatus(enum.IntFlag):
     """The caps that ended a phase of a run, one bit each (attributes ``ami_capped``: the run is
     incomplete, and ``ami_capped_superseded``: a cap the refinement made moot). The words of

@@ -32,7 +32,11 @@ def _residue_columns(omega, lam, dt, n_samples, use, residual_kind):
     lam = lam[:, None]
     if dt > 0.0:
         p = np.exp(lam * dt)
-        sc = dt * (1.0 - np.exp(lam * (n_samples * dt))) if n_samples > 0 else np.full(lam.shape, dt + 0j)
+        sc = (
+            dt * (1.0 - np.exp(lam * (n_samples * dt)))
+            if n_samples > 0
+            else np.full(lam.shape, dt + 0j)
+        )
         b = sc / (1.0 - p * x)
         bc = np.conj(sc) / (1.0 - np.conj(p) * x)
     else:
