@@ -392,6 +392,53 @@ def _close(client: Any, local: Any, fast: bool = False) -> None:
     local.shutdown_on_close = False
 
 
+def _start(args: argparse.Namespace) -> tuple[Any, Any, str]:
+    """:func:`_connect` in a thread of its own, the main thread looking for a held signal every
+    :data:`POLL_SECONDS`: the cluster's start-up (seconds of worker processes starting, on a
+    loaded machine ten or more) waits in ``distributed``'s event loop, where a signal is only
+    held; stopped there, the worker processes started so far are killed and the half-built
+    cluster is left to the ending process (not closed again at exit)."""
+    box: dict[str, Any] = {}
+    abandoned = threading.Event()
+
+    def start() -> None:
+        try:
+            box["value"] = _connect(args)
+        except BaseException as err:  # noqa: BLE001 - handed to the main thread
+            box["error"] = err
+        if abandoned.is_set() and "value" in box:  # finished after the main thread gave up
+            client, local, _ = box["value"]
+            _close(client, local, fast=True)
+
+    thread = threading.Thread(target=start, name="ami_xr-cluster-start", daemon=True)
+    thread.start()
+    try:
+        while thread.is_alive():
+            thread.join(POLL_SECONDS)
+            interrupt.checkpoint()  # a signal held while the cluster starts: raised here
+        interrupt.checkpoint()
+    except BaseException:
+        abandoned.set()
+        _abandon()
+        raise
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
+
+
+def _abandon() -> None:
+    """Kill the worker processes this process started (by pid) and keep ``distributed`` from
+    closing its clusters again at exit (it would wait up to 10 s for a half-built one)."""
+    import multiprocessing
+
+    with contextlib.suppress(Exception):
+        from distributed.deploy.spec import SpecCluster
+
+        for instance in list(SpecCluster._instances):
+            instance.shutdown_on_close = False
+    _kill([p.pid for p in multiprocessing.active_children() if p.pid])
+
+
 class _Watch(threading.Thread):
     """Watches, while the work runs, for a held signal, for the workers all gone and for the
     scheduler gone; on any of them it records why and closes the client, which ends the
@@ -509,8 +556,12 @@ def cluster(args: argparse.Namespace) -> Iterator[object | None]:
     except ImportError:
         raise AmiXrValueError(DISTRIBUTED_MISSING) from None
     route_logs(bool(getattr(args, "verbose", False)))
+    # the identification's modules (numba among them) imported before the cluster runs: a
+    # signal is held while numba is imported, and the run should not wait on that
+    import ami_xr.ami  # noqa: F401
+
     with dask.config.set(_config(args)):
-        client, local, address = _connect(args)
+        client, local, address = _start(args)
         watch = _Watch(client, address, _timeout(args))
         watch.start()
         failed = False
