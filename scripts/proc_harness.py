@@ -29,6 +29,8 @@ AMI_XR_RUN = [sys.executable, "-c", "from ami_xr.app.cli import run; run()"]
 BUG_CLASS = ("Traceback (most recent call last)", "unexpected", "SystemError", "Segmentation")
 #: ``distributed``'s and tornado's own log lines (to be routed to ami_xr's quiet logger).
 FOREIGN_LOG = (" - distributed.", " - tornado.", "distributed.nanny", "distributed.worker")
+#: (exit code, stderr) of every command :func:`stop` ended, for the campaign's audit.
+SEEN: list[tuple[int | None, str]] = []
 
 
 def env(root: Path | None = None, **extra: str) -> dict[str, str]:
@@ -117,14 +119,15 @@ def start(argv: list[str], cwd: Path | None = None, environ=None, **kw) -> subpr
 
 
 def workers_of(
-    proc: subprocess.Popen, n: int, bound: float = 60.0, ready: bool = True
+    proc: subprocess.Popen, n: int, bound: float = 60.0, ready: bool = True, forked: bool = False
 ) -> list[int]:
     """The first ``n`` multiprocessing children of ``proc`` (within ``bound`` s); with
-    ``ready`` only once each ignores SIGINT (a local dask worker past its preload)."""
+    ``ready`` only once each ignores SIGINT (a local dask worker past its preload); ``forked``:
+    any child (a batch's workers are forked, with the command's own command line)."""
     deadline = time.monotonic() + bound
     found: list[int] = []
     while time.monotonic() < deadline and proc.poll() is None:
-        found = [p for p in children(proc.pid) if spawned(p)]
+        found = [p for p in children(proc.pid) if forked or spawned(p)]
         if len(found) >= n and (not ready or all(ignores_sigint(p) for p in found)):
             break
         time.sleep(0.05)
@@ -150,7 +153,9 @@ def stop(proc: subprocess.Popen, signum: int, group: bool = False, bound: float 
         except OSError:
             pass
         out, err = proc.communicate()
+        SEEN.append((None, err or ""))
         return None, out, err, time.monotonic() - start_
+    SEEN.append((proc.returncode, err or ""))
     return proc.returncode, out, err, time.monotonic() - start_
 
 
@@ -210,6 +215,40 @@ def scheduler(port: int, environ=None, bound: float = 30.0) -> subprocess.Popen 
     proc.kill()
     proc.wait(10)
     return None
+
+
+def wait_for_workers(address: str, n: int = 1, bound: float = 60.0, environ=None) -> bool:
+    """Whether ``n`` workers joined the scheduler at ``address`` within ``bound`` s (asked by a
+    client in a process of its own: no dask thread in this one, which may fork)."""
+    code = (
+        "import sys; from distributed import Client; "
+        f"c = Client({address!r}, timeout={bound}); c.wait_for_workers({n}, timeout={bound}); "
+        "c.close()"
+    )
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, env=environ, timeout=bound + 30
+        )
+    except subprocess.TimeoutExpired:
+        return False
+    return done.returncode == 0
+
+
+def connected(proc: subprocess.Popen, port: int, bound: float = 60.0) -> bool:
+    """Whether ``proc`` holds a TCP connection to ``port`` on this host within ``bound`` s (a
+    client that reached its scheduler)."""
+    import psutil  # a dependency of distributed
+
+    deadline = time.monotonic() + bound
+    while time.monotonic() < deadline and proc.poll() is None:
+        try:
+            conns = psutil.Process(proc.pid).net_connections(kind="tcp")
+        except (psutil.Error, AttributeError):
+            conns = []
+        if any(c.raddr and c.raddr.port == port for c in conns):
+            return True
+        time.sleep(0.1)
+    return False
 
 
 def worker(address: str, environ=None) -> subprocess.Popen:
