@@ -1425,6 +1425,7 @@ def run_campaign(
     progress: bool = True,
     n_points: int = 1000,
     log: Path | None = None,
+    minutes: float | None = None,
 ) -> list[Result]:
     """Make the inputs, run every case in a process pool, return the results."""
     inputs = make_inputs(work / "inputs", seed)
@@ -1442,18 +1443,50 @@ def run_campaign(
             flush=True,
         )
     specs = plan(counts, seed, inputs, timings)
-    results = []
+    if minutes is not None:  # cut short: every category in proportion, whenever it stops
+        random.Random(seed).shuffle(specs)
     init_args = (str(work), {k: str(v) for k, v in inputs.items()})
     with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=init_args) as pool:
-        start = time.monotonic()
-        for i, res in enumerate(pool.map(run_case, specs, chunksize=1)):
+        results = _run_specs(pool, specs, workers, minutes, log, progress)
+    return results
+
+
+def _run_specs(pool, specs: list, workers: int, minutes, log, progress) -> list[Result]:
+    """The cases of ``specs`` on ``pool``, at most ``2 * workers`` in flight; none started
+    after ``minutes`` (None: all); each result appended to ``log`` as a JSON line."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    start = time.monotonic()
+    results: list[Result] = []
+    todo, running = list(reversed(specs)), set()
+    while todo or running:
+        in_time = minutes is None or time.monotonic() - start < 60 * minutes
+        while todo and in_time and len(running) < 2 * workers:
+            running.add(pool.submit(run_case, todo.pop()))
+        if not running:
+            break
+        done, running = wait(running, return_when=FIRST_COMPLETED)
+        for future in done:
+            res = future.result()
             results.append(res)
             if log is not None:  # one JSON line per case: a cut-short run can be summarised
                 with open(log, "a") as fh:
                     fh.write(json.dumps(res._asdict()) + "\n")
-            if progress and (i + 1) % 50 == 0:
-                rate = (i + 1) / max(time.monotonic() - start, 1e-9) * 60
-                print(f"  {i + 1}/{len(specs)} cases ({rate:.1f}/min)", file=sys.stderr, flush=True)
+            if progress and len(results) % 50 == 0:
+                rate = len(results) / max(time.monotonic() - start, 1e-9) * 60
+                print(
+                    f"  {len(results)}/{len(specs)} cases ({rate:.1f}/min)",
+                    file=sys.stderr,
+                    flush=True,
+                )
+    if len(results) < len(specs):
+        rate = len(results) / max(time.monotonic() - start, 1e-9) * 60
+        print(
+            f"  stopped after {minutes:g} min: {len(results)} of {len(specs)} cases "
+            f"({rate:.1f}/min; all {len(specs)} would take about {len(specs) / rate:.0f} min)",
+            file=sys.stderr,
+            flush=True,
+        )
     return results
 
 
@@ -1517,6 +1550,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--log", type=Path, help="append each result as a JSON line to this file")
     parser.add_argument(
+        "--minutes",
+        type=float,
+        help="start no case after this many minutes of cases (the plan shuffled, so that a "
+        "cut-short run samples every category); prints the rate and the projected full time",
+    )
+    parser.add_argument(
         "--summarize", type=Path, metavar="LOG", help="print the table of a --log file and exit"
     )
     args = parser.parse_args(argv)
@@ -1542,12 +1581,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.keep:
         args.keep.mkdir(parents=True, exist_ok=True)
         results = run_campaign(
-            counts, args.seed, args.workers, args.keep, n_points=args.points, log=args.log
+            counts, args.seed, args.workers, args.keep, n_points=args.points, log=args.log,
+            minutes=args.minutes,
         )
     else:
         with tempfile.TemporaryDirectory(prefix="fault_campaign") as tmp:
             results = run_campaign(
-                counts, args.seed, args.workers, Path(tmp), n_points=args.points, log=args.log
+                counts, args.seed, args.workers, Path(tmp), n_points=args.points, log=args.log,
+                minutes=args.minutes,
             )
     table, ok = summarize(results)
     print(table)
