@@ -15,8 +15,10 @@ Failures end in bounded time, each as one :class:`ClusterError` naming the addre
   running a task (killed, or over its memory limit: a chunk too big for ``--worker-memory`` is
   refused before the run), the connection to the scheduler lost;
 * SIGINT/SIGTERM (held by :mod:`ami_xr.interrupt` while this process waits on the cluster) end
-  the run within about a second: the computation is abandoned, the local cluster closed, and the
-  signal raised as usual (exit 130/143). Local worker processes ignore SIGINT (a Ctrl-C is the
+  the run within about a second, also while the local cluster starts (it starts in a thread of
+  its own, the main thread looking for a held signal): the computation is abandoned, the local
+  cluster closed (its worker processes killed by pid), and the signal raised as usual (exit
+  130/143). Local worker processes ignore SIGINT (a Ctrl-C is the
   command's to handle) and end with this process whatever kills it (``distributed`` ties them to
   their nanny by a pipe; SIGKILL of this process closes it).
 
@@ -398,8 +400,11 @@ def _start(args: argparse.Namespace) -> tuple[Any, Any, str]:
     loaded machine ten or more) waits in ``distributed``'s event loop, where a signal is only
     held; stopped there, the worker processes started so far are killed and the half-built
     cluster is left to the ending process (not closed again at exit)."""
+    import multiprocessing
+
     box: dict[str, Any] = {}
     abandoned = threading.Event()
+    before = {p.pid for p in multiprocessing.active_children()}  # not ours to kill
 
     def start() -> None:
         try:
@@ -419,16 +424,17 @@ def _start(args: argparse.Namespace) -> tuple[Any, Any, str]:
         interrupt.checkpoint()
     except BaseException:
         abandoned.set()
-        _abandon()
+        _abandon(before)
         raise
     if "error" in box:
         raise box["error"]
     return box["value"]
 
 
-def _abandon() -> None:
-    """Kill the worker processes this process started (by pid) and keep ``distributed`` from
-    closing its clusters again at exit (it would wait up to 10 s for a half-built one)."""
+def _abandon(before: set[int]) -> None:
+    """Kill the worker processes started since ``before`` (their pids) and keep
+    ``distributed`` from closing its clusters again at exit (it would wait up to 10 s for a
+    half-built one)."""
     import multiprocessing
 
     with contextlib.suppress(Exception):
@@ -436,7 +442,7 @@ def _abandon() -> None:
 
         for instance in list(SpecCluster._instances):
             instance.shutdown_on_close = False
-    _kill([p.pid for p in multiprocessing.active_children() if p.pid])
+    _kill([p.pid for p in multiprocessing.active_children() if p.pid and p.pid not in before])
 
 
 class _Watch(threading.Thread):
