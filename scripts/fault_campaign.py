@@ -1523,7 +1523,10 @@ def summarize(results: list[Result]) -> tuple[str, bool]:
     others = [r for r in results if r.outcome == OTHER or r.audit]
     if others:
         lines.append("anything else:")
-        lines += [f"  [{r.category}] {r.case}: {list(r.audit)} {r.detail}" for r in others]
+        lines += [
+            f"  [{r.category}] {r.case}: {r.detail}" + (f" [{', '.join(r.audit)}]" if r.audit else "")
+            for r in others
+        ]
     return "\n".join(lines), not others and not lost
 
 
