@@ -115,13 +115,36 @@ DEFAULT_SHARE = {
     "cluster": 0.01,
     "threads": 0.003,
 }
+#: --full: every category, weighted so that the signal cases on 1000 points, the cluster and the
+#: thread cases stay a bounded share of the wall time on a 2-core machine.
+FULL_SHARE = {
+    "truncate": 0.40,
+    "flip": 0.40,
+    "signal": 0.02,
+    "batch": 0.012,
+    "concurrent": 0.015,
+    "dataset": 0.06,
+    "phase": 0.035,
+    "compile": 0.003,
+    "special": 0.02,
+    "fullfs": 0.015,
+    "readonly": 0.003,
+    "streams": 0.004,
+    "cluster": 0.011,
+    "threads": 0.002,
+}
+FULL_MIN_CASES = 1500
 #: --quick: a few cases of every issue-25 category (minutes, not hours).
 QUICK_COUNTS = {"phase": 8, "compile": 2, "special": 8, "fullfs": 6, "readonly": 2, "streams": 3}
 HONOUR_S = 2.0  # a SIGINT/SIGTERM must stop the run within this (issue 25 target)
+#: The phase cases signal a run within its first this many seconds: a 1000-point UFF convert
+#: takes minutes on a loaded 2-core machine (442 s), and each case would wait half of it.
+SIGNAL_WINDOW_S = 90.0
 #: The console script as installed: run() holds signals for the safe points.
 AMI_XR_RUN = [sys.executable, "-c", "from ami_xr.app.cli import run; run()"]
 BUG_CLASS = ("Traceback (most recent call last)", "unexpected", "SystemError", "Segmentation")
 EXIT_CLEAN = (1, 2, 130)
+EXIT_BATCH_CAPPED = 4  # batch: every file done, some result stopped at a cap (not a failure)
 CASE_TIMEOUT_S = 60.0  # one forked CLI or in-process case
 STOP_BOUND_S = 15.0  # a process sent SIGINT/SIGTERM must be gone within this
 #: Besides a file name, an error may name one of these (a variable or coordinate of the data
@@ -150,6 +173,7 @@ class Result(NamedTuple):
     outcome: str
     detail: str = ""
     lost: tuple[str, ...] | list[str] = ()  # files lost or left partial
+    audit: tuple[str, ...] | list[str] = ()  # failure classes seen in its commands (AUDIT)
 
 
 # --- input files ---------------------------------------------------------------------------------
@@ -309,6 +333,7 @@ def run_forked(
     out, err = read(out_path), read(err_path)
     for p in (out_path, err_path):
         p.unlink(missing_ok=True)
+    _SEEN.append((code, err))
     return code, out, err, elapsed
 
 
@@ -655,6 +680,7 @@ def dataset_case(params: tuple, work: Path) -> Result:
     result_file = case_dir / "result.json"
     try:
         code, _, err, _ = run_forked(_child_dataset, (params, str(result_file)), case_dir)
+        _SEEN[-1] = (code, "")  # library use, not a command: its stderr is not a message
         n_points, n_frequency, seed, exponent, defect = params
         label = (
             f"validate/identify of n_points={n_points} n_frequency={n_frequency} seed={seed} "
@@ -708,7 +734,9 @@ def _finish(proc: subprocess.Popen, bound: float) -> tuple[int | None, str]:
         os.killpg(proc.pid, signal.SIGKILL)
         _, err = proc.communicate()
         code = None
-    return code, err.decode(errors="replace")
+    text = err.decode(errors="replace") if err else ""
+    _SEEN.append((code, text))
+    return code, text
 
 
 def _stop(proc: subprocess.Popen, sig_name: str, bound: float) -> tuple[int | None, str, float]:
@@ -784,7 +812,7 @@ def signal_case(
             capture_output=True,
             timeout=CASE_TIMEOUT_S,
         )
-        if rerun.returncode != 0:
+        if rerun.returncode not in (0, EXIT_BATCH_CAPPED):  # 4: done, a result at a cap
             problems.append(f"rerun exit {rerun.returncode}: {rerun.stderr.decode()[-200:]}")
         left = leftovers(case_dir)
         if left:
@@ -828,7 +856,7 @@ def batch_case(
         rerun = subprocess.run(
             AMI_XR + argv, cwd=case_dir, capture_output=True, timeout=4 * CASE_TIMEOUT_S
         )
-        if rerun.returncode != 0:
+        if rerun.returncode not in (0, EXIT_BATCH_CAPPED):  # 4: done, a result at a cap
             problems.append(f"rerun exit {rerun.returncode}: {rerun.stderr.decode()[-200:]}")
         missing = [f"f{i}" for i in range(4) if not (out_dir / f"f{i}.modes.nc").exists()]
         if missing:
@@ -979,7 +1007,7 @@ def phase_case(seed: int, work: Path, big: Path, timings: dict, compile_: bool =
             src = big
             argv, out, full = ["convert", str(big), "-o", "b.uff"], "b.uff", timings["convert_uff"]
         before = digest(src)
-        delay = rng.uniform(0.05, 1.0) * full
+        delay = rng.uniform(0.05, 1.0) * min(full, SIGNAL_WINDOW_S)
         label = f"ami-xr {' '.join(argv[:1])} ({src.name}), {sig_name} at {delay:.2f} s"
         label += " (empty numba cache)" if compile_ else ""
         code, err, waited, finished = _run_signalled(argv, case_dir, delay, sig_name, env=env)
@@ -1188,7 +1216,10 @@ def time_issue25(work: Path, big: Path) -> dict[str, float]:
         ("convert_uff", ["convert", str(big), "-o", str(d / "b.uff")]),
     ):
         start = time.monotonic()
-        subprocess.run(AMI_XR_RUN + argv, capture_output=True)
+        try:  # a run longer than the window is cut there: the signals land within it anyway
+            subprocess.run(AMI_XR_RUN + argv, capture_output=True, timeout=SIGNAL_WINDOW_S)
+        except subprocess.TimeoutExpired:
+            pass
         timings[key] = time.monotonic() - start
     ami_xr.to_netcdf(small_frf(0), d / "s.nc")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(d / "cache")}
@@ -1231,8 +1262,63 @@ def warm_up(work: Path, inputs: dict[str, Path]) -> None:
         ami_xr.frf(ami_xr.read_lvm(inputs["hits.lvm"]))
 
 
+#: (exit code, stderr) of each command a case ran in this process (read by :func:`run_case`).
+_SEEN: list[tuple[int | None, str]] = []
+#: Failure classes counted over every command of the campaign (``--full`` wants 0 of each).
+AUDIT = (
+    "crashes", "hangs", "bug-class messages", "raw tracebacks", "foreign log lines",
+    "leaked paths",
+)
+#: Exit codes of a crash (killed by a signal nobody sent: SIGSEGV, SIGBUS, SIGABRT, SIGILL,
+#: SIGFPE), as ``waitstatus_to_exitcode`` and a shell report them.
+CRASH_SIGNALS = (signal.SIGSEGV, signal.SIGBUS, signal.SIGABRT, signal.SIGILL, signal.SIGFPE)
+#: stderr lines of other libraries' loggers (``distributed``, tornado, asyncio) and raw warnings.
+FOREIGN = (" - distributed.", " - tornado.", "distributed.", "asyncio", "Warning: ", "warnings.warn")
+
+
+def _leak_roots() -> tuple[str, ...]:
+    """Paths of this machine a message must never show (the user never gave them): the
+    installed packages, the interpreter, the source tree, the home folder."""
+    import ami_xr
+
+    roots = {sys.prefix, sys.base_prefix, str(Path(ami_xr.__file__).resolve().parents[1])}
+    roots.add(str(Path.home()))
+    return tuple(sorted(r for r in roots if r and r != "/"))
+
+
+def audit(seen: list[tuple[int | None, str]], detail: str = "") -> list[str]:
+    """The :data:`AUDIT` classes found in the commands ``seen`` (exit code, stderr) of a case."""
+    found = set()
+    roots = _leak_roots()
+    if "hang" in detail:
+        found.add("hangs")
+    for code, err in seen:
+        if code is None:
+            found.add("hangs")
+        elif code in [-s for s in CRASH_SIGNALS] + [128 + s for s in CRASH_SIGNALS]:
+            found.add("crashes")
+        if "Traceback (most recent call last)" in err:
+            found.add("raw tracebacks")
+        if any(b in err for b in ("unexpected", "SystemError", "Segmentation", "a bug")):
+            found.add("bug-class messages")
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        if any(not ln.startswith("ami-xr") and any(f in ln for f in FOREIGN) for ln in lines):
+            found.add("foreign log lines")
+        if any(r in err for r in roots):
+            found.add("leaked paths")
+    return sorted(found)
+
+
 def run_case(spec: tuple) -> Result:
-    """Run one case spec (category, ...) in a pool worker."""
+    """Run one case spec (category, ...) in a pool worker; its commands audited."""
+    _SEEN.clear()
+    harness = _issue42().H.SEEN
+    harness.clear()
+    result = _run_case(spec)
+    return result._replace(audit=tuple(audit(_SEEN + harness, result.detail)))
+
+
+def _run_case(spec: tuple) -> Result:
     category, *rest = spec
     work, inputs = _WORKER["work"], _WORKER["inputs"]
     try:
@@ -1345,6 +1431,8 @@ def run_campaign(
     work: Path,
     progress: bool = True,
     n_points: int = 1000,
+    log: Path | None = None,
+    minutes: float | None = None,
 ) -> list[Result]:
     """Make the inputs, run every case in a process pool, return the results."""
     inputs = make_inputs(work / "inputs", seed)
@@ -1362,13 +1450,50 @@ def run_campaign(
             flush=True,
         )
     specs = plan(counts, seed, inputs, timings)
-    results = []
+    if minutes is not None:  # cut short: every category in proportion, whenever it stops
+        random.Random(seed).shuffle(specs)
     init_args = (str(work), {k: str(v) for k, v in inputs.items()})
     with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=init_args) as pool:
-        for i, res in enumerate(pool.map(run_case, specs, chunksize=1)):
+        results = _run_specs(pool, specs, workers, minutes, log, progress)
+    return results
+
+
+def _run_specs(pool, specs: list, workers: int, minutes, log, progress) -> list[Result]:
+    """The cases of ``specs`` on ``pool``, at most ``2 * workers`` in flight; none started
+    after ``minutes`` (None: all); each result appended to ``log`` as a JSON line."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    start = time.monotonic()
+    results: list[Result] = []
+    todo, running = list(reversed(specs)), set()
+    while todo or running:
+        in_time = minutes is None or time.monotonic() - start < 60 * minutes
+        while todo and in_time and len(running) < 2 * workers:
+            running.add(pool.submit(run_case, todo.pop()))
+        if not running:
+            break
+        done, running = wait(running, return_when=FIRST_COMPLETED)
+        for future in done:
+            res = future.result()
             results.append(res)
-            if progress and (i + 1) % 50 == 0:
-                print(f"  {i + 1}/{len(specs)} cases", file=sys.stderr, flush=True)
+            if log is not None:  # one JSON line per case: a cut-short run can be summarised
+                with open(log, "a") as fh:
+                    fh.write(json.dumps(res._asdict()) + "\n")
+            if progress and len(results) % 50 == 0:
+                rate = len(results) / max(time.monotonic() - start, 1e-9) * 60
+                print(
+                    f"  {len(results)}/{len(specs)} cases ({rate:.1f}/min)",
+                    file=sys.stderr,
+                    flush=True,
+                )
+    if len(results) < len(specs):
+        rate = len(results) / max(time.monotonic() - start, 1e-9) * 60
+        print(
+            f"  stopped after {minutes:g} min: {len(results)} of {len(specs)} cases "
+            f"({rate:.1f}/min; all {len(specs)} would take about {len(specs) / rate:.0f} min)",
+            file=sys.stderr,
+            flush=True,
+        )
     return results
 
 
@@ -1391,18 +1516,23 @@ def summarize(results: list[Result]) -> tuple[str, bool]:
         f"{total[CORRECT]:>16}{total[OTHER]:>15}"
     )
     lost = [item for r in results for item in r.lost]
+    counts = Counter(c for r in results for c in r.audit)
+    lines.append("failure classes (cases): " + ", ".join(f"{c} {counts[c]}" for c in AUDIT))
     lines.append(f"files lost or left partial: {len(lost)}")
     lines += [f"  {item}" for item in lost]
-    others = [r for r in results if r.outcome == OTHER]
+    others = [r for r in results if r.outcome == OTHER or r.audit]
     if others:
         lines.append("anything else:")
-        lines += [f"  [{r.category}] {r.case}: {r.detail}" for r in others]
+        lines += [
+            f"  [{r.category}] {r.case}: {r.detail}" + (f" [{', '.join(r.audit)}]" if r.audit else "")
+            for r in others
+        ]
     return "\n".join(lines), not others and not lost
 
 
-def default_counts(n: int, categories: list[str]) -> dict[str, int]:
-    """Split ``n`` cases over ``categories`` by :data:`DEFAULT_SHARE`."""
-    share = {c: DEFAULT_SHARE[c] for c in categories}
+def default_counts(n: int, categories: list[str], shares: dict | None = None) -> dict[str, int]:
+    """Split ``n`` cases over ``categories`` by ``shares`` (:data:`DEFAULT_SHARE`)."""
+    share = {c: (shares or DEFAULT_SHARE)[c] for c in categories}
     total = sum(share.values())
     return {c: max(1, round(n * s / total)) for c, s in share.items()}
 
@@ -1422,17 +1552,54 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help=f"only the issue-25 categories, a few cases each ({QUICK_COUNTS}) on --points",
     )
+    parser.add_argument(
+        "--full",
+        action="store_true",
+        help=f"the release campaign: every category, at least {FULL_MIN_CASES} faults, the "
+        "signal cases on --points points; fails on any case in a failure class",
+    )
+    parser.add_argument("--log", type=Path, help="append each result as a JSON line to this file")
+    parser.add_argument(
+        "--minutes",
+        type=float,
+        help="start no case after this many minutes of cases (the plan shuffled, so that a "
+        "cut-short run samples every category); prints the rate and the projected full time",
+    )
+    parser.add_argument(
+        "--summarize", type=Path, metavar="LOG", help="print the table of a --log file and exit"
+    )
     args = parser.parse_args(argv)
+    if args.summarize:
+        rows = [json.loads(x) for x in args.summarize.read_text().splitlines() if x.strip()]
+        table, ok = summarize([Result(**r) for r in rows])
+        print(table)
+        print(f"{len(rows)} cases (from {args.summarize.name})")
+        return 0 if ok else 1
     counts = default_counts(args.cases, args.categories)
+    if args.full:
+        n = max(args.cases, FULL_MIN_CASES)
+        counts = default_counts(n, list(CATEGORIES), FULL_SHARE)
+        print(
+            f"--full: {sum(counts.values())} faults on {args.points} points: "
+            + ", ".join(f"{k} {v}" for k, v in counts.items()),
+            file=sys.stderr,
+            flush=True,
+        )
     if args.quick:
         counts = {k: v for k, v in QUICK_COUNTS.items() if k in args.categories}
     start = time.monotonic()
     if args.keep:
         args.keep.mkdir(parents=True, exist_ok=True)
-        results = run_campaign(counts, args.seed, args.workers, args.keep, n_points=args.points)
+        results = run_campaign(
+            counts, args.seed, args.workers, args.keep, n_points=args.points, log=args.log,
+            minutes=args.minutes,
+        )
     else:
         with tempfile.TemporaryDirectory(prefix="fault_campaign") as tmp:
-            results = run_campaign(counts, args.seed, args.workers, Path(tmp), n_points=args.points)
+            results = run_campaign(
+                counts, args.seed, args.workers, Path(tmp), n_points=args.points, log=args.log,
+                minutes=args.minutes,
+            )
     table, ok = summarize(results)
     print(table)
     print(f"{len(results)} cases in {time.monotonic() - start:.0f} s, seed {args.seed}")

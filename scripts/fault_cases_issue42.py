@@ -6,32 +6,32 @@
              run (one during their start-up reaches them: a known limit, docs/cli.md); SIGKILL of
              ``identify --workers 2`` and of ``batch --workers 2`` (no worker process may
              survive its parent); a file whose values overflow in the workers (no raw numpy
-             warning). Each must end in bounded time with exit 0 (finished first), 1 (one line
+             warning); SIGINT to ``identify --workers 2`` alone while its workers start
+             (``sigint-start-up``); the worker or the scheduler of ``identify --scheduler``
+             killed at a random moment of the run (``lost-worker``, ``lost-scheduler``).
+             Each must end in bounded time with exit 0 (finished first), 1 (one line
              naming the address), 130 or 143, no bug-class message, no process left.
 ``threads``  8 threads opening and identifying netCDF files in one process (a crash of
              netCDF/HDF5 is a SIGSEGV: "anything else").
 
 Each case returns ``(category, case, outcome, detail)`` with the campaign's outcome strings.
-Written against the console entry point and the public API.
+Written against the console entry point and the public API; processes are started, signalled
+and looked at through ``scripts/proc_harness.py`` (shared with the tests), which records each
+command's exit code and stderr in ``SEEN`` for the campaign's audit.
 """
 
 from __future__ import annotations
 
-import os
 import random
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
 CLEAN, CORRECT, OTHER = "clean error", "correct result", "anything else"
-AMI_XR_RUN = [sys.executable, "-c", "from ami_xr.app.cli import run; run()"]
-BUG_CLASS = ("Traceback (most recent call last)", "unexpected", "SystemError", "Segmentation")
 HONOUR_S = 2.0
 CLUSTER_KINDS = (
     "no-scheduler",
@@ -42,84 +42,45 @@ CLUSTER_KINDS = (
     "sigkill-workers",
     "sigkill-batch",
     "overflow-workers",
+    "sigint-start-up",
+    "lost-worker",
+    "lost-scheduler",
 )
 Outcome = tuple[str, str, str, str]
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def _harness():
+    """``scripts/proc_harness.py`` (the subprocess harness the tests share), from beside this
+    file however this file was loaded."""
+    import importlib.util
+
+    module = sys.modules.get("proc_harness")
+    if module is None:
+        path = Path(__file__).resolve().with_name("proc_harness.py")
+        spec = importlib.util.spec_from_file_location("proc_harness", path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules["proc_harness"] = module
+        spec.loader.exec_module(module)
+    return module
 
 
-def _children(pid: int) -> list[int]:
-    out = subprocess.run(["ps", "-o", "pid=", "--ppid", str(pid)], capture_output=True, text=True)
-    return [int(p) for p in out.stdout.split()]
-
-
-def _alive(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as fh:
-            return fh.read().split(")")[-1].split()[0] != "Z"
-    except OSError:
-        return False
-
-
-def _kill_left(pids: list[int], within: float) -> list[int]:
-    """The processes of ``pids`` still alive after ``within`` s (then killed, by pid)."""
-    deadline = time.monotonic() + within
-    while time.monotonic() < deadline and any(_alive(p) for p in pids):
-        time.sleep(0.2)
-    left = [p for p in pids if _alive(p)]
-    for pid in left:
-        try:
-            os.kill(pid, signal.SIGKILL)
-        except OSError:
-            pass
-    return left
+H = _harness()
+AMI_XR_RUN, BUG_CLASS = H.AMI_XR_RUN, H.BUG_CLASS
 
 
 def _one_line(code: int | None, err: str, *words: str) -> tuple[str, str]:
     lines = err.strip().splitlines()
-    bugs = [b for b in BUG_CLASS if b in err]
+    bugs = H.problems(err)
     ok = code == 1 and len(lines) == 1 and not bugs and all(w in err for w in words)
     return (CLEAN if ok else OTHER), f"exit {code}: {err.strip()[-300:]}"
-
-
-class _Server(threading.Thread):
-    def __init__(self, reply: bytes | None) -> None:
-        super().__init__(daemon=True)
-        self.sock = socket.socket()
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.listen(8)
-        self.sock.settimeout(0.2)
-        self.port = self.sock.getsockname()[1]
-        self.reply, self.stop, self.conns = reply, threading.Event(), []
-
-    def run(self) -> None:
-        while not self.stop.is_set():
-            try:
-                conn, _ = self.sock.accept()
-            except OSError:
-                continue
-            self.conns.append(conn)
-            if self.reply is not None:
-                conn.sendall(self.reply)
-
-    def close(self) -> None:
-        self.stop.set()
-        self.join()
-        for conn in self.conns:
-            conn.close()
-        self.sock.close()
 
 
 def _scheduler_case(kind: str, frf: Path, cwd: Path) -> tuple[str, str]:
     server = None
     if kind == "no-scheduler":
-        port = _free_port()
+        port = H.free_port()
     else:
-        server = _Server(None if kind == "silent-server" else b"HTTP/1.0 400 Bad Request\r\n\r\n")
+        server = H.Server(None if kind == "silent-server" else b"HTTP/1.0 400 Bad Request\r\n\r\n")
         server.start()
         port = server.port
     address = f"tcp://127.0.0.1:{port}"
@@ -136,73 +97,75 @@ def _scheduler_case(kind: str, frf: Path, cwd: Path) -> tuple[str, str]:
     finally:
         if server is not None:
             server.close()
+    H.SEEN.append((done.returncode, done.stderr))
     return _one_line(done.returncode, done.stderr, address)
 
 
-def _workers_of(proc: subprocess.Popen, n: int, bound: float = 60.0) -> list[int]:
-    """The ``n`` local worker processes of ``proc`` once each ignores SIGINT (their preload
-    has run: a Ctrl-C that comes while they still start reaches them, see docs/cli.md)."""
-    deadline = time.monotonic() + bound
-    found: list[int] = []
-    while time.monotonic() < deadline and proc.poll() is None:
-        time.sleep(0.2)
-        found = [p for p in _children(proc.pid) if _spawned(p)]
-        if len(found) >= n and all(_ignores_sigint(p) for p in found):
-            break
-    return found
-
-
-def _ignores_sigint(pid: int) -> bool:
-    try:
-        status = Path(f"/proc/{pid}/status").read_text()
-    except OSError:
-        return False
-    ignored = [line.split()[1] for line in status.splitlines() if line.startswith("SigIgn")]
-    return bool(ignored) and bool(int(ignored[0], 16) & (1 << (signal.SIGINT - 1)))
-
-
-def _spawned(pid: int) -> bool:
-    try:
-        cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
-    except OSError:
-        return False
-    return b"spawn_main" in cmd or b"forkserver" in cmd or not cmd.strip(b"\0")
-
-
 def _signal_case(kind: str, frf: Path, cwd: Path, rng: random.Random) -> tuple[str, str]:
+    """SIGINT/SIGTERM to the group of ``identify --workers 2`` once its workers run (or to the
+    command alone while they start), or SIGKILL of the command."""
     argv = [*AMI_XR_RUN, "identify", str(frf), "-q", "--workers", "2", "--chunk-points", "1"]
-    proc = subprocess.Popen(
-        argv, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        start_new_session=True,
+    proc = H.start(argv, cwd=cwd)
+    start_up = kind == "sigint-start-up"
+    workers = H.workers_of(proc, 1 if start_up else 2, ready=not start_up)
+    time.sleep(rng.uniform(0.0, 0.5 if start_up else 4.0))
+    sig = {"sigkill-workers": signal.SIGKILL, "sigterm-workers": signal.SIGTERM}.get(
+        kind, signal.SIGINT
     )
-    workers = _workers_of(proc, 2)
-    time.sleep(rng.uniform(0.0, 4.0))  # the work under way
-    sig = {"sigint-workers": signal.SIGINT, "sigterm-workers": signal.SIGTERM}.get(kind)
-    start = time.monotonic()
-    try:
-        if sig is None:
-            proc.kill()
-        else:
-            os.killpg(proc.pid, sig)
-    except OSError:
-        pass
-    try:
-        _, err = proc.communicate(timeout=30)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
+    code, _, err, took = H.stop(proc, sig, group=not start_up and sig != signal.SIGKILL)
+    workers = sorted(set(workers + [p for p in H.children(proc.pid) if H.spawned(p)]))
+    if code is None:
         return OTHER, "hang (no exit within 30 s of the signal)"
-    took = time.monotonic() - start
-    left = _kill_left(workers, 5.0)
+    left = H.kill_left(workers, 5.0)
     if left:
         return OTHER, f"worker process(es) {left} outlived the command"
-    if sig is None:
-        return CLEAN, f"SIGKILL; workers gone (exit {proc.returncode})"
+    if sig == signal.SIGKILL:
+        return CLEAN, f"SIGKILL; workers gone (exit {code})"
     expected = 130 if sig == signal.SIGINT else 143
-    bugs = [b for b in BUG_CLASS if b in err]
-    if proc.returncode == 0 and not bugs:
+    bugs = H.problems(err)
+    if code == 0 and not bugs:
         return CORRECT, "finished before the signal"
-    ok = proc.returncode == expected and not bugs and took <= HONOUR_S
-    return (CLEAN if ok else OTHER), f"exit {proc.returncode} after {took:.2f} s: {err[-300:]}"
+    ok = code == expected and not bugs and took <= HONOUR_S
+    return (CLEAN if ok else OTHER), f"exit {code} after {took:.2f} s: {err[-300:]}"
+
+
+def _lost_case(kind: str, frf: Path, cwd: Path, rng: random.Random) -> tuple[str, str]:
+    """``identify --scheduler`` on a scheduler with one worker; the worker or the scheduler
+    killed at a random moment of the run: exit 0 (finished first) or one line naming the
+    address, within the cluster timeout and a margin."""
+    port = H.free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    scheduler = H.scheduler(port)
+    if scheduler is None:
+        return OTHER, "harness: the dask scheduler did not start"
+    worker = H.worker(address)
+    if not H.wait_for_workers(address):
+        H.end(worker, scheduler)
+        return OTHER, "harness: the dask worker did not join"
+    try:
+        proc = H.start(
+            [*AMI_XR_RUN, "identify", str(frf), "-q", "--scheduler", address,
+             "--cluster-timeout", "2", "--chunk-points", "2"],
+            cwd=cwd,
+        )
+        if not H.connected(proc, port):
+            H.end(proc)
+            return OTHER, "identify did not reach its scheduler within 60 s"
+        time.sleep(rng.uniform(0.0, 3.0))
+        (worker if kind == "lost-worker" else scheduler).kill()
+        try:
+            _, err = proc.communicate(timeout=40)
+        except subprocess.TimeoutExpired:
+            H.end(proc)
+            return OTHER, f"hang (no exit within 40 s of the {kind})"
+    finally:
+        H.end(worker, scheduler)
+    code = proc.returncode
+    H.SEEN.append((code, err))
+    if code == 0 and not H.problems(err):
+        return CORRECT, "finished before the kill"
+    words = "all dask workers were lost" if kind == "lost-worker" else "lost the connection"
+    return _one_line(code, err, address, words)
 
 
 def _batch_kill_case(frf: Path, cwd: Path, rng: random.Random) -> tuple[str, str]:
@@ -210,19 +173,15 @@ def _batch_kill_case(frf: Path, cwd: Path, rng: random.Random) -> tuple[str, str
     folder.mkdir()
     for k in range(4):
         shutil.copy(frf, folder / f"f{k}.nc")
-    proc = subprocess.Popen(
+    proc = H.start(
         [*AMI_XR_RUN, "batch", "in", "-o", "out", "-q", "--workers", "2"],
         cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
     )
-    deadline = time.monotonic() + 60
-    workers: list[int] = []
-    while time.monotonic() < deadline and len(workers) < 2 and proc.poll() is None:
-        time.sleep(0.1)
-        workers = _children(proc.pid)
+    workers = H.workers_of(proc, 2, ready=False, forked=True)
     time.sleep(rng.uniform(0.0, 2.0))
     proc.kill()
     proc.wait(10)
-    left = _kill_left(workers, 5.0)
+    left = H.kill_left(workers, 5.0)
     partial = [p.name for p in (cwd / "out").rglob("*") if p.is_file() and ".tmp" in str(p)]
     if left:
         return OTHER, f"batch worker(s) {left} outlived the killed batch"
@@ -245,22 +204,25 @@ def _overflow_case(frf: Path, cwd: Path) -> tuple[str, str]:
         )
     except subprocess.TimeoutExpired:
         return OTHER, "hang (no exit within 120 s)"
+    H.SEEN.append((done.returncode, done.stderr))
     raw = "RuntimeWarning" in done.stderr or "overflow encountered" in done.stderr
-    bugs = [b for b in BUG_CLASS if b in done.stderr]
+    bugs = H.problems(done.stderr)
     ok = done.returncode in (0, 1) and not raw and not bugs
     return (CLEAN if ok else OTHER), f"exit {done.returncode}: {done.stderr[-300:]}"
 
 
 def cluster_case(i: int, seed: int, work: Path, frf: Path) -> Outcome:
-    """One ``cluster`` case (kind ``CLUSTER_KINDS[i % 8]``) on the FRF file ``frf``."""
+    """One ``cluster`` case (kind ``CLUSTER_KINDS[i % len(CLUSTER_KINDS)]``) on the FRF file ``frf``."""
     kind = CLUSTER_KINDS[i % len(CLUSTER_KINDS)]
     rng = random.Random(seed)
     case_dir = Path(tempfile.mkdtemp(dir=work, prefix="cluster"))
     try:
         if kind in ("no-scheduler", "silent-server", "http-server"):
             outcome, detail = _scheduler_case(kind, frf, case_dir)
-        elif kind in ("sigint-workers", "sigterm-workers", "sigkill-workers"):
+        elif kind.startswith("sig") and kind != "sigkill-batch":
             outcome, detail = _signal_case(kind, frf, case_dir, rng)
+        elif kind.startswith("lost"):
+            outcome, detail = _lost_case(kind, frf, case_dir, rng)
         elif kind == "sigkill-batch":
             outcome, detail = _batch_kill_case(frf, case_dir, rng)
         else:
@@ -308,6 +270,7 @@ def threads_case(i: int, work: Path, frf: Path) -> Outcome:
             )
         except subprocess.TimeoutExpired:
             return "threads", "8 threads", OTHER, "hang (no exit within 600 s)"
+        H.SEEN.append((done.returncode, ""))  # library use in threads: only a crash counts
         code = done.returncode
         ok = code == 0
         detail = f"exit {code}" + ("" if ok else f": {done.stdout[-200:]}{done.stderr[-300:]}")

@@ -33,6 +33,7 @@ subcommands); options left at their default are not passed on, so the library ap
 from __future__ import annotations
 
 import contextlib
+import gc
 import logging
 import os
 import re
@@ -235,6 +236,10 @@ def run() -> None:
         with contextlib.suppress(OSError, ValueError):
             sys.stderr.flush()
         os._exit(code)
+    # the interpreter's last garbage collection walks every object of a large run: 1.8-2.3 s
+    # of a 1000-point identify's exit on a loaded machine, after a Ctrl-C was honoured; frozen
+    # objects are left to the process's end (atexit handlers and module teardown still run)
+    gc.freeze()
     sys.exit(code)
 
 

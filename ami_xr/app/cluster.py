@@ -15,8 +15,10 @@ Failures end in bounded time, each as one :class:`ClusterError` naming the addre
   running a task (killed, or over its memory limit: a chunk too big for ``--worker-memory`` is
   refused before the run), the connection to the scheduler lost;
 * SIGINT/SIGTERM (held by :mod:`ami_xr.interrupt` while this process waits on the cluster) end
-  the run within about a second: the computation is abandoned, the local cluster closed, and the
-  signal raised as usual (exit 130/143). Local worker processes ignore SIGINT (a Ctrl-C is the
+  the run within about a second, also while the local cluster starts (it starts in a thread of
+  its own, the main thread looking for a held signal): the computation is abandoned, the local
+  cluster closed (its worker processes killed by pid), and the signal raised as usual (exit
+  130/143). Local worker processes ignore SIGINT (a Ctrl-C is the
   command's to handle) and end with this process whatever kills it (``distributed`` ties them to
   their nanny by a pipe; SIGKILL of this process closes it).
 
@@ -392,6 +394,57 @@ def _close(client: Any, local: Any, fast: bool = False) -> None:
     local.shutdown_on_close = False
 
 
+def _start(args: argparse.Namespace) -> tuple[Any, Any, str]:
+    """:func:`_connect` in a thread of its own, the main thread looking for a held signal every
+    :data:`POLL_SECONDS`: the cluster's start-up (seconds of worker processes starting, on a
+    loaded machine ten or more) waits in ``distributed``'s event loop, where a signal is only
+    held; stopped there, the worker processes started so far are killed and the half-built
+    cluster is left to the ending process (not closed again at exit)."""
+    import multiprocessing
+
+    box: dict[str, Any] = {}
+    abandoned = threading.Event()
+    before = {p.pid for p in multiprocessing.active_children()}  # not ours to kill
+
+    def start() -> None:
+        try:
+            box["value"] = _connect(args)
+        except BaseException as err:  # noqa: BLE001 - handed to the main thread
+            box["error"] = err
+        if abandoned.is_set() and "value" in box:  # finished after the main thread gave up
+            client, local, _ = box["value"]
+            _close(client, local, fast=True)
+
+    thread = threading.Thread(target=start, name="ami_xr-cluster-start", daemon=True)
+    thread.start()
+    try:
+        while thread.is_alive():
+            thread.join(POLL_SECONDS)
+            interrupt.checkpoint()  # a signal held while the cluster starts: raised here
+        interrupt.checkpoint()
+    except BaseException:
+        abandoned.set()
+        _abandon(before)
+        raise
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
+
+
+def _abandon(before: set[int]) -> None:
+    """Kill the worker processes started since ``before`` (their pids) and keep
+    ``distributed`` from closing its clusters again at exit (it would wait up to 10 s for a
+    half-built one)."""
+    import multiprocessing
+
+    with contextlib.suppress(Exception):
+        from distributed.deploy.spec import SpecCluster
+
+        for instance in list(SpecCluster._instances):
+            instance.shutdown_on_close = False
+    _kill([p.pid for p in multiprocessing.active_children() if p.pid and p.pid not in before])
+
+
 class _Watch(threading.Thread):
     """Watches, while the work runs, for a held signal, for the workers all gone and for the
     scheduler gone; on any of them it records why and closes the client, which ends the
@@ -509,8 +562,12 @@ def cluster(args: argparse.Namespace) -> Iterator[object | None]:
     except ImportError:
         raise AmiXrValueError(DISTRIBUTED_MISSING) from None
     route_logs(bool(getattr(args, "verbose", False)))
+    # the identification's modules (numba among them) imported before the cluster runs: a
+    # signal is held while numba is imported, and the run should not wait on that
+    import ami_xr.ami  # noqa: F401
+
     with dask.config.set(_config(args)):
-        client, local, address = _connect(args)
+        client, local, address = _start(args)
         watch = _Watch(client, address, _timeout(args))
         watch.start()
         failed = False

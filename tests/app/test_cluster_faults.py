@@ -12,26 +12,23 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
-import sys
-import threading
 import time
 from pathlib import Path
 
 import pytest
 
+from ..reference import REPO
+from .proc import H
+
 pytest.importorskip("distributed")
 pytestmark = pytest.mark.skipif(os.name != "posix", reason="POSIX signals and process groups")
 
-ROOT = Path(__file__).resolve().parents[2]
-CLI = [sys.executable, "-c", "from ami_xr.app.cli import run; run()"]
+CLI = H.AMI_XR_RUN
 
 
 def _env() -> dict[str, str]:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
-    return env
+    return H.env(REPO)
 
 
 @pytest.fixture(scope="module")
@@ -45,12 +42,6 @@ def frf_file(tmp_path_factory) -> Path:
         timeout=120,
     )
     return path
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _identify(frf: Path, *options: str, timeout: float = 60) -> subprocess.CompletedProcess:
@@ -75,41 +66,11 @@ def _one_error_line(done: subprocess.CompletedProcess, *words: str) -> str:
 
 
 def test_no_scheduler_at_the_address_is_named_in_bounded_time(frf_file):
-    address = f"tcp://127.0.0.1:{_free_port()}"
+    address = f"tcp://127.0.0.1:{H.free_port()}"
     start = time.monotonic()
     done = _identify(frf_file, "--scheduler", address)
     assert time.monotonic() - start < 20
     _one_error_line(done, address, "no dask scheduler answered")
-
-
-class _Server(threading.Thread):
-    """A TCP server that is not a dask scheduler: answers like an HTTP server, or stays silent."""
-
-    def __init__(self, reply: bytes | None) -> None:
-        super().__init__(daemon=True)
-        self.sock = socket.socket()
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.listen(8)
-        self.sock.settimeout(0.2)
-        self.port = self.sock.getsockname()[1]
-        self.reply, self.stop, self.conns = reply, threading.Event(), []
-
-    def run(self) -> None:
-        while not self.stop.is_set():
-            try:
-                conn, _ = self.sock.accept()
-            except OSError:
-                continue
-            self.conns.append(conn)
-            if self.reply is not None:
-                conn.sendall(self.reply)
-
-    def close(self) -> None:
-        self.stop.set()
-        self.join()
-        for conn in self.conns:
-            conn.close()
-        self.sock.close()
 
 
 @pytest.mark.parametrize(
@@ -120,7 +81,7 @@ class _Server(threading.Thread):
     ],
 )
 def test_a_server_that_is_no_dask_scheduler(frf_file, reply, words):
-    server = _Server(reply)
+    server = H.Server(reply)
     server.start()
     try:
         start = time.monotonic()
@@ -132,44 +93,21 @@ def test_a_server_that_is_no_dask_scheduler(frf_file, reply, words):
 
 
 def _scheduler(port: int) -> subprocess.Popen:
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
-         "--port", str(port), "--no-dashboard"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=_env(),
-    )
-    deadline = time.monotonic() + 30
-    while time.monotonic() < deadline:
-        with socket.socket() as s:
-            if s.connect_ex(("127.0.0.1", port)) == 0:
-                return proc
-        time.sleep(0.2)
-    proc.kill()
-    pytest.fail("the dask scheduler did not start")
+    proc = H.scheduler(port, _env())
+    if proc is None:
+        pytest.fail("the dask scheduler did not start")
+    return proc
 
 
 def _worker(address: str) -> subprocess.Popen:
-    return subprocess.Popen(
-        [sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1",
-         "--no-nanny", "--no-dashboard"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=_env(),
-    )
+    return H.worker(address, _env())
 
 
-def _stop(*procs: subprocess.Popen) -> None:
-    for proc in procs:
-        if proc.poll() is None:
-            proc.kill()
-        proc.wait(10)
+_stop = H.end
 
 
 def test_a_scheduler_without_workers_is_named(frf_file):
-    port = _free_port()
+    port = H.free_port()
     scheduler = _scheduler(port)
     try:
         start = time.monotonic()
@@ -182,20 +120,19 @@ def test_a_scheduler_without_workers_is_named(frf_file):
 
 @pytest.mark.parametrize("victim", ["worker", "scheduler"])
 def test_workers_or_scheduler_lost_during_the_run(frf_file, tmp_path, victim):
-    port = _free_port()
+    port = H.free_port()
     address = f"tcp://127.0.0.1:{port}"
     scheduler = _scheduler(port)
     worker = _worker(address)
     try:
-        proc = subprocess.Popen(
+        assert H.wait_for_workers(address, environ=_env()), "the dask worker did not join"
+        proc = H.start(
             [*CLI, "identify", str(frf_file), "--scheduler", address, "--cluster-timeout", "2",
              "--chunk-points", "2"],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=_env(),
+            environ=_env(),
         )
-        time.sleep(8)  # connected, work under way
+        assert H.connected(proc, port), "identify did not reach its scheduler"
+        time.sleep(1)  # the work under way
         (worker if victim == "worker" else scheduler).kill()
         try:
             out, err = proc.communicate(timeout=30)
@@ -216,88 +153,38 @@ def test_a_chunk_too_big_for_the_worker_memory_is_refused_before_the_run(frf_fil
     _one_error_line(done, "--chunk-points", "--worker-memory")
 
 
-def _children(pid: int) -> list[int]:
-    out = subprocess.run(["ps", "-o", "pid=", "--ppid", str(pid)], capture_output=True, text=True)
-    return [int(p) for p in out.stdout.split()]
-
-
-def _alive(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as fh:
-            return fh.read().split(")")[-1].split()[0] != "Z"
-    except OSError:
-        return False
-
-
 def _start_busy(frf: Path) -> tuple[subprocess.Popen, list[int]]:
     """identify --workers 2 in a new process group, once its two workers run."""
-    proc = subprocess.Popen(
+    proc = H.start(
         [*CLI, "identify", str(frf), "--workers", "2", "-q", "--chunk-points", "2"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=_env(),
-        start_new_session=True,
+        environ=_env(),
     )
-    deadline = time.monotonic() + 60
-    workers: list[int] = []
-    while time.monotonic() < deadline and proc.poll() is None:
-        time.sleep(0.3)
-        workers = [p for p in _children(proc.pid) if b"spawn_main" in _cmdline(p)]
-        if len(workers) == 2 and all(_ignores_sigint(p) for p in workers):
-            break  # their preload has run (a Ctrl-C during their start-up reaches them)
+    # once their preload has run (a Ctrl-C to the group during their start-up reaches them)
+    workers = H.workers_of(proc, 2)
     assert proc.poll() is None and len(workers) == 2, "the local cluster did not start"
     time.sleep(1)  # the work under way
     return proc, workers
 
 
-def _ignores_sigint(pid: int) -> bool:
-    try:
-        status = Path(f"/proc/{pid}/status").read_text()
-    except OSError:
-        return False
-    ignored = [line.split()[1] for line in status.splitlines() if line.startswith("SigIgn")]
-    return bool(ignored) and bool(int(ignored[0], 16) & (1 << (signal.SIGINT - 1)))
-
-
-def _cmdline(pid: int) -> bytes:
-    try:
-        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ")
-    except OSError:
-        return b""
-
-
 @pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_a_signal_to_the_group_ends_the_command_within_2_s(frf_file, signum, code):
     proc, workers = _start_busy(frf_file)
-    os.killpg(proc.pid, signum)  # as a terminal's Ctrl-C: workers get it too
-    start = time.monotonic()
-    try:
-        out, err = proc.communicate(timeout=30)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
+    code_, _, err, took = H.stop(proc, signum, group=True)  # as a terminal's Ctrl-C
+    if code_ is None:
         pytest.fail("identify --workers 2 ran on for 30 s after the signal")
-    took = time.monotonic() - start
-    if proc.returncode == 0:
+    if code_ == 0:
         pytest.skip("the run ended before the signal (a fast machine)")
-    assert proc.returncode == code, err
+    assert code_ == code, err
     assert err.strip() in ("ami-xr identify: interrupted", "ami-xr: terminated"), err
     assert took < 2.0, f"{took:.2f} s"
-    time.sleep(0.5)
-    assert not [p for p in workers if _alive(p)]
+    assert not H.kill_left(workers, 0.5)
 
 
 def test_sigkill_of_the_command_ends_its_workers(frf_file):
     proc, workers = _start_busy(frf_file)
     proc.kill()
     proc.wait(10)
-    deadline = time.monotonic() + 5
-    while time.monotonic() < deadline and [p for p in workers if _alive(p)]:
-        time.sleep(0.2)
-    left = [p for p in workers if _alive(p)]
-    for pid in left:  # ours: cleaned up by pid
-        os.kill(pid, signal.SIGKILL)
-    assert not left, "worker processes outlived the killed command"
+    assert not H.kill_left(workers, 5.0), "worker processes outlived the killed command"
 
 
 def test_distributed_logs_only_with_verbose(frf_file):
