@@ -155,6 +155,17 @@ def test_proposals_put_a_pole_at_the_missed_peak_within_the_policy_bounds():
     assert order._proposals(prob, state, 0.0, opts["min_width"], few)[0] == []
 
 
+def _missing_one():
+    """The eight-mode problem fitted without its 52 Hz mode, and the trial that adds it."""
+    prob, lam, omega = _problem(noise=1e-3)
+    opts = _opts(omega)
+    state = _state(prob, lam, opts, np.delete(np.arange(lam.size), MISSING))
+    fit = state.fit
+    none = np.empty(0, int)
+    good = Trial(np.append(fit.lam, lam[MISSING]), np.append(state.lam0, lam[MISSING]), 1, none)
+    return prob, lam, omega, opts, state, good
+
+
 def _judge(prob, state, opts, trials):
     fit = state.fit
     width = np.maximum(2.0 * np.abs(fit.lam.real), opts["min_width"])
@@ -169,12 +180,8 @@ def _judge(prob, state, opts, trials):
 
 
 def test_a_fitted_trial_holds_only_when_it_adds_the_missed_mode_and_stays_free():
-    prob, lam, omega = _problem(noise=1e-3)
-    opts = _opts(omega)
-    state = _state(prob, lam, opts, np.delete(np.arange(lam.size), MISSING))
-    fit = state.fit
-    none = np.empty(0, int)
-    good = Trial(np.append(fit.lam, lam[MISSING]), np.append(state.lam0, lam[MISSING]), 1, none)
+    prob, lam, omega, opts, state, good = _missing_one()
+    fit, none = state.fit, good.removed
     same = Trial(fit.lam.copy(), state.lam0.copy(), 0, none)
     judge = _judge(prob, state, opts, [good, same])
     fitted = Fitted(*fit_modes(prob, good.start, good.ref, **opts))
@@ -208,12 +215,8 @@ def test_quick_screen_keeps_the_trial_that_explains_the_residual():
 def test_a_mode_frozen_far_from_two_failed_trials_spares_the_fits_of_the_others():
     """A present mode that froze in the full fits of two trials far from it is moved out of its
     region by the model, not by the trials: the trials that leave it alone are not fitted."""
-    prob, lam, omega = _problem(noise=1e-3)
-    opts = _opts(omega)
-    state = _state(prob, lam, opts, np.delete(np.arange(lam.size), MISSING))
-    fit = state.fit
-    none = np.empty(0, int)
-    good = Trial(np.append(fit.lam, lam[MISSING]), np.append(state.lam0, lam[MISSING]), 1, none)
+    prob, lam, omega, opts, state, good = _missing_one()
+    fit, none = state.fit, good.removed
     judge = _judge(prob, state, opts, [good])
     touched, far = order._reach(judge, good)
     assert not touched.any()
