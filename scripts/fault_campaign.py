@@ -244,7 +244,9 @@ def make_inputs(folder: Path, seed: int = 0) -> dict[str, Path]:
     folder.mkdir(parents=True, exist_ok=True)
     g = small_frf(seed)
     force, response, fs = small_time(seed)
-    tds = ami_xr.make_time_dataset(response[:, None, :], fs=fs, force=force, drive_point=0)
+    tds = ami_xr.make_time_dataset(
+        response[:, None, :], fs=fs, force=force, drive_point=0, response_quantity="displacement"
+    )
     files = {name: folder / name for name in INPUT_NAMES}
     ami_xr.to_netcdf(g, files["frf.nc"])
     ami_xr.to_netcdf(tds, files["time.nc"])
