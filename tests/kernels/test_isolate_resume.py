@@ -13,6 +13,8 @@ import pytest
 from ami_xr.kernels import isolate as ki
 from ami_xr.kernels import modal_basis as kb
 
+from .test_ami_kernels import _isolate_params
+
 OMEGA = 2 * np.pi * np.linspace(0.5, 30.0, 1500)
 LAM = np.array([-0.3, -0.5, -0.6, -0.9, -1.2]) + 2j * np.pi * np.array([4.0, 9.0, 14.5, 20.0, 26.0])
 
@@ -25,21 +27,7 @@ def _frfs(n_p=6, noise=1e-4, seed=1):
 
 
 def _params(**kw):
-    base = dict(
-        delta=0.5,
-        tol=1e-4,
-        max_iter=100,
-        pfa=1e-3,
-        min_points=3,
-        zeta_max=0.25,
-        merge_tol=0.5,
-        max_modes=8,
-        reweight=True,
-        se_fraction=ki.STOP_FRACTION,
-        paper_sweeps=False,
-    )
-    base.update(kw)
-    return ki.IsolateParams(**base)
+    return _isolate_params(**{"max_modes": 8, **kw})
 
 
 def _same(a, b):
