@@ -20,21 +20,32 @@ from ami_xr.simulate.spread import many_points
 WATCHED = ("_map_sum", "_residue_block", "per_row", "map_reduce")
 
 
-def test_identify_at_1000_points_checkpoints_inside_each_pass(monkeypatch):
-    ds, _ = many_points(1000, 1024, 12, noise=0.02, seed=0)
+def count_checkpoints(monkeypatch, label_of) -> Counter:
+    """Replace :func:`ami_xr.interrupt.checkpoint` by a counting hook: each checkpoint is
+    counted under ``label_of(code)`` of the nearest calling frame whose code object it labels
+    (not None); the real checkpoint still runs. Returns the live counter."""
     seen: Counter = Counter()
     real = interrupt.checkpoint
 
     def counting() -> None:
         frame = sys._getframe(1)
         while frame is not None:
-            if frame.f_code.co_name in WATCHED:
-                seen[frame.f_code.co_name] += 1
+            label = label_of(frame.f_code)
+            if label is not None:
+                seen[label] += 1
                 break
             frame = frame.f_back
         real()
 
     monkeypatch.setattr(interrupt, "checkpoint", counting)
+    return seen
+
+
+def test_identify_at_1000_points_checkpoints_inside_each_pass(monkeypatch):
+    ds, _ = many_points(1000, 1024, 12, noise=0.02, seed=0)
+    seen = count_checkpoints(
+        monkeypatch, lambda code: code.co_name if code.co_name in WATCHED else None
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         out = ami_xr.identify(ds)

@@ -8,31 +8,22 @@ layer holds a checkpoint there; a counting hook in place of
 
 from __future__ import annotations
 
-import sys
 import warnings
-from collections import Counter
 
 import ami_xr
-from ami_xr import interrupt
 from ami_xr.kernels import isolate as ki
 from ami_xr.simulate.spread import many_points
+
+from .test_checkpoints_scale import count_checkpoints
+
+
+def _in_isolation(code):
+    return "isolation" if code.co_name == "_isolate" and "kernels" in code.co_filename else None
 
 
 def test_simo_isolation_reaches_a_checkpoint_between_restarts(monkeypatch):
     ds, _ = many_points(200, 1024, 12, noise=0.02, seed=0)
-    seen: Counter = Counter()
-    real = interrupt.checkpoint
-
-    def counting() -> None:
-        frame = sys._getframe(1)
-        while frame is not None:
-            if frame.f_code.co_name == "_isolate" and "kernels" in frame.f_code.co_filename:
-                seen["isolation"] += 1
-                break
-            frame = frame.f_back
-        real()
-
-    monkeypatch.setattr(interrupt, "checkpoint", counting)
+    seen = count_checkpoints(monkeypatch, _in_isolation)
     monkeypatch.setattr(ki, "BETWEEN_WORK", 1)  # back to the caller before every restart
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
