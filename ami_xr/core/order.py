@@ -352,7 +352,7 @@ def _quick_screen(indices, judge: Judge) -> list:
     opts = dict(judge.opts, max_iter=judge.policy.screen_iterations)
     for i in indices:
         trial = judge.trials[i]
-        if _spared(judge, trial):
+        if _spared(judge, _reach(judge, trial)[0]):
             continue
         quick = Fitted(*fit_modes(judge.prob, trial.start, trial.ref, **opts))
         judge.state.n_iter += quick.n_iter
@@ -398,23 +398,26 @@ def _take(screened, judge: Judge):
     screened = screened[:1] + sorted(screened[1:], key=lambda s: (trials[s[1]].n_add, -s[0]))
     for _, i in screened[: judge.policy.screen_keep]:
         trial = trials[i]
-        if _spared(judge, trial):
+        touched, far = _reach(judge, trial)
+        if _spared(judge, touched):
             continue  # a mode the model moves out of its region would freeze here too
         fitted = Fitted(*fit_modes(judge.prob, trial.start, trial.ref, **judge.opts))
         judge.state.n_iter += fitted.n_iter
         ok, moved = _holds(judge, trial, fitted)
         if ok:
             return trial, fitted, moved
+        # present modes free now that froze in this fit (far excludes what the trial touched)
         kept = np.delete(np.arange(judge.fit.lam.size), trial.removed)
         froze = np.zeros(judge.fit.lam.size, bool)
-        froze[kept] = judge.state.free[kept] & ~fitted.free[: kept.size] & ~moved
-        judge.stuck[froze & _reach(judge, trial)[1]] += 1
+        froze[kept] = ~fitted.free[: kept.size]
+        judge.stuck[froze & judge.state.free & far] += 1
     return None
 
 
-def _spared(judge: Judge, trial: Trial) -> bool:
-    """The trial leaves alone a mode that froze, far from them, in two earlier trials' fits."""
-    return bool(((judge.stuck >= 2) & ~_reach(judge, trial)[0]).any())
+def _spared(judge: Judge, touched: np.ndarray) -> bool:
+    """A trial that touches only ``touched`` leaves alone a mode that froze, far from them, in
+    two earlier trials' fits."""
+    return bool(((judge.stuck >= 2) & ~touched).any())
 
 
 def _reach(judge: Judge, trial: Trial) -> tuple[np.ndarray, np.ndarray]:
