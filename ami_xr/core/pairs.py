@@ -91,6 +91,11 @@ def merge_split_pairs(
         one = trial[0]
         if not (one.proj.ok and np.isfinite(one.cost)):
             continue
+        if state.free[strong] and not trial[1][kept]:
+            # without the weak pole the strong one leaves its region: the two do not share
+            # one resonance (a narrow mode on a broad pole's band), it is no split duplicate
+            state.supported[[i, j]] = True
+            continue
         centre = 0.5 * (lam[i].imag + lam[j].imag)
         half = 0.5 * abs(lam[i].imag - lam[j].imag) + far * max(width[i], width[j])
         band = np.abs(prob.omega - centre) <= half
