@@ -3,11 +3,11 @@
 Writes ``--files`` simulated FRF sets of measured size (``--points`` x ``--lines``, 1 % noise)
 to a temporary folder, runs :func:`ami_xr.batch` on them once with one worker and once with two
 (``force=True``: every file identified in both runs), and prints per run the wall time, the CPU
-time of the parent and its worker processes, the most threads of one worker process
-and how many of them computed (sampled from ``/proc`` while the batch runs; Linux only,
-else "-"; one worker runs in the parent process, so the one-worker row has none). The target: two workers on
-a two-core machine not slower than one, and no worker running more compute threads than the
-core it is given (identification holds BLAS to one thread, no kernel is parallel).
+time of the parent and its worker processes, the most threads of one worker process and how
+many of them computed (sampled from ``/proc`` while the batch runs; Linux only, else "-"; one
+worker runs in the parent process, so the one-worker row has none). The target: two workers
+on a two-core machine not slower than one, and no worker running more compute threads than
+the core it is given (identification holds BLAS to one thread, no kernel is parallel).
 
 Usage::
 
@@ -96,7 +96,7 @@ def _cpu_seconds() -> float:
 
 
 def make_files(folder: Path, n_files: int, n_points: int, n_lines: int) -> None:
-    """``n_files`` simulated FRF sets (lumped chains, as many modes as points, 1 % noise) as netCDF."""
+    """``n_files`` simulated FRF sets as netCDF (lumped chains, one mode per point, 1 % noise)."""
     for i in range(n_files):
         frf, _ = ami_xr.simulate.random_system(
             n_points=n_points, n_modes=n_points, noise=0.01, seed=100 + i, n_frequencies=n_lines
