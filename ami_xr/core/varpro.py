@@ -85,8 +85,16 @@ def make_problem(
     )
 
 
-def _stack(z):
-    return np.concatenate([z.real, z.imag], axis=0)
+def _stack(z, w=None):
+    """Real-stack ``z * w[:, None]`` (rows: lines) into (2L, n) without a complex temporary."""
+    n_line = z.shape[0]
+    out = np.empty((2 * n_line,) + z.shape[1:])
+    if w is None:
+        out[:n_line], out[n_line:] = z.real, z.imag
+    else:
+        np.multiply(z.real, w, out=out[:n_line])
+        np.multiply(z.imag, w, out=out[n_line:])
+    return out
 
 
 def project(prob: Problem, lam: np.ndarray) -> Projection:
@@ -95,18 +103,20 @@ def project(prob: Problem, lam: np.ndarray) -> Projection:
         prob.omega, lam, prob.dt, prob.n_samples, prob.residual_terms, prob.residual_kind
     )
     w = prob.line_weight[:, None]
-    a = _stack(phi * w)
-    v = _stack(dphi * w)
-    ok = bool(np.all(np.isfinite(a)) and np.all(np.isfinite(v)))
-    q, r, ok = _cholesky_qr2(a) if ok else (a, np.eye(a.shape[1]), False)
+    a = _stack(phi, w)
+    v = _stack(dphi, w)
+    # a non-finite entry makes a column norm or V'V non-finite: checked there, not entry-wise
+    q, r, ok = _cholesky_qr2(a)
+    vtv = gram(v) if ok else None
+    ok = ok and bool(np.all(np.isfinite(vtv)))
     if not ok:
         nan = np.full(1, np.nan)
         return Projection(lam, q, r, v, nan, np.full(prob.n_points, np.inf), nan, nan, nan, False)
     qty, rss, v_res = project_points(prob.y, q, v)
-    g = gram(np.hstack([q, v]))
-    p = q.shape[1]
+    # Q'V and V'V only: Q'Q is the identity (a Gram matrix of [Q V] cost a third more, and a
+    # copy of both)
     coef = _solve_upper(r, qty.T).T
-    return Projection(lam, q, r, v, coef, rss, v_res, g[:p, p:], g[p:, p:], ok)
+    return Projection(lam, q, r, v, coef, rss, v_res, q.T @ v, vtv, ok)
 
 
 def _solve_upper(r, b):
