@@ -34,7 +34,6 @@ FRF estimate at each frequency line (real and imaginary parts each carry ``sigma
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 import scipy.ndimage

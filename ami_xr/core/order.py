@@ -194,7 +194,7 @@ def _drop_insignificant(prob, state: State, threshold: float, trial_opts: dict) 
         k = int(np.argmin(lr))
         if not lr[k] < threshold:
             break
-        start, ref = np.delete(fit.lam, k), np.delete(state.lam0, k)
+        start, ref = np.delete(fit.lam, k), np.delete(state.modes.lam0, k)
         trial = Fitted(*fit_modes(prob, start, ref, **trial_opts))
         state.n_iter += trial.n_iter
         if not 2.0 * (trial.fit.cost - fit.cost) < threshold:
@@ -217,7 +217,7 @@ def _drop_superfluous(prob, state: State, trial_opts: dict, policy: OrderPolicy 
         strength = [peak_strength(fit.proj, k) for k in range(fit.lam.size)]
         for k in np.argsort(strength)[: policy.superfluous_tries]:
             opts = dict(trial_opts, max_iter=3 * trial_opts["max_iter"])
-            start, ref = np.delete(fit.lam, k), np.delete(state.lam0, k)
+            start, ref = np.delete(fit.lam, k), np.delete(state.modes.lam0, k)
             trial = Fitted(*fit_modes(prob, start, ref, **opts))
             state.n_iter += trial.n_iter
             if is_exact(prob, trial.fit, policy) and trial.free.all():
@@ -238,7 +238,7 @@ def _proposals(prob, state: State, decay: float, min_width: float, policy: Order
 
     fit = state.fit
     peaks, power = _residual_candidates(prob, fit, policy.residual_peaks, policy.screen_pfa)
-    ref0 = np.where(state.free, state.lam0, fit.lam + decay)
+    ref0 = np.where(state.modes.free, state.modes.lam0, fit.lam + decay)
     none = np.empty(0, int)
     trials = [Trial(np.append(fit.lam, c), np.append(ref0, c + decay), 1, none) for c in peaks]
     # Clusters are refitted around the peaks, around frozen modes (a mode that could not be
@@ -254,7 +254,7 @@ def _proposals(prob, state: State, decay: float, min_width: float, policy: Order
         if dof > 0:
             excess[k] = power[band].sum() / chi2.isf(policy.screen_pfa / fit.lam.size, dof)
     busy = excess > 1.0
-    suspect = ~state.free | busy
+    suspect = ~state.modes.free | busy
     # a mode of a cluster (its half-power band reaches another's) may stand for two: split.
     # The trials of one step are bounded (max_trials of each kind), the modes whose band holds
     # the most residual power first: with tens of modes, one trial per mode made every step
@@ -262,18 +262,26 @@ def _proposals(prob, state: State, decay: float, min_width: float, policy: Order
     gap = np.abs(fit.lam.imag[:, None] - fit.lam.imag[None, :])
     np.fill_diagonal(gap, np.inf)
     clustered = np.any(gap < width[:, None] + width[None, :], axis=1)
-    split = np.flatnonzero(state.free & (clustered | busy))
+    split = np.flatnonzero(state.modes.free & (clustered | busy))
     for k in split[np.argsort(-excess[split], kind="stable")][: policy.max_trials]:
         shift = policy.split_shift * abs(fit.lam[k].real)
         start = np.append(fit.lam, fit.lam[k] + 1j * shift)
         start[k] -= 1j * shift
         trials.append(Trial(start, np.append(ref0, start[-1] + decay), 1, none))
     # frozen modes first, then the busiest
-    order = np.lexsort((-excess, state.free))
+    order = np.lexsort((-excess, state.modes.free))
     centres = [c.imag for c in peaks] + list(fit.lam.imag[order][suspect[order]])
     data = complex_rows(prob.y) / prob.line_weight[None, :]
     clusters = cluster_starts(
-        data, prob.omega, fit.lam, state.free, state.lam0, decay, min_width, centres, policy
+        data,
+        prob.omega,
+        fit.lam,
+        state.modes.free,
+        state.modes.lam0,
+        decay,
+        min_width,
+        centres,
+        policy,
     )
     trials += [Trial(*c) for c in clusters[: 2 * policy.max_trials]]
     return trials, power
@@ -371,7 +379,7 @@ def _holds(judge: Judge, trial: Trial, fitted: Fitted) -> tuple[bool, np.ndarray
     fit, opts = judge.fit, judge.opts
     score = _full_gain(judge.prob, judge.r_now, fitted.fit, judge.var)
     score -= trial.n_add * judge.threshold
-    kept_free = np.delete(judge.state.free, trial.removed)
+    kept_free = np.delete(judge.state.modes.free, trial.removed)
     moved = trial.start[: kept_free.size] != np.delete(fit.lam, trial.removed)
     must = np.append(kept_free | moved, np.ones(trial.start.size - kept_free.size, bool))
     changed = fitted.fit.lam.size != fit.lam.size or np.max(
@@ -410,7 +418,7 @@ def _take(screened, judge: Judge):
         kept = np.delete(np.arange(judge.fit.lam.size), trial.removed)
         froze = np.zeros(judge.fit.lam.size, bool)
         froze[kept] = ~fitted.free[: kept.size]
-        judge.stuck[froze & judge.state.free & far] += 1
+        judge.stuck[froze & judge.state.modes.free & far] += 1
     return None
 
 

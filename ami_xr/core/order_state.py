@@ -112,13 +112,11 @@ class Fitted(NamedTuple):
 
 
 class State:
-    """The model being refined: the fit and the record of its modes (:class:`Modes`).
+    """The model being refined: the fit and the record of its modes (:class:`Modes`), read
+    and changed as ``state.modes``; ``n_iter`` counts the iterations, ``changed`` says whether
+    the model changed, ``capped`` whether the additions stopped at their cap."""
 
-    The record's fields are also read and set as attributes of the state (``state.free``,
-    ``state.lam0``, ...), for the callers that hold one field at a time.
-    """
-
-    _FIELDS = ("free", "lam0", "at_ami", "supported", "merged_fn", "origin", "res0")
+    __slots__ = ("fit", "modes", "n_iter", "changed", "capped")
 
     def __init__(self, fit, free, lam0, res0, origin, n_iter, at_ami=None, changed=False):
         self.fit = fit
@@ -132,14 +130,3 @@ class State:
         self.fit = fitted
         self.modes = modes
         self.changed = True
-
-    def __getattr__(self, name):
-        if name in State._FIELDS:
-            return getattr(self.__dict__["modes"], name)
-        raise AttributeError(name)
-
-    def __setattr__(self, name, value):
-        if name in State._FIELDS:
-            setattr(self.modes, name, value)
-        else:
-            object.__setattr__(self, name, value)

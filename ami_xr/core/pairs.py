@@ -60,15 +60,15 @@ def merge_split_pairs(
     * its shape is consistent across points: that gain is significant (chi-square, 4 degrees of
       freedom, ``pfa``) at two points or more (at the one point of a single FRF).
 
-    Otherwise the pair is merged into the one-pole fit. Records ``state.supported`` and
-    ``state.merged_fn`` per mode.
+    Otherwise the pair is merged into the one-pole fit. Records ``state.modes.supported`` and
+    ``state.modes.merged_fn`` per mode.
     """
     from scipy.stats import chi2  # lazy: scipy.stats is slow to import
 
     n_point = prob.n_points
     n_mode = state.fit.lam.size
-    state.supported = np.zeros(n_mode, bool)
-    state.merged_fn = np.full(n_mode, np.nan)
+    state.modes.supported = np.zeros(n_mode, bool)
+    state.modes.merged_fn = np.full(n_mode, np.nan)
     tested = set()
     far = policy.pair_widths
     while state.fit.proj.ok and np.isfinite(state.fit.cost) and state.fit.lam.size > 1:
@@ -84,17 +84,17 @@ def merge_split_pairs(
         strong = i + j - weak
         kept = strong - (strong > weak)
         # the merged pole's region: around the stronger pole's present value
-        ref = np.delete(state.lam0, weak)
+        ref = np.delete(state.modes.lam0, weak)
         ref[kept] = lam[strong] + decay
         trial = fit_modes(prob, np.delete(lam, weak), ref, **trial_opts)
         state.n_iter += trial[2]
         one = trial[0]
         if not (one.proj.ok and np.isfinite(one.cost)):
             continue
-        if state.free[strong] and not trial[1][kept]:
+        if state.modes.free[strong] and not trial[1][kept]:
             # without the weak pole the strong one leaves its region: the two do not share
             # one resonance (a narrow mode on a broad pole's band), it is no split duplicate
-            state.supported[[i, j]] = True
+            state.modes.supported[[i, j]] = True
             continue
         centre = 0.5 * (lam[i].imag + lam[j].imag)
         half = 0.5 * abs(lam[i].imag - lam[j].imag) + far * max(width[i], width[j])
@@ -120,7 +120,7 @@ def merge_split_pairs(
         gain = gain_j.sum() > chi2.isf(pfa, 2 + 2 * n_point)
         consistent = np.sum(gain_j > chi2.isf(pfa, 4)) >= min(2, n_point)
         if excess and gain and consistent:
-            state.supported[[i, j]] = True
+            state.modes.supported[[i, j]] = True
             continue
         # a split duplicate: merge it into the stronger pole
         modes = state.modes.without([weak])

@@ -152,18 +152,18 @@ def refine_arrays(
     state = State(fit, free, lam0[keep], res0[:, keep], origin, n_iter, at_ami=~free)
     state.changed = not keep.all()
     order_tests(prob, state, settings, opts, n_point, chi2, min_width)
-    n_ami = state.origin.size  # AMI modes kept (the added ones follow them)
+    n_ami = state.modes.origin.size  # AMI modes kept (the added ones follow them)
     if state.changed and np.isfinite(state.fit.cost):  # polish the new model (frozen stay so)
         set_stage(trace, "polish")
-        fit, free = state.fit, state.free
-        ref = np.where(free, state.lam0, fit.lam + decay)
+        fit, free = state.fit, state.modes.free
+        ref = np.where(free, state.modes.lam0, fit.lam + decay)
         # the polish has its own budget: the order tests' trial fits have theirs
         polish = fit_modes(prob, fit.lam, ref, free=free, **opts)
         state.n_iter += polish[2]
         if polish[0].cost <= fit.cost:
             # a mode the polish froze stays at its start: at AMI's value only if it was there
-            state.fit, state.free = polish[0], free & polish[1]
-            state.at_ami = state.at_ami & ~polish[1]
+            state.fit, state.modes.free = polish[0], free & polish[1]
+            state.modes.at_ami = state.modes.at_ami & ~polish[1]
     groups = None
     if shapes is not None and state.fit.proj.ok and np.isfinite(state.fit.cost):
         set_stage(trace, "noise per group")
@@ -200,7 +200,7 @@ def _grouped_fit(groups, state: State, start, settings, min_width, trace) -> flo
     ``groups.fit`` (as ``(lam, projections)``) and ``state.fit``; returns the objective at the
     starting eigenvalues ``start`` (the data's poles of the first fit's start)."""
     fit = state.fit
-    free = state.free
+    free = state.modes.free
     got = grouped.fit(groups, fit.lam, free, max_iter=settings.max_iter, tol=settings.tol)
     state.n_iter += got.n_iter
     if trace is not None:
@@ -231,14 +231,14 @@ def _result(
     """Statuses, standard errors, mode vectors and residual terms of the final fit, with the
     output modes matched to their AMI modes (``groups``: the FRFs' groups of
     :func:`_grouped_fit`, whose Fisher information gives the standard errors)."""
-    fit, free, lam0 = state.fit, state.free, state.lam0
+    fit, modes = state.fit, state.modes
+    free, lam0 = modes.free, modes.lam0
     n_point = prob.n_points
     residual_terms = prob.residual_terms
     n_mode = lam0.size
-    res0 = np.concatenate([state.res0, np.full((n_point, n_mode - n_ami), np.nan + 0j)], axis=1)
-    origin = np.concatenate([state.origin, np.full(n_mode - n_ami, -1)])
-    supported = state.supported if state.supported is not None else np.zeros(n_mode, bool)
-    merged_fn = state.merged_fn if state.merged_fn is not None else np.full(n_mode, np.nan)
+    res0 = np.concatenate([modes.res0, np.full((n_point, n_mode - n_ami), np.nan + 0j)], axis=1)
+    origin = np.concatenate([modes.origin, np.full(n_mode - n_ami, -1)])
+    supported, merged_fn = modes.supported, modes.merged_fn
     status = np.full(n_mode, STATUS_OK, dtype=np.int8)
     added = np.arange(n_mode) >= n_ami
     # an exact fit (noise-free data, rounding-level residual) is at its optimum whatever the
@@ -249,7 +249,7 @@ def _result(
         moving = fit.mode_step > 1e-4 if fit.mode_step is not None else np.ones(n_mode, bool)
         # (a frozen mode is not moving: it is a fallback or sits at a value refined before)
         status[free & (moving if moving[free].any() else True)] = STATUS_NOT_CONVERGED
-    status[state.at_ami] = STATUS_FALLBACK  # frozen at a refined value: not a fallback
+    status[modes.at_ami] = STATUS_FALLBACK  # frozen at a refined value: not a fallback
     proj = fit.proj
     lam = fit.lam + decay
     n_coef = 2 * n_mode + 2 * len(residual_terms)

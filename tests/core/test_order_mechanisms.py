@@ -67,19 +67,20 @@ def test_modes_take_keeps_every_field_in_step_and_the_ami_modes_first():
         m.take([2, 0])
 
 
-def test_state_reads_and_sets_the_record_fields_as_attributes():
+def test_state_holds_the_record_and_nothing_beside_it():
+    """The per-mode fields live in ``state.modes`` only: no second copy on the state to fall
+    out of step with the record (an assignment to a field name on the state is refused)."""
     prob, lam, omega = _clean_problem()
     state = _state(prob, lam, _opts(omega))
-    assert state.free is state.modes.free
-    state.free = np.array([True, False, True])
-    np.testing.assert_array_equal(state.modes.free, [True, False, True])
-    state.supported[1] = True  # in place, as the close-pair test marks a pair
-    assert state.modes.supported[1]
+    state.modes.supported[1] = True  # in place, as the close-pair test marks a pair
+    accepted = state.modes.without([0])
+    state.accept(state.fit, accepted)
+    assert state.modes is accepted and state.changed
+    np.testing.assert_array_equal(state.modes.supported, [True, False])
     with pytest.raises(AttributeError):
-        _ = state.not_a_field
-
-
-# -- screens ---------------------------------------------------------------------------------
+        _ = state.free
+    with pytest.raises(AttributeError):
+        state.free = np.ones(3, bool)
 
 
 def test_residual_candidates_point_at_a_missed_mode_and_not_at_noise():
@@ -117,7 +118,7 @@ def test_a_pole_that_fits_noise_is_dropped_and_real_modes_stay():
     threshold = chi2.isf(1e-3 / omega.size, 2 + 2 * prob.n_points)
     order._drop_insignificant(prob, state, threshold, opts)
     assert state.fit.lam.size == lam.size and state.changed
-    assert state.modes.n_modes == lam.size and state.origin.size == lam.size
+    assert state.modes.n_modes == lam.size and state.modes.origin.size == lam.size
     assert np.min(np.abs(state.fit.lam - spurious)) > 2 * np.pi * 5.0
     again = _state(prob, lam, opts)
     order._drop_insignificant(prob, again, threshold, opts)
@@ -162,7 +163,9 @@ def _missing_one():
     state = _state(prob, lam, opts, np.delete(np.arange(lam.size), MISSING))
     fit = state.fit
     none = np.empty(0, int)
-    good = Trial(np.append(fit.lam, lam[MISSING]), np.append(state.lam0, lam[MISSING]), 1, none)
+    good = Trial(
+        np.append(fit.lam, lam[MISSING]), np.append(state.modes.lam0, lam[MISSING]), 1, none
+    )
     return prob, lam, omega, opts, state, good
 
 
@@ -182,7 +185,7 @@ def _judge(prob, state, opts, trials):
 def test_a_fitted_trial_holds_only_when_it_adds_the_missed_mode_and_stays_free():
     prob, lam, omega, opts, state, good = _missing_one()
     fit, none = state.fit, good.removed
-    same = Trial(fit.lam.copy(), state.lam0.copy(), 0, none)
+    same = Trial(fit.lam.copy(), state.modes.lam0.copy(), 0, none)
     judge = _judge(prob, state, opts, [good, same])
     fitted = Fitted(*fit_modes(prob, good.start, good.ref, **opts))
     ok, moved = order._holds(judge, good, fitted)
@@ -203,7 +206,9 @@ def test_quick_screen_keeps_the_trial_that_explains_the_residual():
     none = np.empty(0, int)
     state = _state(prob, lam, opts, np.delete(np.arange(lam.size), MISSING))
     fit = state.fit
-    good = Trial(np.append(fit.lam, lam[MISSING]), np.append(state.lam0, lam[MISSING]), 1, none)
+    good = Trial(
+        np.append(fit.lam, lam[MISSING]), np.append(state.modes.lam0, lam[MISSING]), 1, none
+    )
     out = order._quick_screen([0], _judge(prob, state, opts, [good]))
     assert [i for _, i in out] == [0]
     complete = _state(prob, lam, opts)  # nothing missing: a pole in the noise gains too little
@@ -222,7 +227,7 @@ def test_a_mode_frozen_far_from_two_failed_trials_spares_the_fits_of_the_others(
     assert not touched.any()
     assert far.all()  # every present mode is beyond six bandwidths (6.2 Hz) of 52 Hz
     beside = 2 * np.pi * 43.0 * (-0.01 + 1j)
-    near = Trial(np.append(fit.lam, beside), np.append(state.lam0, beside), 1, none)
+    near = Trial(np.append(fit.lam, beside), np.append(state.modes.lam0, beside), 1, none)
     assert not order._reach(judge, near)[1][3] and order._reach(judge, near)[1][0]  # 41 vs 12 Hz
     n_fits = prob.n_fits
     judge.stuck[0] = 2
@@ -270,7 +275,7 @@ def test_order_tests_run_with_the_policy_they_are_given(no_proposals):
     assert n == (lam.size - 1 if no_proposals else lam.size)
     if not no_proposals:
         assert np.min(np.abs(state.fit.lam - lam[MISSING])) < 2e-3 * abs(lam[MISSING])
-        assert state.modes.n_modes == n and state.origin.size == lam.size - 1
+        assert state.modes.n_modes == n and state.modes.origin.size == lam.size - 1
 
 
 def _pair_case(fn, zeta, residue, max_shift):
@@ -288,7 +293,7 @@ def _pair_case(fn, zeta, residue, max_shift):
     prob = varpro.make_problem(frf, omega, None, None)
     opts = dict(_opts(omega), max_shift=max_shift)
     state = _state(prob, lam, opts)
-    assert state.free.all()
+    assert state.modes.free.all()
     never = dataclasses.replace(POLICY, pair_excess=np.inf)
     merge_split_pairs(prob, state, 1e-3, 0.0, opts, opts["min_width"], never)
     return state, lam
@@ -303,7 +308,7 @@ def test_a_narrow_mode_on_a_broad_poles_band_is_not_merged_into_it():
     residue = [[1.0, 0.8, 3.0], [0.5, -0.6, 2.0]]
     state, lam = _pair_case([99.0, 100.0, 100.75], [0.0025, 0.0025, 0.018], residue, 0.5)
     np.testing.assert_allclose(np.sort(state.fit.lam.imag), np.sort(lam.imag), rtol=1e-3)
-    assert state.supported.all()
+    assert state.modes.supported.all()
     # one mode split in two close poles: the weaker is merged into the stronger
     state, lam = _pair_case([100.0, 100.05], [0.0025, 0.0025], [[1.0, 0.2], [0.5, 0.1]], 0.5)
-    assert state.fit.lam.size == 1 and not state.supported.any()
+    assert state.fit.lam.size == 1 and not state.modes.supported.any()
