@@ -184,17 +184,8 @@ def residues(model: xr.Dataset, drive_point: Hashable | None = None) -> xr.Datas
     drive_point = _drive(model, drive_point)
     phi = model[names.MODE_VECTOR]
     lam = model[names.EIGENVALUE]
-    res = xr.apply_ufunc(
-        _residue_kernel,
-        phi,
-        phi.sel({names.POINT: drive_point}, drop=True),
-        lam,
-        input_core_dims=[[names.MODE], [names.MODE], [names.MODE]],
-        output_core_dims=[[names.MODE]],
-        dask="parallelized",
-        output_dtypes=[np.complex128],
-        keep_attrs=False,
-    )
+    phi_drive = phi.sel({names.POINT: drive_point}, drop=True)
+    res = _over_modes(_residue_kernel, (phi, phi_drive, lam), names.MODE)
     out = model.copy()
     out.attrs = dict(model.attrs)
     ru = model.attrs.get(names.ATTR_RESPONSE_UNITS, "m")
@@ -250,14 +241,19 @@ def _frf_kernel(residue: np.ndarray, lam: np.ndarray, omega: np.ndarray, power: 
 def _modal_frf(residue: xr.DataArray, lam: xr.DataArray, f: np.ndarray, quantity: str):
     """The modal sum of ``residue`` (..., mode) and ``lam`` (mode) at ``f`` Hz: (..., frequency)."""
     omega = xr.DataArray(2 * np.pi * f, dims=[names.FREQUENCY])
+    power = names.QUANTITY_POWER[quantity]
+    return _over_modes(_frf_kernel, (residue, lam, omega), names.FREQUENCY, power=power)
+
+
+def _over_modes(kernel, args: tuple, out_dim: str, **kwargs: Any) -> xr.DataArray:
+    """``kernel`` (complex results) over the mode axis of ``args[:2]`` and the ``out_dim`` of
+    ``args[2]`` (the mode again for residues, frequency or time for a modal sum), dask-ready."""
     return xr.apply_ufunc(
-        _frf_kernel,
-        residue,
-        lam,
-        omega,
-        kwargs={"power": names.QUANTITY_POWER[quantity]},
-        input_core_dims=[[names.MODE], [names.MODE], [names.FREQUENCY]],
-        output_core_dims=[[names.FREQUENCY]],
+        kernel,
+        *args,
+        kwargs=kwargs,
+        input_core_dims=[[names.MODE], [names.MODE], [out_dim]],
+        output_core_dims=[[out_dim]],
         dask="parallelized",
         output_dtypes=[np.complex128],
         keep_attrs=False,
@@ -456,16 +452,8 @@ def impulse_response(
     t = time_axis(time)
     model = _model_residues(model, drive_point)
     tt = xr.DataArray(t, dims=[names.TIME])
-    h = xr.apply_ufunc(
-        _impulse_kernel,
-        model[names.RESIDUE],
-        model[names.EIGENVALUE],
-        tt,
-        input_core_dims=[[names.MODE], [names.MODE], [names.TIME]],
-        output_core_dims=[[names.TIME]],
-        dask="parallelized",
-        output_dtypes=[np.complex128],
-        keep_attrs=False,
+    h = _over_modes(
+        _impulse_kernel, (model[names.RESIDUE], model[names.EIGENVALUE], tt), names.TIME
     )
     h = 2.0 * h.real  # (taken outside the kernel: dask would cast a complex meta to float)
     ru = model.attrs.get(names.ATTR_RESPONSE_UNITS, "m")
