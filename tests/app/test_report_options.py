@@ -224,6 +224,7 @@ def test_saved_png_is_fast_to_encode_and_carries_no_software_tag(tmp_path, resul
 
 
 # --- scripts/bench_report.py ----------------------------------------------------------------------
+@pytest.mark.slow
 def test_bench_report_runs_and_prints_every_figure(capsys):
     main_ = runpy.run_path(str(REPO / "scripts" / "bench_report.py"), run_name="bench_report")
     assert main_["main"](["--repeat", "1", "--no-demo"]) == 0

@@ -198,6 +198,7 @@ print(json.dumps({"peak_trial": len(peak.peak_trial.signatures),
 """
 
 
+@pytest.mark.slow
 def test_subtraction_compiles_its_callees_once(tmp_path):
     """On an empty cache (so callees compile and show their specialisations): a variable that
     starts as a constant (``n = 0``, ``peak = -1``) and is passed to a kernel made numba compile

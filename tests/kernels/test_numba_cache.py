@@ -215,6 +215,7 @@ print(json.dumps({
 """
 
 
+@pytest.mark.slow
 def test_two_first_runs_at_once_both_succeed_and_leave_a_good_cache(tmp_path):
     """numba issue 4807: concurrent first runs on one cache (``batch --workers 2``). Both
     processes compile into an empty cache folder at the same moment and give the right
