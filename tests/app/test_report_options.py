@@ -147,6 +147,7 @@ def test_building_the_parser_imports_no_report_module():
 
 
 # --- figures at the size shown, fixed layout, fast drawing ----------------------------------------
+@pytest.mark.slow
 def test_figures_are_drawn_no_wider_than_the_page_shows_them(tmp_path, result):
     from ami_xr.plot.common import PAGE_WIDTH_PX
 

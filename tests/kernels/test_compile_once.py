@@ -129,6 +129,7 @@ def test_cli_says_once_that_a_first_run_compiles(tmp_path):
     assert "compiling" not in err, err
 
 
+@pytest.mark.slow
 def test_python_api_prints_nothing_and_logs_at_info(tmp_path):
     _, err = _run(tmp_path, cache="api")
     assert err.strip() == ""

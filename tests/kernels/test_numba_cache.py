@@ -135,6 +135,7 @@ def test_edit_to_a_callee_module_recompiles_its_callers_and_nothing_else(tmp_pat
     assert _compiled(unrelated) == {"f": False, "g": False, "h": True}
 
 
+@pytest.mark.slow
 def test_cache_switched_off_compiles_every_time_and_writes_nothing(tmp_path):
     _write(tmp_path)
     for _ in range(2):
