@@ -20,9 +20,7 @@ fc = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(fc)
 
 INPUTS = fc.INPUT_NAMES
-# (input, command index into fc.commands_for(input), seed): 3 truncations, 2 flips each; the
-# first seed of each runs in the default tier, the others in the slow one (SLOW_SEEDS)
-SLOW_SEEDS = {12, 13, 22}
+# (input, command index into fc.commands_for(input), seed): 3 truncations, 2 flips each
 TRUNCATIONS = [(n, k, s) for n in INPUTS for k in (0, 1) for s in (11, 12, 13)]
 FLIPS = [(n, k, s) for n in INPUTS for k in (0, 1) for s in (21, 22)]
 # From the campaign (seed 0): a binary UFF cut exactly between two datasets (undetectable).
@@ -41,7 +39,6 @@ def _cases(kind: str, cases: list[tuple]) -> list:
     for name, k, seed in cases:
         reason = KNOWN.get((kind, name, k, seed))
         marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
-        marks += [pytest.mark.slow] if seed in SLOW_SEEDS else []
         cmd = fc.commands_for(name)[k][0]
         params.append(pytest.param(name, k, seed, marks=marks, id=f"{name}-{cmd}-{seed}"))
     return params
