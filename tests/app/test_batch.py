@@ -154,7 +154,8 @@ def test_bad_arguments(campaign, tmp_path):
         batch(campaign, tmp_path / "out", identify_options="paper")
 
 
-@pytest.mark.parametrize("workers", ["1", pytest.param("2", marks=pytest.mark.slow)])
+@pytest.mark.slow  # batch interrupts in the default tier: tests/app/test_batch_faults.py
+@pytest.mark.parametrize("workers", ["1", "2"])
 def test_ctrl_c_leaves_no_partial_files_and_resumes(tmp_path, workers):
     root = tmp_path / "many"
     root.mkdir()

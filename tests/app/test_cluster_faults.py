@@ -65,6 +65,7 @@ def _one_error_line(done: subprocess.CompletedProcess, *words: str) -> str:
     return lines[0]
 
 
+@pytest.mark.slow
 def test_no_scheduler_at_the_address_is_named_in_bounded_time(frf_file):
     address = f"tcp://127.0.0.1:{H.free_port()}"
     start = time.monotonic()

@@ -162,6 +162,7 @@ def test_figures_are_drawn_no_wider_than_the_page_shows_them(tmp_path, result):
     assert f"max-width:{PAGE_WIDTH_PX}px" in index.read_text()
 
 
+@pytest.mark.slow
 def test_figures_have_a_fixed_layout_drawn_once(result):
     from ami_xr.plot import measurement as plot_measurement
     from ami_xr.plot import modal as plot
