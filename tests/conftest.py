@@ -7,6 +7,7 @@ tolerance helpers live in ``tests/reference.py``.
 
 from __future__ import annotations
 
+import os
 import signal
 
 import numpy as np
@@ -24,6 +25,41 @@ FRF_FIXTURE_FN_HZ = np.array([12.0, 31.0])
 FRF_FIXTURE_ZETA = np.array([0.02, 0.035])
 FRF_FIXTURE_PHI = np.array([[0.6, 0.9], [1.0, -0.4], [0.8, -1.1]])  # rows: points 1, 2, 3
 FRF_FIXTURE_POINTS = [1, 2, 3]
+
+
+# --- the slow tier ------------------------------------------------------------------------------
+# Tests marked ``slow`` (long subprocess and CLI runs, local dask clusters, fault probes,
+# benchmark-sized cases; each feature keeps a fast test in the default tier) are skipped unless
+# asked for: ``python -m pytest -q -m slow --runslow`` runs only them (CI runs both tiers).
+RUN_SLOW_OPTION = "--runslow"
+RUN_SLOW_ENV = "AMI_XR_SLOW"  # set (non-empty) = --runslow, for runs that cannot add options
+SLOW_SKIP_REASON = (
+    "slow tier: run with 'python -m pytest -q -m slow --runslow' (or AMI_XR_SLOW=1); "
+    "CI (.ci/run) runs it after the default tier"
+)
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        RUN_SLOW_OPTION,
+        action="store_true",
+        default=False,
+        help="also run the tests marked slow (with -m slow: only them)",
+    )
+
+
+def run_slow(config) -> bool:
+    """Whether this session runs the slow tier (the option, or the environment variable)."""
+    return bool(config.getoption(RUN_SLOW_OPTION) or os.environ.get(RUN_SLOW_ENV))
+
+
+def pytest_collection_modifyitems(config, items):
+    if run_slow(config):
+        return
+    skip = pytest.mark.skip(reason=SLOW_SKIP_REASON)
+    for item in items:
+        if item.get_closest_marker("slow") is not None:
+            item.add_marker(skip)
 
 
 @pytest.fixture(scope="session", autouse=True)

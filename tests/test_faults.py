@@ -94,12 +94,14 @@ def big(work, inputs) -> tuple[Path, dict[str, float]]:
     return path, fc.time_commands(work, path, inputs)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig_name", ["SIGINT", "SIGTERM", "SIGKILL"])
 def test_signal_during_a_large_write_leaves_old_or_new_file(work, big, sig_name):
     path, timings = big
     _assert_ok(fc.signal_case(5, work, path, timings["convert"], sig_name=sig_name))
 
 
+@pytest.mark.slow
 def test_ctrl_c_during_a_batch_loses_nothing(work, inputs, big):
     _, timings = big
     _assert_ok(fc.batch_case(7, work, inputs, timings["batch"], sig_name="SIGINT"))

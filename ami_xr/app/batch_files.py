@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from ami_xr.errors import DataFileError
-from ami_xr.io.formats import INPUT_SUFFIXES
+from ami_xr.io.formats import INPUT_SUFFIXES, same_file
 
 OUTPUT_SUFFIX = ".modes.nc"
 REPORT_SUFFIX = ".report"
@@ -98,14 +98,7 @@ BATCH_SAME_FOLDER = (
 
 def same_folder(a: str | os.PathLike | None, b: str | os.PathLike | None) -> bool:
     """``a`` and ``b`` name one existing folder (another spelling, a symlink or a bind mount)."""
-    if a is None or b is None:
-        return False
-    if os.path.realpath(a) == os.path.realpath(b):
-        return True
-    try:
-        return os.path.samefile(a, b)
-    except OSError:  # one of them does not exist: not the same folder
-        return False
+    return a is not None and b is not None and same_file(a, b)
 
 
 def output_path(input_file: Path, input_dir: Path, output_dir: Path) -> Path:

@@ -52,6 +52,7 @@ __all__ = [
     "LVM_SUFFIX",
     "check_input",
     "check_output",
+    "same_file",
     "open_frf",
     "read_any",
     "write_any",
@@ -67,8 +68,9 @@ OUTPUT_FOLDER = "folder"
 _WRITE_BITS = stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    """``a`` and ``b`` name one file: the same resolved path (symlinks) or inode (hard links)."""
+def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
+    """``a`` and ``b`` name one file or folder: the same resolved path (symlinks, another
+    spelling) or the same inode (hard links, a bind mount); False where one does not exist."""
     if os.path.realpath(a) == os.path.realpath(b):
         return True
     try:
@@ -133,7 +135,7 @@ def check_output(
     path = Path(path)
     label = f"{name} {str(path)!r}"
     for other in inputs:
-        if _same_file(path, Path(other)):
+        if same_file(path, other):
             same = "" if str(other) == str(path) else f" {str(other)!r}"
             harm = "mix results with the inputs" if kind == OUTPUT_FOLDER else "destroy the input"
             raise DataFileError(
@@ -141,7 +143,7 @@ def check_output(
                 "choose another output name"
             )
     for other in outputs:
-        if _same_file(path, Path(other)):
+        if same_file(path, other):
             raise DataFileError(
                 f"{label} is also the output {str(other)!r}; give each its own name"
             )

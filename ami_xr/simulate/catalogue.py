@@ -37,6 +37,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.core.matching import match_nearest
 from ami_xr.errors import AmiXrValueError
 from ami_xr.simulate.checks import check_int
 from ami_xr.simulate.cluster import clustered_system
@@ -315,22 +316,11 @@ def score_modes(
                 raise AmiXrValueError(
                     f"crb: expected {var!r} with one value per true mode ({lam_t.size})"
                 )
-    with np.errstate(invalid="ignore"):
-        dist = np.abs(lam_id[:, None] - lam_t[None, :]) / np.abs(lam_t.real)[None, :]
-    dist = np.where(np.isfinite(dist), dist, np.inf)
-    used_id = np.zeros(lam_id.size, bool)
+    tk, ti = match_nearest(lam_id, lam_t, tolerance)
     found = np.zeros(lam_t.size, bool)
-    pairs = []
-    for flat in np.argsort(dist, axis=None, kind="stable"):
-        i, k = divmod(int(flat), lam_t.size)
-        if dist[i, k] >= tolerance:
-            break
-        if not used_id[i] and not found[k]:
-            used_id[i] = found[k] = True
-            pairs.append((k, i))
-    pairs.sort()
-    tk = np.array([k for k, _ in pairs], dtype=np.int64)
-    ti = np.array([i for _, i in pairs], dtype=np.int64)
+    found[tk] = True
+    used_id = np.zeros(lam_id.size, bool)
+    used_id[ti] = True
 
     def fn_zeta(lam):
         return np.abs(lam) / (2 * np.pi), -lam.real / np.abs(lam)

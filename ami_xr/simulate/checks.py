@@ -6,6 +6,7 @@ noise, seed) in one place."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -105,3 +106,10 @@ def check_sampling(
     return Sampling(
         source, frequency, fmax, n_frequencies, duration, n_samples, noise, noise_kind, seed
     )
+
+
+def sampling_of(arguments: Mapping[str, Any]) -> Sampling:
+    """:func:`check_sampling` of the sampling arguments (the fields of :class:`Sampling`) among
+    a simulator's ``arguments``: its ``locals()``, taken before it rebinds any of those names
+    (the simulators share these nine keyword arguments; they are listed once, here)."""
+    return check_sampling(**{k: arguments[k] for k in Sampling._fields})

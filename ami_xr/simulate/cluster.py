@@ -38,7 +38,7 @@ import xarray as xr
 from ami_xr import names
 from ami_xr.errors import AmiXrValueError
 from ami_xr.provenance import add_history
-from ami_xr.simulate.checks import check_int, check_positive, check_range, check_sampling
+from ami_xr.simulate.checks import check_int, check_positive, check_range, sampling_of
 from ami_xr.simulate.modal import modal_model
 from ami_xr.simulate.random import system_frfs
 
@@ -190,17 +190,7 @@ def clustered_system(
         raise AmiXrValueError(
             f"non_proportional: expected a number in [0, 1], got {non_proportional!r}"
         )
-    sampling = check_sampling(
-        source=source,
-        frequency=frequency,
-        max_frequency_hz=max_frequency_hz,
-        n_frequencies=n_frequencies,
-        duration=duration,
-        n_samples=n_samples,
-        noise=noise,
-        noise_kind=noise_kind,
-        seed=seed,
-    )
+    sampling = sampling_of(locals())
     fmax, seed = sampling.max_frequency_hz, sampling.seed
 
     rng = np.random.default_rng(seed)

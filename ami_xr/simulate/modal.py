@@ -184,17 +184,8 @@ def residues(model: xr.Dataset, drive_point: Hashable | None = None) -> xr.Datas
     drive_point = _drive(model, drive_point)
     phi = model[names.MODE_VECTOR]
     lam = model[names.EIGENVALUE]
-    res = xr.apply_ufunc(
-        _residue_kernel,
-        phi,
-        phi.sel({names.POINT: drive_point}, drop=True),
-        lam,
-        input_core_dims=[[names.MODE], [names.MODE], [names.MODE]],
-        output_core_dims=[[names.MODE]],
-        dask="parallelized",
-        output_dtypes=[np.complex128],
-        keep_attrs=False,
-    )
+    phi_drive = phi.sel({names.POINT: drive_point}, drop=True)
+    res = _over_modes(_residue_kernel, (phi, phi_drive, lam), names.MODE)
     out = model.copy()
     out.attrs = dict(model.attrs)
     ru = model.attrs.get(names.ATTR_RESPONSE_UNITS, "m")
@@ -250,14 +241,19 @@ def _frf_kernel(residue: np.ndarray, lam: np.ndarray, omega: np.ndarray, power: 
 def _modal_frf(residue: xr.DataArray, lam: xr.DataArray, f: np.ndarray, quantity: str):
     """The modal sum of ``residue`` (..., mode) and ``lam`` (mode) at ``f`` Hz: (..., frequency)."""
     omega = xr.DataArray(2 * np.pi * f, dims=[names.FREQUENCY])
+    power = names.QUANTITY_POWER[quantity]
+    return _over_modes(_frf_kernel, (residue, lam, omega), names.FREQUENCY, power=power)
+
+
+def _over_modes(kernel, args: tuple, out_dim: str, **kwargs: Any) -> xr.DataArray:
+    """``kernel`` (complex results) over the mode axis of ``args[:2]`` and the ``out_dim`` of
+    ``args[2]`` (the mode again for residues, frequency or time for a modal sum), dask-ready."""
     return xr.apply_ufunc(
-        _frf_kernel,
-        residue,
-        lam,
-        omega,
-        kwargs={"power": names.QUANTITY_POWER[quantity]},
-        input_core_dims=[[names.MODE], [names.MODE], [names.FREQUENCY]],
-        output_core_dims=[[names.FREQUENCY]],
+        kernel,
+        *args,
+        kwargs=kwargs,
+        input_core_dims=[[names.MODE], [names.MODE], [out_dim]],
+        output_core_dims=[[out_dim]],
         dask="parallelized",
         output_dtypes=[np.complex128],
         keep_attrs=False,
@@ -311,33 +307,45 @@ def frf(
         )
     model = _model_residues(model, drive_point)
     g = _modal_frf(model[names.RESIDUE], model[names.EIGENVALUE], f, response_quantity)
+    drive = {names.ATTR_DRIVE_POINT: model.attrs[names.ATTR_DRIVE_POINT]}
+    return _analytic_frf(
+        g.transpose(names.POINT, names.FREQUENCY),
+        {names.POINT: model[names.POINT].values, names.FREQUENCY: f},
+        model,
+        (response_quantity, response_units),
+        drive,
+        {"drive_point": drive[names.ATTR_DRIVE_POINT]},
+    )
+
+
+def _analytic_frf(
+    g: xr.DataArray,
+    coords: dict[str, Any],
+    model: xr.Dataset,
+    quantity: tuple[str, str | None],
+    first_attrs: dict[str, Any],
+    record: dict[str, Any],
+) -> xr.Dataset:
+    """The FRF Dataset of :func:`frf` around ``g`` (its dims in order, frequency last): the
+    ``coords`` (the frequency in Hz, given its units here), units and attributes
+    (``first_attrs`` before the common ones) and the history (``record`` first)."""
+    response_quantity, response_units = quantity
+    f = coords[names.FREQUENCY]
     force_units = model.attrs.get(names.ATTR_FORCE_UNITS, "N")
     ru = response_units or names.SI_RESPONSE_UNITS[response_quantity]
-    ds = xr.Dataset(
-        {names.FRF: g.transpose(names.POINT, names.FREQUENCY)},
-        coords={
-            names.POINT: model[names.POINT].values,
-            names.FREQUENCY: (names.FREQUENCY, f, {names.ATTR_UNITS: names.FREQUENCY_UNITS}),
-        },
-    )
+    frequency = (names.FREQUENCY, f, {names.ATTR_UNITS: names.FREQUENCY_UNITS})
+    ds = xr.Dataset({names.FRF: g}, coords={**coords, names.FREQUENCY: frequency})
     ds[names.FRF].attrs = {names.ATTR_UNITS: names.frf_units(ru, force_units)}
     ds.attrs = {
-        names.ATTR_DRIVE_POINT: model.attrs[names.ATTR_DRIVE_POINT],
+        **first_attrs,
         names.ATTR_QUANTITY: response_quantity,
         names.ATTR_FRF_TYPE: names.QUANTITY_TO_FRF_TYPE[response_quantity],
         names.ATTR_RESPONSE_UNITS: ru,
         names.ATTR_FORCE_UNITS: force_units,
         names.ATTR_SOURCE: names.SOURCE_ANALYTIC,
     }
-    return add_history(
-        ds,
-        "ami_xr.simulate.frf",
-        {
-            "drive_point": ds.attrs[names.ATTR_DRIVE_POINT],
-            "response_quantity": response_quantity,
-            "n_frequencies": int(f.size),
-        },
-    )
+    params = {**record, "response_quantity": response_quantity, "n_frequencies": int(f.size)}
+    return add_history(ds, "ami_xr.simulate.frf", params)
 
 
 def _multi_reference_frf(
@@ -370,36 +378,16 @@ def _multi_reference_frf(
     phi_ref = phi.sel({names.POINT: refs}).rename({names.POINT: names.REFERENCE})
     residue = (lam * phi * phi_ref).transpose(names.REFERENCE, names.POINT, names.MODE)
     g = _modal_frf(residue, lam, f, response_quantity)
-    force_units = model.attrs.get(names.ATTR_FORCE_UNITS, "N")
-    ru = response_units or names.SI_RESPONSE_UNITS[response_quantity]
-    ds = xr.Dataset(
-        {
-            names.FRF: g.transpose(names.REFERENCE, names.POINT, names.FREQUENCY).drop_vars(
-                [c for c in g.coords if c not in (names.REFERENCE, names.POINT)]
-            )
-        },
-        coords={
-            names.REFERENCE: refs,
-            names.POINT: points,
-            names.FREQUENCY: (names.FREQUENCY, f, {names.ATTR_UNITS: names.FREQUENCY_UNITS}),
-        },
+    g = g.transpose(names.REFERENCE, names.POINT, names.FREQUENCY).drop_vars(
+        [c for c in g.coords if c not in (names.REFERENCE, names.POINT)]
     )
-    ds[names.FRF].attrs = {names.ATTR_UNITS: names.frf_units(ru, force_units)}
-    ds.attrs = {
-        names.ATTR_QUANTITY: response_quantity,
-        names.ATTR_FRF_TYPE: names.QUANTITY_TO_FRF_TYPE[response_quantity],
-        names.ATTR_RESPONSE_UNITS: ru,
-        names.ATTR_FORCE_UNITS: force_units,
-        names.ATTR_SOURCE: names.SOURCE_ANALYTIC,
-    }
-    return add_history(
-        ds,
-        "ami_xr.simulate.frf",
-        {
-            "references": refs,
-            "response_quantity": response_quantity,
-            "n_frequencies": int(f.size),
-        },
+    return _analytic_frf(
+        g,
+        {names.REFERENCE: refs, names.POINT: points, names.FREQUENCY: f},
+        model,
+        (response_quantity, response_units),
+        {},
+        {"references": refs},
     )
 
 
@@ -464,16 +452,8 @@ def impulse_response(
     t = time_axis(time)
     model = _model_residues(model, drive_point)
     tt = xr.DataArray(t, dims=[names.TIME])
-    h = xr.apply_ufunc(
-        _impulse_kernel,
-        model[names.RESIDUE],
-        model[names.EIGENVALUE],
-        tt,
-        input_core_dims=[[names.MODE], [names.MODE], [names.TIME]],
-        output_core_dims=[[names.TIME]],
-        dask="parallelized",
-        output_dtypes=[np.complex128],
-        keep_attrs=False,
+    h = _over_modes(
+        _impulse_kernel, (model[names.RESIDUE], model[names.EIGENVALUE], tt), names.TIME
     )
     h = 2.0 * h.real  # (taken outside the kernel: dask would cast a complex meta to float)
     ru = model.attrs.get(names.ATTR_RESPONSE_UNITS, "m")

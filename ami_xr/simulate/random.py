@@ -36,7 +36,7 @@ from ami_xr.simulate.checks import (
     check_int,
     check_positive,
     check_range,
-    check_sampling,
+    sampling_of,
 )
 from ami_xr.simulate.modal import frf, impulse_response, modal_model
 from ami_xr.simulate.noise import (
@@ -280,17 +280,7 @@ def random_system(
     n_points, n_modes, n_struct = _check_size(
         n_points, topology, n_modes, closely_spaced, weak_mode
     )
-    sampling = check_sampling(
-        source=source,
-        frequency=frequency,
-        max_frequency_hz=max_frequency_hz,
-        n_frequencies=n_frequencies,
-        duration=duration,
-        n_samples=n_samples,
-        noise=noise,
-        noise_kind=noise_kind,
-        seed=seed,
-    )
+    sampling = sampling_of(locals())
     zeta = check_range(damping, "damping", 0.3)
     pair_gap, weak_level = _check_absorbers(pair_gap, weak_level)
     seed = sampling.seed

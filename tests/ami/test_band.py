@@ -153,6 +153,7 @@ def test_cli_fmin_fmax(tmp_path, capsys):
     assert "warning: AssumptionWarning: identify: analysis band" in err
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not (SHARED_DATA / "impact_hammer.lvm").exists(), reason="no shared data")
 def test_hammer_band_and_no_mode_above_it(tmp_path):
     h, m = tmp_path / "h.nc", tmp_path / "m.nc"

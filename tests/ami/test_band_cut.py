@@ -71,6 +71,7 @@ def test_sel_equals_fmin_fmax_on_a_simulated_measurement(a, b):
     np.testing.assert_array_equal(by_sel[names.FREQUENCY], by_limits[names.FREQUENCY])
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not HAMMER_LVM.is_file(), reason="../shared/data (measured files) is absent")
 def test_sel_equals_fmin_fmax_on_the_hammer_test():
     """The case of issue 20: sliced to 20-4885 Hz the band was 20-1614 Hz and 12 modes came out

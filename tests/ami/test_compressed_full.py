@@ -24,7 +24,8 @@ from ami_xr.simulate import frf, score_modes
 from ami_xr.simulate.noise import add_noise
 from ami_xr.simulate.spread import many_points
 
-QUANTITIES = ("displacement", "velocity", "acceleration")
+# accelerance, the slowest of the three (most modes found), runs in the slow tier
+QUANTITIES = ("displacement", "velocity", pytest.param("acceleration", marks=pytest.mark.slow))
 
 
 def _frfs(quantity: str, noise: float, seed: int = 3):

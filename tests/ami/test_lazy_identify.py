@@ -94,7 +94,10 @@ def sets(tmp_path_factory):
     return out
 
 
-@pytest.mark.parametrize("name", ["plain", "accelerance", "stored_noise"])
+@pytest.mark.parametrize(
+    "name",  # the other quantity and the stored noise floor: the slow tier
+    ["plain", *(pytest.param(n, marks=pytest.mark.slow) for n in ("accelerance", "stored_noise"))],
+)
 def test_identify_of_a_lazy_set_computes_no_more_than_a_few_chunks_at_once(sets, name):
     eager, path = sets[name]
     lazy = ami_xr.open_dataset(path, chunks={names.POINT: CHUNK})

@@ -216,7 +216,13 @@ def _loaded_chain(mass: float, level: float, seed: int):
 
 
 @pytest.mark.parametrize(
-    ("mass", "level"), [(0.0, 0.001), (0.003, 0.001), (0.003, 0.01), (0.01, 0.001)]
+    ("mass", "level"),
+    [
+        (0.0, 0.001),
+        (0.003, 0.001),
+        (0.003, 0.01),
+        pytest.param(0.01, 0.001, marks=pytest.mark.slow),
+    ],
 )
 def test_well_separated_and_mass_loaded_single_modes_are_not_flagged(mass, level):
     """Six single modes (15.9-34.6 Hz, 1.2-2.3 % damping, modal overlap up to 0.6), with and
@@ -229,6 +235,7 @@ def test_well_separated_and_mass_loaded_single_modes_are_not_flagged(mass, level
 SDYPY_BEAM = SHARED_DATA / "sdypy_ema_beam.npz"
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not SDYPY_BEAM.is_file(), reason="shared measured data not present")
 def test_single_modes_of_a_measured_beam_are_not_flagged():
     """sdypy-EMA's measured beam (six accelerances, eleven well-separated single modes at

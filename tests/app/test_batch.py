@@ -154,6 +154,7 @@ def test_bad_arguments(campaign, tmp_path):
         batch(campaign, tmp_path / "out", identify_options="paper")
 
 
+@pytest.mark.slow  # batch interrupts in the default tier: tests/app/test_batch_faults.py
 @pytest.mark.parametrize("workers", ["1", "2"])
 def test_ctrl_c_leaves_no_partial_files_and_resumes(tmp_path, workers):
     root = tmp_path / "many"
@@ -209,6 +210,7 @@ def test_ctrl_c_leaves_no_partial_files_and_resumes(tmp_path, workers):
     assert np.all([Path(out / row["output"]).is_file() for row in rows.values()])
 
 
+@pytest.mark.slow
 def test_batch_campaign_script(tmp_path):
     script = REPO / "scripts" / "batch_campaign.py"
     cmd = [sys.executable, str(script), "--example", "2", "-o", str(tmp_path / "c")]

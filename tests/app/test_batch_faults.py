@@ -111,8 +111,11 @@ def _assert_outputs_complete(out: Path) -> set[str]:
     return done
 
 
-@pytest.mark.parametrize("delay", (0.9, 1.6, 2.1))
-@pytest.mark.parametrize("gap", (0.02, 0.15))
+# the first timing in the default tier, the others in the slow one
+@pytest.mark.parametrize(
+    "delay", (0.9, *(pytest.param(d, marks=pytest.mark.slow) for d in (1.6, 2.1)))
+)
+@pytest.mark.parametrize("gap", (0.02, pytest.param(0.15, marks=pytest.mark.slow)))
 def test_double_ctrl_c_stops_at_once_without_partial_outputs(tmp_path, inputs, delay, gap):
     out = tmp_path / "out"
     rc, err = _run_and_signal(tmp_path, inputs, out, [(delay, signal.SIGINT), (gap, signal.SIGINT)])
@@ -125,7 +128,7 @@ def test_double_ctrl_c_stops_at_once_without_partial_outputs(tmp_path, inputs, d
     assert (out / SUMMARY_NAME).is_file()
 
 
-@pytest.mark.parametrize("delay", (1.0, 1.8))
+@pytest.mark.parametrize("delay", (1.0, pytest.param(1.8, marks=pytest.mark.slow)))
 def test_sigterm_stops_the_batch_with_cleanup(tmp_path, inputs, delay):
     out = tmp_path / "out"
     rc, err = _run_and_signal(tmp_path, inputs, out, [(delay, signal.SIGTERM)])

@@ -22,6 +22,7 @@ from .proc import H
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc")
 
 
+@pytest.mark.slow
 def test_workers_end_when_the_batch_is_killed(tmp_path):
     src = tmp_path / "in"
     src.mkdir()

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import runpy
 
+import pytest
+
 import ami_xr
 
 from ..reference import REPO
@@ -46,6 +48,7 @@ def test_benchmark_catalogue_method_option(capsys):
     assert len(out.split("Targets (issue 10)\n")[1].splitlines()) == 2
 
 
+@pytest.mark.slow
 def test_benchmark_catalogue_overlap_cases_and_bins(capsys):
     """One noise-free impulse-response overlap case (and one old case): its row, the per-bin
     lines phrased as the issue's targets, and the issue-20 target lines; the LSCF column when

@@ -20,6 +20,7 @@ def _main():
     return _module()["main"]
 
 
+@pytest.mark.slow
 def test_benchmark_mimo_quick(capsys):
     assert _main()(["--quick", "--ring-only"]) == 0
     out = capsys.readouterr().out
@@ -50,6 +51,7 @@ def test_benchmark_mimo_quick(capsys):
         assert float(cells[i + 2][3].split("/")[0]) >= float(cells[i][3].split("/")[0])
 
 
+@pytest.mark.slow
 def test_measured_like_all_references_find_at_least_the_best_single_one():
     mod = _module()
     truth, clean = mod["measured_like_truth"]()

@@ -146,6 +146,17 @@ def test_output_through_a_symlink_or_hard_link_is_the_input(files, capsys):
         assert output in line and "g.nc" in line
 
 
+def test_batch_refuses_its_input_folder_as_output_in_any_spelling(tmp_path, capsys):
+    (tmp_path / "in").mkdir()
+    os.symlink(tmp_path / "in", tmp_path / "alias")
+    for output in ("in", "alias", "in/./"):
+        with pytest.raises(SystemExit) as stop:
+            main(["batch", str(tmp_path / "in"), "-o", str(tmp_path / output)])
+        assert stop.value.code == EXIT_USAGE
+        assert "is the input folder DIR" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["alias", "in"]
+
+
 @pytest.mark.parametrize(
     "args",
     [
@@ -154,7 +165,7 @@ def test_output_through_a_symlink_or_hard_link_is_the_input(files, capsys):
         ["report", "{g}", "-o", "{g}"],
     ],
     ids=["identify", "convert", "report"],
-)  # batch DIR -o DIR is a usage error (exit 2): tests/app/test_batch_issue34.py
+)  # batch DIR -o DIR is a usage error (exit 2): the test above
 def test_no_command_writes_over_its_input(files, capsys, no_identify, args):
     args = [a.format(g=files / "g.nc", dir=files) for a in args]
     line = _refused(args, files, capsys, expected="")

@@ -65,6 +65,7 @@ def _one_error_line(done: subprocess.CompletedProcess, *words: str) -> str:
     return lines[0]
 
 
+@pytest.mark.slow
 def test_no_scheduler_at_the_address_is_named_in_bounded_time(frf_file):
     address = f"tcp://127.0.0.1:{H.free_port()}"
     start = time.monotonic()
@@ -73,6 +74,7 @@ def test_no_scheduler_at_the_address_is_named_in_bounded_time(frf_file):
     _one_error_line(done, address, "no dask scheduler answered")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "reply, words",
     [
@@ -106,6 +108,7 @@ def _worker(address: str) -> subprocess.Popen:
 _stop = H.end
 
 
+@pytest.mark.slow
 def test_a_scheduler_without_workers_is_named(frf_file):
     port = H.free_port()
     scheduler = _scheduler(port)
@@ -118,6 +121,7 @@ def test_a_scheduler_without_workers_is_named(frf_file):
     _one_error_line(done, f"127.0.0.1:{port}", "has no workers")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("victim", ["worker", "scheduler"])
 def test_workers_or_scheduler_lost_during_the_run(frf_file, tmp_path, victim):
     port = H.free_port()
@@ -166,6 +170,7 @@ def _start_busy(frf: Path) -> tuple[subprocess.Popen, list[int]]:
     return proc, workers
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_a_signal_to_the_group_ends_the_command_within_2_s(frf_file, signum, code):
     proc, workers = _start_busy(frf_file)
@@ -180,6 +185,7 @@ def test_a_signal_to_the_group_ends_the_command_within_2_s(frf_file, signum, cod
     assert not H.kill_left(workers, 0.5)
 
 
+@pytest.mark.slow
 def test_sigkill_of_the_command_ends_its_workers(frf_file):
     proc, workers = _start_busy(frf_file)
     proc.kill()
@@ -187,6 +193,7 @@ def test_sigkill_of_the_command_ends_its_workers(frf_file):
     assert not H.kill_left(workers, 5.0), "worker processes outlived the killed command"
 
 
+@pytest.mark.slow
 def test_distributed_logs_only_with_verbose(frf_file):
     quiet = _identify(frf_file, "--workers", "1", "--worker-memory", "100TB", timeout=120)
     assert quiet.returncode == 0, quiet.stderr
@@ -196,6 +203,7 @@ def test_distributed_logs_only_with_verbose(frf_file):
     assert "ami-xr: distributed." in loud.stderr
 
 
+@pytest.mark.slow
 def test_numpy_warnings_of_the_workers_are_not_shown_raw(frf_file, tmp_path):
     import ami_xr
     from ami_xr import names
@@ -220,6 +228,7 @@ def test_a_bad_cluster_timeout_is_a_usage_error(value, capsys):
     assert "--cluster-timeout" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_a_worker_killed_over_its_memory_limit_is_reported(tmp_path):
     import ami_xr
     from ami_xr.simulate.spread import many_points

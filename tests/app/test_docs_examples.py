@@ -181,6 +181,7 @@ def test_testlab_has_the_workflow_and_the_other_tools():
         assert f"import {tool}" in code
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not HAMMER.is_file(), reason="../shared/data/impact_hammer.lvm is absent")
 def test_testlab_runs_as_written(tmp_path, monkeypatch, capsys):
     pytest.importorskip("matplotlib")

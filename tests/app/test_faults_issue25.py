@@ -57,6 +57,7 @@ def test_symlink_to_a_device_and_empty_path_are_named(tmp_path):
     assert done.returncode == 1 and "path is empty" in done.stderr, done.stderr
 
 
+@pytest.mark.slow
 def test_batch_never_blocks_on_a_fifo(tmp_path):
     src, out = tmp_path / "in", tmp_path / "out"
     src.mkdir()
@@ -79,6 +80,7 @@ def test_output_name_too_long_for_the_temporary_name_fails_before_the_work(tmp_p
 
 
 # --- streams and environment (item 6) ------------------------------------------------------------
+@pytest.mark.slow
 def test_closed_stderr_and_broken_stdout_do_not_fail_a_good_run(tmp_path):
     out = tmp_path / "m.nc"
     done = subprocess.run(
@@ -119,6 +121,7 @@ def test_read_only_home_gets_a_quiet_matplotlib_config_dir(tmp_path):
 
 
 # --- batch with workers, SIGTERM to the process group (item 4) -----------------------------------
+@pytest.mark.slow
 def test_batch_sigterm_to_the_group_leaves_a_summary_matching_the_outputs(tmp_path):
     src, out = tmp_path / "in", tmp_path / "out"
     src.mkdir()

@@ -107,7 +107,9 @@ cli.run()
 """
 
 
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.parametrize(
+    "signum", [signal.SIGINT, pytest.param(signal.SIGTERM, marks=pytest.mark.slow)]
+)
 def test_identify_stops_between_kernel_pieces(tmp_path, signum):
     """End to end: the CLI holds a signal that arrives during a (slow) kernel piece, stops after
     that piece, exits 130/143 with one line and writes no output."""

@@ -217,6 +217,18 @@ def test_gif_bad_arguments(beam_modes):
 # --- report ----------------------------------------------------------------------------------
 
 
+def test_report_embeds_the_shape_figure_and_the_gif_of_the_mode(tmp_path, beam_modes):
+    """The fast version of the next test: one mode, the shape figures only."""
+    one = beam_modes.isel({names.MODE: [0]})
+    index = report(one, tmp_path / "rep", figures=("mode_shapes",))
+    page = index.read_text()
+    assert page.count("data:image/gif;base64,R0lGODlh") == 1  # base64 of b"GIF89a"
+    assert "alt='mode_shapes.png'" in page and "Not produced" not in page
+    label = one[names.MODE].values[0]
+    assert (index.parent / f"mode_shape_{label}.gif").read_bytes()[:6] == b"GIF89a"
+
+
+@pytest.mark.slow
 def test_report_embeds_shapes_and_one_gif_per_mode(tmp_path, beam_modes):
     index = report(beam_modes, tmp_path / "rep")
     page = index.read_text()

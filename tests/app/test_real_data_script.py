@@ -46,6 +46,7 @@ def test_suspicious_pairs_are_close_in_frequency_and_alike_in_shape():
     assert pairs[0][3] > 0.99
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not SHARED_DATA.is_dir(), reason="../shared/data (measured files) is absent")
 def test_real_data_script_runs_both_files_and_prints_the_targets(capsys):
     assert SCRIPT["main"](["--data", str(SHARED_DATA), "--beam-sets", "0"]) == 0

@@ -57,6 +57,7 @@ def test_every_figure_for_the_benchmark(tmp_path, benchmark_result):
     assert not list(index.parent.glob(".*.tmp"))
 
 
+@pytest.mark.slow
 def test_every_figure_without_point_coordinates(tmp_path, chain_result):
     assert not any(c in chain_result.coords for c in ("point_x", "point_y", "point_z"))
     index = report(chain_result, tmp_path / "rep")

@@ -116,6 +116,13 @@ def _data_lines(ax) -> list:
     return [line for line in ax.get_lines() if len(line.get_xdata()) > 2]
 
 
+@pytest.fixture(scope="module")
+def hammer_report(tmp_path_factory, hammer_result) -> Path:
+    """The full report of the hammer test (default figures), written once for the tests that
+    read it."""
+    return report(hammer_result, tmp_path_factory.mktemp("hammer") / "rep")
+
+
 def test_hammer_report_shows_what_the_engineer_checks_first(tmp_path, hammer_result):
     index = report(hammer_result, tmp_path / "rep", figures=("coherence", "force_spectrum", "hits"))
     page = index.read_text()
@@ -133,10 +140,9 @@ def test_hammer_report_shows_what_the_engineer_checks_first(tmp_path, hammer_res
 
 
 def test_measurement_figures_by_default_only_when_their_inputs_exist(
-    tmp_path, hammer_result, simulated_result
+    tmp_path, hammer_report, simulated_result
 ):
-    index = report(hammer_result, tmp_path / "hammer", figures=None)
-    made = {p.stem for p in index.parent.glob("*.png")}
+    made = {p.stem for p in hammer_report.parent.glob("*.png")}  # figures=None, the default
     assert {"coherence", "force_spectrum", "hits"} <= made
     index = report(simulated_result, tmp_path / "sim", figures=("bode",))
     page = index.read_text()
@@ -282,11 +288,11 @@ def test_frequency_range_and_figure_choice(tmp_path, hammer_result):
         report(hammer_result, tmp_path / "bad", figures=("bode", "nope"))
 
 
-def test_html_is_one_self_contained_file(tmp_path, hammer_result):
+def test_html_is_one_self_contained_file(hammer_report):
     import base64
     import re
 
-    index = report(hammer_result, tmp_path / "rep")
+    index = hammer_report
     page = index.read_text()
     sources = re.findall(r"<img src='([^']*)'", page)
     made = sorted(p.name for p in index.parent.glob("*.png"))

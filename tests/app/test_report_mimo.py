@@ -65,6 +65,7 @@ def test_tables_per_reference(files):
         participation_table(result.drop_vars(names.PARTICIPATION))
 
 
+@pytest.mark.slow
 def test_cli_report_all_references(files, tmp_path, capsys):
     folder, result, _ = files
     out = tmp_path / "report"
@@ -123,6 +124,7 @@ def test_cli_convert_multi_reference_round_trip(files, tmp_path):
     assert names.MODE_VECTOR in back and names.PARTICIPATION not in back
 
 
+@pytest.mark.slow
 def test_cli_batch_multi_reference_with_report(files, tmp_path):
     folder, _, _ = files
     data = tmp_path / "in"

@@ -147,6 +147,7 @@ def test_building_the_parser_imports_no_report_module():
 
 
 # --- figures at the size shown, fixed layout, fast drawing ----------------------------------------
+@pytest.mark.slow
 def test_figures_are_drawn_no_wider_than_the_page_shows_them(tmp_path, result):
     from ami_xr.plot.common import PAGE_WIDTH_PX
 
@@ -161,6 +162,7 @@ def test_figures_are_drawn_no_wider_than_the_page_shows_them(tmp_path, result):
     assert f"max-width:{PAGE_WIDTH_PX}px" in index.read_text()
 
 
+@pytest.mark.slow
 def test_figures_have_a_fixed_layout_drawn_once(result):
     from ami_xr.plot import measurement as plot_measurement
     from ami_xr.plot import modal as plot
@@ -224,6 +226,7 @@ def test_saved_png_is_fast_to_encode_and_carries_no_software_tag(tmp_path, resul
 
 
 # --- scripts/bench_report.py ----------------------------------------------------------------------
+@pytest.mark.slow
 def test_bench_report_runs_and_prints_every_figure(capsys):
     main_ = runpy.run_path(str(REPO / "scripts" / "bench_report.py"), run_name="bench_report")
     assert main_["main"](["--repeat", "1", "--no-demo"]) == 0

@@ -29,6 +29,7 @@ def test_reproduce_paper_small(capsys):
     assert "< 1e-6" in out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "args", [["--samples", "200000", "--points", "4", "--chunk", "65536", "--slice", "65536"]]
 )

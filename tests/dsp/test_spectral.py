@@ -32,7 +32,12 @@ PARAMS = [
     dict(fs=2.0, nperseg=200, noverlap=150, nfft=256, detrend="linear", window="hann"),
     dict(fs=1.0, nperseg=333, noverlap=0, nfft=None, detrend=False, window="boxcar"),
     dict(fs=48.0, nperseg=128, noverlap=64, nfft=None, detrend="constant", window="flattop"),
-    dict(fs=10.0, nperseg=100, noverlap=99, nfft=101, detrend="linear", window="hann"),
+    dict(fs=10.0, nperseg=100, noverlap=90, nfft=101, detrend="linear", window="hann"),
+    # a one-sample step (~3900 segments): the slow tier
+    pytest.param(
+        dict(fs=10.0, nperseg=100, noverlap=99, nfft=101, detrend="linear", window="hann"),
+        marks=pytest.mark.slow,
+    ),
 ]
 
 

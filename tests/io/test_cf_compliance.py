@@ -116,6 +116,7 @@ def test_batch_output_passes(tmp_path, frf_dataset_module):
     assert_cf_compliant(out / "a.modes.nc")
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not HAMMER_LVM.is_file(), reason="../shared/data/impact_hammer.lvm absent")
 def test_readme_hammer_workflow_files_pass(tmp_path):
     """The README's hammer test: frf, identify, convert to UFF and back."""

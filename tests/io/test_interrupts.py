@@ -37,7 +37,8 @@ ENV = {
 # < 1 s here; a hang (the interrupt raised under xarray's file lock) never ends.
 HANG_SECONDS = 30
 # Moments after the child announced the write (s): before, during and around its end.
-DELAYS = (0.0, 0.05, 0.12, 0.25, 0.4)
+# two moments in the default tier, the other three in the slow one
+DELAYS = (0.05, 0.25, *(pytest.param(d, marks=pytest.mark.slow) for d in (0.0, 0.12, 0.4)))
 MEGABYTES = 100
 
 CHILD = """
@@ -128,7 +129,7 @@ def test_signal_during_write_never_hangs_and_keeps_the_old_file(tmp_path, sig, d
     assert _temporaries(tmp_path) == []
 
 
-@pytest.mark.parametrize("delay", (0.1, 0.3))
+@pytest.mark.parametrize("delay", (0.1, pytest.param(0.3, marks=pytest.mark.slow)))
 def test_ctrl_c_stops_a_lazy_write_between_chunks(tmp_path, delay):
     source = tmp_path / "source.nc"
     n = MEGABYTES * 2**20 // 8 // 20

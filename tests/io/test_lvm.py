@@ -175,6 +175,7 @@ def test_hammer_bad_hits_found_and_frf_from_good_ones(hammer):
     np.testing.assert_allclose(good[names.FRF].values, est[names.FRF].values, rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_hammer_to_modes_script(hammer, capsys, tmp_path):
     script = REPO / "scripts" / "hammer_to_modes.py"
     main = runpy.run_path(str(script), run_name="hammer_to_modes")["main"]

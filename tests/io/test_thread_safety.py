@@ -2,8 +2,9 @@
 
 netCDF-C/HDF5 are not thread-safe; :data:`ami_xr.io.lazy_source.NETCDF_LOCK` serialises every
 netCDF call of ami_xr. The runs happen in a child process (a crash there is a SIGSEGV/SIGBUS
-exit code, not a dead test session). The short tier repeats each thread's work 3 times; with
-``AMI_XR_SLOW=1`` the identify case runs 50 times (the issue's bar).
+exit code, not a dead test session). The default tier repeats each thread's open 10 times; the
+slow tier (``--runslow``, tests/conftest.py) the open and the identify 50 times each (the
+issue's bar).
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ import pytest
 import ami_xr
 
 ROOT = Path(__file__).resolve().parents[2]
-SLOW = bool(os.environ.get("AMI_XR_SLOW"))
 
 CHILD = r"""
 import sys, threading, warnings
@@ -81,13 +81,16 @@ def _run(files: list[str], repeats: int, mode: str) -> subprocess.CompletedProce
     )
 
 
-def test_opens_from_8_threads_do_not_crash(files):
-    done = _run(files, 50 if SLOW else 10, "open")
+@pytest.mark.parametrize("repeats", [10, pytest.param(50, marks=pytest.mark.slow)])
+def test_opens_from_8_threads_do_not_crash(files, repeats):
+    done = _run(files, repeats, "open")
     assert done.returncode == 0, f"exit {done.returncode}: {done.stdout[-900:]}{done.stderr[-900:]}"
 
 
-def test_identify_from_8_threads_on_files_opened_there(files):
-    done = _run(files, 50 if SLOW else 2, "identify")
+@pytest.mark.slow  # identify in 8 threads: the slow tier only (the opens above stay fast)
+@pytest.mark.parametrize("repeats", [50])
+def test_identify_from_8_threads_on_files_opened_there(files, repeats):
+    done = _run(files, repeats, "identify")
     assert done.returncode == 0, f"exit {done.returncode}: {done.stdout[-900:]}{done.stderr[-900:]}"
 
 

@@ -129,6 +129,7 @@ def test_cli_says_once_that_a_first_run_compiles(tmp_path):
     assert "compiling" not in err, err
 
 
+@pytest.mark.slow
 def test_python_api_prints_nothing_and_logs_at_info(tmp_path):
     _, err = _run(tmp_path, cache="api")
     assert err.strip() == ""
@@ -198,6 +199,7 @@ print(json.dumps({"peak_trial": len(peak.peak_trial.signatures),
 """
 
 
+@pytest.mark.slow
 def test_subtraction_compiles_its_callees_once(tmp_path):
     """On an empty cache (so callees compile and show their specialisations): a variable that
     starts as a constant (``n = 0``, ``peak = -1``) and is passed to a kernel made numba compile

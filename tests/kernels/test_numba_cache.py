@@ -135,6 +135,7 @@ def test_edit_to_a_callee_module_recompiles_its_callers_and_nothing_else(tmp_pat
     assert _compiled(unrelated) == {"f": False, "g": False, "h": True}
 
 
+@pytest.mark.slow
 def test_cache_switched_off_compiles_every_time_and_writes_nothing(tmp_path):
     _write(tmp_path)
     for _ in range(2):
@@ -215,6 +216,7 @@ print(json.dumps({
 """
 
 
+@pytest.mark.slow
 def test_two_first_runs_at_once_both_succeed_and_leave_a_good_cache(tmp_path):
     """numba issue 4807: concurrent first runs on one cache (``batch --workers 2``). Both
     processes compile into an empty cache folder at the same moment and give the right

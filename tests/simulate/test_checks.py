@@ -13,6 +13,7 @@ from ami_xr.simulate.checks import (
     check_positive,
     check_range,
     check_sampling,
+    sampling_of,
 )
 
 GOOD = {
@@ -57,6 +58,13 @@ def test_check_sampling_returns_the_checked_record():
     assert "seed" not in s.frf_options() and set(s.frf_options()) == set(GOOD) - {"seed"}
     impulse = check_sampling(**{**GOOD, "source": SOURCES[1], "duration": 2, "n_samples": 64})
     assert impulse.duration == 2.0 and impulse.n_samples == 64
+
+
+def test_sampling_of_takes_the_sampling_arguments_among_a_simulators_locals():
+    arguments = {**GOOD, "n_points": 8, "seed": 4, "topology": "chain"}
+    assert sampling_of(arguments) == check_sampling(**{**GOOD, "seed": 4})
+    with pytest.raises(AmiXrValueError, match=r"^noise: expected a finite number >= 0"):
+        sampling_of({**arguments, "noise": -1.0})
 
 
 @pytest.mark.parametrize(
