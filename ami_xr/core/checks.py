@@ -36,24 +36,28 @@ def check_choice(
     return value
 
 
+def _number(value: Any) -> float:
+    """``value`` as a float; NaN when it is none (a bool counts as none)."""
+    if isinstance(value, bool):
+        return np.nan
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return np.nan
+
+
 def check_fraction(value: Any, argument: str, error: type = AmiXrValueError) -> float:
     """``value`` as a float in the open interval (0, 1)."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        v = np.nan
-    if isinstance(value, bool) or not 0.0 < v < 1.0:
+    v = _number(value)
+    if not 0.0 < v < 1.0:
         raise error(f"{argument}: expected a number in (0, 1), got {value!r}")
     return v
 
 
 def check_positive(value: Any, argument: str, error: type = AmiXrValueError) -> float:
     """``value`` as a finite float above 0."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        v = np.nan
-    if isinstance(value, bool) or not (v > 0 and np.isfinite(v)):
+    v = _number(value)
+    if not (v > 0 and np.isfinite(v)):
         raise error(f"{argument}: expected a positive number, got {value!r}")
     return v
 
