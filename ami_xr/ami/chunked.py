@@ -34,14 +34,24 @@ import xarray as xr
 
 from ami_xr import interrupt
 
+ATTR_LAZY_LOADED = "ami_lazy_loaded"
+"""Attribute of a result: the phases (comma-separated) that loaded a lazy FRF into memory
+(:func:`loaded`)."""
+
+LOAD_WARN_BYTES = 2**28
+"""A lazy FRF larger than this (256 MiB) loaded into memory is told in a warning."""
+
 ROWS = 256
 """Rows per call on a numpy array: a pending Ctrl-C is raised between calls
 (:func:`ami_xr.interrupt.checkpoint`), at most a fraction of a second apart."""
 
 __all__ = [
+    "ATTR_LAZY_LOADED",
     "broadcast_rows",
     "fit_per_row",
     "is_lazy",
+    "loaded",
+    "note_loaded",
     "made_from_rows",
     "map_reduce",
     "per_row",
@@ -228,3 +238,29 @@ def made_from_rows(
         keep_attrs=False,
     )
     return out.transpose(*[tmp if d == out_dim else d for d in like.dims])
+
+
+def loaded(da: xr.DataArray, phase: str) -> xr.DataArray:
+    """``da`` in memory, for a phase that fits every FRF at once (the SIMO isolation, the
+    refinement: their kernels hold all points); a dask-backed ``da`` larger than
+    :data:`LOAD_WARN_BYTES` is told in an ``AssumptionWarning`` first. The caller records it
+    with :func:`note_loaded`."""
+    if not is_lazy(da):
+        return da
+    if da.nbytes > LOAD_WARN_BYTES:
+        from ami_xr.caller import warn
+        from ami_xr.errors import AssumptionWarning
+
+        warn(
+            f"{phase}: fits all {da.sizes.get('point', 1)} FRFs at once: the lazily opened FRF "
+            f"({da.nbytes / 2**20:.0f} MiB) is loaded into memory; identify's compress='auto' "
+            f"(or an int) keeps it on the dask workers (attr {ATTR_LAZY_LOADED})",
+            AssumptionWarning,
+        )
+    return da.compute()
+
+
+def note_loaded(attrs: dict, phase: str) -> None:
+    """Add ``phase`` to attr :data:`ATTR_LAZY_LOADED` of ``attrs`` (once)."""
+    listed = [p for p in str(attrs.get(ATTR_LAZY_LOADED, "")).split(",") if p]
+    attrs[ATTR_LAZY_LOADED] = ",".join(listed + ([phase] if phase not in listed else []))

@@ -195,7 +195,7 @@ def _start_values(ds: xr.Dataset, band, n_terms: int):
     frf = ds[names.FRF].transpose(P, F)
     if band != "all":
         frf = frf.sel({F: slice(float(band[0]), float(band[1]))})
-    frf = frf.compute() if frf.chunks else frf
+    frf = ch.loaded(frf, "refine")  # the joint fit holds every FRF
     lam0 = ds[names.EIGENVALUE]
     lam0 = lam0.compute() if lam0.chunks else lam0
     n_mode = lam0.sizes[M]
@@ -358,6 +358,8 @@ def refine(
     else:
         out = _refined(ds, (frf, lam0, res0), settings, model, data_model)
     out.attrs[names.ATTR_REFINE_MODEL] = data_model.name
+    if ch.is_lazy(ds[names.FRF]) and n_mode:
+        ch.note_loaded(out.attrs, "refine")
     to_attrs(settings, out.attrs)
     out = c.restore_coordinate_attrs(out, coord_attrs)
     return add_history(out, "ami_xr.refine", parameters(settings))
