@@ -161,3 +161,17 @@ def test_a_large_lazy_load_is_told(case, monkeypatch):
     monkeypatch.setattr(ch, "LOAD_WARN_BYTES", 1000)
     with pytest.warns(ami_xr.errors.AssumptionWarning, match="refine: .* loaded into memory"):
         ami_xr.refine(_with_lazy_frf(fitted, lazy))
+
+
+def test_identify_per_frf_on_a_lazy_set_loads_nothing(case):
+    # the per-FRF isolation runs per chunk of points: no phase then holds every FRF
+    eager, lazy, _, _ = case
+    kw = dict(compress="off", method="per_frf", refine=False)
+    out, large = _guarded(ami_xr.identify, lazy, **kw)
+    ref = _quiet(ami_xr.identify, eager, **kw)
+    assert large == [] and LOADED not in out.attrs
+    assert ch.is_lazy(out[names.FRF_RESIDUAL])
+    assert out.sizes[names.MODE] == ref.sizes[names.MODE] >= 9
+    np.testing.assert_allclose(
+        out[names.EIGENVALUE].values, ref[names.EIGENVALUE].values, rtol=1e-9
+    )
