@@ -198,6 +198,10 @@ def global_fit(
     (isolation did not converge at a point that detected it), ``single_frf`` (detected in one
     FRF only).
 
+    On a dask-backed FRF (a lazily opened file) the residues are fitted chunk by chunk of
+    points on whatever scheduler is active and only they are gathered; ``frf_synthesized`` and
+    ``frf_residual`` stay lazy, made again per chunk from them.
+
     Parameters
     ----------
     ds : xarray.Dataset
