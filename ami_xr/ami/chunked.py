@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from ami_xr import interrupt
+from ami_xr import interrupt, names
 
 ATTR_LAZY_LOADED = "ami_lazy_loaded"
 """Attribute of a result: the phases (comma-separated) that loaded a lazy FRF into memory
@@ -252,7 +252,7 @@ def loaded(da: xr.DataArray, phase: str) -> xr.DataArray:
         from ami_xr.errors import AssumptionWarning
 
         warn(
-            f"{phase}: fits all {da.sizes.get('point', 1)} FRFs at once: the lazily opened FRF "
+            f"{phase}: fits all {da.sizes.get(names.POINT, 1)} FRFs at once: the lazily opened FRF "
             f"({da.nbytes / 2**20:.0f} MiB) is loaded into memory; identify's compress='auto' "
             f"(or an int) keeps it on the dask workers (attr {ATTR_LAZY_LOADED})",
             AssumptionWarning,

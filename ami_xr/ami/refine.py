@@ -358,7 +358,7 @@ def refine(
     else:
         out = _refined(ds, (frf, lam0, res0), settings, model, data_model)
     out.attrs[names.ATTR_REFINE_MODEL] = data_model.name
-    if ch.is_lazy(ds[names.FRF]) and n_mode:
+    if ch.is_lazy(ds[names.FRF]):  # _start_values loaded it
         ch.note_loaded(out.attrs, "refine")
     to_attrs(settings, out.attrs)
     out = c.restore_coordinate_attrs(out, coord_attrs)
@@ -495,7 +495,7 @@ def _refresh_global_outputs(ds, new, r: RefineResult, mu, model: RefineModel, da
         n_samples=data_model.n_samples,
     )
     some = slice(0, 0) if lazy else slice(None)
-    synth, cols = synthesize(omega, mu, residue[some], rc.values[some], *model_kw.values())
+    synth, cols = synthesize(omega, mu, residue[some], rc.values[some], **model_kw)
     n_mode = mu.size
     units = frf.attrs.get(names.ATTR_UNITS, "")
     if names.FRF_SYNTHESIZED in ds or names.FRF_RESIDUAL in ds:
