@@ -6,13 +6,17 @@
                                                   # (the exponent in lines); 2 workers
     python scripts/bench_scale.py --points 1000 2000 --workers 2   # chosen sizes
     python scripts/bench_scale.py --points 1000 --lines 1024 4096 --workers 2  # lines exponent
+    python scripts/bench_scale.py --points 1000 --workers 2 --compress off  # every phase on
+                                                  # every point (no virtual FRFs)
 
 Each set (:func:`ami_xr.simulate.spread.many_points`: 12 modes, 2 % noise; larger sets repeat
 the first 1000 points' FRFs scaled per point by a seeded factor in [0.5, 2], built and written
 block by block so that writing never holds more than 1000 FRFs) is written to a netCDF file in
 ``--dir``, opened lazily (``--chunk`` FRFs per chunk) and identified by :func:`ami_xr.identify`
 with a ``dask.distributed`` client on a ``LocalCluster`` (single-threaded workers, ``--memory``
-each). Printed per run: wall time, CPU seconds of the workers and of the client process (the
+each), ``compress=`` as ``--compress`` says ("auto" by default; "off": every phase on every
+point, where the SIMO isolation and the refinement load the FRF into the client). Printed per
+run: wall time, CPU seconds of the workers and of the client process (the
 scheduler of a LocalCluster runs there; on a shared machine the CPU time is what the wall time
 would be without the other processes, times the cores used), peak worker memory (the largest
 RSS any worker reported, sampled every 0.2 s) against the limit, client memory growth (RSS
@@ -77,7 +81,7 @@ def write_set(n_points: int, path: Path, chunk: int, lines: int = LINES) -> None
     ami_xr.to_netcdf(base, path)
 
 
-def run(path: Path, workers: int, memory: str, chunk: int) -> Row:
+def run(path: Path, workers: int, memory: str, chunk: int, compress: str | int = "auto") -> Row:
     from distributed import Client, LocalCluster
 
     with (
@@ -117,7 +121,7 @@ def run(path: Path, workers: int, memory: str, chunk: int) -> Row:
         t0 = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            out = ami_xr.identify(ds)
+            out = ami_xr.identify(ds, compress=compress)
         seconds = time.perf_counter() - t0
         stop.set()
         sampler.join()
@@ -158,12 +162,12 @@ def _worker_cpu(client) -> float:
     return float(sum(client.run(cpu).values()))
 
 
-def warm_up() -> None:
+def warm_up(compress: str | int = "auto") -> None:
     """One small identification in this process (imports, compiled kernels, caches)."""
     ds, _ = many_points(300, 512, 12, noise=0.02, seed=0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        ami_xr.identify(ds)
+        ami_xr.identify(ds, compress=compress)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -175,7 +179,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--chunk", type=int, default=1000, help="FRFs per chunk")
     parser.add_argument("--dir", default="bench_scale_data", help="where the sets are written")
     parser.add_argument("--lines", type=int, nargs="+", default=None, help="lines per FRF")
+    parser.add_argument(
+        "--compress", default="auto", help="identify's compress: auto (default), off or an int"
+    )
     args = parser.parse_args(argv)
+    compress = int(args.compress) if args.compress.isdigit() else args.compress
+    if compress not in ("auto", "off") and not isinstance(compress, int):
+        parser.error(f"--compress: expected auto, off or an int, got {args.compress!r}")
     sizes = args.points or ([1000, 10_000, 100_000] if args.full else [1000, 10_000])
     lines = args.lines or [LINES]
     workers = args.workers or ([2] if args.full else [1, 2])
@@ -186,10 +196,10 @@ def main(argv: list[str] | None = None) -> int:
     folder.mkdir(parents=True, exist_ok=True)
     print(
         f"bench_scale: {sizes} FRFs x {sorted({m for _, m in runs})} lines, 12 modes; workers "
-        f"{workers}, {args.memory} each; cpu_count {os.cpu_count()}; load average "
-        f"{os.getloadavg()[0]:.1f}"
+        f"{workers}, {args.memory} each; compress={compress}; cpu_count {os.cpu_count()}; "
+        f"load average {os.getloadavg()[0]:.1f}"
     )
-    warm_up()
+    warm_up(compress)
     print(
         f"{'points':>8}{'lines':>7}{'workers':>8}{'wall s':>9}{'worker cpu s':>14}"
         f"{'client cpu s':>14}{'peak worker MB':>16}{'client +MB':>12}{'client peak +MB':>17}"
@@ -201,7 +211,7 @@ def main(argv: list[str] | None = None) -> int:
         path = folder / (f"spread_{n}.nc" if m == LINES else f"spread_{n}_{m}.nc")
         write_set(n, path, args.chunk, m)
         for w in workers:
-            r = run(path, w, args.memory, args.chunk)
+            r = run(path, w, args.memory, args.chunk, compress)
             rows.append((n, m, w, r.wall, r.worker_cpu + r.client_cpu))
             print(
                 f"{n:>8}{m:>7}{w:>8}{r.wall:>9.1f}{r.worker_cpu:>14.1f}{r.client_cpu:>14.1f}"

@@ -13,7 +13,10 @@ before) and a dask one (one call per chunk of points):
 * :func:`rows`: a few chosen rows (points) as a numpy array, reading only their chunks;
 * :func:`per_row`: a function of each row's frequency line, one value per row;
 * :func:`map_reduce`: partial results per chunk of rows combined pairwise in a tree
-  (``split_every`` at a time), for statistics that pool the points.
+  (``split_every`` at a time), for statistics that pool the points;
+* :func:`fit_per_row`: a small vector per row (a fit's coefficients), gathered;
+* :func:`made_from_rows`: rows the size of the FRF made per chunk from small per-row values
+  (synthesized FRFs from residues): lazy, in the FRF's chunks, when the FRF is lazy.
 
 On a numpy array the work goes in blocks of :data:`ROWS` rows with an interrupt checkpoint
 between blocks (a Ctrl-C of the command line lands within a block's time).
@@ -29,13 +32,31 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from ami_xr import interrupt
+from ami_xr import interrupt, names
+
+ATTR_LAZY_LOADED = "ami_lazy_loaded"
+"""Attribute of a result: the phases (comma-separated) that loaded a lazy FRF into memory
+(:func:`loaded`)."""
+
+LOAD_WARN_BYTES = 2**28
+"""A lazy FRF larger than this (256 MiB) loaded into memory is told in a warning."""
 
 ROWS = 256
 """Rows per call on a numpy array: a pending Ctrl-C is raised between calls
 (:func:`ami_xr.interrupt.checkpoint`), at most a fraction of a second apart."""
 
-__all__ = ["broadcast_rows", "is_lazy", "map_reduce", "per_row", "rows"]
+__all__ = [
+    "ATTR_LAZY_LOADED",
+    "broadcast_rows",
+    "fit_per_row",
+    "is_lazy",
+    "loaded",
+    "note_loaded",
+    "made_from_rows",
+    "map_reduce",
+    "per_row",
+    "rows",
+]
 
 
 def is_lazy(x: Any) -> bool:
@@ -156,3 +177,90 @@ def broadcast_rows(row: np.ndarray, like: xr.DataArray):
 
         return da.broadcast_to(da.from_array(row, chunks=-1), like.shape, chunks=like.data.chunks)
     return np.array(np.broadcast_to(row, like.shape))
+
+
+def fit_per_row(
+    func: Callable[..., np.ndarray],
+    da: xr.DataArray,
+    dim: str,
+    out_dim: str,
+    size: int,
+    dtype: Any = np.complex128,
+    **kwargs: Any,
+) -> xr.DataArray:
+    """``func(block, **kwargs)`` (..., ``dim``) -> (..., ``size``) over the rows of ``da``, as a
+    numpy-backed DataArray with ``out_dim`` in place of ``dim``: one call on a numpy ``da``, one
+    task per chunk of rows of a dask one (only the small per-row results are gathered)."""
+    if is_lazy(da) and len(da.chunksizes.get(dim, ())) > 1:
+        da = da.chunk({dim: -1})
+    out = xr.apply_ufunc(
+        func,
+        da,
+        kwargs=kwargs,
+        input_core_dims=[[dim]],
+        output_core_dims=[[out_dim]],
+        exclude_dims={dim},
+        dask="parallelized",
+        output_dtypes=[dtype],
+        dask_gufunc_kwargs={"output_sizes": {out_dim: size}},
+        keep_attrs=False,
+    )
+    return out.compute()
+
+
+def made_from_rows(
+    func: Callable[..., np.ndarray],
+    small: Sequence[xr.DataArray],
+    in_dims: Sequence[str],
+    like: xr.DataArray,
+    out_dim: str,
+    dtype: Any = np.complex128,
+    **kwargs: Any,
+) -> xr.DataArray:
+    """``func(*blocks, **kwargs)`` -> (..., ``like.sizes[out_dim]``) over the rows of the small
+    per-row arrays ``small`` (core dims ``in_dims``), with dims ``like``'s: lazy, one task per
+    chunk of ``like``'s rows, when ``like`` is dask-backed (nothing of ``like``'s size is made
+    before it is asked for, and then only a chunk at a time), else computed at once. The
+    result carries ``out_dim`` as ``out_dim + "_out"`` (no coordinate); rename it back."""
+    tmp = out_dim + "_out"
+    if is_lazy(like):
+        chunks = {d: like.chunksizes[d] for d in like.dims if d != out_dim}
+        small = [s.chunk({d: chunks[d] for d in s.dims if d in chunks}) for s in small]
+    out = xr.apply_ufunc(
+        func,
+        *small,
+        kwargs=kwargs,
+        input_core_dims=[[d] for d in in_dims],
+        output_core_dims=[[tmp]],
+        dask="parallelized",
+        output_dtypes=[dtype],
+        dask_gufunc_kwargs={"output_sizes": {tmp: like.sizes[out_dim]}},
+        keep_attrs=False,
+    )
+    return out.transpose(*[tmp if d == out_dim else d for d in like.dims])
+
+
+def loaded(da: xr.DataArray, phase: str) -> xr.DataArray:
+    """``da`` in memory, for a phase that fits every FRF at once (the SIMO isolation, the
+    refinement: their kernels hold all points); a dask-backed ``da`` larger than
+    :data:`LOAD_WARN_BYTES` is told in an ``AssumptionWarning`` first. The caller records it
+    with :func:`note_loaded`."""
+    if not is_lazy(da):
+        return da
+    if da.nbytes > LOAD_WARN_BYTES:
+        from ami_xr.caller import warn
+        from ami_xr.errors import AssumptionWarning
+
+        warn(
+            f"{phase}: fits all {da.sizes.get(names.POINT, 1)} FRFs at once: the lazily opened FRF "
+            f"({da.nbytes / 2**20:.0f} MiB) is loaded into memory; identify's compress='auto' "
+            f"(or an int) keeps it on the dask workers (attr {ATTR_LAZY_LOADED})",
+            AssumptionWarning,
+        )
+    return da.compute()
+
+
+def note_loaded(attrs: dict, phase: str) -> None:
+    """Add ``phase`` to attr :data:`ATTR_LAZY_LOADED` of ``attrs`` (once)."""
+    listed = [p for p in str(attrs.get(ATTR_LAZY_LOADED, "")).split(",") if p]
+    attrs[ATTR_LAZY_LOADED] = ",".join(listed + ([phase] if phase not in listed else []))

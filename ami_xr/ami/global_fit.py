@@ -8,6 +8,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.ami import chunked as ch
 from ami_xr.ami import common as c
 
 # the mode-vector convention lives with the derived outputs; named here as before
@@ -25,12 +26,10 @@ from ami_xr.ami.settings import (
     parameters,
     to_attrs,
 )
-from ami_xr.core import flags
+from ami_xr.core import flags, rows
 from ami_xr.core.model import resolve_model
 from ami_xr.errors import AssumptionWarning, IdentificationError
-from ami_xr.kernels import modal_basis as kb
 from ami_xr.kernels import noise as kn
-from ami_xr.kernels import residues as kr
 
 RESIDUAL_KIND = {"receptance": 0, "mobility": 1, "accelerance": 2}
 
@@ -60,17 +59,15 @@ def _widened_band(omega, lam, band, use, n_unknown, kind):
 
 
 def _fit_block(g, use, omega, lam, dt, n_samples, residual_kind):
+    """Residues, synthesized FRFs and residual coefficients (zeros without residual terms) of
+    the FRFs ``g`` (..., F): :func:`ami_xr.core.rows.fit_rows` and ``synthesize_rows``."""
     shape = g.shape[:-1]
-    g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
-    coef = kr.residues_fixed(g2, omega, lam, use, dt, n_samples, residual_kind)
+    kw = dict(omega=omega, lam=lam, dt=dt, n_samples=n_samples, kind=residual_kind)
+    coef = rows.fit_rows(g, use=use, **kw).reshape(-1, rows.n_coefficients(lam.size, residual_kind))
+    synth = rows.synthesize_rows(coef, **kw)
     n_k = lam.size
     res = np.ascontiguousarray(coef[:, :n_k])
-    synth = kb.synthesize(omega, lam[None, :], res, dt, n_samples)
-    if residual_kind >= 0:
-        rc = np.ascontiguousarray(coef[:, n_k:])
-        synth = synth + kb.synthesize_residual_terms(omega, rc, residual_kind)
-    else:
-        rc = np.zeros((g2.shape[0], 2), np.complex128)
+    rc = coef[:, n_k:] if residual_kind >= 0 else np.zeros((coef.shape[0], 2), np.complex128)
     return (
         res.reshape(shape + (n_k,)),
         synth.reshape(shape + (omega.size,)),
@@ -134,7 +131,29 @@ def _fit(frf: xr.DataArray, use, omega, lam, data_model, kind: int):
         },
         keep_attrs=False,
     )
-    return outs
+    res_da, synth_da, rc_da = (o.compute() for o in outs)
+    return res_da, synth_da.rename({names.FREQUENCY_OUT: names.FREQUENCY}), rc_da
+
+
+_COEF = "coefficient"  # the residue fit's unknowns per FRF: residues, then residual terms
+
+
+def _fit_lazy(frf: xr.DataArray, use, omega, lam, data_model, kind: int):
+    """:func:`_fit` of a dask-backed ``frf``, chunk by chunk: the residues and residual
+    coefficients are gathered (per point, small); the synthesized FRFs stay lazy, made again
+    per chunk from them (nothing of the FRF's size is computed here)."""
+    n_k = lam.size
+    kw = dict(omega=omega, lam=lam, dt=data_model.dt, n_samples=data_model.n_samples, kind=kind)
+    size = rows.n_coefficients(n_k, kind)
+    coef = ch.fit_per_row(rows.fit_rows, frf, names.FREQUENCY, _COEF, size, use=use, **kw)
+    synth = ch.made_from_rows(rows.synthesize_rows, [coef], [_COEF], frf, names.FREQUENCY, **kw)
+    synth = synth.rename({names.FREQUENCY + "_out": names.FREQUENCY})
+    res = coef.isel({_COEF: slice(0, n_k)}).rename({_COEF: names.MODE})
+    if kind >= 0:
+        rc = coef.isel({_COEF: slice(n_k, None)}).rename({_COEF: names.RESIDUAL_TERM})
+    else:
+        rc = xr.zeros_like(coef.isel({_COEF: slice(0, 2)})).rename({_COEF: names.RESIDUAL_TERM})
+    return res, synth, rc
 
 
 def _isolation_flags(ds: xr.Dataset, n_k: int) -> np.ndarray:
@@ -179,6 +198,10 @@ def global_fit(
     (isolation did not converge at a point that detected it), ``single_frf`` (detected in one
     FRF only).
 
+    On a dask-backed FRF (a lazily opened file) the residues are fitted chunk by chunk of
+    points on whatever scheduler is active and only they are gathered; ``frf_synthesized`` and
+    ``frf_residual`` stay lazy, made again per chunk from them.
+
     Parameters
     ----------
     ds : xarray.Dataset
@@ -217,14 +240,16 @@ def global_fit(
         raise IdentificationError(f"{names.EIGENVALUE}: no modes to fit (isolate found none)")
     use, kind, band_used = _fit_lines(ds, omega, lam, band, residual_terms)
     frf = ds[names.FRF]
-    outs = _fit(frf, use, omega, lam, data_model, kind)
-    res_da, synth_da, rc_da = (o.compute() for o in outs)
-    synth_da = synth_da.rename({names.FREQUENCY_OUT: names.FREQUENCY})
+    # a lazy FRF is fitted chunk by chunk and only what is per point is gathered
+    fit_frfs = _fit_lazy if ch.is_lazy(frf) else _fit
+    res_da, synth_da, rc_da = fit_frfs(frf, use, omega, lam, data_model, kind)
     res = np.asarray(res_da.transpose(names.POINT, names.MODE).values)
     if names.SUB_NOISE_FLOOR in ds:
         sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, float)
     else:
-        sigma = kn.noise_floor(c.frf_values(ds))
+        sigma = ch.per_row(
+            kn.noise_floor, frf.transpose(names.POINT, names.FREQUENCY), names.FREQUENCY
+        )
     fit = ResidueFit(
         eigenvalue=lam,
         residue=res,

@@ -8,6 +8,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import interrupt, names
+from ami_xr.ami import chunked as ch
 from ami_xr.ami import common as c
 from ami_xr.ami import subtract as sub_phase
 from ami_xr.ami.settings import IsolateSettings, SubtractSettings, from_attrs, parameters, to_attrs
@@ -204,7 +205,8 @@ def _isolate_simo_modes(ds, omega, data_model, sub, settings, sigma) -> _Isolate
     dt, n_samples = data_model.dt, data_model.n_samples
     t1 = kn.peak_threshold(omega.size, sub.pfa)
     n_p = ds.sizes[names.POINT]
-    g = c.frf_values(ds)
+    # the SIMO kernel fits all FRFs jointly in memory: a lazy FRF is loaded once, here
+    g = c.frf_values(ds.assign({names.FRF: ch.loaded(ds[names.FRF], "isolate")}))
     lam_c = np.asarray(ds[names.SUB_EIGENVALUE].transpose(names.POINT, ...).values)
     res_c = np.asarray(ds[names.SUB_RESIDUE].transpose(names.POINT, ...).values)
     snr_c = (
@@ -347,6 +349,8 @@ def isolate(
 
     out = _with_modes(ds, res)
     to_attrs(settings, out.attrs)
+    if method == names.METHOD_SIMO and ch.is_lazy(ds[names.FRF]):
+        ch.note_loaded(out.attrs, "isolate")
     if not np.all(res.converged):
         bad = points[~res.converged].tolist()
         message = (

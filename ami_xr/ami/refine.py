@@ -60,6 +60,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.ami import chunked as ch
 from ami_xr.ami import common as c
 from ami_xr.ami.global_fit import RESIDUAL_KIND, receptance_mode_vectors, residue_units
 from ami_xr.ami.line_noise import line_noise_shape
@@ -72,7 +73,7 @@ from ami_xr.ami.settings import (
     to_attrs,
 )
 from ami_xr.ami.subtract import add_capped
-from ami_xr.core import flags
+from ami_xr.core import flags, rows
 from ami_xr.core.modal import damping_ratio, mac_matrix, natural_frequency
 from ami_xr.core.model import resolve_model, resolve_residual_terms
 from ami_xr.core.refine import (
@@ -194,7 +195,7 @@ def _start_values(ds: xr.Dataset, band, n_terms: int):
     frf = ds[names.FRF].transpose(P, F)
     if band != "all":
         frf = frf.sel({F: slice(float(band[0]), float(band[1]))})
-    frf = frf.compute() if frf.chunks else frf
+    frf = ch.loaded(frf, "refine")  # the joint fit holds every FRF
     lam0 = ds[names.EIGENVALUE]
     lam0 = lam0.compute() if lam0.chunks else lam0
     n_mode = lam0.sizes[M]
@@ -357,6 +358,8 @@ def refine(
     else:
         out = _refined(ds, (frf, lam0, res0), settings, model, data_model)
     out.attrs[names.ATTR_REFINE_MODEL] = data_model.name
+    if ch.is_lazy(ds[names.FRF]):  # _start_values loaded it
+        ch.note_loaded(out.attrs, "refine")
     to_attrs(settings, out.attrs)
     out = c.restore_coordinate_attrs(out, coord_attrs)
     return add_history(out, "ami_xr.refine", parameters(settings))
@@ -482,22 +485,26 @@ def _refresh_global_outputs(ds, new, r: RefineResult, mu, model: RefineModel, da
     phi = r.mode_vector.transpose(P, M).values
     drive_index = model.drive_index
     omega = 2 * np.pi * ds[F].values.astype(float)
-    synth, cols = synthesize(
-        omega,
-        mu,
-        residue,
-        r.residual_coefficient.values,
-        model.residual_terms,
-        model.residual_kind,
-        data_model.dt,
-        data_model.n_samples,
-    )
-    n_mode = mu.size
     frf = ds[names.FRF].transpose(P, F)
+    lazy = ch.is_lazy(frf)  # the model FRFs then made per chunk of points, lazily
+    rc = r.residual_coefficient.transpose(P, names.RESIDUAL_TERM)
+    model_kw = dict(
+        residual_terms=model.residual_terms,
+        residual_kind=model.residual_kind,
+        dt=data_model.dt,
+        n_samples=data_model.n_samples,
+    )
+    some = slice(0, 0) if lazy else slice(None)
+    synth, cols = synthesize(omega, mu, residue[some], rc.values[some], **model_kw)
+    n_mode = mu.size
     units = frf.attrs.get(names.ATTR_UNITS, "")
     if names.FRF_SYNTHESIZED in ds or names.FRF_RESIDUAL in ds:
+        if lazy:
+            args = ([r.residue.transpose(P, M), rc], [M, names.RESIDUAL_TERM], frf, F)
+            made = ch.made_from_rows(rows.refined_rows, *args, omega=omega, mu=mu, **model_kw)
+            synth = made.data
         new[names.FRF_SYNTHESIZED] = xr.Variable((P, F), synth, {names.ATTR_UNITS: units})
-        new[names.FRF_RESIDUAL] = xr.Variable((P, F), frf.values - synth, {names.ATTR_UNITS: units})
+        new[names.FRF_RESIDUAL] = xr.Variable((P, F), frf.data - synth, {names.ATTR_UNITS: units})
     if names.MAC in ds and names.MODE_2 in ds.dims:
         new[names.MAC] = xr.Variable(
             (M, names.MODE_2), mac_matrix(phi), {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
