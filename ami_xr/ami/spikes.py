@@ -10,10 +10,10 @@ The rule, on the final modes, for each mode whose half-power bandwidth spans few
 ``NARROW_LINES`` (2) lines:
 
 * its contribution ``A_j / (i w - lam) + conj`` (with that of any other such pole within a
-  line of it: two poles of opposite residue at one frequency cancel) at each point, at the lines within two lines of
-  its frequency, over the local noise std of that point (the robust level of the residual,
-  ``median |r| / sqrt(ln 2)``, over ``NOISE_HALF_WIDTH`` lines on either side) is its
-  peak SNR at that point;
+  line of it: two poles of opposite residue at one frequency cancel) at each point, at the
+  lines within two lines of its frequency, over the local noise std of that point (the
+  robust level of the residual, ``median |r| / sqrt(ln 2)``, over ``NOISE_HALF_WIDTH`` lines
+  on either side) is its peak SNR at that point;
 * the threshold is ``sqrt(ln(n_lines n_points / PFA))`` (``PFA`` = 0.01: the chance that the
   noise of the whole set puts one line that high);
 * the pole is dropped when its SNR stays below the threshold at every point, or (3 points or
@@ -135,10 +135,12 @@ def drop_noise_spikes(result: xr.Dataset) -> xr.Dataset:
     out = c.keep_modes(result, ~drop)
     listed = [x for x in str(result.attrs.get(ATTR_DROPPED, "")).split(",") if x]
     out.attrs[ATTR_DROPPED] = ",".join(listed + [f"{x:.6g}" for x in fn[drop]])
+    said = ", ".join(
+        f"{a:.6g} Hz (zeta {b:.2g})" for a, b in zip(fn[drop], zeta[drop], strict=True)
+    )
     warn(
         f"identify: {int(drop.sum())} pole(s) narrower than a line that the noise explains not "
-        f"reported as modes ({', '.join(f'{a:.6g} Hz (zeta {b:.2g})' for a, b in zip(fn[drop], zeta[drop], strict=True))}); "
-        f"attr {ATTR_DROPPED}",
+        f"reported as modes ({said}); attr {ATTR_DROPPED}",
         AssumptionWarning,
     )
     return out
