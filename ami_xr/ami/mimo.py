@@ -243,7 +243,7 @@ def identify_multi_reference(
     added = np.zeros(0, np.complex128)
     split = tail = np.zeros(0)
     if R > 1:
-        result, added = mr.with_single_reference_poles(ds, stacked, result, refs, settings)
+        result, added = mr.with_reference_proposals(stacked, result, R, settings)
         result, tail = mr.with_tail_poles(stacked, result, settings)
         result, split = mr.with_close_pairs_split(
             stacked, result, R, settings, RANK_ONE_RATIO_MAX, NOISE_FACTOR

@@ -27,6 +27,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.ami import mimo_screen as ms
 from ami_xr.ami import pipeline as pl
 from ami_xr.ami import whitening
 from ami_xr.ami.global_fit import global_fit
@@ -118,6 +119,33 @@ def with_single_reference_poles(
         return result, np.zeros(0, np.complex128)
     out = refit(stacked, result, lam_set, np.array(det_added).T, settings)
     return out, lam_set[n_stacked:]
+
+
+def with_reference_proposals(
+    stacked: xr.Dataset, result: xr.Dataset, n_ref: int, settings
+) -> tuple[xr.Dataset, np.ndarray]:
+    """``result`` (the stacked pipeline's) refitted with the poles each reference's FRFs need
+    beyond its poles (:func:`ami_xr.ami.mimo_screen.proposals`: a screen of each reference's
+    residual against the stacked model and the completion's order test on its lines);
+    unchanged when no reference needs one.
+
+    Detection on the stacked FRFs weighs every FRF alike, so the modes one reference sees
+    clearly can drown in the FRFs of a reference that does not see them (a reference on a
+    nodal line, a noisier one, the second member of a close pair). The poles proposed join
+    the set and the shared-pole phases (global fit and refinement) run again on all FRFs.
+    Returns the result and the added eigenvalues (measured, rad/s)."""
+    lam = _measured_poles(stacked, result)
+    band = band_of(stacked, settings.fmin, settings.fmax, "identify")
+    got = ms.proposals(band, lam, n_ref, RefineSettings.add_pfa)
+    if not got:
+        return result, np.zeros(0, np.complex128)
+    n_point = stacked.sizes[names.POINT] // n_ref
+    det_added = np.zeros((stacked.sizes[names.POINT], len(got)), bool)
+    for k, p in enumerate(got):
+        det_added[p.reference * n_point : (p.reference + 1) * n_point, k] = True
+    added = np.array([p.lam for p in got])
+    out = refit(stacked, result, np.append(lam, added), det_added, settings)
+    return out, added
 
 
 def not_rank_one(result: xr.Dataset, n_ref: int, ratio_max: float, noise_factor: float):
@@ -343,7 +371,7 @@ def refit(stacked, result, lam, det_added, settings) -> xr.Dataset:
         # reference that found it, and the stacked test is the one that lost it (the FRFs of
         # references that do not see a mode dilute its likelihood ratio); the stacked poles
         # passed theirs in the first run
-        out = refine_phase(out, **{**pl.model_order(settings), "drop_modes": False})
+        out = refine_phase(out, add_modes=0, drop_modes=False)
     if scale != 1.0:
         out = pl.unscale(out, ds, scale)
     with warnings.catch_warnings():
