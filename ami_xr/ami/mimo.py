@@ -245,9 +245,11 @@ def identify_multi_reference(
     if R > 1:
         result, added = mr.with_reference_proposals(stacked, result, R, settings)
         result, tail = mr.with_tail_poles(stacked, result, settings)
+        more: list[float] = []
         result, split = mr.with_close_pairs_split(
-            stacked, result, R, settings, RANK_ONE_RATIO_MAX, NOISE_FACTOR
+            stacked, result, R, settings, RANK_ONE_RATIO_MAX, NOISE_FACTOR, more
         )
+        tail = np.append(tail, more)
         result = pl.drop_beyond_lines(result, stacked)
     out = _unstack(result, ds, R, P)
     pairs = [(points.index(r), i) for i, r in enumerate(refs) if r in points]

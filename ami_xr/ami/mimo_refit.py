@@ -175,7 +175,7 @@ MAX_SPLIT_TRIALS = 3
 
 def with_close_pairs_split(
     stacked: xr.Dataset, result: xr.Dataset, n_ref: int, settings, ratio_max: float,
-    noise_factor: float,
+    noise_factor: float, tail: list | None = None,
 ) -> tuple[xr.Dataset, np.ndarray]:
     """``result`` refitted with a second pole next to poles whose residue matrix is not rank one
     (:func:`not_rank_one` with ``ratio_max`` and ``noise_factor``; ``n_ref`` references stacked)
@@ -186,8 +186,10 @@ def with_close_pairs_split(
     chi-square with ``2 + 2 n_FRF`` degrees of freedom, false-alarm probability ``add_pfa``)
     supports it and the pair holds one pole more than before, none frozen at its start
     (``refine_fallback``); after a kept split the evidence is taken anew. At most
-    ``MAX_SPLIT_TRIALS`` refits. Returns the result and the natural frequencies (Hz) of the
-    poles split (empty when none)."""
+    ``MAX_SPLIT_TRIALS`` refits. A trial whose second pole goes above the lines, supported by
+    the likelihood, keeps that pole as a tail pole (its frequency appended to ``tail``) and
+    tries the pair again. Returns the result and the natural frequencies (Hz) of the poles
+    split (empty when none)."""
     evidence = not_rank_one(result, n_ref, ratio_max, noise_factor)
     if not np.any(evidence > 0) or not pl.refines(settings):
         return result, np.zeros(0)
@@ -205,17 +207,34 @@ def with_close_pairs_split(
             break
         k = int(np.argmax(np.where(ok, evidence, -np.inf)))
         tried.append(lam[k])
-        out, held = _split_trial(stacked, result, lam, k, float(cost0), settings)
+        out, better, held = _split_trial(stacked, result, lam, k, float(cost0), settings)
+        above = _above(stacked, out, lines[-1])
         if held:
             result = out
             split.append(float(fn[k]))
             evidence = not_rank_one(result, n_ref, ratio_max, noise_factor)
+        elif better and above.size > _above(stacked, result, lines[-1]).size:
+            # the second pole went above the lines and the likelihood supports it: the tail
+            # of the modes beyond the band, which had drawn the pair's fit (a tail pole the
+            # tail trial could not place): kept as such, and the pair tried again with it
+            result = out
+            tried.pop()
+            if tail is not None:
+                tail.append(float(above.max()))
+            evidence = not_rank_one(result, n_ref, ratio_max, noise_factor)
     return result, np.asarray(split)
 
 
+def _above(stacked: xr.Dataset, result: xr.Dataset, f_last: float) -> np.ndarray:
+    """Natural frequencies (Hz) of ``result``'s poles above ``f_last`` not frozen at their
+    start (``refine_fallback``)."""
+    fn = natural_frequency(_measured_poles(stacked, result))
+    return fn[(fn > f_last) & ~_frozen(result)]
+
+
 def _split_trial(stacked, result, lam, k: int, cost0: float, settings):
-    """The refit with pole ``k`` split, and whether its pair held (False when the likelihood
-    ratio does not support the added pole)."""
+    """The refit with pole ``k`` split, whether the likelihood ratio supports the added pole
+    and whether its pair held (False when it does not)."""
     step = 1j * SPLIT_START * abs(lam[k].real)
     lam_set = np.append(lam, lam[k] + step)
     lam_set[k] = lam[k] - step
@@ -223,7 +242,7 @@ def _split_trial(stacked, result, lam, k: int, cost0: float, settings):
     if names.DETECTED in result:
         det = result[names.DETECTED].transpose(names.POINT, names.MODE).values[:, [k]]
     out, better = _trial(stacked, result, lam_set, det, cost0, settings)
-    return out, better and _pair_held(out, lam, stacked, lam[k])
+    return out, better, better and _pair_held(out, lam, stacked, lam[k])
 
 
 def _trial(stacked, result, lam_set, det, cost0: float, settings) -> tuple[xr.Dataset, bool]:
