@@ -27,6 +27,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.ami import common as c
 from ami_xr.ami import mimo_screen as ms
 from ami_xr.ami import pipeline as pl
 from ami_xr.ami import whitening
@@ -300,9 +301,13 @@ def with_tail_poles(
         fn = natural_frequency(lam)
         zeta = float(np.median(damping_ratio(lam)))
         w = 2.0 * np.pi * max(f_last, fn.max()) * (1.0 + 2.0 * TAIL_START * zeta)
-        start = np.append(lam, -zeta * w + 1j * w * np.sqrt(1.0 - zeta**2))
+        # a pole the refinement froze near the last line stood for that tail: the tail pole
+        # replaces it (held at its start it would keep the tail pole from its place)
+        keep = np.flatnonzero(~(_frozen(result) & (fn <= f_last) & _near(lam, f_last)))
+        base = result if keep.size == lam.size else c.select_modes(result, keep.tolist())
+        start = np.append(lam[keep], -zeta * w + 1j * w * np.sqrt(1.0 - zeta**2))
         det = np.ones((stacked.sizes[names.POINT], 1), bool)
-        out, better = _trial(stacked, result, start, det, float(cost0), settings)
+        out, better = _trial(stacked, base, start, det, float(cost0), settings)
         got = natural_frequency(_measured_poles(stacked, out))
         above = got > f_last
         if not better or above.sum() <= np.sum(fn > f_last) or _frozen(out)[above].any():
@@ -315,9 +320,14 @@ def with_tail_poles(
 def near_the_edge(lam: np.ndarray, f_last: float) -> bool:
     """Whether a pole of ``lam`` (measured) at or below ``f_last`` (Hz) lies within
     ``TAIL_NEAR`` of its half-power bandwidths ``2 zeta f_n`` of it."""
+    fn = natural_frequency(lam)
+    return bool(np.any(np.isfinite(fn) & (fn <= f_last) & _near(lam, f_last)))
+
+
+def _near(lam: np.ndarray, f_last: float) -> np.ndarray:
+    """Per pole: within ``TAIL_NEAR`` of its half-power bandwidths below ``f_last`` (Hz)."""
     fn, zeta = natural_frequency(lam), damping_ratio(lam)
-    inside = np.isfinite(fn) & (fn <= f_last)
-    return bool(np.any(inside & (f_last - fn <= TAIL_NEAR * 2.0 * zeta * fn)))
+    return f_last - fn <= TAIL_NEAR * 2.0 * zeta * fn
 
 
 def _frozen(out: xr.Dataset) -> np.ndarray:
