@@ -137,7 +137,7 @@ def with_reference_proposals(
     Returns the result and the added eigenvalues (measured, rad/s)."""
     lam = _measured_poles(stacked, result)
     band = band_of(stacked, settings.fmin, settings.fmax, "identify")
-    got = ms.proposals(band, lam, n_ref, RefineSettings.add_pfa)
+    got = ms.proposals(band, lam, n_ref, RefineSettings.add_pfa, _frozen(result))
     if not got:
         return result, np.zeros(0, np.complex128)
     n_point = stacked.sizes[names.POINT] // n_ref

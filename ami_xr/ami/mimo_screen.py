@@ -37,6 +37,8 @@ from ami_xr.core.regions import fit_modes
 
 # proposals per reference (each a likelihood-ratio test on its FRFs)
 MAX_PROPOSALS = 2
+# residual bumps tried, strongest first, before a reference is passed as seeing nothing more
+MAX_BUMPS = 4
 # a proposal is fitted with the stacked poles within this many of its half-power bandwidths
 # (a pole that stands for a close pair moves when its second member is added)
 NEIGHBOURS = 3.0
@@ -85,7 +87,7 @@ def _bumps(prob: varpro.Problem, proj: varpro.Projection, lam: np.ndarray) -> li
     """Starting poles where the noise-normalised residual power of ``prob``'s FRFs at the
     eigenvalues ``lam`` lies above the chi-square level of false-alarm probability
     ``screen_pfa`` over the lines, smoothed over the modes' median half-power bandwidth (at
-    most ``MAX_PROPOSALS``, strongest first, at the median damping ratio)."""
+    most ``MAX_BUMPS``, strongest first, at the median damping ratio)."""
     from scipy.stats import chi2  # lazy: scipy.stats is slow to import
 
     omega = prob.omega
@@ -105,7 +107,7 @@ def _bumps(prob: varpro.Problem, proj: varpro.Projection, lam: np.ndarray) -> li
     level = chi2.isf(POLICY.screen_pfa / n_line, 2 * prob.n_points * m) / m
     zeta = float(np.median(-lam.real / np.abs(lam)))
     out = []
-    for _ in range(MAX_PROPOSALS):
+    for _ in range(MAX_BUMPS):
         i = int(np.argmax(smooth))
         if smooth[i] <= level:
             break
@@ -178,13 +180,19 @@ def _fit(prob: varpro.Problem, lam: np.ndarray, free: np.ndarray):
     )[:2]
 
 
-def proposals(stacked: xr.Dataset, lam: np.ndarray, n_ref: int, add_pfa=None) -> list[Proposal]:
+def proposals(
+    stacked: xr.Dataset, lam: np.ndarray, n_ref: int, add_pfa=None, frozen=None
+) -> list[Proposal]:
     """Per reference of ``stacked`` (its band's lines, reference-major), in turn, the poles its
     FRFs need beyond the stacked poles ``lam`` and those the references before it proposed
-    (:func:`screen`: two references that see the same missing mode propose it once)."""
+    (:func:`screen`: two references that see the same missing mode propose it once). Poles
+    marked ``frozen`` (held at their start by the refinement: what they fit is not a mode
+    there) are left out of the model the references are screened against."""
     pfa = RefineSettings.add_pfa if add_pfa is None else add_pfa
     out = []
     lam = np.asarray(lam, dtype=np.complex128)
+    if frozen is not None:
+        lam = lam[~np.asarray(frozen, bool)]
     for i, prob in enumerate(reference_problems(stacked, n_ref)):
         lam, kept = screen(prob, lam, pfa)
         out += [Proposal(x, i, g) for x, g in kept]

@@ -82,3 +82,42 @@ def test_a_mode_the_stacked_model_misses_is_proposed_by_a_reference():
     # nothing missed: no proposal, the stacked result returned as it is
     lam = mimo_refit._measured_poles(stacked, full)
     assert mimo_screen.proposals(band, lam, len(refs)) == []
+
+
+def test_a_pole_the_noisier_reference_alone_reports_at_the_band_edge_is_refused():
+    """Two references with opposite noise shapes, one ten times noisier (the case of
+    scripts/benchmark_noise_groups.py): where reference b's noise is 300 times a's, at the
+    band's lower edge, its own pipeline reported a pole (about 2.3 Hz) that joined the union
+    unchecked; screened with its own noise shape against the stacked model, it is not
+    proposed, and the three modes alone are reported."""
+    import runpy
+
+    import xarray as xr
+
+    from ..reference import REPO
+
+    case = runpy.run_path(str(REPO / "scripts" / "benchmark_noise_groups.py"), run_name="case")
+    res, sd, group = case["_system"]()
+    n_point, freq, lam = case["N_POINT"], case["FREQ"], case["LAM"]
+    shape = (2, n_point, freq.size)
+    dims = (names.REFERENCE, names.POINT, names.FREQUENCY)
+    for seed in (1, 2):  # both reported the edge pole before
+        flat = case["_dataset"](res, sd, group, seed, False)
+        ds = xr.Dataset(
+            {
+                names.FRF: (dims, flat[names.FRF].values.reshape(shape)),
+                names.FRF_LINE_NOISE_STD: (dims, sd.reshape(shape)),
+            },
+            coords={
+                names.REFERENCE: [101, 102],
+                names.POINT: list(range(1, n_point + 1)),
+                names.FREQUENCY: freq,
+            },
+            attrs={names.ATTR_SOURCE: names.SOURCE_ANALYTIC},
+        )
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            out = ami_xr.identify(ds)
+        fn = np.sort(out[names.NATURAL_FREQUENCY].values)
+        np.testing.assert_allclose(fn, np.sort(np.abs(lam)) / (2 * np.pi), rtol=1e-3)
+        assert out.attrs[mimo.ATTR_UNION_ADDED] == ""
