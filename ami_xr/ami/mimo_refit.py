@@ -5,16 +5,20 @@ of every reference stacked on ``point``. Two things can leave that set of poles 
 are repaired here by running the pipeline's shared-pole phases (global fit, refinement) again on
 all FRFs from a larger set of poles:
 
-* a pole one reference alone finds and the stacked detection missed (its FRFs drown in those of
-  the references that do not see the mode): :func:`with_single_reference_poles`;
+* a pole one reference needs and the stacked detection missed (its FRFs drown in those of the
+  references that do not see the mode): :func:`with_reference_proposals`, from the proposals of
+  :mod:`ami_xr.ami.mimo_screen` (each reference screened against the stacked model, not a
+  pipeline per reference);
 * two close poles fitted as one: the pole's residue matrix (point x reference) is then not rank
   one, beyond the residues' noise (``A = lam1 phi1 L1^T + lam2 phi2 L2^T`` seen through one
   pole). :func:`with_close_pairs_split` starts a second pole next to it and keeps the pair when
   the likelihood says so (an exactly repeated root is one pole with a rank-two residue matrix:
   the second pole does not lower the cost, and the pair is left to the drive points).
 
-The refit runs where the first pass ran: in the working quantity and with the line weights of
-the noise model (:mod:`ami_xr.ami.whitening`, decided on the stacked FRFs, as
+The refits fit the eigenvalues and residues only (no model completion: each pole added is
+tested on its own, and the first pass completed the model): they cost a fraction of a
+pipeline. They run where the first pass ran: in the working quantity and with the line weights
+of the noise model (:mod:`ami_xr.ami.whitening`, decided on the stacked FRFs, as
 :func:`ami_xr.ami.pipeline.identify_single` decides it: one quantity for all references, the noise
 of each (reference, point) FRF and line), and comes back in the quantity given.
 """
@@ -32,21 +36,15 @@ from ami_xr.ami import mimo_screen as ms
 from ami_xr.ami import pipeline as pl
 from ami_xr.ami import whitening
 from ami_xr.ami.global_fit import global_fit
-from ami_xr.ami.pipeline import identify_single, with_quality
+from ami_xr.ami.pipeline import with_quality
 from ami_xr.ami.refine import refine as refine_phase
-from ami_xr.ami.settings import FrfAttributes, IdentifySettings, RefineSettings, from_attrs
+from ami_xr.ami.settings import FrfAttributes, RefineSettings, from_attrs
 from ami_xr.ami.subtract import band_of, power_of_two_scale
 from ami_xr.core import flags
 from ami_xr.core import mimo as cm
-from ami_xr.core.matching import match_nearest
 from ami_xr.core.modal import damping_ratio, natural_frequency
 from ami_xr.errors import AssumptionWarning
-from ami_xr.io.datasets import select_reference
 
-# A pole one reference alone finds is "already there" when a pole of the set lies within this
-# many |Re lam| (half the half-power bandwidth: the match radius of simulate.score_modes),
-# matched one to one, nearest first, so that the two members of a close pair each need a pole.
-UNION_TOLERANCE = 1.0
 # The second pole of a suspected close pair starts this many |Re lam| above the first, which
 # moves as far down: members of a pair a single pole absorbs lie well inside its half-power band
 SPLIT_START = 0.25
@@ -59,26 +57,6 @@ MAX_TAIL_POLES = 2
 TAIL_NEAR = 5.0
 
 
-def single_reference_poles(ds: xr.Dataset, refs: list, settings: IdentifySettings):
-    """Per reference: the eigenvalues (measured, before the exponential-window correction) and
-    ``detected`` (point, mode) of the single-reference pipeline on its FRFs alone."""
-    beta = float(from_attrs(FrfAttributes, ds.attrs).exponential_window_decay)
-    got = []
-    for r in refs:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # the stacked run warns about what matters
-            one = identify_single(select_reference(ds, r), settings, final=False)
-        if one.sizes.get(names.MODE, 0) == 0:
-            got.append((np.zeros(0, np.complex128), None))
-            continue
-        lam = np.asarray(one[names.EIGENVALUE].transpose(names.MODE).values) - beta
-        det = None
-        if names.DETECTED in one:
-            det = one[names.DETECTED].transpose(names.POINT, names.MODE).values
-        got.append((lam, det))
-    return got
-
-
 def _measured_poles(ds: xr.Dataset, result: xr.Dataset) -> np.ndarray:
     """The eigenvalues of ``result`` before the exponential-window correction (as the data
     hold them)."""
@@ -86,40 +64,6 @@ def _measured_poles(ds: xr.Dataset, result: xr.Dataset) -> np.ndarray:
     if not result.sizes.get(names.MODE, 0):
         return np.zeros(0, np.complex128)
     return np.asarray(result[names.EIGENVALUE].transpose(names.MODE).values) - beta
-
-
-def with_single_reference_poles(
-    ds: xr.Dataset, stacked: xr.Dataset, result: xr.Dataset, refs: list, settings
-) -> tuple[xr.Dataset, np.ndarray]:
-    """``result`` (the stacked pipeline's) refitted with the union of its poles and those each
-    reference alone finds; unchanged when no reference finds a pole the set lacks.
-
-    Detection on the stacked FRFs weighs every FRF alike, so the modes one reference sees
-    clearly can drown in the FRFs of a reference that does not see them (a reference on a
-    nodal line, a noisier one). The single-reference pipeline is run on each reference; a pole
-    it finds that matches no pole of the set (one to one, nearest first, within
-    ``UNION_TOLERANCE |Re lam|``) joins the set, and the shared-pole phases (global fit and
-    refinement) run again on all FRFs from the union. Returns the result and the added
-    eigenvalues (measured, rad/s)."""
-    lam_set = _measured_poles(ds, result)
-    n_stacked = lam_set.size
-    P = ds.sizes[names.POINT]
-    det_added = []
-    for i, (lam, det) in enumerate(single_reference_poles(ds, refs, settings)):
-        if lam.size == 0:
-            continue
-        _, matched = match_nearest(lam, lam_set, UNION_TOLERANCE)
-        for k in np.setdiff1d(np.arange(lam.size), matched):
-            if not np.isfinite(lam[k]) or lam[k].real >= 0:
-                continue
-            lam_set = np.append(lam_set, lam[k])
-            column = np.zeros(len(refs) * P, bool)
-            column[i * P : (i + 1) * P] = True if det is None else det[:, k]
-            det_added.append(column)
-    if not det_added:
-        return result, np.zeros(0, np.complex128)
-    out = refit(stacked, result, lam_set, np.array(det_added).T, settings)
-    return out, lam_set[n_stacked:]
 
 
 def with_reference_proposals(
@@ -175,8 +119,13 @@ MAX_SPLIT_TRIALS = 3
 
 
 def with_close_pairs_split(
-    stacked: xr.Dataset, result: xr.Dataset, n_ref: int, settings, ratio_max: float,
-    noise_factor: float, tail: list | None = None,
+    stacked: xr.Dataset,
+    result: xr.Dataset,
+    n_ref: int,
+    settings,
+    ratio_max: float,
+    noise_factor: float,
+    tail: list | None = None,
 ) -> tuple[xr.Dataset, np.ndarray]:
     """``result`` refitted with a second pole next to poles whose residue matrix is not rank one
     (:func:`not_rank_one` with ``ratio_max`` and ``noise_factor``; ``n_ref`` references stacked)
