@@ -254,6 +254,8 @@ def identify_multi_reference(
             stacked, result, R, settings, RANK_ONE_RATIO_MAX, NOISE_FACTOR, more
         )
         tail = np.append(tail, more)
+        if tail.size or split.size:  # the trials' fits stopped early
+            result = mr.polished(stacked, result, settings)
         result = pl.drop_beyond_lines(result, stacked)
     out = _unstack(result, ds, R, P)
     pairs = [(points.index(r), i) for i, r in enumerate(refs) if r in points]

@@ -43,6 +43,7 @@ from ami_xr.ami.subtract import band_of, power_of_two_scale
 from ami_xr.core import flags
 from ami_xr.core import mimo as cm
 from ami_xr.core.modal import damping_ratio, natural_frequency
+from ami_xr.core.policy import POLICY
 from ami_xr.errors import AssumptionWarning
 
 # The second pole of a suspected close pair starts this many |Re lam| above the first, which
@@ -205,7 +206,9 @@ def _trial(stacked, result, lam_set, det, cost0: float, settings) -> tuple[xr.Da
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a rejected trial says nothing; a kept one is reported
-        out = refit(stacked, result, lam_set, det, settings)
+        # a trial's fit stops early, as the completion's do: an unfinished fit only overstates
+        # the cost of the larger model (conservative for adding); what is kept is polished
+        out = refit(stacked, result, lam_set, det, settings, max_iter=POLICY.trial_iterations)
     cost = out.attrs.get(names.ATTR_REFINE_COST)
     n_frf = stacked.sizes[names.POINT]
     # residual terms the added pole switched on (:func:`_residual_terms`): a complex
@@ -266,6 +269,14 @@ def with_tail_poles(
     return result, np.asarray(added)
 
 
+def polished(stacked: xr.Dataset, result: xr.Dataset, settings) -> xr.Dataset:
+    """``result`` (a kept trial's: its fit stopped early) refitted from its poles to
+    convergence."""
+    lam = _measured_poles(stacked, result)
+    none = np.zeros((stacked.sizes[names.POINT], 0), bool)
+    return refit(stacked, result, lam, none, settings)
+
+
 def near_the_edge(lam: np.ndarray, f_last: float) -> bool:
     """Whether a pole of ``lam`` (measured) at or below ``f_last`` (Hz) lies within
     ``TAIL_NEAR`` of its half-power bandwidths ``2 zeta f_n`` of it."""
@@ -311,7 +322,7 @@ def _residual_terms(given: xr.Dataset, lam: np.ndarray, settings) -> bool:
     return bool(np.any((fn > f[-1]) | (fn < f[0])))
 
 
-def refit(stacked, result, lam, det_added, settings) -> xr.Dataset:
+def refit(stacked, result, lam, det_added, settings, max_iter=None) -> xr.Dataset:
     """The shared-pole phases (global fit, refinement) on the stacked FRFs from the poles
     ``lam`` (measured): what :func:`identify_single` does after the isolation, in the working
     quantity and with the line weights of its noise model (:mod:`ami_xr.ami.whitening`)."""
@@ -349,7 +360,8 @@ def refit(stacked, result, lam, det_added, settings) -> xr.Dataset:
         # reference that found it, and the stacked test is the one that lost it (the FRFs of
         # references that do not see a mode dilute its likelihood ratio); the stacked poles
         # passed theirs in the first run
-        out = refine_phase(out, add_modes=0, drop_modes=False)
+        capped = {} if max_iter is None else {"max_iter": int(max_iter)}
+        out = refine_phase(out, add_modes=0, drop_modes=False, **capped)
     if scale != 1.0:
         out = pl.unscale(out, ds, scale)
     with warnings.catch_warnings():
