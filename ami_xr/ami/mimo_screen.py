@@ -8,8 +8,10 @@ the second member of a close pair). Running the whole single-reference pipeline 
 reference finds such modes at R times the cost. Here each reference is only screened against the
 stacked model, with the order test of the completion (:mod:`ami_xr.core.order`) on its own lines:
 
-* the stacked poles are fixed and the reference's residues fitted to its FRFs (variable
-  projection, lower and upper residual terms: what lies beyond the band is not a missing mode);
+* the stacked poles are fixed and the reference's residues fitted to its FRFs in the quantity
+  given (variable projection, lower and upper residual terms: what lies beyond the band is not
+  a missing mode; each line weighted by that reference's own noise shape when the FRFs carry a
+  per-line noise model);
 * where the noise-normalised residual power of its FRFs shows a bump above the chi-square level
   of false-alarm probability ``screen_pfa`` (smoothed over the modes' bandwidth), a pole is
   started, fitted with the stacked poles within a few bandwidths of it, and kept when the
@@ -33,7 +35,7 @@ from ami_xr.ami.settings import RefineSettings
 from ami_xr.core import grouped, varpro
 from ami_xr.core.model import resolve_model
 from ami_xr.core.policy import POLICY
-from ami_xr.core.regions import fit_modes
+from ami_xr.core.regions import fit_modes, residual_rows
 
 # proposals per reference (each a likelihood-ratio test on its FRFs)
 MAX_PROPOSALS = 2
@@ -92,9 +94,7 @@ def _bumps(prob: varpro.Problem, proj: varpro.Projection, lam: np.ndarray) -> li
 
     omega = prob.omega
     n_line = omega.size
-    y = prob.y
-    fit = proj.q @ (proj.q.T @ y.T)  # (2L, P): the projection of the data on the model
-    resid = y - fit.T
+    resid = residual_rows(prob, proj)
     dof = max(prob.n_rows - proj.coef.shape[1], 1)
     s2 = np.maximum(proj.rss, 1e-300) / dof
     power = np.sum((resid[:, :n_line] ** 2 + resid[:, n_line:] ** 2) / s2[:, None], axis=0)
@@ -121,12 +121,13 @@ def screen(
     prob: varpro.Problem, lam: np.ndarray, add_pfa: float
 ) -> tuple[np.ndarray, list[tuple[complex, float]]]:
     """The poles one reference's FRFs (``prob``) need beyond the poles ``lam`` (measured), one
-    at a time: the strongest residual bump's pole fitted with its neighbours among the poles
-    (the others fixed) is kept when ``2 (cost - cost')`` on these FRFs exceeds the completion's
-    threshold (chi-square, ``2 + 2 P`` degrees of freedom, ``add_pfa`` over the lines) and
-    lies within the lines; then the screen runs again on the poles with it (at most
-    ``MAX_PROPOSALS``). Returns the poles (``lam`` as fitted with the kept ones appended) and
-    ``(pole, gain over threshold)`` per pole kept."""
+    at a time: a residual bump's pole (strongest first, :func:`_bumps`) fitted with its
+    neighbours among the poles (the others fixed) is kept when ``2 (cost - cost')`` on these
+    FRFs exceeds the completion's threshold (chi-square, ``2 + 2 P`` degrees of freedom,
+    ``add_pfa`` over the lines), it was not frozen at its start and lies within the lines;
+    then the screen runs again on the poles with it (at most ``MAX_PROPOSALS``). Returns the
+    poles (``lam`` as fitted, the kept ones appended) and ``(pole, gain over threshold)`` per
+    pole kept."""
     from scipy.stats import chi2  # lazy: scipy.stats is slow to import
 
     lam = np.asarray(lam, dtype=np.complex128)
