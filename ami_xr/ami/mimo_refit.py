@@ -245,14 +245,15 @@ def with_tail_poles(
     if not near_the_edge(_measured_poles(stacked, result), f_last):
         return result, np.zeros(0)
     added: list[float] = []
-    for _ in range(MAX_TAIL_POLES):
+    farther = 1.0  # the start's distance, doubled once after a tail pole frozen at its start
+    while len(added) < MAX_TAIL_POLES:
         cost0 = result.attrs.get(names.ATTR_REFINE_COST)
         lam = _measured_poles(stacked, result)
         if cost0 is None or not lam.size or not pl.refines(settings):
             break
         fn = natural_frequency(lam)
         zeta = float(np.median(damping_ratio(lam)))
-        w = 2.0 * np.pi * max(f_last, fn.max()) * (1.0 + 2.0 * TAIL_START * zeta)
+        w = 2.0 * np.pi * max(f_last, fn.max()) * (1.0 + 2.0 * TAIL_START * farther * zeta)
         # a pole the refinement froze near the last line stood for that tail: the tail pole
         # replaces it (held at its start it would keep the tail pole from its place)
         keep = np.flatnonzero(~(_frozen(result) & (fn <= f_last) & _near(lam, f_last)))
@@ -262,9 +263,12 @@ def with_tail_poles(
         out, better = _trial(stacked, base, start, det, float(cost0), settings)
         got = natural_frequency(_measured_poles(stacked, out))
         above = got > f_last
+        if better and farther == 1.0 and _frozen(out)[above].any():
+            farther = 2.0  # it left its region: what lies above is farther than the start
+            continue
         if not better or above.sum() <= np.sum(fn > f_last) or _frozen(out)[above].any():
             break
-        result = out
+        result, farther = out, 1.0
         added.append(float(got[above].max()))
     return result, np.asarray(added)
 
