@@ -25,8 +25,10 @@ defaults). Per configuration (noise, split, references), over the seeds:
 * ``dpc``: mean ``drive_point_consistency`` (0 with one drive point).
 * ``susp``, ``sep``: modes flagged ``repeated_root_suspected`` / ``repeated_root_separated``,
   summed over the seeds.
-* ``t ratio``: mean time of one multi-reference identify over the mean time of the SIMO
-  identify of the same points driven at the first reference (2) only.
+* ``t ratio``: mean CPU time of one multi-reference identify over the mean CPU time of the
+  SIMO identify of the same points driven at the first reference (2) only; ``t/stk``: over
+  the SIMO identify of the references' FRFs stacked as one set of points (what the
+  multi-reference path identifies first; issue 41: at most 2 with three references).
 * ``err/CRB``: mean ``|fn error| / fn_std`` and ``|zeta error| / zeta_std`` of the found modes
   over ``sqrt(2/pi)`` (1 for an efficient estimator), the std from the multi-reference
   ``ami_xr.cramer_rao_bound`` of the references used (eq. 15 line noise per FRF).
@@ -35,7 +37,9 @@ The measured-like case (issue 22): :func:`measured_like_truth` (a 5 x 5 lumped p
 measured points, 3 references on unmeasured masses, 8 modes with 3 close pairs, 2-24 Hz) at
 0.1 % and 1 % noise: mean modes found with each reference alone and all together, in how many
 seeds all together found at least the best single reference, spurious modes of all together,
-and its errors over the multi-reference bound (as ``err/CRB``).
+and its errors over the multi-reference bound (as ``err/CRB``), and the CPU time of one
+identify: one reference (mean over the three), the stacked FRFs as one set, all references, and
+all over stacked.
 
 One reference's repeated-root flag (issue 41 item 1; ``--repeated`` prints only this): per
 pair of the 6-mass ring (reference 2 alone) and of a 7-mass ring with three pairs (reference
@@ -76,7 +80,8 @@ EFFICIENT = np.sqrt(2 / np.pi)  # E|err| / std of an efficient unbiased estimato
 
 HEADER = (
     f"{'noise':>5}{'split':>7}{'refs':>8}{'found':>7}{'pair':>6}{'fn err':>10}{'zeta err':>10}"
-    f"{'pair fn':>10}{'pair zeta':>10}{'dpc':>8}{'susp':>5}{'sep':>5}{'t ratio':>8}  err/CRB"
+    f"{'pair fn':>10}{'pair zeta':>10}{'dpc':>8}{'susp':>5}{'sep':>5}{'t ratio':>8}{'t/stk':>7}"
+    "  err/CRB"
 )
 
 
@@ -94,9 +99,9 @@ def noisy_frf(truth, level: float, seed: int):
 def _identify(ds, **kwargs):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        t0 = time.perf_counter()
+        t0 = time.process_time()  # CPU time: the machine may be shared
         out = ami_xr.identify(ds, **kwargs)
-        return out, time.perf_counter() - t0
+        return out, time.process_time() - t0
 
 
 def run(seeds: int, levels=NOISE_LEVELS) -> list[dict]:
@@ -123,11 +128,12 @@ def run(seeds: int, levels=NOISE_LEVELS) -> list[dict]:
                 for refs in CONFIGS:
                     ds = full.sel(reference=list(refs))
                     out, t = _identify(ds)
+                    t_stk = _identify(stacked_simo(ds))[1] if len(refs) > 1 else t_simo
                     sc = ami_xr.simulate.score_modes(out, truth, crb=bounds[refs])
                     row = rows.setdefault(
                         (level, split, refs),
                         {"found": [], "pair": [], "fn": [], "z": [], "pfn": [], "pz": []}
-                        | {"dpc": [], "susp": 0, "sep": 0, "t": [], "t_simo": []}
+                        | {"dpc": [], "susp": 0, "sep": 0, "t": [], "t_simo": [], "t_stk": []}
                         | {"fn_crb": [], "z_crb": []},
                     )
                     row["found"].append(sc.n_found)
@@ -145,6 +151,7 @@ def run(seeds: int, levels=NOISE_LEVELS) -> list[dict]:
                     row["fn_crb"].extend(sc.frequency_over_crb)
                     row["z_crb"].extend(sc.damping_over_crb)
                     row["t_simo"].append(t_simo)
+                    row["t_stk"].append(t_stk)
     return [{"level": k[0], "split": k[1], "refs": k[2], **v} for k, v in rows.items()]
 
 
@@ -215,11 +222,13 @@ def measured_like_seed(truth, clean, level: float, seed: int) -> dict:
     re = ami_xr.simulate.add_noise(g.real, level, rng=rng, dim="frequency")
     im = ami_xr.simulate.add_noise(g.imag, level, rng=rng, dim="frequency")
     ds = clean.assign(frf=(re + 1j * im).assign_attrs(g.attrs))
-    found = []
+    found, t_single = [], []
     for ref in PLATE_REFERENCES:
-        out, _ = _identify(ds.sel(reference=[ref]))
+        out, t = _identify(ds.sel(reference=[ref]))
         found.append(ami_xr.simulate.score_modes(out, truth).n_found)
-    out, _ = _identify(ds)
+        t_single.append(t)
+    _, t_stacked = _identify(stacked_simo(ds))
+    out, t_all = _identify(ds)
     bound = ami_xr.cramer_rao_bound(truth, clean, frf_noise_std=line_noise_std(clean, level))
     sc = ami_xr.simulate.score_modes(out, truth, crb=bound)
     wide = ami_xr.simulate.score_modes(out, truth, crb=bound_with_tail(truth, clean, level))
@@ -231,7 +240,23 @@ def measured_like_seed(truth, clean, level: float, seed: int) -> dict:
         "z_crb": list(sc.damping_over_crb),
         "fn_tail": list(wide.frequency_over_crb),
         "z_tail": list(wide.damping_over_crb),
+        "t_single": t_single,
+        "t_stacked": t_stacked,
+        "t_all": t_all,
     }
+
+
+def stacked_simo(ds):
+    """The FRFs of every reference as one single-reference Dataset (``point`` labelled
+    "reference@point"): what the multi-reference path identifies first, the cost it is
+    measured against."""
+    g = ds["frf"].stack(pair=("reference", "point")).transpose("pair", "frequency")
+    labels = [f"{r}@{p}" for r, p in g["pair"].values]
+    out = ds.drop_vars("frf").drop_dims("reference", errors="ignore")
+    out = out.drop_dims("point", errors="ignore")
+    return out.assign(
+        frf=(("point", "frequency"), g.values, g.attrs)
+    ).assign_coords(point=labels)
 
 
 _TAIL_BOUNDS: dict = {}  # per noise level (the truth and lines are fixed)
@@ -262,12 +287,14 @@ PLATE_HEADER = (
     + "".join(f"{'ref ' + str(r):>8}" for r in PLATE_REFERENCES)
     + f"{'all':>7}{'all>=best':>10}{'spur':>6}  errors over the multi-reference bound"
     + " (band's modes only | modes above the band unknowns too)"
+    + "; CPU s per identify: one reference (mean), stacked, all, all / stacked"
 )
 
 
 def run_measured_like(seeds: int, levels=PLATE_LEVELS) -> list[dict]:
     """Per noise level, the measured-like case over ``seeds``."""
     truth, clean = measured_like_truth()
+    _identify(clean.sel(reference=[PLATE_REFERENCES[0]]))  # compile the kernels before timing
     rows = []
     for level in levels:
         got = [measured_like_seed(truth, clean, level, seed) for seed in range(seeds)]
@@ -291,11 +318,14 @@ def format_plate_row(row: dict) -> str:
         + f"{_mean([g['spurious'] for g in got]):>6.2f}"
         + f"  fn {_mean(fn) / EFFICIENT:.2f} zeta {_mean(z) / EFFICIENT:.2f}"
         + f" | fn {_mean(fn_t) / EFFICIENT:.2f} zeta {_mean(z_t) / EFFICIENT:.2f}"
+        + f"; t {_mean([x for g in got for x in g['t_single']]):.2f}"
+        + f" {_mean([g['t_stacked'] for g in got]):.2f} {_mean([g['t_all'] for g in got]):.2f}"
+        + f" {_mean([g['t_all'] for g in got]) / _mean([g['t_stacked'] for g in got]):.2f}"
     )
 
 
-def print_plate(seeds: int) -> None:
-    """The measured-like plate's table."""
+def print_plate(seeds: int, per_seed: bool = False) -> None:
+    """The measured-like plate's table (and one line per seed with ``per_seed``)."""
     print(
         "Measured-like plate: 12 points, references "
         f"{list(PLATE_REFERENCES)} not measured, 8 modes in 2-24 Hz with 3 close pairs; "
@@ -304,6 +334,13 @@ def print_plate(seeds: int) -> None:
     print(PLATE_HEADER)
     for row in run_measured_like(seeds):
         print(format_plate_row(row))
+        for i, g in enumerate(row["seeds"] if per_seed else []):
+            print(
+                f"    seed {i}: found one reference {g['single']} all {g['all']}"
+                f" spurious {g['spurious']}; CPU s one reference "
+                + " ".join(f"{t:.2f}" for t in g["t_single"])
+                + f", stacked {g['t_stacked']:.2f}, all {g['t_all']:.2f}"
+            )
 
 
 def _mean(x) -> float:
@@ -320,6 +357,7 @@ def format_row(row: dict) -> str:
         f"{_mean(row['fn']):>10.2e}{_mean(row['z']):>10.2e}"
         f"{_mean(row['pfn']):>10.2e}{_mean(row['pz']):>10.2e}{_mean(row['dpc']):>8.4f}"
         f"{row['susp']:>5d}{row['sep']:>5d}{_mean(row['t']) / _mean(row['t_simo']):>8.2f}"
+        f"{_mean(row['t']) / _mean(row['t_stk']):>7.2f}"
         f"  fn {_mean(row['fn_crb']) / EFFICIENT:.2f} zeta {_mean(row['z_crb']) / EFFICIENT:.2f}"
     )
 
@@ -560,6 +598,9 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="only one reference's repeated-root flag: repeated pairs and single modes",
     )
+    parser.add_argument(
+        "--per-seed", action="store_true", help="the plate case: one line per seed too"
+    )
     args = parser.parse_args(argv)
     seeds = 2 if args.quick else args.seeds
     if seeds < 1:
@@ -570,7 +611,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"({time.perf_counter() - t0:.0f} s)")
         return 0
     if args.plate_only:
-        print_plate(seeds)
+        print_plate(seeds, args.per_seed)
         print(f"({time.perf_counter() - t0:.0f} s)")
         return 0
     rows = run(seeds)
@@ -585,7 +626,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"({time.perf_counter() - t0:.0f} s)")
         return 0
     print()
-    print_plate(seeds)
+    print_plate(seeds, args.per_seed)
     print()
     print_repeated(seeds)
     print(f"({time.perf_counter() - t0:.0f} s)")

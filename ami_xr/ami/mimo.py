@@ -3,6 +3,10 @@
 The FRFs of every (reference, point) pair share the poles, so :func:`identify_multi_reference`
 runs the SIMO machinery (subtract -> isolate -> global_fit -> refine, unchanged) on them
 stacked as one ``point`` dim: each FRF of each reference is one more FRF of the same system.
+It runs once; each reference is then only screened against the stacked model for the poles its
+own FRFs need (:mod:`ami_xr.ami.mimo_screen`), and the shared-pole refits
+(:mod:`ami_xr.ami.mimo_refit`) add those, a pole for the modes above the band and the second
+member of close pairs: several references cost about one pipeline, not one per reference.
 The stacked fit gives the poles and a residue per (reference, point, mode). For each mode the
 residue matrix ``A`` (point x reference) is rank one in theory, ``A = lam phi L^T``; its best
 rank-one approximation (SVD) gives the mode vector direction and the participation factors,
@@ -53,8 +57,8 @@ NOISE_FACTOR = 3.0
 
 _SEP = "@"  # stacked FRF label "reference@point"
 
-# attribute: natural frequencies (Hz) of the poles a single reference found and the stacked
-# detection missed, added before the shared-pole fit ("" when none)
+# attribute: natural frequencies (Hz) of the poles a reference's FRFs needed and the stacked
+# detection missed (its screen's proposals), added before the shared-pole fit ("" when none)
 ATTR_UNION_ADDED = "multi_reference_union_added"
 # attribute: natural frequencies (Hz) of the poles whose residue matrix was not rank one and
 # that the shared-pole refit split into two close poles ("" when none)
@@ -243,11 +247,15 @@ def identify_multi_reference(
     added = np.zeros(0, np.complex128)
     split = tail = np.zeros(0)
     if R > 1:
-        result, added = mr.with_single_reference_poles(ds, stacked, result, refs, settings)
+        result, added = mr.with_reference_proposals(stacked, result, R, settings)
         result, tail = mr.with_tail_poles(stacked, result, settings)
+        more: list[float] = []
         result, split = mr.with_close_pairs_split(
-            stacked, result, R, settings, RANK_ONE_RATIO_MAX, NOISE_FACTOR
+            stacked, result, R, settings, RANK_ONE_RATIO_MAX, NOISE_FACTOR, more
         )
+        tail = np.append(tail, more)
+        if tail.size or split.size:  # the trials' fits stopped early
+            result = mr.polished(stacked, result, settings)
         result = pl.drop_beyond_lines(result, stacked)
     out = _unstack(result, ds, R, P)
     pairs = [(points.index(r), i) for i, r in enumerate(refs) if r in points]

@@ -5,16 +5,20 @@ of every reference stacked on ``point``. Two things can leave that set of poles 
 are repaired here by running the pipeline's shared-pole phases (global fit, refinement) again on
 all FRFs from a larger set of poles:
 
-* a pole one reference alone finds and the stacked detection missed (its FRFs drown in those of
-  the references that do not see the mode): :func:`with_single_reference_poles`;
+* a pole one reference needs and the stacked detection missed (its FRFs drown in those of the
+  references that do not see the mode): :func:`with_reference_proposals`, from the proposals of
+  :mod:`ami_xr.ami.mimo_screen` (each reference screened against the stacked model, not a
+  pipeline per reference);
 * two close poles fitted as one: the pole's residue matrix (point x reference) is then not rank
   one, beyond the residues' noise (``A = lam1 phi1 L1^T + lam2 phi2 L2^T`` seen through one
   pole). :func:`with_close_pairs_split` starts a second pole next to it and keeps the pair when
   the likelihood says so (an exactly repeated root is one pole with a rank-two residue matrix:
   the second pole does not lower the cost, and the pair is left to the drive points).
 
-The refit runs where the first pass ran: in the working quantity and with the line weights of
-the noise model (:mod:`ami_xr.ami.whitening`, decided on the stacked FRFs, as
+The refits fit the eigenvalues and residues only (no model completion: each pole added is
+tested on its own, and the first pass completed the model): they cost a fraction of a
+pipeline. They run where the first pass ran: in the working quantity and with the line weights
+of the noise model (:mod:`ami_xr.ami.whitening`, decided on the stacked FRFs, as
 :func:`ami_xr.ami.pipeline.identify_single` decides it: one quantity for all references, the noise
 of each (reference, point) FRF and line), and comes back in the quantity given.
 """
@@ -27,24 +31,21 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.ami import common as c
+from ami_xr.ami import mimo_screen as ms
 from ami_xr.ami import pipeline as pl
 from ami_xr.ami import whitening
 from ami_xr.ami.global_fit import global_fit
-from ami_xr.ami.pipeline import identify_single, with_quality
+from ami_xr.ami.pipeline import with_quality
 from ami_xr.ami.refine import refine as refine_phase
-from ami_xr.ami.settings import FrfAttributes, IdentifySettings, RefineSettings, from_attrs
+from ami_xr.ami.settings import FrfAttributes, RefineSettings, from_attrs
 from ami_xr.ami.subtract import band_of, power_of_two_scale
 from ami_xr.core import flags
 from ami_xr.core import mimo as cm
-from ami_xr.core.matching import match_nearest
 from ami_xr.core.modal import damping_ratio, natural_frequency
+from ami_xr.core.policy import POLICY
 from ami_xr.errors import AssumptionWarning
-from ami_xr.io.datasets import select_reference
 
-# A pole one reference alone finds is "already there" when a pole of the set lies within this
-# many |Re lam| (half the half-power bandwidth: the match radius of simulate.score_modes),
-# matched one to one, nearest first, so that the two members of a close pair each need a pole.
-UNION_TOLERANCE = 1.0
 # The second pole of a suspected close pair starts this many |Re lam| above the first, which
 # moves as far down: members of a pair a single pole absorbs lie well inside its half-power band
 SPLIT_START = 0.25
@@ -57,26 +58,6 @@ MAX_TAIL_POLES = 2
 TAIL_NEAR = 5.0
 
 
-def single_reference_poles(ds: xr.Dataset, refs: list, settings: IdentifySettings):
-    """Per reference: the eigenvalues (measured, before the exponential-window correction) and
-    ``detected`` (point, mode) of the single-reference pipeline on its FRFs alone."""
-    beta = float(from_attrs(FrfAttributes, ds.attrs).exponential_window_decay)
-    got = []
-    for r in refs:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # the stacked run warns about what matters
-            one = identify_single(select_reference(ds, r), settings, final=False)
-        if one.sizes.get(names.MODE, 0) == 0:
-            got.append((np.zeros(0, np.complex128), None))
-            continue
-        lam = np.asarray(one[names.EIGENVALUE].transpose(names.MODE).values) - beta
-        det = None
-        if names.DETECTED in one:
-            det = one[names.DETECTED].transpose(names.POINT, names.MODE).values
-        got.append((lam, det))
-    return got
-
-
 def _measured_poles(ds: xr.Dataset, result: xr.Dataset) -> np.ndarray:
     """The eigenvalues of ``result`` before the exponential-window correction (as the data
     hold them)."""
@@ -86,38 +67,31 @@ def _measured_poles(ds: xr.Dataset, result: xr.Dataset) -> np.ndarray:
     return np.asarray(result[names.EIGENVALUE].transpose(names.MODE).values) - beta
 
 
-def with_single_reference_poles(
-    ds: xr.Dataset, stacked: xr.Dataset, result: xr.Dataset, refs: list, settings
+def with_reference_proposals(
+    stacked: xr.Dataset, result: xr.Dataset, n_ref: int, settings
 ) -> tuple[xr.Dataset, np.ndarray]:
-    """``result`` (the stacked pipeline's) refitted with the union of its poles and those each
-    reference alone finds; unchanged when no reference finds a pole the set lacks.
+    """``result`` (the stacked pipeline's) refitted with the poles each reference's FRFs need
+    beyond its poles (:func:`ami_xr.ami.mimo_screen.proposals`: a screen of each reference's
+    residual against the stacked model and the completion's order test on its lines);
+    unchanged when no reference needs one.
 
     Detection on the stacked FRFs weighs every FRF alike, so the modes one reference sees
     clearly can drown in the FRFs of a reference that does not see them (a reference on a
-    nodal line, a noisier one). The single-reference pipeline is run on each reference; a pole
-    it finds that matches no pole of the set (one to one, nearest first, within
-    ``UNION_TOLERANCE |Re lam|``) joins the set, and the shared-pole phases (global fit and
-    refinement) run again on all FRFs from the union. Returns the result and the added
-    eigenvalues (measured, rad/s)."""
-    lam_set = _measured_poles(ds, result)
-    n_stacked = lam_set.size
-    P = ds.sizes[names.POINT]
-    det_added = []
-    for i, (lam, det) in enumerate(single_reference_poles(ds, refs, settings)):
-        if lam.size == 0:
-            continue
-        _, matched = match_nearest(lam, lam_set, UNION_TOLERANCE)
-        for k in np.setdiff1d(np.arange(lam.size), matched):
-            if not np.isfinite(lam[k]) or lam[k].real >= 0:
-                continue
-            lam_set = np.append(lam_set, lam[k])
-            column = np.zeros(len(refs) * P, bool)
-            column[i * P : (i + 1) * P] = True if det is None else det[:, k]
-            det_added.append(column)
-    if not det_added:
+    nodal line, a noisier one, the second member of a close pair). The poles proposed join
+    the set and the shared-pole phases (global fit and refinement) run again on all FRFs.
+    Returns the result and the added eigenvalues (measured, rad/s)."""
+    lam = _measured_poles(stacked, result)
+    band = band_of(stacked, settings.fmin, settings.fmax, "identify")
+    got = ms.proposals(band, lam, n_ref, RefineSettings.add_pfa, _frozen(result))
+    if not got:
         return result, np.zeros(0, np.complex128)
-    out = refit(stacked, result, lam_set, np.array(det_added).T, settings)
-    return out, lam_set[n_stacked:]
+    n_point = stacked.sizes[names.POINT] // n_ref
+    det_added = np.zeros((stacked.sizes[names.POINT], len(got)), bool)
+    for k, p in enumerate(got):
+        det_added[p.reference * n_point : (p.reference + 1) * n_point, k] = True
+    added = np.array([p.lam for p in got])
+    out = refit(stacked, result, np.append(lam, added), det_added, settings)
+    return out, added
 
 
 def not_rank_one(result: xr.Dataset, n_ref: int, ratio_max: float, noise_factor: float):
@@ -146,8 +120,13 @@ MAX_SPLIT_TRIALS = 3
 
 
 def with_close_pairs_split(
-    stacked: xr.Dataset, result: xr.Dataset, n_ref: int, settings, ratio_max: float,
+    stacked: xr.Dataset,
+    result: xr.Dataset,
+    n_ref: int,
+    settings,
+    ratio_max: float,
     noise_factor: float,
+    tail: list | None = None,
 ) -> tuple[xr.Dataset, np.ndarray]:
     """``result`` refitted with a second pole next to poles whose residue matrix is not rank one
     (:func:`not_rank_one` with ``ratio_max`` and ``noise_factor``; ``n_ref`` references stacked)
@@ -158,8 +137,10 @@ def with_close_pairs_split(
     chi-square with ``2 + 2 n_FRF`` degrees of freedom, false-alarm probability ``add_pfa``)
     supports it and the pair holds one pole more than before, none frozen at its start
     (``refine_fallback``); after a kept split the evidence is taken anew. At most
-    ``MAX_SPLIT_TRIALS`` refits. Returns the result and the natural frequencies (Hz) of the
-    poles split (empty when none)."""
+    ``MAX_SPLIT_TRIALS`` refits. A trial whose second pole goes above the lines, supported by
+    the likelihood, keeps that pole as a tail pole (its frequency appended to ``tail``) and
+    tries the pair again. Returns the result and the natural frequencies (Hz) of the poles
+    split (empty when none)."""
     evidence = not_rank_one(result, n_ref, ratio_max, noise_factor)
     if not np.any(evidence > 0) or not pl.refines(settings):
         return result, np.zeros(0)
@@ -177,17 +158,34 @@ def with_close_pairs_split(
             break
         k = int(np.argmax(np.where(ok, evidence, -np.inf)))
         tried.append(lam[k])
-        out, held = _split_trial(stacked, result, lam, k, float(cost0), settings)
+        out, better, held = _split_trial(stacked, result, lam, k, float(cost0), settings)
+        above = _above(stacked, out, lines[-1])
         if held:
             result = out
             split.append(float(fn[k]))
             evidence = not_rank_one(result, n_ref, ratio_max, noise_factor)
+        elif better and above.size > _above(stacked, result, lines[-1]).size:
+            # the second pole went above the lines and the likelihood supports it: the tail
+            # of the modes beyond the band, which had drawn the pair's fit (a tail pole the
+            # tail trial could not place): kept as such, and the pair tried again with it
+            result = out
+            tried.pop()
+            if tail is not None:
+                tail.append(float(above.max()))
+            evidence = not_rank_one(result, n_ref, ratio_max, noise_factor)
     return result, np.asarray(split)
 
 
+def _above(stacked: xr.Dataset, result: xr.Dataset, f_last: float) -> np.ndarray:
+    """Natural frequencies (Hz) of ``result``'s poles above ``f_last`` not frozen at their
+    start (``refine_fallback``)."""
+    fn = natural_frequency(_measured_poles(stacked, result))
+    return fn[(fn > f_last) & ~_frozen(result)]
+
+
 def _split_trial(stacked, result, lam, k: int, cost0: float, settings):
-    """The refit with pole ``k`` split, and whether its pair held (False when the likelihood
-    ratio does not support the added pole)."""
+    """The refit with pole ``k`` split, whether the likelihood ratio supports the added pole
+    and whether its pair held (False when it does not)."""
     step = 1j * SPLIT_START * abs(lam[k].real)
     lam_set = np.append(lam, lam[k] + step)
     lam_set[k] = lam[k] - step
@@ -195,7 +193,7 @@ def _split_trial(stacked, result, lam, k: int, cost0: float, settings):
     if names.DETECTED in result:
         det = result[names.DETECTED].transpose(names.POINT, names.MODE).values[:, [k]]
     out, better = _trial(stacked, result, lam_set, det, cost0, settings)
-    return out, better and _pair_held(out, lam, stacked, lam[k])
+    return out, better, better and _pair_held(out, lam, stacked, lam[k])
 
 
 def _trial(stacked, result, lam_set, det, cost0: float, settings) -> tuple[xr.Dataset, bool]:
@@ -208,7 +206,9 @@ def _trial(stacked, result, lam_set, det, cost0: float, settings) -> tuple[xr.Da
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a rejected trial says nothing; a kept one is reported
-        out = refit(stacked, result, lam_set, det, settings)
+        # a trial's fit stops early, as the completion's do: an unfinished fit only overstates
+        # the cost of the larger model (conservative for adding); what is kept is polished
+        out = refit(stacked, result, lam_set, det, settings, max_iter=POLICY.trial_iterations)
     cost = out.attrs.get(names.ATTR_REFINE_COST)
     n_frf = stacked.sizes[names.POINT]
     # residual terms the added pole switched on (:func:`_residual_terms`): a complex
@@ -245,32 +245,53 @@ def with_tail_poles(
     if not near_the_edge(_measured_poles(stacked, result), f_last):
         return result, np.zeros(0)
     added: list[float] = []
-    for _ in range(MAX_TAIL_POLES):
+    farther = 1.0  # the start's distance, doubled once after a tail pole frozen at its start
+    while len(added) < MAX_TAIL_POLES:
         cost0 = result.attrs.get(names.ATTR_REFINE_COST)
         lam = _measured_poles(stacked, result)
         if cost0 is None or not lam.size or not pl.refines(settings):
             break
         fn = natural_frequency(lam)
         zeta = float(np.median(damping_ratio(lam)))
-        w = 2.0 * np.pi * max(f_last, fn.max()) * (1.0 + 2.0 * TAIL_START * zeta)
-        start = np.append(lam, -zeta * w + 1j * w * np.sqrt(1.0 - zeta**2))
+        w = 2.0 * np.pi * max(f_last, fn.max()) * (1.0 + 2.0 * TAIL_START * farther * zeta)
+        # a pole the refinement froze near the last line stood for that tail: the tail pole
+        # replaces it (held at its start it would keep the tail pole from its place)
+        keep = np.flatnonzero(~(_frozen(result) & (fn <= f_last) & _near(lam, f_last)))
+        base = result if keep.size == lam.size else c.select_modes(result, keep.tolist())
+        start = np.append(lam[keep], -zeta * w + 1j * w * np.sqrt(1.0 - zeta**2))
         det = np.ones((stacked.sizes[names.POINT], 1), bool)
-        out, better = _trial(stacked, result, start, det, float(cost0), settings)
+        out, better = _trial(stacked, base, start, det, float(cost0), settings)
         got = natural_frequency(_measured_poles(stacked, out))
         above = got > f_last
+        if better and farther == 1.0 and _frozen(out)[above].any():
+            farther = 2.0  # it left its region: what lies above is farther than the start
+            continue
         if not better or above.sum() <= np.sum(fn > f_last) or _frozen(out)[above].any():
             break
-        result = out
+        result, farther = out, 1.0
         added.append(float(got[above].max()))
     return result, np.asarray(added)
+
+
+def polished(stacked: xr.Dataset, result: xr.Dataset, settings) -> xr.Dataset:
+    """``result`` (a kept trial's: its fit stopped early) refitted from its poles to
+    convergence."""
+    lam = _measured_poles(stacked, result)
+    none = np.zeros((stacked.sizes[names.POINT], 0), bool)
+    return refit(stacked, result, lam, none, settings)
 
 
 def near_the_edge(lam: np.ndarray, f_last: float) -> bool:
     """Whether a pole of ``lam`` (measured) at or below ``f_last`` (Hz) lies within
     ``TAIL_NEAR`` of its half-power bandwidths ``2 zeta f_n`` of it."""
+    fn = natural_frequency(lam)
+    return bool(np.any(np.isfinite(fn) & (fn <= f_last) & _near(lam, f_last)))
+
+
+def _near(lam: np.ndarray, f_last: float) -> np.ndarray:
+    """Per pole: within ``TAIL_NEAR`` of its half-power bandwidths below ``f_last`` (Hz)."""
     fn, zeta = natural_frequency(lam), damping_ratio(lam)
-    inside = np.isfinite(fn) & (fn <= f_last)
-    return bool(np.any(inside & (f_last - fn <= TAIL_NEAR * 2.0 * zeta * fn)))
+    return f_last - fn <= TAIL_NEAR * 2.0 * zeta * fn
 
 
 def _frozen(out: xr.Dataset) -> np.ndarray:
@@ -305,7 +326,7 @@ def _residual_terms(given: xr.Dataset, lam: np.ndarray, settings) -> bool:
     return bool(np.any((fn > f[-1]) | (fn < f[0])))
 
 
-def refit(stacked, result, lam, det_added, settings) -> xr.Dataset:
+def refit(stacked, result, lam, det_added, settings, max_iter=None) -> xr.Dataset:
     """The shared-pole phases (global fit, refinement) on the stacked FRFs from the poles
     ``lam`` (measured): what :func:`identify_single` does after the isolation, in the working
     quantity and with the line weights of its noise model (:mod:`ami_xr.ami.whitening`)."""
@@ -343,7 +364,8 @@ def refit(stacked, result, lam, det_added, settings) -> xr.Dataset:
         # reference that found it, and the stacked test is the one that lost it (the FRFs of
         # references that do not see a mode dilute its likelihood ratio); the stacked poles
         # passed theirs in the first run
-        out = refine_phase(out, **{**pl.model_order(settings), "drop_modes": False})
+        capped = {} if max_iter is None else {"max_iter": int(max_iter)}
+        out = refine_phase(out, add_modes=0, drop_modes=False, **capped)
     if scale != 1.0:
         out = pl.unscale(out, ds, scale)
     with warnings.catch_warnings():

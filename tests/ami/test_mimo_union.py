@@ -10,9 +10,7 @@ import pytest
 
 import ami_xr
 from ami_xr import names
-from ami_xr.ami import common as c
-from ami_xr.ami import mimo, mimo_refit
-from ami_xr.ami.settings import IdentifySettings
+from ami_xr.ami import mimo
 from ami_xr.core import mimo as cm
 from ami_xr.errors import AmiXrValueError
 from ami_xr.io.datasets import select_reference
@@ -27,27 +25,8 @@ def _chain():
     return damped_chain(POINTS)
 
 
-def test_a_pole_the_stacked_detection_missed_is_added_from_a_single_reference():
-    truth = _chain()
-    ds = modal.frf(truth, np.linspace(0.0, 120.0, 1200), references=[1, 4])
-    refs, points = [1, 4], POINTS
-    stacked = mimo._stacked(ds, refs, points)
-    settings = IdentifySettings()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        full = mimo.identify_single(stacked, settings)
-        missing = c.select_modes(full, [0, 1, 3, 4])  # the stacked detection "lost" mode 3
-        out, added = mimo_refit.with_single_reference_poles(ds, stacked, missing, refs, settings)
-    assert added.size == 1
-    assert abs(added[0] - truth[names.EIGENVALUE].values[2]) < 1e-6 * abs(added[0])
-    lam = np.sort_complex(out[names.EIGENVALUE].values)
-    true = np.sort_complex(truth[names.EIGENVALUE].values)
-    np.testing.assert_allclose(lam, true, rtol=1e-8)
-    # nothing missed: the stacked result is returned as it is
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        same, none = mimo_refit.with_single_reference_poles(ds, stacked, full, refs, settings)
-    assert none.size == 0 and same is full
+# a pole the stacked detection missed, added from a reference's proposal:
+# tests/ami/test_mimo_onepass.py (each reference is screened, not identified alone)
 
 
 @pytest.mark.parametrize("seed", [0])

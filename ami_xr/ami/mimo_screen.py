@@ -1,0 +1,200 @@
+"""What each reference sees that the stacked model misses: proposals for the shared poles
+(issue 41).
+
+:func:`ami_xr.ami.mimo.identify_multi_reference` identifies the FRFs of every reference stacked as
+one set; its detection and order tests weigh every FRF alike, so a mode one reference sees clearly
+can drown in the FRFs of the references that do not (a reference on a nodal line, a noisier one,
+the second member of a close pair). Running the whole single-reference pipeline once more per
+reference finds such modes at R times the cost. Here each reference is only screened against the
+stacked model, with the order test of the completion (:mod:`ami_xr.core.order`) on its own lines:
+
+* the stacked poles are fixed and the reference's residues fitted to its FRFs in the quantity
+  given (variable projection, lower and upper residual terms: what lies beyond the band is not
+  a missing mode; each line weighted by that reference's own noise shape when the FRFs carry a
+  per-line noise model);
+* where the noise-normalised residual power of its FRFs shows a bump above the chi-square level
+  of false-alarm probability ``screen_pfa`` (smoothed over the modes' bandwidth), a pole is
+  started, fitted with the stacked poles within a few bandwidths of it, and kept when the
+  likelihood ratio on that reference's FRFs passes the completion's test (``2 + 2 P`` degrees
+  of freedom at ``add_pfa`` over the lines).
+
+The poles kept are proposals: the caller refits all FRFs from the stacked poles and them.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import xarray as xr
+
+from ami_xr import names
+from ami_xr.ami.global_fit import RESIDUAL_KIND
+from ami_xr.ami.line_noise import line_noise_shape
+from ami_xr.ami.settings import RefineSettings
+from ami_xr.core import grouped, varpro
+from ami_xr.core.model import resolve_model
+from ami_xr.core.policy import POLICY
+from ami_xr.core.regions import fit_modes, residual_rows
+
+# proposals per reference (each a likelihood-ratio test on its FRFs)
+MAX_PROPOSALS = 2
+# residual bumps tried, strongest first, before a reference is passed as seeing nothing more
+MAX_BUMPS = 4
+# a proposal is fitted with the stacked poles within this many of its half-power bandwidths
+# (a pole that stands for a close pair moves when its second member is added)
+NEIGHBOURS = 3.0
+# iterations of a proposal's fit (a screen: the refit of all FRFs polishes what is kept)
+FIT_ITERATIONS = 20
+
+
+class Proposal(NamedTuple):
+    """A pole (measured, rad/s) one reference needs beyond the stacked poles, its reference's
+    index and its likelihood ratio ``2 (cost - cost')`` over the test's threshold."""
+
+    lam: complex
+    reference: int
+    gain: float
+
+
+def reference_problems(stacked: xr.Dataset, n_ref: int) -> list[varpro.Problem]:
+    """Per reference (reference-major rows of ``stacked``, the band's lines): its FRFs as a
+    variable-projection problem with lower and upper residual terms, each line weighted by the
+    reference's own noise shape when the FRFs carry a per-line noise model."""
+    frf = stacked[names.FRF].transpose(names.POINT, names.FREQUENCY)
+    omega = 2.0 * np.pi * np.asarray(stacked[names.FREQUENCY].values, dtype=np.float64)
+    model = resolve_model(stacked.attrs, "exact")
+    kind = RESIDUAL_KIND.get(str(stacked.attrs.get(names.ATTR_FRF_TYPE, "")), 0)
+    shape, group = line_noise_shape(stacked, frf)
+    values = np.asarray(frf.values, dtype=np.complex128)
+    n_point = values.shape[0] // n_ref
+    out = []
+    for i in range(n_ref):
+        rows = slice(i * n_point, (i + 1) * n_point)
+        prob = varpro.make_problem(
+            values[rows],
+            omega,
+            model.dt,
+            model.n_samples,
+            ("lower", "upper"),
+            nyquist=np.pi / model.dt if model.dt else None,
+            residual_kind=kind,
+        )
+        line = shape if group is None or shape is None else shape[group[i * n_point]]
+        out.append(prob if line is None else grouped.whitened(prob, line))
+    return out
+
+
+def _bumps(prob: varpro.Problem, proj: varpro.Projection, lam: np.ndarray) -> list[complex]:
+    """Starting poles where the noise-normalised residual power of ``prob``'s FRFs at the
+    eigenvalues ``lam`` lies above the chi-square level of false-alarm probability
+    ``screen_pfa`` over the lines, smoothed over the modes' median half-power bandwidth (at
+    most ``MAX_BUMPS``, strongest first, at the median damping ratio)."""
+    from scipy.stats import chi2  # lazy: scipy.stats is slow to import
+
+    omega = prob.omega
+    n_line = omega.size
+    resid = residual_rows(prob, proj)
+    dof = max(prob.n_rows - proj.coef.shape[1], 1)
+    s2 = np.maximum(proj.rss, 1e-300) / dof
+    power = np.sum((resid[:, :n_line] ** 2 + resid[:, n_line:] ** 2) / s2[:, None], axis=0)
+    width = 2.0 * float(np.median(np.abs(lam.real)))
+    dw = omega[1] - omega[0]
+    m = int(np.clip(round(width / dw), 1, max(n_line // 20, 1)))
+    smooth = np.convolve(power, np.ones(m) / m, mode="same")
+    smooth[: m + 1] = 0.0  # no room for a resonance at the band's ends
+    smooth[-m - 1 :] = 0.0
+    level = chi2.isf(POLICY.screen_pfa / n_line, 2 * prob.n_points * m) / m
+    zeta = float(np.median(-lam.real / np.abs(lam)))
+    out = []
+    for _ in range(MAX_BUMPS):
+        i = int(np.argmax(smooth))
+        if smooth[i] <= level:
+            break
+        w = omega[i]
+        out.append(complex(-zeta * w + 1j * w * np.sqrt(1.0 - zeta**2)))
+        smooth[max(i - 3 * m, 0) : i + 3 * m + 1] = 0.0
+    return out
+
+
+def screen(
+    prob: varpro.Problem, lam: np.ndarray, add_pfa: float
+) -> tuple[np.ndarray, list[tuple[complex, float]]]:
+    """The poles one reference's FRFs (``prob``) need beyond the poles ``lam`` (measured), one
+    at a time: a residual bump's pole (strongest first, :func:`_bumps`) fitted with its
+    neighbours among the poles (the others fixed) is kept when ``2 (cost - cost')`` on these
+    FRFs exceeds the completion's threshold (chi-square, ``2 + 2 P`` degrees of freedom,
+    ``add_pfa`` over the lines), it was not frozen at its start and lies within the lines;
+    then the screen runs again on the poles with it (at most ``MAX_PROPOSALS``). Returns the
+    poles (``lam`` as fitted, the kept ones appended) and ``(pole, gain over threshold)`` per
+    pole kept."""
+    from scipy.stats import chi2  # lazy: scipy.stats is slow to import
+
+    lam = np.asarray(lam, dtype=np.complex128)
+    kept: list[tuple[complex, float]] = []
+    if not lam.size:
+        return lam, kept
+    threshold = chi2.isf(add_pfa / max(prob.omega.size, 1), 2 + 2 * prob.n_points)
+    for _ in range(MAX_PROPOSALS):
+        proj = varpro.project(prob, lam)
+        if not proj.ok:
+            break
+        got = None
+        for start in _bumps(prob, proj, lam):
+            width = np.maximum(np.abs(lam.real), abs(start.real))
+            near = np.abs(lam - start) <= NEIGHBOURS * width
+            # the gain of the added pole alone: its neighbours fitted to these FRFs on both
+            # sides of the test (the poles came from other FRFs)
+            cost = varpro.objective(prob, proj)
+            if near.any():
+                cost = _fit(prob, lam, near)[0].cost
+            fit, moved = _fit(prob, np.append(lam, start), np.append(near, True))
+            gain = 2.0 * (cost - fit.cost)
+            new = complex(fit.lam[-1])
+            inside = prob.omega[0] <= new.imag <= prob.omega[-1]
+            # a pole frozen at its start left its region: what it fitted is not a mode there
+            if moved[-1] and np.isfinite(gain) and gain > threshold and new.real < 0 and inside:
+                got = (fit.lam, new, float(gain / threshold))
+                break
+        if got is None:
+            break
+        lam = got[0]
+        kept.append(got[1:])
+    return lam, kept
+
+
+def _fit(prob: varpro.Problem, lam: np.ndarray, free: np.ndarray):
+    """The refinement's fit of ``lam`` (``free`` move), each mode held inside its region
+    around its start (:func:`ami_xr.core.regions.fit_modes`: a neighbour does not wander off
+    to take what lies beyond the band). Returns the fit and which modes stayed free."""
+    dw = prob.omega[1] - prob.omega[0] if prob.omega.size > 1 else 0.0
+    return fit_modes(
+        prob,
+        lam,
+        lam,
+        decay=0.0,
+        max_iter=FIT_ITERATIONS,
+        tol=RefineSettings.tol,
+        max_shift=RefineSettings.max_shift,
+        min_width=2.0 * dw,
+        free=free,
+    )[:2]
+
+
+def proposals(
+    stacked: xr.Dataset, lam: np.ndarray, n_ref: int, add_pfa=None, frozen=None
+) -> list[Proposal]:
+    """Per reference of ``stacked`` (its band's lines, reference-major), in turn, the poles its
+    FRFs need beyond the stacked poles ``lam`` and those the references before it proposed
+    (:func:`screen`: two references that see the same missing mode propose it once). Poles
+    marked ``frozen`` (held at their start by the refinement: what they fit is not a mode
+    there) are left out of the model the references are screened against."""
+    pfa = RefineSettings.add_pfa if add_pfa is None else add_pfa
+    out = []
+    lam = np.asarray(lam, dtype=np.complex128)
+    if frozen is not None:
+        lam = lam[~np.asarray(frozen, bool)]
+    for i, prob in enumerate(reference_problems(stacked, n_ref)):
+        lam, kept = screen(prob, lam, pfa)
+        out += [Proposal(x, i, g) for x, g in kept]
+    return out
