@@ -41,7 +41,7 @@ import numpy as np
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
-from ami_xr.kernels.linalg import solve_normal
+from ami_xr.kernels.linalg import solve2
 from ami_xr.kernels.modal_basis import Grid, as_dt, checked_omega, line_variable, pole_factor
 
 FIT_OK = 0
@@ -159,11 +159,9 @@ def fit_single(data, grid, lo, hi, ws, limits, prev, wts, res_out):
             for b in range(2):
                 red[a, b] += nss[a, b] - (t[a, 0] * nsl[b, 0] + t[a, 1] * nsl[b, 1])
             redr[a, 0] += rs[a] - (t[a, 0] * rl[0] + t[a, 1] * rl[1])
-    sol, ok = solve_normal(red, redr)
+    c0, c1, ok = solve2(red[0, 0], red[0, 1], red[1, 0], red[1, 1], redr[0, 0], redr[1, 0])
     if not ok:
         return nanc, FIT_SINGULAR
-    c0 = sol[0, 0]
-    c1 = sol[1, 0]
     # the pole: root v1 (Im > 0) of v^2 + c1 v + c0
     disc = 4.0 * c0 - c1 * c1
     if not (disc > 0.0) or not np.isfinite(disc):
