@@ -159,9 +159,9 @@ DONE, PAUSED, SPLIT_WANTED = 0, 1, -2
 ``SPLIT_WANTED`` is also the order check's ``ks`` for it."""
 
 
-@jit
 def new_work(data, max_modes):
-    """A :class:`Work` record for the group ``data`` (P, F) in noise units."""
+    """A :class:`Work` record for the group ``data`` (P, F) in noise units (plain numpy: the
+    callers allocate it in Python and hand it to the kernels, so it costs no compilation)."""
     n_p, n_f = data.shape
     return Work(
         data=data,
@@ -529,15 +529,15 @@ def order_check(scene, params, modes, n, work, masked, st):
 
 
 @jit
-def point_estimates_kernel(data, lam, res, scene, delta, min_points):
+def point_estimates_kernel(data, lam, res, scene, delta, min_points, work):
     """Per-FRF single-mode estimates of the modes ``lam`` (K,) on each row of ``data`` (P, F)
     isolated with the residues ``res`` (P, K) (eq. 7; noise units): ``(P, K)`` complex, NaN
-    where the band is too narrow or the fit fails."""
+    where the band is too narrow or the fit fails. ``work``: :func:`new_work` of one row of
+    ``F`` lines for ``max(K, 1)`` modes."""
     omega, x, dt, n_samples = scene.grid
     n_p, n_f = data.shape
     n_k = lam.shape[0]
     out = np.full((n_p, n_k), complex(np.nan, np.nan))
-    work = new_work(np.empty((1, n_f), dtype=np.complex128), max(n_k, 1))
     for k in range(n_k):
         mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
     for j in range(n_p):
