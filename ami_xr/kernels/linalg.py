@@ -49,6 +49,10 @@ def gauss_solve(a, b):
             a[[col, piv]] = a[[piv, col]]
             x[[col, piv]] = x[[piv, col]]
         f = a[col + 1 :, col] / a[col, col]
+        if np.all(f != 0.0):  # the common case: slices, no fancy indexing
+            a[col + 1 :, col:] -= f[:, None] * a[col, col:]
+            x[col + 1 :] -= f[:, None] * x[col]
+            continue
         rows = np.flatnonzero(f != 0.0) + col + 1
         if rows.size:
             f = f[rows - col - 1, None]
