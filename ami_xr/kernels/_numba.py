@@ -49,7 +49,7 @@ CACHE = os.environ.get("AMI_XR_NUMBA_CACHE", "1").strip().lower() not in ("0", "
 
 #: What a cold ``ami-xr demo`` spends compiling, in seconds on a 2-core machine (measured with
 #: ``scripts/bench_first_run.py``).
-FIRST_RUN_SECONDS = 30
+FIRST_RUN_SECONDS = 20
 
 # The notices go to logging.getLogger(names.COMPILE_LOGGER): the first-compilation one at INFO
 # (the CLI prints it on stderr; the Python API leaves it to the caller's logging set-up), the

@@ -159,9 +159,9 @@ DONE, PAUSED, SPLIT_WANTED = 0, 1, -2
 ``SPLIT_WANTED`` is also the order check's ``ks`` for it."""
 
 
-@jit
 def new_work(data, max_modes):
-    """A :class:`Work` record for the group ``data`` (P, F) in noise units."""
+    """A :class:`Work` record for the group ``data`` (P, F) in noise units (plain numpy: the
+    callers allocate it in Python and hand it to the kernels, so it costs no compilation)."""
     n_p, n_f = data.shape
     return Work(
         data=data,
@@ -435,7 +435,7 @@ def sweeps(scene, params, modes, n, work):
 
 
 @jit(inline="always")
-def order_check(scene, params, modes, n, work, masked, st):
+def order_check(scene, params, modes, n, work, masked, c, split_lam, split_res):
     """Model-order check: a significant peak of the residual's power (over the noise and the
     residual that eigenvalue errors of size ``tol`` leave) where a physical mode fits adds it; a
     coherent residual inside a mode's ``+- 3 |Re lam|`` band splits that mode by a two-mode fit.
@@ -444,12 +444,13 @@ def order_check(scene, params, modes, n, work, masked, st):
 
     The two-mode fit is the caller's (compiled only when a split is tried): the check returns
     ``ks = SPLIT_WANTED`` with the isolated data ``iso`` (P, F) of the mode to split (its band
-    in ``st.counts``); called again once ``st.split_lam``, ``st.split_res`` and the fit's code
-    are in ``st``, it takes the split or goes on with its next try, as in one pass."""
+    in the counts ``c``, :attr:`~.groups.Resume.counts`); called again once ``split_lam``,
+    ``split_res`` and the fit's code are in (the :class:`~.groups.Resume` arrays), it takes the
+    split or goes on with its next try, as in one pass. The arrays, not the record: every
+    record passed into inlined code is reference-counted array by array (compile time)."""
     omega, x, dt, n_samples = scene.grid
     lam, res, fails = modes
     n_p, n_f = work.data.shape
-    c = st.counts
     no_iso = np.empty((0, 0), dtype=np.complex128)
     for k in range(n):
         mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
@@ -465,12 +466,12 @@ def order_check(scene, params, modes, n, work, masked, st):
         first += 1
         ks = c[AT_KS]
         if c[AT_SPLIT_CODE] == FIT_OK:
-            lam[ks] = st.split_lam[0]
+            lam[ks] = split_lam[0]
             for j in range(n_p):
-                res[j, ks] = st.split_res[j, 0]
-            lam[n] = st.split_lam[1]
+                res[j, ks] = split_res[j, 0]
+            lam[n] = split_lam[1]
             for j in range(n_p):
-                res[j, n] = st.split_res[j, 1]
+                res[j, n] = split_res[j, 1]
             fails[n] = 0
             c[AT_TRY] = 0
             return n + 1, True, ks, no_iso
@@ -529,15 +530,15 @@ def order_check(scene, params, modes, n, work, masked, st):
 
 
 @jit
-def point_estimates_kernel(data, lam, res, scene, delta, min_points):
+def point_estimates_kernel(data, lam, res, scene, delta, min_points, work):
     """Per-FRF single-mode estimates of the modes ``lam`` (K,) on each row of ``data`` (P, F)
     isolated with the residues ``res`` (P, K) (eq. 7; noise units): ``(P, K)`` complex, NaN
-    where the band is too narrow or the fit fails."""
+    where the band is too narrow or the fit fails. ``work``: :func:`new_work` of one row of
+    ``F`` lines for ``max(K, 1)`` modes."""
     omega, x, dt, n_samples = scene.grid
     n_p, n_f = data.shape
     n_k = lam.shape[0]
     out = np.full((n_p, n_k), complex(np.nan, np.nan))
-    work = new_work(np.empty((1, n_f), dtype=np.complex128), max(n_k, 1))
     for k in range(n_k):
         mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
     for j in range(n_p):

@@ -111,22 +111,23 @@ def split_fit(iso: np.ndarray, scene, st: Resume) -> None:
 
 
 @jit(inline="always")
-def _start_group(lam0, res0, n0, g, out, st, work, m):
-    """Group ``g``'s starting modes into ``out`` and a fresh state in ``st`` and ``work``."""
-    n_p = out.res.shape[1]
+def _start_group(lam0, res0, n0, g, modes, masked, c, work, m):
+    """Group ``g``'s starting modes into ``modes`` (its slots of the result) and a fresh state
+    in ``masked``, the counts ``c`` and ``work``. Arrays and small records, not the whole
+    :class:`Resume`: a record passed into inlined code is reference-counted array by array."""
+    n_p = modes.res.shape[0]
     n = min(n0[g], m)
     for k in range(n):
-        out.lam[g, k] = lam0[g, k]
+        modes.lam[k] = lam0[g, k]
         for j in range(n_p):
-            out.res[g, j, k] = res0[g, j, k]
+            modes.res[j, k] = res0[g, j, k]
     work.wts[:] = 1.0
     work.wts_all[:, :] = 1.0
     work.power[:] = 0.0
     work.back[:] = complex(np.nan, np.nan)
     work.pinned[:] = False
-    st.fails[:] = 0
-    st.masked[:] = False
-    c = st.counts
+    modes.fails[:] = 0
+    masked[:] = False
     c[AT_STARTED], c[AT_RESTART], c[AT_N], c[AT_N_TRIED] = 1, 0, n, 0
     c[AT_LAST], c[AT_FINISHED], c[AT_CONVERGED], c[AT_IN_CHECK] = 0, 0, 0, 0
     c[AT_TRY], c[AT_SPLIT] = 0, SPLIT_NONE
@@ -167,9 +168,9 @@ def isolate_groups(data, lam0, res0, n0, scene, params, out, st, budget):
             data[g], w.xn, w.rtmp, w.wts, w.wts_all, w.br, w.bi, w.bcr, w.bci, w.tr, w.ti,
             w.power, w.back, w.pinned,
         )  # fmt: skip
-        if c[AT_STARTED] == 0:
-            _start_group(lam0, res0, n0, g, out, st, work, m)
         modes = ModeSet(out.lam[g], out.res[g], st.fails)
+        if c[AT_STARTED] == 0:
+            _start_group(lam0, res0, n0, g, modes, masked, c, work, m)
         n = c[AT_N]
         while c[AT_RESTART] < m + 4:
             if c[AT_IN_CHECK] == 0:
@@ -187,7 +188,9 @@ def isolate_groups(data, lam0, res0, n0, scene, params, out, st, budget):
                 if n >= m or c[AT_LAST] != 0:
                     c[AT_FINISHED] = 1
                     break
-            n, added, ks, iso = order_check(scene, params, modes, n, work, masked, st)
+            n, added, ks, iso = order_check(
+                scene, params, modes, n, work, masked, c, st.split_lam, st.split_res
+            )
             if ks == SPLIT_WANTED:
                 c[AT_IN_CHECK] = 1
                 c[AT_N] = n

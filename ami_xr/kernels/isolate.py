@@ -20,6 +20,7 @@ from ami_xr.kernels.engine import (
     STOP_FRACTION,
     IsolateParams,
     IsolateResult,
+    new_work,
     point_estimates_kernel,
 )
 from ami_xr.kernels.groups import isolate_groups, new_result, new_resume, split_fit
@@ -301,6 +302,7 @@ def point_estimates(
     peak = np.max(np.abs(data), axis=1) if data.size else np.ones(data.shape[0])
     peak = np.where(peak > 0.0, peak, 1.0)[:, None]
     where = scene(omega, dt, n, zeta_max, 0.5, 1)
+    work = new_work(np.empty((1, data.shape[1]), dtype=np.complex128), max(lam.size, 1))
     return point_estimates_kernel(
-        data / peak, lam, res / peak, where, float(delta), int(min_points)
+        data / peak, lam, res / peak, where, float(delta), int(min_points), work
     )

@@ -1,8 +1,10 @@
 """Small dense solvers of the AMI kernels (no LAPACK call: the systems are 2x2 to ~40x40).
 
-``gauss_solve``, ``solve_normal`` and ``poly_roots`` are jitted and unchecked, for the other
-kernel modules; :func:`solve_normal_equations` and :func:`polynomial_roots` are the checked
-wrappers.
+Unchecked helpers for the other kernel modules: ``gauss_solve`` and ``solve_normal`` (plain
+numpy: only Python calls them, so they cost no compilation on a first run), ``solve2`` (the
+same solve of a 2 x 2 system in scalars, inlined into the jitted single-mode fit) and
+``poly_roots`` (jitted). :func:`solve_normal_equations` and :func:`polynomial_roots` are the
+checked wrappers.
 
 Normal equations are solved after Jacobi (diagonal) scaling, with one step of iterative
 refinement, by Gaussian elimination with partial pivoting. Roots of a low-degree polynomial come
@@ -22,91 +24,126 @@ from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
 
 
-@jit
 def gauss_solve(a, b):
     """Solve ``a x = b`` (n x n, n x m) by Gaussian elimination with partial pivoting.
-
     Returns ``(x, ok)``; ``ok`` is False when a pivot is zero. ``a`` and ``b`` are not modified.
+
+    Plain numpy (only Python calls it: nothing to compile on a first run), vectorised over the
+    rows of a column and over the right sides; every element sees the arithmetic, in the order,
+    of the scalar loops (pivot: the first row of the largest ``|a[r, col]|``).
     """
     n = a.shape[0]
-    m = b.shape[1]
-    a = a.copy()
-    x = b.copy()
+    a = np.array(a, dtype=np.float64)
+    x = np.array(b, dtype=np.float64)
     for col in range(n):
         piv = col
-        big = abs(a[col, col])
+        column = np.abs(a[:, col]).tolist()
+        big = column[col]
         for r in range(col + 1, n):
-            if abs(a[r, col]) > big:
-                big = abs(a[r, col])
+            if column[r] > big:  # NaN never wins, as in a scalar loop
+                big = column[r]
                 piv = r
-        if big == 0.0 or not np.isfinite(big):
+        if big == 0.0 or not math.isfinite(big):
             return x, False
         if piv != col:
-            for c in range(n):
-                tmp = a[col, c]
-                a[col, c] = a[piv, c]
-                a[piv, c] = tmp
-            for c in range(m):
-                tmp = x[col, c]
-                x[col, c] = x[piv, c]
-                x[piv, c] = tmp
-        for r in range(col + 1, n):
-            f = a[r, col] / a[col, col]
-            if f != 0.0:
-                for c in range(col, n):
-                    a[r, c] -= f * a[col, c]
-                for c in range(m):
-                    x[r, c] -= f * x[col, c]
+            a[[col, piv]] = a[[piv, col]]
+            x[[col, piv]] = x[[piv, col]]
+        f = a[col + 1 :, col] / a[col, col]
+        if np.all(f != 0.0):  # the common case: slices, no fancy indexing
+            a[col + 1 :, col:] -= f[:, None] * a[col, col:]
+            x[col + 1 :] -= f[:, None] * x[col]
+            continue
+        rows = np.flatnonzero(f != 0.0) + col + 1
+        if rows.size:
+            f = f[rows - col - 1, None]
+            a[rows, col:] -= f * a[col, col:]
+            x[rows] -= f * x[col]
     for col in range(n - 1, -1, -1):
-        for c in range(m):
-            s = x[col, c]
-            for k in range(col + 1, n):
-                s -= a[col, k] * x[k, c]
-            x[col, c] = s / a[col, col]
+        s = x[col].copy()
+        for k in range(col + 1, n):
+            s -= a[col, k] * x[k]
+        x[col] = s / a[col, col]
     return x, True
 
 
-@jit
 def solve_normal(nmat, rhs):
     """Solve symmetric normal equations ``nmat x = rhs`` (rhs n x m) with Jacobi scaling and one
-    step of iterative refinement. Returns ``(x, ok)``."""
+    step of iterative refinement. Returns ``(x, ok)``. Plain numpy (see :func:`gauss_solve`);
+    the jitted kernels solve their 2 x 2 systems with :func:`solve2`."""
+    nmat = np.asarray(nmat, dtype=np.float64)
+    rhs = np.asarray(rhs, dtype=np.float64)
     n = nmat.shape[0]
-    m = rhs.shape[1]
-    d = np.empty(n)
-    for i in range(n):
-        d[i] = 1.0 / math.sqrt(nmat[i, i]) if nmat[i, i] > 0.0 else 1.0
-    s = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            s[i, j] = nmat[i, j] * d[i] * d[j]
-    sr = np.empty((n, m))
-    for i in range(n):
-        for c in range(m):
-            sr[i, c] = rhs[i, c] * d[i]
+    diag = np.diagonal(nmat).copy()
+    pos = diag > 0.0
+    d = np.ones(n)
+    d[pos] = 1.0 / np.sqrt(diag[pos])
+    s = nmat * d[:, None] * d[None, :]
+    sr = rhs * d[:, None]
     y, ok = gauss_solve(s, sr)
     if not ok:
         return y, False
-    # one refinement step on the scaled system
-    res = sr.copy()
-    for i in range(n):
-        for c in range(m):
-            acc = 0.0
-            for j in range(n):
-                acc += s[i, j] * y[j, c]
-            res[i, c] -= acc
-    dy, ok2 = gauss_solve(s, res)
+    # one refinement step on the scaled system (sums over j in order, as a scalar loop)
+    acc = np.zeros_like(sr)
+    for j in range(n):
+        acc += s[:, j, None] * y[None, j, :]
+    dy, ok2 = gauss_solve(s, sr - acc)
     if ok2:
-        for i in range(n):
-            for c in range(m):
-                y[i, c] += dy[i, c]
-    x = np.empty((n, m))
-    for i in range(n):
-        for c in range(m):
-            x[i, c] = y[i, c] * d[i]
-        for c in range(m):
-            if not np.isfinite(x[i, c]):
-                return x, False
-    return x, True
+        y += dy
+    x = y * d[:, None]
+    return x, bool(np.all(np.isfinite(x)))
+
+
+@jit(inline="always")
+def solve2(a00, a01, a10, a11, b0, b1):
+    """:func:`solve_normal` of a 2 x 2 system with one right side, in scalars (the same
+    arithmetic, in the same order: Jacobi scaling, elimination with partial pivoting, one
+    refinement step). Returns ``(x0, x1, ok)``. Inlined: no arrays, no separate compilation."""
+    d0 = 1.0 / math.sqrt(a00) if a00 > 0.0 else 1.0
+    d1 = 1.0 / math.sqrt(a11) if a11 > 0.0 else 1.0
+    s00 = a00 * d0 * d0
+    s01 = a01 * d0 * d1
+    s10 = a10 * d1 * d0
+    s11 = a11 * d1 * d1
+    r0 = b0 * d0
+    r1 = b1 * d1
+    y0, y1, ok = _gauss2(s00, s01, s10, s11, r0, r1)
+    if not ok:
+        return y0, y1, False
+    acc0 = 0.0
+    acc0 += s00 * y0
+    acc0 += s01 * y1
+    acc1 = 0.0
+    acc1 += s10 * y0
+    acc1 += s11 * y1
+    e0, e1, ok2 = _gauss2(s00, s01, s10, s11, r0 - acc0, r1 - acc1)
+    if ok2:
+        y0 += e0
+        y1 += e1
+    x0 = y0 * d0
+    x1 = y1 * d1
+    return x0, x1, math.isfinite(x0) and math.isfinite(x1)
+
+
+@jit(inline="always")
+def _gauss2(a00, a01, a10, a11, x0, x1):
+    """:func:`gauss_solve` of a 2 x 2 system with one right side, in scalars."""
+    big = abs(a00)
+    if abs(a10) > big:
+        big = abs(a10)
+        a00, a01, a10, a11, x0, x1 = a10, a11, a00, a01, x1, x0
+    if big == 0.0 or not math.isfinite(big):
+        return x0, x1, False
+    f = a10 / a00
+    if f != 0.0:
+        a11 -= f * a01
+        x1 -= f * x0
+    big = abs(a11)
+    if big == 0.0 or not math.isfinite(big):
+        return x0, x1, False
+    x1 = x1 / a11
+    s = x0
+    s -= a01 * x1
+    return s / a00, x1, True
 
 
 _EPS = float(np.finfo(np.float64).eps)

@@ -6,8 +6,8 @@ real unknowns each (``residual_kind`` 0 receptance, 1 mobility, 2 accelerance; t
 :func:`ami_xr.kernels.modal_basis.model_columns`). Every FRF shares the columns, so the normal
 matrix is formed once and only the right sides are per FRF.
 
-Plain numpy (only Python calls it, so nothing here is jitted: no first-run compilation); the
-solve is the jitted :func:`~.linalg.solve_normal` the single-mode fit compiles anyway. Checked
+Plain numpy (only Python calls it, so nothing here is jitted: no first-run compilation), the
+solve :func:`~.linalg.solve_normal` too. Checked
 wrappers: :func:`residue_normal_equations`, :func:`residues_fixed`.
 """
 

@@ -41,7 +41,7 @@ import numpy as np
 
 from ami_xr.errors import AmiXrValueError
 from ami_xr.kernels._numba import jit
-from ami_xr.kernels.linalg import solve_normal
+from ami_xr.kernels.linalg import solve2
 from ami_xr.kernels.modal_basis import Grid, as_dt, checked_omega, line_variable, pole_factor
 
 FIT_OK = 0
@@ -77,20 +77,23 @@ class FitLimits(NamedTuple):
 
 
 @jit(inline="always")
-def _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, blocks):
-    """Accumulate the normal equations of (*) on lines lo..hi-1 of one FRF.
+def _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev):
+    """The normal equations of (*) on lines lo..hi-1 of one FRF, as scalars.
 
     Unknowns: shared ``s = (c0, c1)``, local ``l = (e0, e1)``. Columns of (*) written as
     ``G v^2 = -c0 G - c1 G v + e0 + e1 v``; the data is divided by ``gscale``.
-    ``blocks = (nss, nsl, nll, rs, rl)``: ``nss``, ``nsl``, ``nll`` (2x2) and right sides ``rs``,
-    ``rl`` (2), accumulated in place.
+    Returns ``(nss, nsl, nll, rs, rl)`` flattened, 16 floats: the 2x2 blocks ``nss``, ``nsl``,
+    ``nll`` row by row, then the right sides ``rs`` and ``rl`` (2 each).
     When ``prev`` (a previous pole estimate) is not NaN every line is divided by
     ``|D_prev(v)| = |(v - v1)(v - conj(v1))|`` (Sanathanan-Koerner / Steiglitz-McBride): at a
     fixed point the equation error becomes the output error ``G - N/D``, which removes the
     damping bias that noise in the regressor columns gives the plain eqs. 11-12.
+    Scalars, not small arrays: a quarter of the compiled code (first-run compile time).
     """
-    nss, nsl, nll, rs, rl = blocks
-    cols = np.empty(4, dtype=np.complex128)
+    ss00 = ss01 = ss10 = ss11 = 0.0
+    sl00 = sl01 = sl10 = sl11 = 0.0
+    ll00 = ll01 = ll10 = ll11 = 0.0
+    rs0 = rs1 = rl0 = rl1 = 0.0
     use_w = not np.isnan(prev.real)
     # v of a line (and the root v1 of the previous pole): (1 - q) / (dt ws) or i w / ws
     discrete = dt > 0.0
@@ -103,21 +106,34 @@ def _single_mode_blocks(data, x, lo, hi, ws, dt, gscale, prev, blocks):
         wgt = 1.0
         if use_w:
             wgt = 1.0 / abs((v - pv) * (v - np.conj(pv)))
-        cols[0] = -g * wgt
-        cols[1] = -g * v * wgt
-        cols[2] = wgt
-        cols[3] = v * wgt
+        c0 = -g * wgt
+        c1 = -g * v * wgt
+        c2 = complex(wgt, 0.0)
+        c3 = v * wgt
         rhs = g * v * v * wgt
-        for a in range(2):
-            ca = np.conj(cols[a])
-            for b in range(2):
-                nss[a, b] += (ca * cols[b]).real
-                nsl[a, b] += (ca * cols[2 + b]).real
-            rs[a] += (ca * rhs).real
-            cla = np.conj(cols[2 + a])
-            for b in range(2):
-                nll[a, b] += (cla * cols[2 + b]).real
-            rl[a] += (cla * rhs).real
+        k0 = np.conj(c0)
+        k1 = np.conj(c1)
+        k2 = np.conj(c2)
+        k3 = np.conj(c3)
+        ss00 += (k0 * c0).real
+        ss01 += (k0 * c1).real
+        ss10 += (k1 * c0).real
+        ss11 += (k1 * c1).real
+        sl00 += (k0 * c2).real
+        sl01 += (k0 * c3).real
+        sl10 += (k1 * c2).real
+        sl11 += (k1 * c3).real
+        ll00 += (k2 * c2).real
+        ll01 += (k2 * c3).real
+        ll10 += (k3 * c2).real
+        ll11 += (k3 * c3).real
+        rs0 += (k0 * rhs).real
+        rs1 += (k1 * rhs).real
+        rl0 += (k2 * rhs).real
+        rl1 += (k3 * rhs).real
+    return (
+        ss00, ss01, ss10, ss11, sl00, sl01, sl10, sl11, ll00, ll01, ll10, ll11, rs0, rs1, rl0, rl1
+    )  # fmt: skip
 
 
 @jit
@@ -135,35 +151,34 @@ def fit_single(data, grid, lo, hi, ws, limits, prev, wts, res_out):
     nanc = complex(np.nan, np.nan)
     if hi - lo < 2:
         return nanc, FIT_SINGULAR
-    red = np.zeros((2, 2))
-    redr = np.zeros((2, 1))
-    nll_all = np.zeros((n_p, 2, 2))
-    nsl_all = np.zeros((n_p, 2, 2))
-    rl_all = np.zeros((n_p, 2))
-    nss = np.empty((2, 2))
-    t = np.empty((2, 2))
+    red00 = red01 = red10 = red11 = 0.0
+    redr0 = redr1 = 0.0
+    keep = np.empty((n_p, 10))  # per row: nsl, nll (row by row), rl: for the residues
     for j in range(n_p):
-        nss[:] = 0.0
-        nsl, nll, rl = nsl_all[j], nll_all[j], rl_all[j]
-        rs = np.zeros(2)
-        _single_mode_blocks(data[j], x, lo, hi, ws, dt, 1.0 / wts[j], prev, (nss, nsl, nll, rs, rl))
-        det = nll[0, 0] * nll[1, 1] - nll[0, 1] * nll[1, 0]
+        blocks = _single_mode_blocks(data[j], x, lo, hi, ws, dt, 1.0 / wts[j], prev)
+        ss00, ss01, ss10, ss11, sl00, sl01, sl10, sl11 = blocks[:8]
+        ll00, ll01, ll10, ll11, rs0, rs1, rl0, rl1 = blocks[8:]
+        kj = keep[j]
+        kj[0], kj[1], kj[2], kj[3], kj[4] = sl00, sl01, sl10, sl11, ll00
+        kj[5], kj[6], kj[7], kj[8], kj[9] = ll01, ll10, ll11, rl0, rl1
+        det = ll00 * ll11 - ll01 * ll10
         if not (det != 0.0 and np.isfinite(det)):
             return nanc, FIT_SINGULAR
         # red += nss - nsl nll^-1 nls ; redr += rs - nsl nll^-1 rl  (2x2 by hand: a BLAS call
         # per FRF cost more than the fit)
-        for a in range(2):
-            t[a, 0] = (nsl[a, 0] * nll[1, 1] - nsl[a, 1] * nll[1, 0]) / det
-            t[a, 1] = (nsl[a, 1] * nll[0, 0] - nsl[a, 0] * nll[0, 1]) / det
-        for a in range(2):
-            for b in range(2):
-                red[a, b] += nss[a, b] - (t[a, 0] * nsl[b, 0] + t[a, 1] * nsl[b, 1])
-            redr[a, 0] += rs[a] - (t[a, 0] * rl[0] + t[a, 1] * rl[1])
-    sol, ok = solve_normal(red, redr)
+        t00 = (sl00 * ll11 - sl01 * ll10) / det
+        t01 = (sl01 * ll00 - sl00 * ll01) / det
+        t10 = (sl10 * ll11 - sl11 * ll10) / det
+        t11 = (sl11 * ll00 - sl10 * ll01) / det
+        red00 += ss00 - (t00 * sl00 + t01 * sl01)
+        red01 += ss01 - (t00 * sl10 + t01 * sl11)
+        red10 += ss10 - (t10 * sl00 + t11 * sl01)
+        red11 += ss11 - (t10 * sl10 + t11 * sl11)
+        redr0 += rs0 - (t00 * rl0 + t01 * rl1)
+        redr1 += rs1 - (t10 * rl0 + t11 * rl1)
+    c0, c1, ok = solve2(red00, red01, red10, red11, redr0, redr1)
     if not ok:
         return nanc, FIT_SINGULAR
-    c0 = sol[0, 0]
-    c1 = sol[1, 0]
     # the pole: root v1 (Im > 0) of v^2 + c1 v + c0
     disc = 4.0 * c0 - c1 * c1
     if not (disc > 0.0) or not np.isfinite(disc):
@@ -188,12 +203,13 @@ def fit_single(data, grid, lo, hi, ws, limits, prev, wts, res_out):
         p, sc = pole_factor(lam, dt, n_samples)
         factor = factor * p * dt / sc
     for j in range(n_p):
-        nll = nll_all[j]
-        b0 = rl_all[j, 0] - (nsl_all[j, 0, 0] * c0 + nsl_all[j, 1, 0] * c1)
-        b1 = rl_all[j, 1] - (nsl_all[j, 0, 1] * c0 + nsl_all[j, 1, 1] * c1)
-        det = nll[0, 0] * nll[1, 1] - nll[0, 1] * nll[1, 0]
-        e0 = (nll[1, 1] * b0 - nll[0, 1] * b1) / det
-        e1 = (-nll[1, 0] * b0 + nll[0, 0] * b1) / det
+        sl00, sl01, sl10, sl11, ll00 = keep[j, 0], keep[j, 1], keep[j, 2], keep[j, 3], keep[j, 4]
+        ll01, ll10, ll11, rl0, rl1 = keep[j, 5], keep[j, 6], keep[j, 7], keep[j, 8], keep[j, 9]
+        b0 = rl0 - (sl00 * c0 + sl10 * c1)
+        b1 = rl1 - (sl01 * c0 + sl11 * c1)
+        det = ll00 * ll11 - ll01 * ll10
+        e0 = (ll11 * b0 - ll01 * b1) / det
+        e1 = (-ll10 * b0 + ll00 * b1) / det
         res_out[j] = (e1 * v1 + e0) * factor / wts[j]
     return lam, FIT_OK
 

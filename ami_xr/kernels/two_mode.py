@@ -63,8 +63,8 @@ def fit_two(data, grid, lo, hi, ws, limits, wts, lam_out, res_out):
     code.
 
     Plain numpy (the isolation calls it from Python, and only when it tries a split: nothing to
-    compile for a run that never does); the small solves are the jitted ones of
-    :mod:`.linalg` the single-mode fit compiles anyway, the roots ``np.roots``'s.
+    compile for a run that never does); the small solves are those of :mod:`.linalg`, the
+    roots ``np.roots``'s.
     """
     x, dt, n_samples = grid.x, grid.dt, grid.n_samples
     m = 4

@@ -194,7 +194,7 @@ def test_unwritable_cache_compiles_in_memory_with_one_notice(tmp_path, where):
 CONCURRENT = """
 import json, os, sys, time
 import numpy as np
-from ami_xr.kernels import linalg, modal_basis, residues
+from ami_xr.kernels import modal_basis, peak, residues, single_mode
 # both processes start compiling at the same moment: wait for the go file
 while not os.path.exists(sys.argv[1]):
     time.sleep(0.01)
@@ -203,13 +203,19 @@ lam = np.array([-0.5 + 20j, -1.0 + 45j])
 h = modal_basis.synthesize(w, lam[None, :], np.array([[1.0 - 2j, 0.5 + 1j]]))
 fitted = residues.residues_fixed(h, w, lam)[0]
 peaks = modal_basis.contribution_peaks(w, None, None, lam[None, :], fitted[None, :])[0]
+# jitted kernels (the numpy helpers above compile nothing): one mode fitted exactly
+one = modal_basis.synthesize(w, lam[None, :1], np.array([[1.0 - 2j]]))[0]
+pole, _, code = single_mode.fit_single_mode(one, w)
+band = peak.pole_band(w, lam[0], 0.5, 3)  # a second one
 stats = [
-    d.stats for m in (linalg, modal_basis, residues) for d in vars(m).values()
+    d.stats for m in (modal_basis, peak, single_mode) for d in vars(m).values()
     if hasattr(d, "stats")
 ]
 print(json.dumps({
     "residues": [fitted.real.tolist(), fitted.imag.tolist()],
     "peaks": peaks.tolist(),
+    "pole": [pole.real, pole.imag, code],
+    "band": [int(band[0]), int(band[1])],
     "misses": sum(sum(s.cache_misses.values()) for s in stats),
     "hits": sum(sum(s.cache_hits.values()) for s in stats),
 }))
@@ -263,6 +269,10 @@ def test_two_first_runs_at_once_both_succeed_and_leave_a_good_cache(tmp_path):
     for r in (*results, warm):
         np.testing.assert_allclose(r["residues"][0] + 1j * np.asarray(r["residues"][1]), res)
         np.testing.assert_allclose(r["peaks"], peaks, rtol=1e-12)
+        # eqs. 11-12 are exact on one noise-free mode: the pole to the rounding of the solve
+        assert r["pole"][2] == 0
+        assert r["band"] == results[0]["band"]
+        np.testing.assert_allclose(r["pole"][0] + 1j * r["pole"][1], lam[0], rtol=1e-10)
 
 
 @pytest.mark.parametrize(

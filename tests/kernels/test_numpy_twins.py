@@ -98,3 +98,80 @@ def test_residues_of_a_row_do_not_depend_on_the_rows_given_with_it():
     whole = kr.residues_fixed(data, OMEGA, lam[:3], residual_kind=1)
     alone = np.vstack([kr.residues_fixed(row, OMEGA, lam[:3], residual_kind=1) for row in data])
     np.testing.assert_array_equal(whole, alone)
+
+
+# --- the small solves: numpy for Python callers, scalars inside the single-mode fit -------------
+def _gauss_loops(a, b):
+    """Gaussian elimination with partial pivoting written element by element (the scalar loops
+    the numpy version vectorises)."""
+    n, m = a.shape[0], b.shape[1]
+    a, x = [list(map(float, r)) for r in a], [list(map(float, r)) for r in b]
+    for col in range(n):
+        piv, big = col, abs(a[col][col])
+        for r in range(col + 1, n):
+            if abs(a[r][col]) > big:
+                big, piv = abs(a[r][col]), r
+        if big == 0.0 or not np.isfinite(big):
+            return None
+        a[col], a[piv], x[col], x[piv] = a[piv], a[col], x[piv], x[col]
+        for r in range(col + 1, n):
+            f = a[r][col] / a[col][col]
+            if f != 0.0:
+                for c in range(col, n):
+                    a[r][c] -= f * a[col][c]
+                for c in range(m):
+                    x[r][c] -= f * x[col][c]
+    for col in range(n - 1, -1, -1):
+        for c in range(m):
+            s = x[col][c]
+            for k in range(col + 1, n):
+                s -= a[col][k] * x[k][c]
+            x[col][c] = s / a[col][col]
+    return np.array(x)
+
+
+def _systems(seed, count):
+    rng = np.random.default_rng(seed)
+    for t in range(count):
+        n, m = (2, 1) if t % 2 else (int(rng.integers(1, 9)), int(rng.integers(1, 4)))
+        a = rng.normal(size=(3 * n, n)) * np.exp(rng.uniform(-8, 8, n))  # badly scaled
+        nmat = a.T @ a
+        if t % 5 == 0:
+            nmat = nmat[::-1, ::-1].copy() - 2.0 * np.diag(np.diag(nmat))  # pivoting, negative
+        if t % 7 == 0:
+            nmat[0, :] = nmat[:, 0] = 0.0  # singular
+        yield nmat, rng.normal(size=(n, m))
+
+
+def test_gauss_solve_is_the_scalar_elimination():
+    """Each element sees the scalar loops' operations in their order: the same result (to one
+    rounding of the last operation: numpy and Python evaluate identical IEEE expressions)."""
+    from ami_xr.kernels import linalg
+
+    for nmat, rhs in _systems(1, 120):
+        want = _gauss_loops(nmat, rhs)
+        got, ok = linalg.gauss_solve(nmat, rhs)
+        assert ok == (want is not None)
+        if ok:
+            np.testing.assert_allclose(got, want, rtol=1e-15, atol=0)
+
+
+def test_solve2_is_solve_normal_of_a_2x2_system():
+    """The scalar 2 x 2 solve inlined into ``fit_single`` against the general one (same
+    scaling, pivoting and refinement), singular and badly scaled systems included."""
+    import numba
+
+    from ami_xr.kernels import linalg
+
+    solve2 = numba.njit(lambda a, b: linalg.solve2(a[0, 0], a[0, 1], a[1, 0], a[1, 1], b[0], b[1]))
+    seen = {True: 0, False: 0}
+    for nmat, rhs in _systems(2, 200):
+        if nmat.shape != (2, 2):
+            continue
+        want, ok = linalg.solve_normal(nmat, rhs)
+        x0, x1, ok2 = solve2(nmat, rhs[:, 0])
+        assert ok2 == ok
+        seen[ok] += 1
+        if ok:
+            np.testing.assert_allclose([x0, x1], want[:, 0], rtol=1e-15, atol=0)
+    assert seen[True] > 50 and seen[False] > 5
