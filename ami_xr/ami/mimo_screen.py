@@ -35,7 +35,7 @@ from ami_xr.ami.settings import RefineSettings
 from ami_xr.core import grouped, varpro
 from ami_xr.core.model import resolve_model
 from ami_xr.core.policy import POLICY
-from ami_xr.core.regions import fit_modes, residual_rows
+from ami_xr.core.regions import fit_modes, residual_peaks
 
 # proposals per reference (each a likelihood-ratio test on its FRFs)
 MAX_PROPOSALS = 2
@@ -87,34 +87,9 @@ def reference_problems(stacked: xr.Dataset, n_ref: int) -> list[varpro.Problem]:
 
 def _bumps(prob: varpro.Problem, proj: varpro.Projection, lam: np.ndarray) -> list[complex]:
     """Starting poles where the noise-normalised residual power of ``prob``'s FRFs at the
-    eigenvalues ``lam`` lies above the chi-square level of false-alarm probability
-    ``screen_pfa`` over the lines, smoothed over the modes' median half-power bandwidth (at
-    most ``MAX_BUMPS``, strongest first, at the median damping ratio)."""
-    from scipy.stats import chi2  # lazy: scipy.stats is slow to import
-
-    omega = prob.omega
-    n_line = omega.size
-    resid = residual_rows(prob, proj)
-    dof = max(prob.n_rows - proj.coef.shape[1], 1)
-    s2 = np.maximum(proj.rss, 1e-300) / dof
-    power = np.sum((resid[:, :n_line] ** 2 + resid[:, n_line:] ** 2) / s2[:, None], axis=0)
-    width = 2.0 * float(np.median(np.abs(lam.real)))
-    dw = omega[1] - omega[0]
-    m = int(np.clip(round(width / dw), 1, max(n_line // 20, 1)))
-    smooth = np.convolve(power, np.ones(m) / m, mode="same")
-    smooth[: m + 1] = 0.0  # no room for a resonance at the band's ends
-    smooth[-m - 1 :] = 0.0
-    level = chi2.isf(POLICY.screen_pfa / n_line, 2 * prob.n_points * m) / m
-    zeta = float(np.median(-lam.real / np.abs(lam)))
-    out = []
-    for _ in range(MAX_BUMPS):
-        i = int(np.argmax(smooth))
-        if smooth[i] <= level:
-            break
-        w = omega[i]
-        out.append(complex(-zeta * w + 1j * w * np.sqrt(1.0 - zeta**2)))
-        smooth[max(i - 3 * m, 0) : i + 3 * m + 1] = 0.0
-    return out
+    eigenvalues ``lam`` stands above its screen level (the completion's residual screen,
+    :func:`ami_xr.core.regions.residual_peaks`; at most ``MAX_BUMPS``, strongest first)."""
+    return residual_peaks(prob, proj, lam, MAX_BUMPS, POLICY.screen_pfa)[0]
 
 
 def screen(

@@ -22,7 +22,14 @@ from ami_xr.core.order_state import Fitted, Modes, State, Trial
 from ami_xr.core.pairs import merge_split_pairs, peak_strength
 from ami_xr.core.policy import POLICY, OrderPolicy
 from ami_xr.core.proposals import cluster_starts
-from ami_xr.core.regions import band_fit, complex_rows, fit_modes, residual_rows, weighted_gain
+from ami_xr.core.regions import (
+    band_fit,
+    complex_rows,
+    fit_modes,
+    residual_peaks,
+    residual_rows,
+    weighted_gain,
+)
 
 __all__ = ["Modes", "State", "Trial", "fit_modes", "is_exact", "order_tests", "set_stage"]
 
@@ -47,45 +54,6 @@ class Judge(NamedTuple):
     # trial that leaves it alone would fail the same way -- it is not fitted (the hammer FRF:
     # one mode froze in every trial of its last two steps; full fits 22 -> 14, same modes)
     stuck: np.ndarray
-
-
-def _residual_candidates(prob, fit, n_candidates=2, screen_pfa=POLICY.screen_pfa):
-    """Where a missing mode would be: peaks of the noise-normalised residual power.
-
-    ``S(w) = sum_j |r_j(w)|^2 / s_j^2`` is chi-square with 2P degrees of freedom per line when
-    the model is complete; a missing mode adds a coherent bump about one bandwidth wide, so ``S``
-    is smoothed over the typical bandwidth (in lines) of the modes found. Only peaks above the
-    chi-square level of false-alarm probability ``screen_pfa`` over the band are returned (a cheap
-    screen before the likelihood-ratio test): candidate data poles, damping the median of the
-    modes found. Also returns ``S`` itself (unsmoothed): ``(candidates, S)``.
-    """
-    from scipy.stats import chi2  # lazy: scipy.stats is slow to import
-
-    proj = fit.proj
-    omega = prob.omega
-    n_line = omega.size
-    resid = residual_rows(prob, proj)
-    s2 = np.maximum(proj.rss, 1e-300) / max(prob.n_rows - proj.coef.shape[1], 1)
-    power = np.sum((resid[:, :n_line] ** 2 + resid[:, n_line:] ** 2) / s2[:, None], axis=0)
-    lam = fit.lam
-    zeta = float(np.median(-lam.real / np.abs(lam))) if lam.size else 0.01
-    dw = omega[1] - omega[0]
-    width = 2.0 * float(np.median(np.abs(lam.real))) if lam.size else 4 * dw
-    m = int(np.clip(round(width / dw), 1, max(n_line // 20, 1)))
-    smooth = np.convolve(power, np.ones(m) / m, mode="same")
-    smooth[: m + 1] = 0.0  # not at DC or Nyquist: no room for a resonance there
-    smooth[-m - 1 :] = 0.0
-    n_point = prob.n_points
-    level = chi2.isf(screen_pfa / n_line, 2 * n_point * m) / m
-    out = []
-    for _ in range(n_candidates):
-        i = int(np.argmax(smooth))
-        if smooth[i] <= level:
-            break
-        w = omega[i]
-        out.append(-zeta * w + 1j * w * np.sqrt(1.0 - zeta**2))
-        smooth[max(i - 3 * m, 0) : i + 3 * m + 1] = 0.0
-    return out, power
 
 
 def _costs_without_each_mode(prob, proj):
@@ -237,7 +205,7 @@ def _proposals(prob, state: State, decay: float, min_width: float, policy: Order
     from scipy.stats import chi2  # lazy: scipy.stats is slow to import
 
     fit = state.fit
-    peaks, power = _residual_candidates(prob, fit, policy.residual_peaks, policy.screen_pfa)
+    peaks, power = residual_peaks(prob, fit.proj, fit.lam, policy.residual_peaks, policy.screen_pfa)
     ref0 = np.where(state.modes.free, state.modes.lam0, fit.lam + decay)
     none = np.empty(0, int)
     trials = [Trial(np.append(fit.lam, c), np.append(ref0, c + decay), 1, none) for c in peaks]

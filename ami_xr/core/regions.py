@@ -106,6 +106,44 @@ def residual_rows(prob, proj) -> np.ndarray:
     return prob.y - qty @ proj.q.T
 
 
+def residual_peaks(prob, proj, lam, n_candidates=2, screen_pfa=POLICY.screen_pfa):
+    """Where a missing mode would be: peaks of the noise-normalised residual power of the
+    projection ``proj`` at the eigenvalues ``lam``.
+
+    ``S(w) = sum_j |r_j(w)|^2 / s_j^2`` is chi-square with 2P degrees of freedom per line when
+    the model is complete; a missing mode adds a coherent bump about one bandwidth wide, so ``S``
+    is smoothed over the typical bandwidth (in lines) of the modes found. Only peaks above the
+    chi-square level of false-alarm probability ``screen_pfa`` over the band are returned (a cheap
+    screen before the likelihood-ratio test), strongest first, at most ``n_candidates``:
+    candidate data poles, damping the median of the modes found. Also returns ``S`` itself
+    (unsmoothed): ``(candidates, S)``.
+    """
+    from scipy.stats import chi2  # lazy: scipy.stats is slow to import
+
+    omega = prob.omega
+    n_line = omega.size
+    resid = residual_rows(prob, proj)
+    s2 = np.maximum(proj.rss, 1e-300) / max(prob.n_rows - proj.coef.shape[1], 1)
+    power = np.sum((resid[:, :n_line] ** 2 + resid[:, n_line:] ** 2) / s2[:, None], axis=0)
+    zeta = float(np.median(-lam.real / np.abs(lam))) if lam.size else 0.01
+    dw = omega[1] - omega[0]
+    width = 2.0 * float(np.median(np.abs(lam.real))) if lam.size else 4 * dw
+    m = int(np.clip(round(width / dw), 1, max(n_line // 20, 1)))
+    smooth = np.convolve(power, np.ones(m) / m, mode="same")
+    smooth[: m + 1] = 0.0  # not at DC or Nyquist: no room for a resonance there
+    smooth[-m - 1 :] = 0.0
+    level = chi2.isf(screen_pfa / n_line, 2 * prob.n_points * m) / m
+    out = []
+    for _ in range(n_candidates):
+        i = int(np.argmax(smooth))
+        if smooth[i] <= level:
+            break
+        w = omega[i]
+        out.append(complex(-zeta * w + 1j * w * np.sqrt(1.0 - zeta**2)))
+        smooth[max(i - 3 * m, 0) : i + 3 * m + 1] = 0.0
+    return out, power
+
+
 def complex_rows(z: np.ndarray) -> np.ndarray:
     """Complex (P, L) from real-stacked rows (P, 2L)."""
     n_line = z.shape[1] // 2

@@ -15,7 +15,7 @@ from ami_xr.ami.settings import RefineSettings
 from ami_xr.core import order, varpro
 from ami_xr.core.order_state import Fitted, Modes, State, Trial
 from ami_xr.core.policy import POLICY
-from ami_xr.core.regions import complex_rows, fit_modes, residual_rows
+from ami_xr.core.regions import complex_rows, fit_modes, residual_peaks, residual_rows
 
 from ..reference import frf_from_residues
 from .test_local_trials import _opts, _problem
@@ -87,12 +87,13 @@ def test_residual_candidates_point_at_a_missed_mode_and_not_at_noise():
     prob, lam, omega = _problem(noise=1e-3)
     opts = _opts(omega)
     missing = _state(prob, lam, opts, np.delete(np.arange(lam.size), MISSING))
-    peaks, power = order._residual_candidates(prob, missing.fit, 2)
+    peaks, power = residual_peaks(prob, missing.fit.proj, missing.fit.lam, 2)
     assert power.shape == omega.shape
     width = 2 * abs(lam[MISSING].real)
     assert abs(peaks[0].imag - lam[MISSING].imag) < width
     complete = _state(prob, lam, opts)
-    assert order._residual_candidates(prob, complete.fit, 2, screen_pfa=1e-6)[0] == []
+    fit = complete.fit
+    assert residual_peaks(prob, fit.proj, fit.lam, 2, screen_pfa=1e-6)[0] == []
 
 
 def test_costs_without_each_mode_equal_a_projection_without_it():
