@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import os
 import resource
+import sys
 import tempfile
 import threading
 import time
@@ -28,14 +29,8 @@ from pathlib import Path
 
 import ami_xr
 
-
-def _children(pid: int) -> list[int]:
-    """Process ids of the children of ``pid`` (Linux /proc; empty elsewhere)."""
-    try:
-        text = Path(f"/proc/{pid}/task/{pid}/children").read_text()
-    except OSError:
-        return []
-    return [int(x) for x in text.split()]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import proc_harness  # noqa: E402  (the /proc walk shared with the fault campaign)
 
 
 def _thread_cpu(pid: int) -> dict[int, float]:
@@ -68,7 +63,7 @@ class _ThreadSampler:
 
     def _run(self) -> None:
         while not self._stop.wait(0.05):
-            for child in _children(os.getpid()):
+            for child in proc_harness.children(os.getpid()):
                 self.cpu.setdefault(child, {}).update(_thread_cpu(child))
 
     @property
