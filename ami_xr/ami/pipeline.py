@@ -254,7 +254,8 @@ def unscale(result: xr.Dataset, ds: xr.Dataset, scale: float) -> xr.Dataset:
     for factor, variables in ((scale, _LINEAR_VARS), (np.sqrt(scale), _SQRT_VARS)):
         for v in variables:
             if v in result:
-                result[v] = result[v].copy(data=result[v].values / factor)
+                # .data, not .values: a lazy output is scaled back per chunk and stays lazy
+                result[v] = result[v].copy(data=result[v].data / factor)
     # the refinement's objective sum_j (n_rows / 2) log rss_j, rss ~ scale^2, n_rows = 2 F
     shift = ds.sizes[names.POINT] * 2 * ds.sizes[names.FREQUENCY] * float(np.log(scale))
     for key in (names.ATTR_REFINE_COST_START, names.ATTR_REFINE_COST):

@@ -176,3 +176,25 @@ def test_identify_per_frf_on_a_lazy_set_loads_nothing(case):
     np.testing.assert_allclose(
         out[names.EIGENVALUE].values, ref[names.EIGENVALUE].values, rtol=1e-9
     )
+
+
+def test_a_lazy_set_in_tiny_units_is_scaled_back_per_chunk(case, tmp_path):
+    # an FRF far below ordinary units is identified scaled by a power of two and the results
+    # scaled back: the lazy outputs stay lazy (the scaling back loaded them before)
+    eager, _, _, _ = case
+    tiny = eager.assign({names.FRF: eager[names.FRF] * 1e-90})  # below 2^-250: scaled
+    path = tmp_path / "tiny.nc"
+    ami_xr.to_netcdf(tiny, path)
+    kw = dict(compress="off", method="per_frf", refine=False)
+    with ami_xr.open_dataset(path, chunks={names.POINT: CHUNK}) as lazy:
+        out, large = _guarded(ami_xr.identify, lazy, **kw)
+        ref = _quiet(ami_xr.identify, tiny, **kw)
+        assert large == []
+        assert ch.is_lazy(out[names.FRF_RESIDUAL]) and ch.is_lazy(out[names.FRF_SYNTHESIZED])
+        np.testing.assert_allclose(
+            out[names.EIGENVALUE].values, ref[names.EIGENVALUE].values, rtol=1e-9
+        )
+        atol = 1e-9 * abs(ref[names.FRF]).max().item()
+        np.testing.assert_allclose(
+            out[names.FRF_RESIDUAL].values, ref[names.FRF_RESIDUAL].values, rtol=0, atol=atol
+        )
