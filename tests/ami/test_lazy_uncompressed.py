@@ -27,7 +27,7 @@ from ami_xr.simulate.spread import many_points
 dask = pytest.importorskip("dask")
 from dask.callbacks import Callback  # noqa: E402
 
-N_POINTS, N_LINES, CHUNK = 600, 512, 50
+N_POINTS, N_LINES, CHUNK = 240, 512, 40
 LOADED = ch.ATTR_LAZY_LOADED
 
 
