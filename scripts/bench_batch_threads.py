@@ -3,11 +3,12 @@
 Writes ``--files`` simulated FRF sets of measured size (``--points`` x ``--lines``, 1 % noise)
 to a temporary folder, runs :func:`ami_xr.batch` on them once with one worker and once with two
 (``force=True``: every file identified in both runs), and prints per run the wall time, the CPU
-time of the parent and its worker processes, the most threads of one worker process and how
-many of them computed (sampled from ``/proc`` while the batch runs; Linux only, else "-"; one
-worker runs in the parent process, so the one-worker row has none). The target: two workers
-on a two-core machine not slower than one, and no worker running more compute threads than
-the core it is given (identification holds BLAS to one thread, no kernel is parallel).
+time of the parent and its worker processes, the threads one worker process ran over the batch
+(distinct thread ids: short-lived ones count) and how many of them computed (sampled from
+``/proc`` while the batch runs; Linux only, else "-"; one worker runs in the parent process, so
+the one-worker row has none). The target: two workers on a two-core machine not slower than
+one, and no worker running more compute threads than the core it is given (identification
+holds BLAS to one thread, no kernel is parallel).
 
 Usage::
 
@@ -51,8 +52,8 @@ def _thread_cpu(pid: int) -> dict[int, float]:
 
 
 class _ThreadSampler:
-    """The threads of this process's children while the batch runs: the most threads of one
-    worker, and the most of them that computed (more than 0.2 s of CPU each)."""
+    """The threads of this process's children while the batch runs: the most distinct threads
+    one worker ran, and the most of them that computed (more than 0.2 s of CPU each)."""
 
     BUSY_SECONDS = 0.2
 
@@ -68,7 +69,7 @@ class _ThreadSampler:
 
     @property
     def peak(self) -> tuple[int, int]:
-        """(most threads of one worker, most computing threads of one worker)."""
+        """(most distinct threads of one worker, most computing threads of one worker)."""
         if not self.cpu:
             return 0, 0
         every = max(len(t) for t in self.cpu.values())
@@ -135,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
         run(folder, out, 1)  # warm the kernel cache: neither timed run pays the first compile
         results = {w: run(folder, out, w) for w in (1, 2)}
     print(
-        f"{'workers':>8} {'wall s':>8} {'CPU s':>8} {'threads/worker':>15} "
+        f"{'workers':>8} {'wall s':>8} {'CPU s':>8} {'threads seen':>15} "
         f"{'computing':>10} {'failed':>7}"
     )
     for w, r in results.items():
