@@ -4,7 +4,7 @@ Writes ``--files`` simulated FRF sets of measured size (``--points`` x ``--lines
 to a temporary folder, runs :func:`ami_xr.batch` on them once with one worker and once with two
 (``force=True``: every file identified in both runs), and prints per run the wall time, the CPU
 time of the parent and its worker processes, the threads one worker process ran over the batch
-(distinct thread ids: short-lived ones count) and how many of them computed (sampled from
+(distinct thread ids: short-lived ones count) and how many of them computed at once (sampled from
 ``/proc`` while the batch runs; Linux only, else "-"; one worker runs in the parent process, so
 the one-worker row has none). The target: two workers on a two-core machine not slower than
 one, and no worker running more compute threads than the core it is given (identification
@@ -53,28 +53,36 @@ def _thread_cpu(pid: int) -> dict[int, float]:
 
 class _ThreadSampler:
     """The threads of this process's children while the batch runs: the most distinct threads
-    one worker ran, and the most of them that computed (more than 0.2 s of CPU each)."""
+    one worker ran, and the most of them that computed at once (at least half of one
+    sampling interval of 0.1 s on the CPU in that interval; short-lived pool threads count)."""
 
-    BUSY_SECONDS = 0.2
+    INTERVAL = 0.1
 
     def __init__(self) -> None:
-        self.cpu: dict[int, dict[int, float]] = {}
+        self.seen: dict[int, set[int]] = {}
+        self.busy = 0
+        self._last: dict[tuple[int, int], float] = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
     def _run(self) -> None:
-        while not self._stop.wait(0.05):
+        while not self._stop.wait(self.INTERVAL):
             for child in proc_harness.children(os.getpid()):
-                self.cpu.setdefault(child, {}).update(_thread_cpu(child))
+                now = _thread_cpu(child)
+                self.seen.setdefault(child, set()).update(now)
+                gained = sum(
+                    cpu - self._last.get((child, tid), 0.0) >= 0.5 * self.INTERVAL
+                    for tid, cpu in now.items()
+                )
+                self.busy = max(self.busy, int(gained))
+                self._last.update({(child, tid): cpu for tid, cpu in now.items()})
 
     @property
     def peak(self) -> tuple[int, int]:
-        """(most distinct threads of one worker, most computing threads of one worker)."""
-        if not self.cpu:
+        """(most distinct threads of one worker, most threads of one worker computing at once)."""
+        if not self.seen:
             return 0, 0
-        every = max(len(t) for t in self.cpu.values())
-        busy = max(sum(c > self.BUSY_SECONDS for c in t.values()) for t in self.cpu.values())
-        return every, busy
+        return max(len(t) for t in self.seen.values()), self.busy
 
     def __enter__(self):
         self._thread.start()
@@ -137,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
         results = {w: run(folder, out, w) for w in (1, 2)}
     print(
         f"{'workers':>8} {'wall s':>8} {'CPU s':>8} {'threads seen':>15} "
-        f"{'computing':>10} {'failed':>7}"
+        f"{'at once':>10} {'failed':>7}"
     )
     for w, r in results.items():
         every, busy = r["threads"] if r["threads"][0] else ("-", "-")

@@ -299,11 +299,16 @@ def _write_summary(rows: list[dict], path: Path) -> None:
         writer.writerows({k: _printable(v) for k, v in row.items()} for row in rows)
 
 
-def _worker_init(stop_event, parent: int | None = None) -> None:
+def _worker_init(stop_event, parent: int | None = None, threads: int | None = None) -> None:
     """In a worker process: Ctrl-C from the terminal is the parent's to decide (ignored here);
     the parent's stop request (``stop_event``) and a SIGTERM sent to the process group are held
     and raised at the worker's next checkpoint (:mod:`ami_xr.interrupt`). A watchdog thread
-    ends the worker when its parent (process id ``parent``) is gone (:func:`_watch_parent`)."""
+    ends the worker when its parent (process id ``parent``) is gone (:func:`_watch_parent`).
+    ``threads``: the compute threads this worker may use (its share of the cores)."""
+    if threads is not None:
+        from ami_xr.kernels.projection import THREADS_ENV
+
+        os.environ[THREADS_ENV] = str(threads)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, interrupt.hold)
     interrupt.use_event(stop_event)
@@ -362,11 +367,14 @@ def _run_jobs(jobs: list[dict], workers: int) -> Iterator[dict]:
         return
     import multiprocessing
 
+    from ami_xr.kernels.projection import compute_threads  # numba: only when workers run
+
     stop_event = multiprocessing.get_context().Event()
     pool = cf.ProcessPoolExecutor(
         max_workers=min(workers, len(jobs)),
         initializer=_worker_init,
-        initargs=(stop_event, os.getpid()),
+        # each worker its share of the cores (no more compute threads than the batch's cores)
+        initargs=(stop_event, os.getpid(), max(1, compute_threads() // min(workers, len(jobs)))),
     )
     futures = {pool.submit(_process_in_worker, job): job for job in jobs}
     try:

@@ -151,6 +151,24 @@ def matmul_small(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a @ b
 
 
+#: Environment variable that caps the threads of the per-point projection (``ami-xr batch``
+#: gives each worker process its share of the cores through it).
+THREADS_ENV = "AMI_XR_THREADS"
+
+
+def compute_threads() -> int:
+    """Threads the per-point projection may use: the cores this process may run on (its CPU
+    affinity, not the machine's count), at most 8, or fewer when ``AMI_XR_THREADS`` says so."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # no affinity on this platform
+        cores = os.cpu_count() or 1
+    limit = os.environ.get(THREADS_ENV, "").strip()
+    if limit.isdigit() and int(limit) > 0:
+        cores = min(cores, int(limit))
+    return max(1, min(cores, 8))
+
+
 def project_points(y: np.ndarray, q: np.ndarray, v: np.ndarray):
     """``(Q' y_j, |r_j|^2, V' r_j)`` per row ``y_j`` of ``y`` (P, n), ``r_j = (I - Q Q') y_j``.
 
@@ -170,7 +188,7 @@ def project_points(y: np.ndarray, q: np.ndarray, v: np.ndarray):
     qty = np.zeros((n_point, q.shape[1]))
     rss = np.zeros(n_point)
     vtr = np.zeros((n_point, v.shape[1]))
-    threads = min(os.cpu_count() or 1, 8)
+    threads = compute_threads()
     if threads < 2 or n_point < 2 or y.size * (q.shape[1] + v.shape[1]) <= 5_000_000:
         _project_points(y, q, v, 0, n_point, qty, rss, vtr)
         return qty, rss, vtr

@@ -220,3 +220,23 @@ def test_batch_campaign_script(tmp_path):
     second = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=SUBPROCESS_ENV)
     assert second.returncode == 0, second.stderr
     assert "2 up to date" in second.stdout
+
+
+def test_a_batch_worker_takes_its_share_of_the_threads(monkeypatch):
+    import os
+    import signal
+
+    from ami_xr import interrupt
+    from ami_xr.app import batch
+    from ami_xr.kernels import projection
+
+    monkeypatch.delenv(projection.THREADS_ENV, raising=False)
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        batch._worker_init(None, None, threads=1)
+        assert os.environ[projection.THREADS_ENV] == "1"
+        assert projection.compute_threads() == 1
+    finally:
+        for s, h in handlers.items():
+            signal.signal(s, h)
+        interrupt.use_event(None)

@@ -95,3 +95,22 @@ def test_projection_wrappers_validate():
         matmul_small(np.ones((3, 2)), np.ones((3, 2)))
     with pytest.raises(AmiXrValueError, match="residual_terms"):
         model_columns(np.arange(1.0, 4.0), np.array([-1 + 2j]), None, None, ("middle",))
+
+
+def test_compute_threads_follow_the_affinity_and_the_batch_share(monkeypatch):
+    """The per-point projection uses the cores this process may run on, at most 8, and no
+    more than ``AMI_XR_THREADS`` (what ``ami-xr batch`` gives each worker)."""
+    import os
+
+    from ami_xr.kernels import projection
+
+    monkeypatch.delenv(projection.THREADS_ENV, raising=False)
+    if hasattr(os, "sched_getaffinity"):
+        monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2})
+        assert projection.compute_threads() == 3
+        monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(64)))
+        assert projection.compute_threads() == 8
+    monkeypatch.setenv(projection.THREADS_ENV, "1")
+    assert projection.compute_threads() == 1
+    monkeypatch.setenv(projection.THREADS_ENV, "not a number")  # ignored
+    assert projection.compute_threads() >= 1
