@@ -85,15 +85,13 @@ def make_problem(
     )
 
 
-def _stack(z, w=None):
-    """Real-stack ``z * w[:, None]`` (rows: lines) into (2L, n) without a complex temporary."""
+def _stack(z, w):
+    """Real-stack ``z * w`` (rows: lines; ``w`` (L, 1)) into (2L, n) without a complex
+    temporary."""
     n_line = z.shape[0]
     out = np.empty((2 * n_line,) + z.shape[1:])
-    if w is None:
-        out[:n_line], out[n_line:] = z.real, z.imag
-    else:
-        np.multiply(z.real, w, out=out[:n_line])
-        np.multiply(z.imag, w, out=out[n_line:])
+    np.multiply(z.real, w, out=out[:n_line])
+    np.multiply(z.imag, w, out=out[n_line:])
     return out
 
 

@@ -188,8 +188,9 @@ def project_points(y: np.ndarray, q: np.ndarray, v: np.ndarray):
     qty = np.zeros((n_point, q.shape[1]))
     rss = np.zeros(n_point)
     vtr = np.zeros((n_point, v.shape[1]))
-    threads = compute_threads()
-    if threads < 2 or n_point < 2 or y.size * (q.shape[1] + v.shape[1]) <= 5_000_000:
+    small = n_point < 2 or y.size * (q.shape[1] + v.shape[1]) <= 5_000_000
+    threads = 1 if small else compute_threads()  # the affinity is read only where it matters
+    if threads < 2:
         _project_points(y, q, v, 0, n_point, qty, rss, vtr)
         return qty, rss, vtr
     edges = np.linspace(0, n_point, threads + 1).astype(np.int64)
