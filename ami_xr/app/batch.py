@@ -44,6 +44,7 @@ import csv
 import json
 import os
 import signal
+import sys
 import time
 import traceback
 import warnings
@@ -543,35 +544,30 @@ def batch(
     if output_dir.exists() and not output_dir.is_dir():
         raise DataFileError(f"output_dir: {str(output_dir)!r} exists and is not a folder")
     summary = BatchSummary(csv_path=check_summary(output_dir))  # a read-only one: before work
-    output_dir.mkdir(parents=True, exist_ok=True)
-    remove_stale(output_dir)
-    parameters = {
-        "identify": identify_options or {},
-        "frf": frf_options or {},
-        "report": bool(report),
-    }
-    params_sha = parameters_hash(parameters)
-    inputs = find_inputs(input_dir, output_dir=output_dir)  # outputs by name, not by folder
-    inner = output_inside_input(input_dir, output_dir)
-    if inner is not None:
-        notice(
-            f"ami-xr batch: the output folder {inner} is inside the input folder: its results "
-            f"(*{OUTPUT_SUFFIX}, *{REPORT_SUFFIX}/, {SUMMARY_NAME}) are not read as inputs, "
-            "the measurements in it are processed"
-        )
-
-    shared = {
-        "folders": [str(input_dir), str(output_dir)],  # messages name files relative to them
-        "identify_options": identify_options or {},
-        "frf_options": frf_options or {},
-        "parameters": parameters,
-        "params_sha": params_sha,
-        "report": report,
-        "traceback": keep_tracebacks,
-    }
-    rows, jobs = _plan(inputs, input_dir, output_dir, shared, force)
-
-    try:
+    rows, jobs, inputs, planned = {}, [], [], False
+    try:  # a Ctrl-C from here on (also while planning) still leaves the summary
+        output_dir.mkdir(parents=True, exist_ok=True)
+        remove_stale(output_dir)
+        opts = {"identify": identify_options or {}, "frf": frf_options or {}}
+        parameters = {**opts, "report": bool(report)}
+        params_sha = parameters_hash(parameters)
+        inputs = find_inputs(input_dir, output_dir=output_dir)  # outputs by name, not by folder
+        inner = output_inside_input(input_dir, output_dir)
+        if inner is not None:
+            notice(
+                f"ami-xr batch: the output folder {inner} is inside the input folder: its "
+                f"results (*{OUTPUT_SUFFIX}, *{REPORT_SUFFIX}/, {SUMMARY_NAME}) are not read as "
+                "inputs, the measurements in it are processed"
+            )
+        shared = {
+            "folders": [str(input_dir), str(output_dir)],  # messages name files relative to them
+            "identify_options": identify_options or {},
+            "frf_options": frf_options or {},
+            "parameters": parameters,
+            **{"params_sha": params_sha, "report": report, "traceback": keep_tracebacks},
+        }
+        rows, jobs = _plan(inputs, input_dir, output_dir, shared, force)
+        planned = True
         with (
             interrupt.armed(),
             Progress("ami-xr batch", total=len(jobs), unit="file", enabled=progress) as bar,
@@ -580,14 +576,18 @@ def batch(
                 rows[row["file"]] = row
                 bar.update(1)
     finally:
-        # Also on Ctrl-C: the summary lists what is done; unfinished files have empty rows.
-        _reconcile(rows, jobs)
-        summary.rows = [
-            rows[inp.relative_to(input_dir).as_posix()]
-            for inp in inputs
-            if rows.get(inp.relative_to(input_dir).as_posix())
-        ]
-        _write_summary(summary.rows, summary.csv_path)
+        # Also on Ctrl-C, and a second one waits for it: the summary lists what is done
+        # (unfinished files have empty rows). An error before the plan leaves no summary.
+        stopped = isinstance(sys.exc_info()[1], (KeyboardInterrupt, SystemExit))
+        if output_dir.is_dir() and (planned or stopped):
+            with interrupts_deferred():
+                _reconcile(rows, jobs)
+                summary.rows = [
+                    rows[inp.relative_to(input_dir).as_posix()]
+                    for inp in inputs
+                    if rows.get(inp.relative_to(input_dir).as_posix())
+                ]
+                _write_summary(summary.rows, summary.csv_path)
     return summary
 
 

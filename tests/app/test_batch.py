@@ -240,3 +240,28 @@ def test_a_batch_worker_takes_its_share_of_the_threads(monkeypatch):
         for s, h in handlers.items():
             signal.signal(s, h)
         interrupt.use_event(None)
+
+
+def test_ctrl_c_while_planning_still_writes_the_summary(campaign, tmp_path, monkeypatch):
+    # A Ctrl-C before any file starts (while the inputs are planned) leaves an empty summary;
+    # an error at that stage leaves none (nothing was attempted).
+    import ami_xr.app.batch as batch_module
+
+    def stopped(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(batch_module, "_plan", stopped)
+    out = tmp_path / "stopped"
+    with pytest.raises(KeyboardInterrupt):
+        batch(campaign, out, progress=False)
+    with open(out / SUMMARY_NAME, newline="") as fh:
+        assert list(csv.DictReader(fh)) == []
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("planning failed")
+
+    monkeypatch.setattr(batch_module, "_plan", broken)
+    out = tmp_path / "broken"
+    with pytest.raises(RuntimeError, match="planning failed"):
+        batch(campaign, out, progress=False)
+    assert not (out / SUMMARY_NAME).exists()

@@ -41,6 +41,7 @@ CHILD = """
 import sys
 import numpy as np, xarray as xr
 import ami_xr.ami
+import ami_xr.app.batch  # imported before "ready": the signals land in the batch
 import ami_xr.app.cli as cli
 
 
@@ -125,7 +126,9 @@ def test_double_ctrl_c_stops_at_once_without_partial_outputs(tmp_path, inputs, d
     assert "Traceback" not in err
     _assert_outputs_complete(out)
     assert list(out.rglob(".*.tmp")) == []
-    assert (out / SUMMARY_NAME).is_file()
+    # a loaded machine may deliver the first Ctrl-C before the batch made its folder: nothing
+    # to summarise then; from the folder on the summary is always written
+    assert (out / SUMMARY_NAME).is_file() or not out.exists()
 
 
 @pytest.mark.parametrize("delay", (1.0, pytest.param(1.8, marks=pytest.mark.slow)))
