@@ -16,6 +16,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.core import frf_noise as fn
 
 P, F = names.POINT, names.FREQUENCY
 
@@ -24,10 +25,19 @@ P, F = names.POINT, names.FREQUENCY
 NOISE_GROUP = "noise_group"
 
 
+def wants_smoothing(std: xr.DataArray) -> bool:
+    """Whether a stored ``frf_line_noise_std`` is smoothed along frequency before it weights the
+    lines (:func:`ami_xr.core.frf_noise.smoothed_std`): a record of the coherence formula (one
+    random estimate per line), not one already smoothed (the whitening passes its smoothed
+    model on, recorded as ``stored ...``), nor one given by the user or from the roughness."""
+    return str(std.attrs.get(names.ATTR_NOISE_MODEL, "")).startswith("coherence")
+
+
 def line_noise_shape(ds: xr.Dataset, frf: xr.DataArray):
     """Relative noise level of each line of ``frf`` from the stored per-line noise model
     (``frf_line_noise_std`` of a measured FRF, from its coherence and averages): the median
-    over points of each point's noise relative to its median, scaled to median 1; with a
+    over points of each point's noise relative to its median, scaled to median 1 (a record of
+    the coherence smoothed along frequency first: :func:`wants_smoothing`); with a
     ``noise_group`` coordinate on ``point`` (two groups or more), one such shape per group.
     Returns ``(shape (L,) or shapes (G, L), group of each point (P,) or None)``; ``(None,
     None)`` when the FRF has no per-line noise model (the lines are then weighted alike)."""
@@ -35,6 +45,8 @@ def line_noise_shape(ds: xr.Dataset, frf: xr.DataArray):
         return None, None
     sd = ds[names.FRF_LINE_NOISE_STD].transpose(P, F).sel({F: frf[F].values})
     sd = np.asarray(sd.values, dtype=np.float64)
+    if wants_smoothing(ds[names.FRF_LINE_NOISE_STD]):
+        sd = fn.smoothed_std(sd, frf[F].values)
     with np.errstate(invalid="ignore", divide="ignore"):
         rel = sd / np.nanmedian(sd, axis=1, keepdims=True)
     index = None

@@ -11,9 +11,11 @@ of its modes and reported noise spikes as modes (issue 37).
 The rule, on the lines analysed:
 
 1. **Noise per point and line.** ``frf_line_noise_std`` where the FRF carries it (``ami_xr.frf``:
-   the coherence and the number of averages), otherwise the FRF's roughness between adjacent
-   lines (:func:`ami_xr.core.frf_noise.block_roughness_std`: the 4th difference, a median over
-   blocks of 64 lines).
+   the coherence and the number of averages; each line at least the median of its log over
+   blocks of 2 % of the frequency, since each line's estimate is itself random: no line is
+   weighted up by a chance low estimate), otherwise the FRF's roughness between adjacent lines
+   (:func:`ami_xr.core.frf_noise.block_roughness_std`: the 4th difference, a median over blocks
+   of 64 lines).
 2. **Working quantity.** Multiplying the FRFs by ``(i w)^k`` changes no line's signal-to-noise
    ratio and no pole; for each quantity the data can be converted to (displacement, velocity,
    acceleration), the loss of unweighted least squares ``mean(s^2) mean(1/s^2)`` (1 for white
@@ -52,6 +54,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import chunked as ch
+from ami_xr.ami.line_noise import wants_smoothing
 from ami_xr.caller import warn
 from ami_xr.core import frf_noise as fn
 from ami_xr.dsp.quantity import convert_units
@@ -90,7 +93,8 @@ def _points(n: int) -> np.ndarray:
 
 def _data(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray | None, str]:
     """The FRFs (P', L) the noise model is estimated on (at most ``MAX_POINTS`` of them) and
-    the stored noise std of the same rows (None without one)."""
+    the stored noise std of the same rows (None without one; a record of the coherence
+    smoothed along frequency, :func:`ami_xr.ami.line_noise.wants_smoothing`)."""
     h = ds[names.FRF].transpose(..., names.POINT, names.FREQUENCY)
     rows = _points(int(np.prod(h.shape[:-1])))
     x = ch.rows(h, rows)  # of a lazy FRF only these rows are read
@@ -98,7 +102,11 @@ def _data(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray | None, str]:
         sd = ch.rows(ds[names.FRF_LINE_NOISE_STD].transpose(*h.dims), rows)
         if np.isfinite(sd).mean() > 0.5:
             how = ds[names.FRF_LINE_NOISE_STD].attrs.get(names.ATTR_NOISE_MODEL, "")
-            return x, sd, "stored frf_line_noise_std" + (f" ({how})" if how else "")
+            source = "stored frf_line_noise_std" + (f" ({how})" if how else "")
+            if wants_smoothing(ds[names.FRF_LINE_NOISE_STD]):  # one random estimate per line
+                sd = fn.smoothed_std(sd, ds[names.FREQUENCY].values)
+                source = f"{source}; {fn.smoothing_model()}"
+            return x, sd, source
     return x, None, "roughness"
 
 

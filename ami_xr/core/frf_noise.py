@@ -341,3 +341,81 @@ def noise_dominated_share(
     with np.errstate(invalid="ignore", divide="ignore"):
         r = (b / a)[:, step // 2 :: step]
     return float(np.mean(r > 0.7)) if r.size else 0.0
+
+
+SMOOTH_WIDTH = 0.02  # smoothed_std: blocks of 2 % of the frequency ...
+SMOOTH_LINES = 8  # ... and at least this many lines
+
+
+def smoothing_edges(
+    frequency: np.ndarray, width: float = SMOOTH_WIDTH, min_lines: int = SMOOTH_LINES
+) -> np.ndarray:
+    """Block edges (line indices, first 0, last ``L``) of :func:`smoothed_std`: consecutive
+    blocks of ``max(min_lines, width f / df)`` lines (``f`` at the block's start, ``df`` the
+    median line spacing), a short last block joined to the one before."""
+    f = np.abs(np.asarray(frequency, dtype=np.float64))
+    n = f.size
+    df = float(np.median(np.diff(f))) if n > 1 else 0.0
+    edges, i = [0], 0
+    while i < n:
+        step = min_lines if not df > 0 else max(min_lines, math.ceil(width * f[i] / df))
+        i = min(i + step, n)
+        edges.append(i)
+    if len(edges) > 2 and edges[-1] - edges[-2] < min_lines:
+        del edges[-2]
+    return np.asarray(edges, dtype=np.int64)
+
+
+def smoothed_std(
+    sd: np.ndarray,
+    frequency: np.ndarray,
+    width: float = SMOOTH_WIDTH,
+    min_lines: int = SMOOTH_LINES,
+) -> np.ndarray:
+    """A noise std per line (..., L) floored at its local level along frequency: each line
+    keeps ``max(sd, level)``, the level the median of ``log sd`` over the blocks of
+    :func:`smoothing_edges`, interpolated linearly (in log) between block centres.
+
+    Why: the coherence formula gives each line its own estimate, itself random (the coherence
+    of ``n_d`` averages scatters by tens of per cent); weighting the lines by it lets the few
+    lines whose noise came out low by chance decide a fit (an underestimated variance weighs a
+    line up, an overestimated one only wastes a little of it). The noise's level changes slowly
+    along frequency (a force spectrum rolling off, sensor noise in one quantity), on scales
+    wider than a few per cent of the frequency, so a block median keeps it; in log, so that a
+    factor above and below weigh alike. Lines above the level keep their own estimate: at a
+    peak the window's leakage lowers the coherence, a model error the fit should not be
+    weighted to follow. Lines with no finite positive value get the level of their
+    neighbours; a row with none stays NaN.
+    """
+    x = np.asarray(sd, dtype=np.float64)
+    shape = x.shape
+    x = x.reshape(-1, shape[-1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        logs = np.where(np.isfinite(x) & (x > 0), np.log(x), np.nan)
+    edges = smoothing_edges(frequency, width, min_lines)
+    centres = 0.5 * (edges[:-1] + edges[1:] - 1)
+    med = np.full((x.shape[0], edges.size - 1), np.nan)
+    for b in range(edges.size - 1):
+        block = logs[:, edges[b] : edges[b + 1]]
+        has = np.isfinite(block).any(axis=1)
+        if has.any():
+            med[has, b] = np.nanmedian(block[has], axis=1)
+    lines = np.arange(shape[-1])
+    out = np.full(x.shape, np.nan)
+    for r, row in enumerate(med):
+        ok = np.isfinite(row)
+        if ok.any():
+            out[r] = np.exp(np.interp(lines, centres[ok], row[ok]))
+    # a floor, not a replacement: a line above the local level keeps its own estimate (leakage
+    # at an under-resolved peak raises 1 - coh there: that model error is real, and weighting
+    # the peak's lines up split a 3-line-wide simulated mode in two)
+    out = np.where(np.isfinite(x) & (x > out), x, out)
+    return out.reshape(shape)
+
+
+def smoothing_model(width: float = SMOOTH_WIDTH, min_lines: int = SMOOTH_LINES) -> str:
+    """How :func:`smoothed_std` smoothed a noise model (for the ``noise_model_source`` record)."""
+    return (
+        f"smoothed along frequency (each line at least the median of log std over blocks of "
+        f"{100 * width:g} % of f, at least {min_lines} lines)"
+    )

@@ -172,3 +172,52 @@ def test_dask_backed_frf_gives_the_same_estimate():
         got = ami_xr.estimate_frf_noise(frf.chunk(chunks))[names.FRF_LINE_NOISE_STD]
         assert got.chunks is not None
         xr.testing.assert_allclose(got.compute(), want)
+
+
+def _scattered(level: np.ndarray, n_d: int, rng) -> np.ndarray:
+    """A per-line std estimate of ``level`` as the coherence formula gives it: each line's
+    variance a chi-square of 2 n_d degrees of freedom over 2 n_d (n_d averages)."""
+    return level * np.sqrt(rng.chisquare(2 * n_d, level.shape) / (2 * n_d))
+
+
+def test_smoothed_std_keeps_a_slow_trend_and_lifts_the_low_scatter():
+    from ami_xr.core.frf_noise import smoothed_std
+
+    rng = np.random.default_rng(3)
+    f = np.linspace(0.0, 2000.0, 8001)
+    level = 1e-3 * (1.0 + f / 200.0) ** -1.5  # a force spectrum rolling off 30-fold
+    raw = _scattered(np.broadcast_to(level, (4, f.size)), 5, rng)
+    smooth = smoothed_std(raw, f)
+    above = f > 200.0  # blocks of 40 lines and more
+    low_raw = np.log(raw[:, above] / level[above])
+    low_smooth = np.log(smooth[:, above] / level[above])
+    # the raw estimate falls to less than half the true noise on some lines (weighting them up
+    # more than 4-fold); floored at the local level, no line falls more than ~20 % below it
+    assert low_raw.min() < np.log(0.5)
+    assert low_smooth.min() > np.log(0.8)
+    # lines above the level keep their own estimate, none is lowered
+    assert np.all(smooth >= raw)
+    kept = raw[:, above] > 1.3 * level[above]
+    np.testing.assert_array_equal(smooth[:, above][kept], raw[:, above][kept])
+    # a constant stays that constant
+    np.testing.assert_allclose(smoothed_std(np.full((2, f.size), 0.7), f), 0.7, rtol=1e-12)
+
+
+def test_smoothed_std_fills_missing_lines_lifts_dips_and_keeps_bumps():
+    from ami_xr.core.frf_noise import smoothed_std, smoothing_edges
+
+    f = np.linspace(0.0, 100.0, 1001)
+    sd = np.full(f.size, 2.0)
+    sd[0] = np.nan  # 0 Hz: no estimate
+    sd[400:403] = 1e-6  # three lines of (wrongly) tiny noise would dominate the weights
+    sd[600:603] = 9.0  # three of a raised noise (leakage at a peak) are kept
+    out = smoothed_std(sd, f)
+    assert out.shape == sd.shape and np.all(np.isfinite(out))
+    np.testing.assert_allclose(np.delete(out, [600, 601, 602]), 2.0, rtol=1e-12)
+    np.testing.assert_array_equal(out[600:603], 9.0)
+    assert np.all(np.isnan(smoothed_std(np.full((1, 50), np.nan), f[:50])))
+    edges = smoothing_edges(f)
+    widths = np.diff(edges)
+    assert edges[0] == 0 and edges[-1] == f.size and widths.min() >= 8
+    assert widths[-2] >= 0.02 * 90.0 / 0.1  # 2 % of f near the top: ~18 lines (the last one
+    # is what is left, at least 8)
