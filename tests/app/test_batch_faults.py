@@ -138,7 +138,7 @@ def test_sigterm_stops_the_batch_with_cleanup(tmp_path, inputs, delay):
     assert rc in (143, 0), err
     _assert_outputs_complete(out)
     assert list(out.rglob(".*.tmp")) == []
-    assert (out / SUMMARY_NAME).is_file()
+    assert (out / SUMMARY_NAME).is_file() or not out.exists()  # (as for the double Ctrl-C)
 
 
 def test_sigkill_leftovers_are_removed_by_the_next_batch(tmp_path, inputs):
