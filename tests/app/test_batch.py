@@ -265,3 +265,22 @@ def test_ctrl_c_while_planning_still_writes_the_summary(campaign, tmp_path, monk
     with pytest.raises(RuntimeError, match="planning failed"):
         batch(campaign, out, progress=False)
     assert not (out / SUMMARY_NAME).exists()
+
+
+@pytest.mark.parametrize("workers, told", [(2, True), (1, False)])
+def test_more_workers_than_cores_is_said(campaign, tmp_path, capsys, monkeypatch, workers, told):
+    import ami_xr.app.commands as commands
+
+    monkeypatch.setattr(commands, "usable_cores", lambda: 1)
+    (campaign / "day2" / "broken.nc").unlink()
+    out = tmp_path / "out"
+    assert main(["batch", str(campaign), "-o", str(out), "-q", "--workers", str(workers)]) == 0
+    err = capsys.readouterr().err
+    assert ("--workers 2 exceeds the 1 core(s)" in err) is told, err
+    assert (out / SUMMARY_NAME).is_file()
+
+
+def test_usable_cores_is_a_positive_count():
+    from ami_xr.app.commands import usable_cores
+
+    assert isinstance(usable_cores(), int) and usable_cores() >= 1
