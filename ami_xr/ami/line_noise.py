@@ -16,6 +16,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.ami import chunked as ch
 from ami_xr.core import frf_noise as fn
 
 P, F = names.POINT, names.FREQUENCY
@@ -23,6 +24,9 @@ P, F = names.POINT, names.FREQUENCY
 # Coordinate on ``point``: the FRFs of one group share a line shape of the noise model, each
 # group its own (the multi-reference path stacks one group per reference)
 NOISE_GROUP = "noise_group"
+# the shape is a median over points: at most this many (evenly chosen) are read, so that a
+# lazy set of 10^5 points is not loaded whole for it (its median moves by ~1/sqrt(rows))
+MAX_ROWS = 256
 
 
 def wants_smoothing(std: xr.DataArray) -> bool:
@@ -36,30 +40,45 @@ def wants_smoothing(std: xr.DataArray) -> bool:
 def line_noise_shape(ds: xr.Dataset, frf: xr.DataArray):
     """Relative noise level of each line of ``frf`` from the stored per-line noise model
     (``frf_line_noise_std`` of a measured FRF, from its coherence and averages): the median
-    over points of each point's noise relative to its median, scaled to median 1 (a record of
+    over points (at most ``MAX_ROWS`` of them, evenly chosen) of each point's noise relative to
+    its median, scaled to median 1 (a record of
     the coherence smoothed along frequency first: :func:`wants_smoothing`); with a
     ``noise_group`` coordinate on ``point`` (two groups or more), one such shape per group.
     Returns ``(shape (L,) or shapes (G, L), group of each point (P,) or None)``; ``(None,
     None)`` when the FRF has no per-line noise model (the lines are then weighted alike)."""
     if names.FRF_LINE_NOISE_STD not in ds:
         return None, None
-    sd = ds[names.FRF_LINE_NOISE_STD].transpose(P, F).sel({F: frf[F].values})
-    sd = np.asarray(sd.values, dtype=np.float64)
-    if wants_smoothing(ds[names.FRF_LINE_NOISE_STD]):
-        sd = fn.smoothed_std(sd, frf[F].values)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rel = sd / np.nanmedian(sd, axis=1, keepdims=True)
+    std = ds[names.FRF_LINE_NOISE_STD].transpose(P, F).sel({F: frf[F].values})
     index = None
     if NOISE_GROUP in frf.coords and frf[NOISE_GROUP].dims == (P,):
         _, index = np.unique(np.asarray(frf[NOISE_GROUP].values), return_inverse=True)
         index = index.ravel()
+    groups = [np.arange(std.sizes[P])] if index is None else _members(index)
+    read = np.concatenate([_even(g, max(MAX_ROWS // len(groups), 8)) for g in groups])
+    sd = np.asarray(ch.rows(std, np.sort(read)), dtype=np.float64)  # of a lazy std these only
+    if wants_smoothing(ds[names.FRF_LINE_NOISE_STD]):
+        sd = fn.smoothed_std(sd, frf[F].values)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rel = sd / np.nanmedian(sd, axis=1, keepdims=True)
     if index is None or index.max() < 1:
-        shape = _shape(rel)
-        return shape, None
-    shapes = [_shape(rel[index == g]) for g in range(index.max() + 1)]
+        return _shape(rel), None
+    of_read = index[np.sort(read)]
+    shapes = [_shape(rel[of_read == g]) for g in range(index.max() + 1)]
     if any(x is None for x in shapes):  # a group without a noise model: one shape for all
         return _shape(rel), None
     return np.array(shapes), index
+
+
+def _members(index: np.ndarray) -> list[np.ndarray]:
+    """The points of each group ``0 .. max(index)``."""
+    return [np.flatnonzero(index == g) for g in range(int(index.max()) + 1)]
+
+
+def _even(points: np.ndarray, n: int) -> np.ndarray:
+    """At most ``n`` of ``points``, evenly chosen (all of them when there are no more)."""
+    if points.size <= n:
+        return points
+    return points[np.unique(np.linspace(0, points.size - 1, n).round().astype(int))]
 
 
 def _shape(rel: np.ndarray) -> np.ndarray | None:
