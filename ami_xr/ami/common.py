@@ -271,17 +271,15 @@ def sort_modes(ds: xr.Dataset) -> xr.Dataset:
     fn = np.asarray(ds[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
     order = np.argsort(np.where(np.isfinite(fn), fn, np.inf), kind="stable")
     before = np.asarray(ds[names.MODE].values)
-    out = select_modes(ds, order)
     labels = np.arange(1, n + 1)
-    out = out.assign_coords({names.MODE: labels})
-    if names.MODE_2 in out.dims:
-        out = out.assign_coords({names.MODE_2: labels})
-    out[names.MODE_LABEL_UNSORTED] = xr.DataArray(
+    mode_dims = [d for d in (names.MODE, names.MODE_2) if d in ds.dims]
+    unsorted = xr.Variable(
+        (names.MODE,),
         before[order],
-        dims=(names.MODE,),
-        attrs={names.ATTR_LONG_NAME: "label of the mode before sorting by natural frequency"},
+        {names.ATTR_LONG_NAME: "label of the mode before sorting by natural frequency"},
     )
-    return out
+    out = ds.isel(dict.fromkeys(mode_dims, order)).assign_coords(dict.fromkeys(mode_dims, labels))
+    return out.assign({names.MODE_LABEL_UNSORTED: unsorted})
 
 
 def drop_outside_band(ds: xr.Dataset, fmin: float, fmax: float) -> tuple[xr.Dataset, np.ndarray]:

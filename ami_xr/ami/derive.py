@@ -163,6 +163,13 @@ def derive(fit: ResidueFit, data: xr.Dataset) -> xr.Dataset:
     ``fit`` assigned: ``residue``, ``mode_vector`` (point, mode), ``frf_synthesized``,
     ``frf_residual`` (point, frequency), ``mac`` (mode, mode_2), ``drive_point_snr``,
     ``quality_flags`` (mode) and ``residual_coefficient`` (point, residual_term) when fitted."""
+    coords, new = derived(fit, data)
+    return data.assign_coords(coords).assign(new)
+
+
+def derived(fit: ResidueFit, data: xr.Dataset) -> tuple[dict, dict]:
+    """What :func:`derive` assigns to ``data``: the new coordinates (``mode_2``, and
+    ``residual_term`` when fitted) and the output variables, by name."""
     frf = data[names.FRF]
     units = str(frf.attrs.get(names.ATTR_UNITS, ""))
     drive = c.drive_index(data)
@@ -187,7 +194,7 @@ def derive(fit: ResidueFit, data: xr.Dataset) -> xr.Dataset:
         coords[names.RESIDUAL_TERM] = list(names.RESIDUAL_TERM_LABELS)
         rc = _variable(fit.residual_coefficient).transpose(names.POINT, names.RESIDUAL_TERM)
         new[names.RESIDUAL_COEFFICIENT] = xr.Variable(rc.dims, rc.data, rc.attrs)
-    return data.assign_coords(coords).assign(new)
+    return coords, new
 
 
 def _variable(x) -> xr.Variable:

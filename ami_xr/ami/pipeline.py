@@ -19,7 +19,7 @@ from ami_xr.ami import common as c
 from ami_xr.ami import repeated as rp
 from ami_xr.ami import scale as scale_out
 from ami_xr.ami import spikes, whitening
-from ami_xr.ami.derive import derive
+from ami_xr.ami.derive import derived
 from ami_xr.ami.global_fit import (
     fit_attrs,
     fit_residues,
@@ -169,7 +169,7 @@ def fitted(work: xr.Dataset, settings: IdentifySettings, step) -> xr.Dataset:
     """subtract -> isolate -> global_fit on the arrays of ``work`` (validated by the caller):
     each phase's core on the FRFs and the fit record the one before left, the same calls as
     the public phases make; the labeled outputs of all three in one Dataset, built once at the
-    end (the global fit's through :func:`~ami_xr.ami.derive.derive`). ``step(phase)`` is told
+    end (the global fit's from :func:`~ami_xr.ami.derive.derived`). ``step(phase)`` is told
     when each phase starts."""
     s = settings
     paper = s.method == names.METHOD_PAPER
@@ -229,12 +229,12 @@ def _labeled(work: xr.Dataset, phases, attrs: dict, fit, coord_attrs) -> xr.Data
     if any(v in work.variables for v in earlier):
         work = c.drop_results(work, (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS))
     new = {k: v for phase in phases for k, v in phase.items()}
-    dims = (names.CANDIDATE, names.MODE)
-    coords = {d: new.pop(d) for d in dims}
+    coords = {d: new.pop(d) for d in (names.CANDIDATE, names.MODE)}
     out = work.assign_coords(coords).assign(new)
     out.attrs = attrs
     if fit is not None:
-        out = derive(fit, out)
+        more, fitted = derived(fit, out)
+        out = out.assign_coords(more).assign(fitted)
     out = c.restore_coordinate_attrs(out, coord_attrs)
     out.attrs[names.ATTR_AMI_PHASE] = names.PHASE_ISOLATE if fit is None else names.PHASE_GLOBAL_FIT
     return out
