@@ -105,8 +105,8 @@ def check_frf(ds: Any, function: str) -> xr.Dataset:
         )
     if frf.data is _CHECKED.get() and frf.dims == (names.POINT, names.FREQUENCY):
         return ds  # identify's own input, validated once (frf_checked)
-    if set(frf.dims) == {names.POINT, names.FREQUENCY}:  # either order: phases transpose
-        ds = ds.transpose(names.POINT, names.FREQUENCY, ...)
+    if set(frf.dims) == {names.POINT, names.FREQUENCY} and not _in_order(ds):
+        ds = ds.transpose(names.POINT, names.FREQUENCY, ...)  # either order: phases transpose
     ds = whole_lines(ds)
     what, problems = find_problems(ds, "frf", require_drive_point=False, metadata=False)
     if problems:
@@ -118,6 +118,17 @@ def check_frf(ds: Any, function: str) -> xr.Dataset:
             f"{names.FREQUENCY}: {n_lines} lines; the single-mode fit needs at least {MIN_LINES}"
         )
     return ds
+
+
+def _in_order(ds: xr.Dataset) -> bool:
+    """Whether every variable of ``ds`` has ``point`` and ``frequency`` first, in that order
+    (what ``ds.transpose(point, frequency, ...)`` makes; then there is nothing to copy)."""
+    first = (names.POINT, names.FREQUENCY)
+    for var in ds.variables.values():
+        lead = tuple(d for d in first if d in var.dims)
+        if var.dims[: len(lead)] != lead:
+            return False
+    return True
 
 
 def whole_lines(ds: xr.Dataset) -> xr.Dataset:
@@ -260,17 +271,15 @@ def sort_modes(ds: xr.Dataset) -> xr.Dataset:
     fn = np.asarray(ds[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
     order = np.argsort(np.where(np.isfinite(fn), fn, np.inf), kind="stable")
     before = np.asarray(ds[names.MODE].values)
-    out = select_modes(ds, order)
     labels = np.arange(1, n + 1)
-    out = out.assign_coords({names.MODE: labels})
-    if names.MODE_2 in out.dims:
-        out = out.assign_coords({names.MODE_2: labels})
-    out[names.MODE_LABEL_UNSORTED] = xr.DataArray(
+    mode_dims = [d for d in (names.MODE, names.MODE_2) if d in ds.dims]
+    unsorted = xr.Variable(
+        (names.MODE,),
         before[order],
-        dims=(names.MODE,),
-        attrs={names.ATTR_LONG_NAME: "label of the mode before sorting by natural frequency"},
+        {names.ATTR_LONG_NAME: "label of the mode before sorting by natural frequency"},
     )
-    return out
+    out = ds.isel(dict.fromkeys(mode_dims, order)).assign_coords(dict.fromkeys(mode_dims, labels))
+    return out.assign({names.MODE_LABEL_UNSORTED: unsorted})
 
 
 def drop_outside_band(ds: xr.Dataset, fmin: float, fmax: float) -> tuple[xr.Dataset, np.ndarray]:

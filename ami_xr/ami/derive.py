@@ -119,9 +119,9 @@ class ResidueFit:
         (n,) complex, rad/s.
     residue : numpy.ndarray
         (P, n) complex, in the FRF's own units times rad/s.
-    synthesized : xarray.DataArray
+    synthesized : xarray.Variable or xarray.DataArray
         (point, frequency) the model's FRFs (may be dask-backed).
-    residual_coefficient : xarray.DataArray or None
+    residual_coefficient : xarray.Variable or xarray.DataArray or None
         (point, residual_term) when residual terms were fitted.
     dt, n_samples :
         The data model's sampling (:func:`ami_xr.core.model.resolve_model`), for the modes'
@@ -137,8 +137,8 @@ class ResidueFit:
 
     eigenvalue: np.ndarray
     residue: np.ndarray
-    synthesized: xr.DataArray
-    residual_coefficient: xr.DataArray | None
+    synthesized: xr.Variable | xr.DataArray
+    residual_coefficient: xr.Variable | xr.DataArray | None
     dt: float
     n_samples: int
     noise_floor: np.ndarray
@@ -163,30 +163,40 @@ def derive(fit: ResidueFit, data: xr.Dataset) -> xr.Dataset:
     ``fit`` assigned: ``residue``, ``mode_vector`` (point, mode), ``frf_synthesized``,
     ``frf_residual`` (point, frequency), ``mac`` (mode, mode_2), ``drive_point_snr``,
     ``quality_flags`` (mode) and ``residual_coefficient`` (point, residual_term) when fitted."""
+    coords, new = derived(fit, data)
+    return data.assign_coords(coords).assign(new)
+
+
+def derived(fit: ResidueFit, data: xr.Dataset) -> tuple[dict, dict]:
+    """What :func:`derive` assigns to ``data``: the new coordinates (``mode_2``, and
+    ``residual_term`` when fitted) and the output variables, by name."""
     frf = data[names.FRF]
     units = str(frf.attrs.get(names.ATTR_UNITS, ""))
     drive = c.drive_index(data)
     lam = fit.eigenvalue
     phi, phi_attrs = receptance_mode_vectors(fit.residue, lam, drive, data.attrs, units)
     snr, mask = _drive_snr(fit, c.omega_of(data), drive)
-    synth = fit.synthesized.transpose(*frf.dims)
-    residual = frf - synth
-    residual = residual.drop_vars([v for v in residual.coords if v not in frf.coords])
+    # Variables (a DataArray of a lazy fit gives its own): the outputs take data's coordinates
+    synth = _variable(fit.synthesized).transpose(*frf.dims)
     pm = (names.POINT, names.MODE)
+    unit = {names.ATTR_UNITS: units}
     new = {
         names.RESIDUE: (pm, fit.residue, residue_units(units)),
         names.MODE_VECTOR: (pm, phi, phi_attrs),
-        names.FRF_SYNTHESIZED: synth.assign_attrs({names.ATTR_UNITS: units}),
-        names.FRF_RESIDUAL: residual.assign_attrs({names.ATTR_UNITS: units}),
+        names.FRF_SYNTHESIZED: xr.Variable(frf.dims, synth.data, unit),
+        names.FRF_RESIDUAL: xr.Variable(frf.dims, (frf.variable - synth).data, unit),
         names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi), _ONE),
         names.DRIVE_POINT_SNR: ((names.MODE,), snr, _ONE),
         names.QUALITY_FLAGS: ((names.MODE,), mask),
     }
-    out = data.assign_coords({names.MODE_2: data[names.MODE].values})
+    coords = {names.MODE_2: data[names.MODE].values}
     if fit.residual_coefficient is not None:
-        out = out.assign_coords({names.RESIDUAL_TERM: list(names.RESIDUAL_TERM_LABELS)})
-        rc = fit.residual_coefficient.transpose(names.POINT, names.RESIDUAL_TERM)
-        new[names.RESIDUAL_COEFFICIENT] = rc.drop_vars(
-            [v for v in rc.coords if v not in out.coords]
-        )
-    return out.assign(new)
+        coords[names.RESIDUAL_TERM] = list(names.RESIDUAL_TERM_LABELS)
+        rc = _variable(fit.residual_coefficient).transpose(names.POINT, names.RESIDUAL_TERM)
+        new[names.RESIDUAL_COEFFICIENT] = xr.Variable(rc.dims, rc.data, rc.attrs)
+    return coords, new
+
+
+def _variable(x) -> xr.Variable:
+    """The Variable of a DataArray (its coordinates left behind), or ``x`` itself."""
+    return getattr(x, "variable", x)

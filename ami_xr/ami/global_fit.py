@@ -75,14 +75,14 @@ def _fit_block(g, use, omega, lam, dt, n_samples, residual_kind):
     )
 
 
-def _fit_lines(ds: xr.Dataset, omega, lam, band, residual_terms: bool):
+def _fit_lines(attrs: dict, omega, lam, band, residual_terms: bool):
     """The lines of the residue fit, the residual-term kind (-1: none) and the band used
     (``band``, or widened with a warning when too few lines lie in it)."""
     n_k = lam.size
     use = band_mask(omega, lam, band)
     kind = -1
     if residual_terms:
-        kind = RESIDUAL_KIND.get(from_attrs(FrfAttributes, ds.attrs).frf_type, 0)
+        kind = RESIDUAL_KIND.get(from_attrs(FrfAttributes, attrs).frf_type, 0)
         if kind in (0, 1):
             use &= omega > 0  # the lower residual is singular at 0 Hz
     n_unknown = 2 * n_k + (4 if kind >= 0 else 0)
@@ -98,7 +98,7 @@ def _fit_lines(ds: xr.Dataset, omega, lam, band, residual_terms: bool):
                 f"spacing); widened to band={band_used:g} ({int(use.sum())} lines) for the "
                 f"residue fit; see attribute {names.ATTR_AMI_BAND_USED}",
                 AssumptionWarning,
-                stacklevel=3,
+                stacklevel=4,
             )
     if 2 * int(use.sum()) < n_unknown + 1:
         raise IdentificationError(
@@ -110,29 +110,17 @@ def _fit_lines(ds: xr.Dataset, omega, lam, band, residual_terms: bool):
 
 
 def _fit(frf: xr.DataArray, use, omega, lam, data_model, kind: int):
-    """Residues, synthesised FRFs and residual coefficients of every FRF (one apply_ufunc)."""
-    dt, n_samples = data_model.dt, data_model.n_samples
-    n_k = lam.size
-    outs = xr.apply_ufunc(
-        _fit_block,
-        frf,
-        kwargs=dict(use=use, omega=omega, lam=lam, dt=dt, n_samples=n_samples, residual_kind=kind),
-        input_core_dims=[[names.FREQUENCY]],
-        output_core_dims=[[names.MODE], [names.FREQUENCY_OUT], [names.RESIDUAL_TERM]],
-        exclude_dims={names.FREQUENCY},
-        dask="parallelized",
-        output_dtypes=[np.complex128, np.complex128, np.complex128],
-        dask_gufunc_kwargs={
-            "output_sizes": {
-                names.MODE: n_k,
-                names.FREQUENCY_OUT: omega.size,
-                names.RESIDUAL_TERM: 2,
-            }
-        },
-        keep_attrs=False,
+    """Residues (point, mode), synthesised FRFs (point, frequency) and residual coefficients
+    (point, residual_term) of every FRF in memory."""
+    g = np.asarray(frf.transpose(names.POINT, names.FREQUENCY).values)
+    res, synth, rc = _fit_block(
+        g, use, omega, lam, data_model.dt, data_model.n_samples, residual_kind=kind
     )
-    res_da, synth_da, rc_da = (o.compute() for o in outs)
-    return res_da, synth_da.rename({names.FREQUENCY_OUT: names.FREQUENCY}), rc_da
+    return (
+        res,
+        xr.Variable((names.POINT, names.FREQUENCY), synth),
+        xr.Variable((names.POINT, names.RESIDUAL_TERM), rc),
+    )
 
 
 _COEF = "coefficient"  # the residue fit's unknowns per FRF: residues, then residual terms
@@ -153,20 +141,69 @@ def _fit_lazy(frf: xr.DataArray, use, omega, lam, data_model, kind: int):
         rc = coef.isel({_COEF: slice(n_k, None)}).rename({_COEF: names.RESIDUAL_TERM})
     else:
         rc = xr.zeros_like(coef.isel({_COEF: slice(0, 2)})).rename({_COEF: names.RESIDUAL_TERM})
-    return res, synth, rc
+    return np.asarray(res.transpose(names.POINT, names.MODE).values), synth, rc
 
 
-def _isolation_flags(ds: xr.Dataset, n_k: int) -> np.ndarray:
-    """The flag bits the isolation's detections decide: ``not_converged`` (it stopped at
-    ``max_iter`` at a point that detected the mode) and ``single_frf``."""
+def isolation_flags(detected: np.ndarray | None, converged: np.ndarray | None, n_k: int):
+    """The flag bits the isolation's detections (``detected`` (P, K), ``converged`` (P,);
+    None: no isolation) decide: ``not_converged`` (it stopped at ``max_iter`` at a point that
+    detected the mode) and ``single_frf``."""
     mask = np.zeros(n_k, np.int32)
-    if names.DETECTED in ds and names.ISO_CONVERGED in ds:
-        det = np.asarray(ds[names.DETECTED].transpose(names.POINT, names.MODE).values, bool)
-        conv = np.asarray(ds[names.ISO_CONVERGED].transpose(names.POINT).values, bool)
+    if detected is not None and converged is not None:
+        det, conv = np.asarray(detected, bool), np.asarray(converged, bool)
         capped = np.any(det & ~conv[:, None], axis=0) | (~np.any(det, axis=0) & ~np.all(conv))
         mask = flags.set_where(mask, names.FLAG_NOT_CONVERGED, capped)
         mask = flags.set_where(mask, names.FLAG_SINGLE_FRF, det.sum(axis=0) == 1)
     return mask
+
+
+def _isolation_flags(ds: xr.Dataset, n_k: int) -> np.ndarray:
+    """:func:`isolation_flags` of the isolation's output ``ds``."""
+    if names.DETECTED in ds and names.ISO_CONVERGED in ds:
+        det = ds[names.DETECTED].transpose(names.POINT, names.MODE).values
+        return isolation_flags(det, ds[names.ISO_CONVERGED].transpose(names.POINT).values, n_k)
+    return isolation_flags(None, None, n_k)
+
+
+def fit_residues(frf: xr.DataArray, attrs: dict, lam: np.ndarray, sigma, mask, settings, band):
+    """The residue fit (eq. 9) of the FRFs ``frf`` (point, frequency; in memory or lazy) at the
+    eigenvalues ``lam`` with :class:`GlobalFitSettings` ``settings``: the core of
+    :func:`global_fit`, which :func:`ami_xr.identify` calls on its arrays. ``attrs``: the FRF
+    Dataset's (data model, FRF type); ``sigma`` (P,): the noise floors (None: estimated);
+    ``mask`` (K,): the flag bits the isolation decided; ``band``: ``settings.band`` as the user
+    gave it (an int stays an int in the warning). Returns the :class:`ResidueFit` and the
+    band used (``settings.band``, or widened with a warning)."""
+    data_model = resolve_model(attrs, "auto")
+    omega = 2.0 * np.pi * np.asarray(frf[names.FREQUENCY].values, dtype=np.float64)
+    use, kind, band_used = _fit_lines(attrs, omega, lam, band, settings.residual_terms)
+    # a lazy FRF is fitted chunk by chunk and only what is per point is gathered
+    fit_frfs = _fit_lazy if ch.is_lazy(frf) else _fit
+    res, synth_da, rc_da = fit_frfs(frf, use, omega, lam, data_model, kind)
+    if sigma is None:
+        sigma = ch.per_row(
+            kn.noise_floor, frf.transpose(names.POINT, names.FREQUENCY), names.FREQUENCY
+        )
+    fit = ResidueFit(
+        eigenvalue=lam,
+        residue=res,
+        synthesized=synth_da,
+        residual_coefficient=rc_da if kind >= 0 else None,
+        dt=data_model.dt,
+        n_samples=data_model.n_samples,
+        noise_floor=sigma,
+        mask=mask,
+        drive_snr_min=settings.drive_snr_min,
+    )
+    return fit, band_used
+
+
+def fit_attrs(attrs: dict, settings: GlobalFitSettings, band_used) -> None:
+    """The global fit's record in ``attrs``: its settings and the band used when widened."""
+    to_attrs(settings, attrs)
+    if band_used != settings.band:
+        attrs[names.ATTR_AMI_BAND_USED] = float(band_used)
+    else:
+        attrs.pop(names.ATTR_AMI_BAND_USED, None)
 
 
 def global_fit(
@@ -232,45 +269,23 @@ def global_fit(
             f"ds: global_fit needs {names.EIGENVALUE!r}; run ami_xr.isolate first"
         )
     drive_snr_min = c.check_positive(drive_snr_min, "drive_snr_min")
-    data_model = resolve_model(ds.attrs, "auto")
-    omega = c.omega_of(ds)
     lam = np.ascontiguousarray(ds[names.EIGENVALUE].values, dtype=np.complex128)
     n_k = lam.size
     if n_k == 0:
         raise IdentificationError(f"{names.EIGENVALUE}: no modes to fit (isolate found none)")
-    use, kind, band_used = _fit_lines(ds, omega, lam, band, residual_terms)
-    frf = ds[names.FRF]
-    # a lazy FRF is fitted chunk by chunk and only what is per point is gathered
-    fit_frfs = _fit_lazy if ch.is_lazy(frf) else _fit
-    res_da, synth_da, rc_da = fit_frfs(frf, use, omega, lam, data_model, kind)
-    res = np.asarray(res_da.transpose(names.POINT, names.MODE).values)
-    if names.SUB_NOISE_FLOOR in ds:
-        sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, float)
-    else:
-        sigma = ch.per_row(
-            kn.noise_floor, frf.transpose(names.POINT, names.FREQUENCY), names.FREQUENCY
-        )
-    fit = ResidueFit(
-        eigenvalue=lam,
-        residue=res,
-        synthesized=synth_da,
-        residual_coefficient=rc_da if kind >= 0 else None,
-        dt=data_model.dt,
-        n_samples=data_model.n_samples,
-        noise_floor=sigma,
-        mask=_isolation_flags(ds, n_k),
-        drive_snr_min=drive_snr_min,
-    )
-    out = derive(fit, c.drop_results(ds, (c.GLOBAL_VARS,)))
+    if not isinstance(band, str):
+        c.check_positive(band, "band")
     settings = GlobalFitSettings(
         band if isinstance(band, str) else float(band), bool(residual_terms), drive_snr_min
     )
+    sigma = None
+    if names.SUB_NOISE_FLOOR in ds:
+        sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, float)
+    mask = _isolation_flags(ds, n_k)
+    fit, band_used = fit_residues(ds[names.FRF], ds.attrs, lam, sigma, mask, settings, band)
+    out = derive(fit, c.drop_results(ds, (c.GLOBAL_VARS,)))
     out = c.restore_coordinate_attrs(out, coord_attrs)
-    to_attrs(settings, out.attrs)
-    if band_used != band:
-        out.attrs[names.ATTR_AMI_BAND_USED] = float(band_used)
-    else:
-        out.attrs.pop(names.ATTR_AMI_BAND_USED, None)
+    fit_attrs(out.attrs, settings, band_used)
     # the history records the band as given (an int stays an int there)
     params = dict(parameters(settings), band=band)
     return c.finish(out, "ami_xr.global_fit", "global_fit", params)

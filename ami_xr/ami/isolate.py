@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import xarray as xr
@@ -80,8 +81,28 @@ def _isolate_block(g, lam0, res0, n0, sigma, *, omega, dt, n_samples, params):
     )
 
 
+class Candidates(NamedTuple):
+    """The subtraction's candidates the isolation starts from (arrays, point first)."""
+
+    lam: np.ndarray  # (P, S) complex, NaN-padded
+    res: np.ndarray  # (P, S) complex
+    n_modes: np.ndarray  # (P,) int
+    sigma: np.ndarray  # (P,) noise floor per FRF
+
+
+def candidates_of(ds: xr.Dataset) -> Candidates:
+    """The :class:`Candidates` in the output of :func:`ami_xr.subtract` ``ds``."""
+    pc = (names.POINT, names.CANDIDATE)
+    return Candidates(
+        lam=np.asarray(ds[names.SUB_EIGENVALUE].transpose(*pc).values),
+        res=np.asarray(ds[names.SUB_RESIDUE].transpose(*pc).values),
+        n_modes=np.asarray(ds[names.SUB_N_MODES].transpose(names.POINT).values),
+        sigma=np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, dtype=float),
+    )
+
+
 @dataclass
-class _Isolated:
+class Isolated:
     """What either isolation method finds: K modes, P points."""
 
     eig: np.ndarray  # (K,) complex eigenvalues, by increasing natural frequency
@@ -94,85 +115,85 @@ class _Isolated:
     n_modes: int
 
 
-def _with_modes(ds: xr.Dataset, res: _Isolated) -> xr.Dataset:
+def isolate_variables(res: Isolated) -> dict:
+    """The isolation's output variables (``xarray.Variable`` by name, plus the ``mode``
+    coordinate 1..K) from its result ``res``."""
+    eig, n_modes = np.asarray(res.eig, np.complex128), res.n_modes
+    wn = np.abs(eig)
+    m, pm = (names.MODE,), (names.POINT, names.MODE)
+    angular = {names.ATTR_UNITS: names.ANGULAR_UNITS}
+    return {
+        names.EIGENVALUE: xr.Variable(m, eig, angular),
+        names.NATURAL_FREQUENCY: xr.Variable(
+            m, wn / (2 * np.pi), {names.ATTR_UNITS: names.FREQUENCY_UNITS}
+        ),
+        names.DAMPING_RATIO: xr.Variable(
+            m, -np.real(eig) / wn if n_modes else wn, {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
+        ),
+        names.EIGENVALUE_SPREAD: xr.Variable(
+            m,
+            np.asarray(res.spread, np.complex128),
+            {**angular, names.ATTR_LONG_NAME: "std(Re) + i std(Im) of the per-FRF estimates"},
+        ),
+        names.DETECTED: xr.Variable(pm, np.asarray(res.detected, bool)),
+        names.POINT_EIGENVALUE: xr.Variable(pm, np.asarray(res.point_lam, np.complex128), angular),
+        names.POINT_SNR: xr.Variable(
+            pm,
+            np.asarray(res.point_snr, float),
+            {names.ATTR_LONG_NAME: "peak |contribution| / noise floor"},
+        ),
+        names.ISO_ITERATIONS: xr.Variable((names.POINT,), res.iterations),
+        names.ISO_CONVERGED: xr.Variable((names.POINT,), res.converged),
+        names.MODE: xr.Variable(m, np.arange(1, n_modes + 1)),
+    }
+
+
+def _with_modes(ds: xr.Dataset, res: Isolated) -> xr.Dataset:
     """``ds`` with the isolation's results: modes (dim ``mode``), per-point estimates, and the
     convergence per point (earlier isolation and global-fit results dropped)."""
-    eig, spread, detected = res.eig, res.spread, res.detected
-    point_lam, point_snr, n_modes = res.point_lam, res.point_snr, res.n_modes
-    iterations, converged = res.iterations, res.converged
+    new = isolate_variables(res)
     out = c.drop_results(ds, (c.ISOLATE_VARS, c.GLOBAL_VARS))
-    mode = np.arange(1, n_modes + 1)
-    wn = np.abs(eig)
-    out = out.assign_coords({names.MODE: mode})
-    out = out.assign(
-        {
-            names.EIGENVALUE: (
-                (names.MODE,),
-                np.asarray(eig, np.complex128),
-                {names.ATTR_UNITS: names.ANGULAR_UNITS},
-            ),
-            names.NATURAL_FREQUENCY: (
-                (names.MODE,),
-                wn / (2 * np.pi),
-                {names.ATTR_UNITS: names.FREQUENCY_UNITS},
-            ),
-            names.DAMPING_RATIO: (
-                (names.MODE,),
-                -np.real(eig) / wn if n_modes else wn,
-                {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS},
-            ),
-            names.EIGENVALUE_SPREAD: (
-                (names.MODE,),
-                np.asarray(spread, np.complex128),
-                {
-                    names.ATTR_UNITS: names.ANGULAR_UNITS,
-                    names.ATTR_LONG_NAME: "std(Re) + i std(Im) of the per-FRF estimates",
-                },
-            ),
-            names.DETECTED: ((names.POINT, names.MODE), np.asarray(detected, bool)),
-            names.POINT_EIGENVALUE: (
-                (names.POINT, names.MODE),
-                np.asarray(point_lam, np.complex128),
-                {names.ATTR_UNITS: names.ANGULAR_UNITS},
-            ),
-            names.POINT_SNR: (
-                (names.POINT, names.MODE),
-                np.asarray(point_snr, float),
-                {names.ATTR_LONG_NAME: "peak |contribution| / noise floor"},
-            ),
-            names.ISO_ITERATIONS: ((names.POINT,), iterations),
-            names.ISO_CONVERGED: ((names.POINT,), converged),
-        }
-    )
-    return out
+    return out.assign_coords({names.MODE: new.pop(names.MODE)}).assign(new)
 
 
-def _isolate_per_frf(ds, omega, data_model, sub, settings, sigma) -> _Isolated:
-    """The paper's isolation: each FRF on its own (one apply_ufunc over points), then the
-    estimates matched into modes and averaged (plain or ``snr^2``-weighted mean)."""
-    dt, n_samples = data_model.dt, data_model.n_samples
+def _per_frf_rows(frf: xr.DataArray, cand: Candidates, omega, data_model, params):
+    """The per-FRF kernel on every FRF: an ``IsolateResult`` of arrays (point first); a lazy
+    FRF chunk by chunk of points (one ``apply_ufunc``)."""
+    kw = dict(omega=omega, dt=data_model.dt, n_samples=data_model.n_samples, params=params)
+    if not ch.is_lazy(frf):
+        g = np.asarray(frf.transpose(names.POINT, names.FREQUENCY).values)
+        out = _isolate_block(g, cand.lam, cand.res, cand.n_modes, cand.sigma, **kw)
+        return ki.IsolateResult(**dict(zip(_OUTPUTS, out, strict=True)))
+    pc, p = (names.POINT, names.CANDIDATE), (names.POINT,)
     outs = xr.apply_ufunc(
         _isolate_block,
-        ds[names.FRF],
-        ds[names.SUB_EIGENVALUE],
-        ds[names.SUB_RESIDUE],
-        ds[names.SUB_N_MODES],
-        ds[names.SUB_NOISE_FLOOR],
-        kwargs=dict(omega=omega, dt=dt, n_samples=n_samples, params=kernel_params(sub, settings)),
+        frf,
+        xr.DataArray(cand.lam, dims=pc),
+        xr.DataArray(cand.res, dims=pc),
+        xr.DataArray(cand.n_modes, dims=p),
+        xr.DataArray(cand.sigma, dims=p),
+        kwargs=kw,
         input_core_dims=[[names.FREQUENCY], [names.CANDIDATE], [names.CANDIDATE], [], []],
         output_core_dims=[dims for dims, _ in _OUTPUTS.values()],
         dask="parallelized",
         output_dtypes=[dtype for _, dtype in _OUTPUTS.values()],
-        dask_gufunc_kwargs={"output_sizes": {names.SLOT: sub.max_modes}},
+        dask_gufunc_kwargs={"output_sizes": {names.SLOT: params.max_modes}},
         keep_attrs=False,
     )
-    r = ki.IsolateResult(
+    return ki.IsolateResult(
         **{
             name: o.transpose(names.POINT, ...).values
             for name, o in zip(_OUTPUTS, outs, strict=True)
         }
     )
-    snr_p = kb.contribution_peaks(omega, dt, n_samples, r.lam, r.res) / sigma[:, None]
+
+
+def _isolate_per_frf(frf, cand: Candidates, omega, data_model, sub, settings) -> Isolated:
+    """The paper's isolation: each FRF on its own, then the estimates matched into modes and
+    averaged (plain or ``snr^2``-weighted mean)."""
+    dt, n_samples = data_model.dt, data_model.n_samples
+    r = _per_frf_rows(frf, cand, omega, data_model, kernel_params(sub, settings))
+    snr_p = kb.contribution_peaks(omega, dt, n_samples, r.lam, r.res) / cand.sigma[:, None]
     label = match_modes(r.lam, snr_p, settings.match_tol)
     n_modes = n_labels(label)
     point_lam = gather(r.lam, label, n_modes)
@@ -183,7 +204,7 @@ def _isolate_per_frf(ds, omega, data_model, sub, settings, sigma) -> _Isolated:
         else np.nan_to_num(point_snr) ** 2
     )
     eig, spread = weighted_average(point_lam, weight)
-    return _Isolated(
+    return Isolated(
         eig=eig,
         spread=spread,
         detected=np.isfinite(point_lam),
@@ -199,16 +220,17 @@ def _checkpoint() -> None:
     interrupt.checkpoint()  # looked up at each call (a test may replace it)
 
 
-def _isolate_simo_modes(ds, omega, data_model, sub, settings, sigma) -> _Isolated:
+def _isolate_simo_modes(frf, cand: Candidates, omega, data_model, sub, settings) -> Isolated:
     """Global SIMO isolation: the subtraction candidates matched into starting modes, each
     single-mode fit shared by all FRFs; per-point estimates where the mode is detected."""
     dt, n_samples = data_model.dt, data_model.n_samples
+    sigma = cand.sigma
     t1 = kn.peak_threshold(omega.size, sub.pfa)
-    n_p = ds.sizes[names.POINT]
     # the SIMO kernel fits all FRFs jointly in memory: a lazy FRF is loaded once, here
-    g = c.frf_values(ds.assign({names.FRF: ch.loaded(ds[names.FRF], "isolate")}))
-    lam_c = np.asarray(ds[names.SUB_EIGENVALUE].transpose(names.POINT, ...).values)
-    res_c = np.asarray(ds[names.SUB_RESIDUE].transpose(names.POINT, ...).values)
+    g = ch.loaded(frf, "isolate").transpose(names.POINT, names.FREQUENCY).values
+    g = np.ascontiguousarray(g, dtype=np.complex128)
+    n_p = g.shape[0]
+    lam_c, res_c = np.asarray(cand.lam), np.asarray(cand.res)
     snr_c = (
         kb.contribution_peaks(
             omega, dt, n_samples, np.ascontiguousarray(lam_c), np.ascontiguousarray(res_c)
@@ -244,7 +266,7 @@ def _isolate_simo_modes(ds, omega, data_model, sub, settings, sigma) -> _Isolate
     )
     point_lam = np.where(detected, est, np.nan + 0j)
     _, spread = weighted_average(point_lam, np.ones(point_lam.shape))
-    return _Isolated(
+    return Isolated(
         eig=eig,
         spread=spread,
         detected=detected,
@@ -324,13 +346,34 @@ def isolate(
     for v in (names.SUB_EIGENVALUE, names.SUB_RESIDUE, names.SUB_NOISE_FLOOR, names.SUB_N_MODES):
         if v not in ds:
             raise IdentificationError(f"ds: isolate needs {v!r}; run ami_xr.subtract first")
+    settings = isolate_settings(tol, max_iter, method, weighting, match_tol, snr_weighting)
+    sub = from_attrs(SubtractSettings, ds.attrs)
+    data_model = resolve_model(ds.attrs, "auto")
+    res = isolate_modes(ds[names.FRF], candidates_of(ds), c.omega_of(ds), data_model, sub, settings)
+    out = _with_modes(ds, res)
+    isolate_record(res, out.attrs, settings, ch.is_lazy(ds[names.FRF]))
+    warn_isolation(res, ds[names.POINT].values, settings)
+    return c.finish(out, "ami_xr.isolate", "isolate", parameters(settings))
+
+
+def isolate_record(res: Isolated, attrs: dict, settings: IsolateSettings, lazy: bool) -> None:
+    """The attributes the isolation records in ``attrs``: its settings, a lazy FRF loaded."""
+    to_attrs(settings, attrs)
+    if settings.method == names.METHOD_SIMO and lazy:
+        ch.note_loaded(attrs, "isolate")
+
+
+def isolate_settings(
+    tol, max_iter, method, weighting, match_tol=IsolateSettings.match_tol, snr_weighting=None
+) -> IsolateSettings:
+    """The checked settings of :func:`isolate` (an error naming the first bad one)."""
     tol = c.check_positive(tol, "tol")
     max_iter = c.check_positive_int(max_iter, "max_iter")
     c.check_choice(method, "method", METHODS)
     c.check_choice(weighting, "weighting", WEIGHTINGS)
     match_tol = c.check_positive(match_tol, "match_tol")
     snr_weighting = IsolateSettings.snr_weighting if snr_weighting is None else bool(snr_weighting)
-    settings = IsolateSettings(
+    return IsolateSettings(
         tol=tol,
         max_iter=max_iter,
         method=method,
@@ -338,21 +381,23 @@ def isolate(
         match_tol=match_tol,
         snr_weighting=snr_weighting,
     )
-    sub = from_attrs(SubtractSettings, ds.attrs)
-    data_model = resolve_model(ds.attrs, "auto")
-    omega = c.omega_of(ds)
-    points = ds[names.POINT].values
-    sigma = np.asarray(ds[names.SUB_NOISE_FLOOR].transpose(names.POINT).values, dtype=float)
 
-    isolate_modes = _isolate_per_frf if method == names.METHOD_PER_FRF else _isolate_simo_modes
-    res = isolate_modes(ds, omega, data_model, sub, settings, sigma)
 
-    out = _with_modes(ds, res)
-    to_attrs(settings, out.attrs)
-    if method == names.METHOD_SIMO and ch.is_lazy(ds[names.FRF]):
-        ch.note_loaded(out.attrs, "isolate")
+def isolate_modes(frf, cand: Candidates, omega, data_model, sub, settings) -> Isolated:
+    """The isolation (``settings.method``) of the FRFs ``frf`` (a DataArray (point,
+    frequency), in memory or lazy) from the subtraction's candidates ``cand``: the core of
+    :func:`isolate`, which :func:`ami_xr.identify` calls on its arrays."""
+    simo = settings.method != names.METHOD_PER_FRF
+    return (_isolate_simo_modes if simo else _isolate_per_frf)(
+        frf, cand, omega, data_model, sub, settings
+    )
+
+
+def warn_isolation(res: Isolated, points: np.ndarray, settings: IsolateSettings) -> None:
+    """The isolation's warnings: stopped at ``max_iter`` somewhere, or no mode."""
     if not np.all(res.converged):
         bad = points[~res.converged].tolist()
+        max_iter, tol = settings.max_iter, settings.tol
         message = (
             f"{NOT_CONVERGED} within max_iter={max_iter} sweeps at point(s) {bad} (tol={tol}; "
             f"see {names.ISO_CONVERGED}): the eigenvalues of the modes detected there still "
@@ -367,4 +412,3 @@ def isolate(
         warn(CapWarning(message, flags.RunStatus.ISOLATE_MAX_ITER), CapWarning)
     if res.n_modes == 0:
         warn("isolate: no mode identified", NoModesWarning)
-    return c.finish(out, "ami_xr.isolate", "isolate", parameters(settings))

@@ -14,17 +14,44 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import names
+from ami_xr.ami import chunked as ch
 from ami_xr.ami import common as c
 from ami_xr.ami import repeated as rp
 from ami_xr.ami import scale as scale_out
 from ami_xr.ami import spikes, whitening
-from ami_xr.ami.global_fit import global_fit, receptance_mode_vectors
+from ami_xr.ami.derive import derived
+from ami_xr.ami.global_fit import (
+    fit_attrs,
+    fit_residues,
+    isolation_flags,
+    receptance_mode_vectors,
+)
 from ami_xr.ami.isolate import METHODS as ISOLATE_METHODS
-from ami_xr.ami.isolate import isolate
+from ami_xr.ami.isolate import (
+    Candidates,
+    isolate_modes,
+    isolate_record,
+    isolate_settings,
+    isolate_variables,
+    warn_isolation,
+)
 from ami_xr.ami.refine import refine as refine_phase
 from ami_xr.ami.resolution import resolution_checked
-from ami_xr.ami.settings import FrfAttributes, IdentifySettings, IsolateSettings, from_attrs
-from ami_xr.ami.subtract import add_capped, band_of, power_of_two_scale, subtract
+from ami_xr.ami.settings import (
+    FrfAttributes,
+    GlobalFitSettings,
+    IdentifySettings,
+    IsolateSettings,
+    SubtractSettings,
+    from_attrs,
+)
+from ami_xr.ami.subtract import (
+    add_capped,
+    band_of,
+    power_of_two_scale,
+    subtract_arrays,
+    subtract_settings,
+)
 from ami_xr.caller import warn
 from ami_xr.core import flags
 from ami_xr.core.modal import (
@@ -35,6 +62,7 @@ from ami_xr.core.modal import (
     natural_frequency,
     phase_normalised,
 )
+from ami_xr.core.model import resolve_model
 from ami_xr.dsp import band as bd
 from ami_xr.errors import (
     AssumptionWarning,
@@ -115,7 +143,6 @@ def model_order(settings: IdentifySettings) -> dict:
 def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progress) -> xr.Dataset:
     """subtract -> isolate -> global_fit [-> refine] on ``work``, with a progress bar."""
     s = settings
-    paper = s.method == names.METHOD_PAPER
     steps = [names.PHASE_SUBTRACT, names.PHASE_ISOLATE, names.PHASE_GLOBAL_FIT]
     steps += [names.PHASE_REFINE] if refined else []
     label = f"identify: {work.sizes.get(names.POINT, 0)} FRFs x {work.sizes[names.FREQUENCY]} lines"
@@ -125,35 +152,91 @@ def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progres
         c.frf_checked(work),  # identify validated it (or built it from validated FRFs)
     ):
         warnings.simplefilter("always")  # held until the refinement says whether caps mattered
-        step(names.PHASE_SUBTRACT)
-        out = subtract(
-            work,
-            s.delta,
-            pfa=s.pfa,
-            max_modes=s.max_modes,
-            model=names.MODEL_CONTINUOUS if paper else "auto",
-            zeta_max=s.zeta_max,
-        )
-        step(names.PHASE_ISOLATE)
-        out = isolate(
-            out,
-            s.tol,
-            s.max_iter,
-            method=names.METHOD_PER_FRF if paper else s.method,
-            weighting=names.WEIGHTING_MEAN if paper else IsolateSettings.weighting,
-        )
-        if out.sizes.get(names.MODE, 0) > 0:
-            step(names.PHASE_GLOBAL_FIT)
-            out = global_fit(out, band=s.band, residual_terms=s.residual_terms)
-            if refined:
-                step(names.PHASE_REFINE)
-                out = refine_phase(out, **model_order(s))
+        out = fitted(work, s, step)
+        if refined and out.sizes.get(names.MODE, 0) > 0:
+            step(names.PHASE_REFINE)
+            out = refine_phase(out, **model_order(s))
     dropped = _caps_superseded(out, refined)
     if _isolation_superseded(out, refined):
         dropped |= flags.RunStatus.ISOLATE_MAX_ITER
     for w in said:  # a cap's warning is told apart by its status bits, not by its text
         if not (isinstance(w.message, CapWarning) and w.message.status & dropped):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno, source=w.source)
+    return out
+
+
+def fitted(work: xr.Dataset, settings: IdentifySettings, step) -> xr.Dataset:
+    """subtract -> isolate -> global_fit on the arrays of ``work`` (validated by the caller):
+    each phase's core on the FRFs and the fit record the one before left, the same calls as
+    the public phases make; the labeled outputs of all three in one Dataset, built once at the
+    end (the global fit's from :func:`~ami_xr.ami.derive.derived`). ``step(phase)`` is told
+    when each phase starts."""
+    s = settings
+    paper = s.method == names.METHOD_PAPER
+    coord_attrs = c.coordinate_attrs(work)
+    step(names.PHASE_SUBTRACT)
+    frf = work[names.FRF]
+    sub_settings = subtract_settings(
+        s.delta,
+        s.max_modes,
+        s.pfa,
+        SubtractSettings.min_points,
+        s.zeta_max,
+        SubtractSettings.merge_tol,
+        names.MODEL_CONTINUOUS if paper else "auto",
+    )
+    c.check_values(work)
+    sub = subtract_arrays(frf, work.attrs, sub_settings)
+    attrs = {**work.attrs, **sub.attrs}
+    step(names.PHASE_ISOLATE)
+    iso_settings = isolate_settings(
+        s.tol,
+        s.max_iter,
+        names.METHOD_PER_FRF if paper else s.method,
+        names.WEIGHTING_MEAN if paper else IsolateSettings.weighting,
+    )
+    cand = Candidates(
+        lam=sub.variables[names.SUB_EIGENVALUE].values,
+        res=sub.variables[names.SUB_RESIDUE].values,
+        n_modes=sub.result.n_modes,
+        sigma=np.asarray(sub.result.sigma, dtype=float),
+    )
+    omega = c.omega_of(work)
+    model = resolve_model(attrs, "auto")
+    iso = isolate_modes(frf, cand, omega, model, sub.settings, iso_settings)
+    isolate_record(iso, attrs, iso_settings, ch.is_lazy(frf))
+    warn_isolation(iso, np.asarray(work[names.POINT].values), iso_settings)
+    fit = None
+    if iso.n_modes > 0:
+        step(names.PHASE_GLOBAL_FIT)
+        if not isinstance(s.band, str):
+            c.check_positive(s.band, "band")
+        fit_settings = GlobalFitSettings(
+            s.band if isinstance(s.band, str) else float(s.band), bool(s.residual_terms)
+        )
+        lam = np.ascontiguousarray(iso.eig, dtype=np.complex128)
+        mask = isolation_flags(iso.detected, iso.converged, iso.n_modes)
+        fit, band_used = fit_residues(frf, attrs, lam, cand.sigma, mask, fit_settings, s.band)
+        fit_attrs(attrs, fit_settings, band_used)
+    return _labeled(work, (sub.variables, isolate_variables(iso)), attrs, fit, coord_attrs)
+
+
+def _labeled(work: xr.Dataset, phases, attrs: dict, fit, coord_attrs) -> xr.Dataset:
+    """``work`` (earlier results dropped) with the output variables of the phases (dicts by
+    name, the dim coordinates among them), ``attrs``, and the outputs of the global ``fit``
+    (:class:`~ami_xr.ami.derive.ResidueFit`, None: no mode)."""
+    earlier = [v for g in (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS) for v in g]
+    if any(v in work.variables for v in earlier):
+        work = c.drop_results(work, (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS))
+    new = {k: v for phase in phases for k, v in phase.items()}
+    coords = {d: new.pop(d) for d in (names.CANDIDATE, names.MODE)}
+    out = work.assign_coords(coords).assign(new)
+    out.attrs = attrs
+    if fit is not None:
+        more, fitted = derived(fit, out)
+        out = out.assign_coords(more).assign(fitted)
+    out = c.restore_coordinate_attrs(out, coord_attrs)
+    out.attrs[names.ATTR_AMI_PHASE] = names.PHASE_ISOLATE if fit is None else names.PHASE_GLOBAL_FIT
     return out
 
 

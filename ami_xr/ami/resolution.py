@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import xarray as xr
@@ -61,6 +62,12 @@ MAX_REFINEMENT = 2.0
 #: Segments per record below which the advice says the record is short for its ``nperseg``
 #: (:data:`ami_xr.dsp.frf.SUGGESTED_SEGMENTS`, the count frf's own advice keeps).
 SEGMENTS = 8
+
+
+class _Attrs(NamedTuple):
+    """What :func:`ami_xr.provenance.history` reads of a Dataset (no Dataset built for it)."""
+
+    attrs: dict
 
 
 @dataclass(frozen=True)
@@ -88,7 +95,7 @@ def welch_window(attrs: dict) -> WelchWindow | None:
     attributes ``attrs`` (also as a step of a command's record, as ``ami-xr frf`` writes it);
     None when there is none or its window is not a named window (an array)."""
     found = None
-    for record in history(xr.Dataset(attrs=dict(attrs))):
+    for record in history(_Attrs(dict(attrs))):  # history reads the attrs only
         if not isinstance(record, dict):
             continue
         steps = record.get("steps")

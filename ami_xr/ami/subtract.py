@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import NamedTuple
 
 import numpy as np
 import xarray as xr
 
 from ami_xr import names
 from ami_xr import progress as pg
+from ami_xr.ami import chunked as ch
 from ami_xr.ami import common as c
 from ami_xr.ami.settings import SubtractSettings, parameters, to_attrs
 from ami_xr.caller import warn
@@ -200,7 +202,20 @@ def subtract(
         :class:`~ami_xr.core.flags.RunStatus`) record it.
     """
     c.check_frf(ds, "subtract")
-    settings = SubtractSettings(
+    settings = subtract_settings(delta, max_modes, pfa, min_points, zeta_max, merge_tol, model)
+    ds = band_of(ds, fmin, fmax, "subtract")
+    c.check_values(ds)
+    done = subtract_arrays(ds[names.FRF], ds.attrs, settings)
+    out = _assign_outputs(ds, done.variables)
+    out.attrs.update(done.attrs)
+    return c.finish(out, "ami_xr.subtract", "subtract", parameters(done.settings))
+
+
+def subtract_settings(
+    delta, max_modes, pfa, min_points, zeta_max, merge_tol, model
+) -> SubtractSettings:
+    """The checked settings of :func:`subtract` (an error naming the first bad one)."""
+    return SubtractSettings(
         delta=c.check_fraction(delta, "delta"),
         max_modes=c.check_positive_int(max_modes, "max_modes"),
         pfa=c.check_fraction(pfa, "pfa"),
@@ -209,29 +224,62 @@ def subtract(
         merge_tol=c.check_positive(merge_tol, "merge_tol"),
         model=c.check_choice(model, "model", c.MODELS),
     )
-    ds = band_of(ds, fmin, fmax, "subtract")
-    data_model = resolve_model(ds.attrs, model)
+
+
+class Subtracted(NamedTuple):
+    """What :func:`subtract_arrays` returns."""
+
+    result: ks.SubtractResult  # the kernel's arrays, point first
+    variables: dict  # the output variables (:func:`subtract_variables`)
+    attrs: dict  # the attributes the phase records
+    settings: SubtractSettings  # with the data model resolved
+
+
+def subtract_arrays(frf: xr.DataArray, attrs: dict, settings: SubtractSettings) -> Subtracted:
+    """The Subtraction Phase on the checked FRFs ``frf`` (point, frequency) of a Dataset with
+    ``attrs``: the core of :func:`subtract`, which :func:`ami_xr.identify` calls on its arrays.
+    The attributes it records: its settings, the caps, why no mode was found; the caps and a
+    zero-modes result are warned about."""
+    data_model = resolve_model(attrs, settings.model)
     settings = dataclasses.replace(settings, model=data_model.name)
-    c.check_values(ds)
-    omega = c.omega_of(ds)
-    r = _run(ds[names.FRF], omega, data_model, settings)
-    out = _assign_outputs(ds, r, omega, settings)
-    to_attrs(settings, out.attrs)
-    _warn_caps(out, settings.max_modes)
+    omega = 2.0 * np.pi * np.asarray(frf[names.FREQUENCY].values, dtype=np.float64)
+    r = _run(frf, omega, data_model, settings)
+    new = subtract_variables(r, omega, settings, frf.attrs.get(names.ATTR_UNITS, ""))
+    record: dict = {}
+    to_attrs(settings, record)
+    points = np.asarray(frf[names.POINT].values)
+    _warn_caps(new[names.SUB_STOP_REASON].values, points, settings.max_modes, record)
     if int(r.n_modes.sum()) == 0:
-        if _has_significant_peak(ds[names.FRF], r.sigma, settings):
+        if _has_significant_peak(frf, r.sigma, settings):
             # significant peaks, no fit accepted: the other sign convention? then say so
-            flipped = _run(np.conj(ds[names.FRF]), omega, data_model, settings)
-            found = _conjugate_resonances(ds[names.FRF], flipped, r.sigma, omega, settings)
+            flipped = _run(np.conj(frf), omega, data_model, settings)
+            found = _conjugate_resonances(frf, flipped, r.sigma, omega, settings)
             if found:
                 raise conjugate_error("subtract", int(np.prod(r.n_modes.shape)), found)
-        _explain_no_modes(out, ds[names.FRF], r.sigma, settings.pfa, settings.zeta_max, omega.size)
-    return c.finish(out, "ami_xr.subtract", "subtract", parameters(settings))
+        _explain_no_modes(new, record, frf, r.sigma, settings, omega.size)
+    return Subtracted(r, new, record, settings)
+
+
+def subtract_rows(g: np.ndarray, omega: np.ndarray, data_model, settings: SubtractSettings):
+    """The kernel on the FRFs ``g`` (P, F) in memory: a :class:`SubtractResult` of arrays with
+    one row per FRF (the core of :func:`subtract`, which :func:`ami_xr.identify` calls on its
+    arrays)."""
+    out = _subtract_block(
+        g,
+        omega=omega,
+        dt=data_model.dt,
+        n_samples=data_model.n_samples,
+        params=kernel_params(settings),
+    )
+    return ks.SubtractResult(**dict(zip(_OUTPUTS, out, strict=True)))
 
 
 def _run(frf: xr.DataArray, omega: np.ndarray, data_model, settings: SubtractSettings):
-    """The kernel on every FRF of ``frf`` (one ``apply_ufunc``): a :class:`SubtractResult` of
-    DataArrays."""
+    """The kernel on every FRF of ``frf``: a :class:`SubtractResult` of arrays (point first);
+    a lazy FRF chunk by chunk of points (one ``apply_ufunc``)."""
+    if not ch.is_lazy(frf):
+        g = frf.transpose(names.POINT, names.FREQUENCY).values
+        return subtract_rows(g, omega, data_model, settings)
     res = xr.apply_ufunc(
         _subtract_block,
         frf,
@@ -248,50 +296,61 @@ def _run(frf: xr.DataArray, omega: np.ndarray, data_model, settings: SubtractSet
         dask_gufunc_kwargs={"output_sizes": {names.CANDIDATE: settings.max_modes}},
         keep_attrs=False,
     )
-    return ks.SubtractResult(**{name: o.compute() for name, o in zip(_OUTPUTS, res, strict=True)})
-
-
-def _assign_outputs(ds: xr.Dataset, r, omega: np.ndarray, settings: SubtractSettings):
-    """``ds`` without earlier results, plus the subtraction's output variables from the
-    kernel's result ``r`` (candidate slots cut to the most candidates found, at least one)."""
-    n_keep = max(int(r.n_modes.max()) if r.n_modes.size else 0, 1)
-    sl = {names.CANDIDATE: slice(0, n_keep)}
-    reason_str = xr.DataArray(
-        np.array([ks.STOP_REASONS[int(k)] for k in np.ravel(r.reason.values)], dtype=object)
-        .reshape(r.reason.shape)
-        .astype(str),
-        dims=r.reason.dims,
-        coords=r.reason.coords,
-    )
-    out = c.drop_results(ds, (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS))
-    frf_units = ds[names.FRF].attrs.get(names.ATTR_UNITS, "")
-    units = names.ATTR_UNITS
-    out = out.assign(
-        {
-            names.SUB_EIGENVALUE: r.lam.isel(sl).assign_attrs({units: names.ANGULAR_UNITS}),
-            names.SUB_RESIDUE: r.res.isel(sl).assign_attrs(
-                {units: f"{frf_units} {names.ANGULAR_UNITS}"}
-            ),
-            names.SUB_BAND_LOW: r.band_low.isel(sl).assign_attrs({units: names.FREQUENCY_UNITS}),
-            names.SUB_BAND_HIGH: r.band_high.isel(sl).assign_attrs({units: names.FREQUENCY_UNITS}),
-            names.SUB_NOISE_FLOOR: r.sigma.assign_attrs(
-                {
-                    units: frf_units,
-                    names.ATTR_LONG_NAME: "noise standard deviation per line "
-                    "(median of adjacent differences)",
-                }
-            ),
-            names.SUB_STOP_STATISTIC: r.statistic.assign_attrs(
-                {
-                    names.ATTR_LONG_NAME: "|Y|^2/sigma^2 of the last examined peak",
-                    names.ATTR_THRESHOLD: float(kn.peak_threshold(omega.size, settings.pfa)),
-                }
-            ),
-            names.SUB_STOP_REASON: reason_str,
-            names.SUB_N_MODES: r.n_modes,
+    return ks.SubtractResult(
+        **{
+            name: np.asarray(o.transpose(names.POINT, ...).values)
+            for name, o in zip(_OUTPUTS, res, strict=True)
         }
     )
-    return out.assign_coords({names.CANDIDATE: np.arange(n_keep)})
+
+
+def subtract_variables(r, omega: np.ndarray, settings: SubtractSettings, frf_units: str) -> dict:
+    """The subtraction's output variables (``xarray.Variable`` by name, plus the ``candidate``
+    coordinate) from the kernel's result ``r`` (arrays, point first): candidate slots cut to
+    the most candidates found, at least one."""
+    n_keep = max(int(r.n_modes.max()) if r.n_modes.size else 0, 1)
+    pc, p = (names.POINT, names.CANDIDATE), (names.POINT,)
+    units = names.ATTR_UNITS
+    reason = np.array([ks.STOP_REASONS[int(k)] for k in r.reason], dtype=object).astype(str)
+    threshold = float(kn.peak_threshold(omega.size, settings.pfa))
+    return {
+        names.SUB_EIGENVALUE: xr.Variable(pc, r.lam[:, :n_keep], {units: names.ANGULAR_UNITS}),
+        names.SUB_RESIDUE: xr.Variable(
+            pc, r.res[:, :n_keep], {units: f"{frf_units} {names.ANGULAR_UNITS}"}
+        ),
+        names.SUB_BAND_LOW: xr.Variable(pc, r.band_low[:, :n_keep], {units: names.FREQUENCY_UNITS}),
+        names.SUB_BAND_HIGH: xr.Variable(
+            pc, r.band_high[:, :n_keep], {units: names.FREQUENCY_UNITS}
+        ),
+        names.SUB_NOISE_FLOOR: xr.Variable(
+            p,
+            r.sigma,
+            {
+                units: frf_units,
+                names.ATTR_LONG_NAME: "noise standard deviation per line "
+                "(median of adjacent differences)",
+            },
+        ),
+        names.SUB_STOP_STATISTIC: xr.Variable(
+            p,
+            r.statistic,
+            {
+                names.ATTR_LONG_NAME: "|Y|^2/sigma^2 of the last examined peak",
+                names.ATTR_THRESHOLD: threshold,
+            },
+        ),
+        names.SUB_STOP_REASON: xr.Variable(p, reason),
+        names.SUB_N_MODES: xr.Variable(p, r.n_modes),
+        names.CANDIDATE: xr.Variable((names.CANDIDATE,), np.arange(n_keep)),
+    }
+
+
+def _assign_outputs(ds: xr.Dataset, new: dict) -> xr.Dataset:
+    """``ds`` without earlier results, plus the subtraction's output variables ``new``."""
+    out = c.drop_results(ds, (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS))
+    new = dict(new)
+    coord = new.pop(names.CANDIDATE)
+    return out.assign(new).assign_coords({names.CANDIDATE: coord})
 
 
 def band_of(ds: xr.Dataset, fmin, fmax, function: str) -> xr.Dataset:
@@ -310,10 +369,10 @@ def add_capped(attrs, entries) -> None:
     flags.add_caps(attrs, entries)
 
 
-def _warn_caps(out: xr.Dataset, max_modes: int) -> None:
-    """A cap that ended the phase at some FRF: a warning and attr ``ami_capped``."""
-    reasons = np.asarray(out[names.SUB_STOP_REASON].values).astype(str)
-    points = np.asarray(out[names.POINT].values)
+def _warn_caps(reasons: np.ndarray, points: np.ndarray, max_modes: int, attrs: dict) -> None:
+    """A cap that ended the phase at some FRF (``reasons``, the stop reason per point): a
+    warning and attr ``ami_capped`` in ``attrs``."""
+    reasons = np.asarray(reasons).astype(str)
     caps = {
         ks.STOP_REASONS[ks.STOP_MAX_MODES]: f"max_modes={max_modes} candidates",
         ks.STOP_REASONS[ks.STOP_MAX_ATTEMPTS]: f"{3 * max_modes + 10} examined peaks "
@@ -332,7 +391,7 @@ def _warn_caps(out: xr.Dataset, max_modes: int) -> None:
                 f"{names.SUB_STOP_REASON}"
             )
             warn(CapWarning(message, status), CapWarning)
-    out.attrs[names.ATTR_AMI_CAPPED] = int(hit)
+    attrs[names.ATTR_AMI_CAPPED] = int(hit)
 
 
 def _has_significant_peak(frf, sigma, settings: SubtractSettings) -> bool:
@@ -359,8 +418,8 @@ def _conjugate_resonances(frf, flipped, sigma, omega: np.ndarray, settings) -> i
     half-bandwidths at another FRF (a mode shows at more than one point).
     """
     g = np.abs(np.asarray(frf.transpose(..., names.FREQUENCY).values)).reshape(-1, omega.size)
-    sig = np.asarray(sigma.values, dtype=np.float64).reshape(-1)
-    lam = np.asarray(flipped.lam.values).reshape(g.shape[0], -1)
+    sig = np.asarray(sigma, dtype=np.float64).reshape(-1)
+    lam = np.asarray(flipped.lam).reshape(g.shape[0], -1)
     t = float(kn.peak_threshold(omega.size, settings.pfa))
     with np.errstate(divide="ignore", invalid="ignore"):
         peaked = (g.max(axis=1) / sig) ** 2 >= t
@@ -387,7 +446,7 @@ def _conjugate_resonances(frf, flipped, sigma, omega: np.ndarray, settings) -> i
     return len(poles) if poles and 2 * len(frfs) >= int(peaked.sum()) else 0
 
 
-def _explain_no_modes(out, frf, sigma, pfa, zeta_max, n_lines) -> None:
+def _explain_no_modes(new: dict, attrs: dict, frf, sigma, settings, n_lines) -> None:
     """Say truthfully why no FRF has a candidate, in a warning and in attr ``ami_stop_reason``.
 
     Two cases look alike in the kernel's stop reason: pure noise (no line above the threshold)
@@ -395,24 +454,26 @@ def _explain_no_modes(out, frf, sigma, pfa, zeta_max, n_lines) -> None:
     (heavily damped or overlapping modes: damping ratio above ``zeta_max``, or a pole outside
     its band). The peak statistic of the data themselves, ``max |G|^2 / sigma^2`` against the
     threshold ``t``, tells them apart; FRFs of the second kind get the point stop reason
-    ``"no_accepted_fit"``.
+    ``"no_accepted_fit"``. ``new``: the output variables (the stop reasons change there);
+    ``attrs``: where ``ami_stop_reason`` goes.
     """
+    pfa, zeta_max = settings.pfa, settings.zeta_max
     t = float(kn.peak_threshold(n_lines, pfa))
     # (max|G| / sigma)^2, not max|G|^2 / sigma^2: no overflow for any representable FRF
     ratio = np.asarray((np.abs(frf).max(names.FREQUENCY) / sigma).values, dtype=np.float64)
     significant = ratio**2 >= t
     if not np.any(significant):
-        out.attrs[names.ATTR_AMI_STOP_REASON] = names.STOP_NO_SIGNIFICANT_PEAK
+        attrs[names.ATTR_AMI_STOP_REASON] = names.STOP_NO_SIGNIFICANT_PEAK
         warn(
             "subtract: no FRF has a peak significantly above its noise floor "
             f"(pfa={pfa}); zero modes found",
             NoModesWarning,
         )
         return
-    out.attrs[names.ATTR_AMI_STOP_REASON] = names.STOP_NO_ACCEPTED_FIT
-    reason = out[names.SUB_STOP_REASON]
+    attrs[names.ATTR_AMI_STOP_REASON] = names.STOP_NO_ACCEPTED_FIT
+    reason = new[names.SUB_STOP_REASON]
     mask = significant & (np.asarray(reason.values) == ks.STOP_REASONS[ks.STOP_BELOW_FLOOR])
-    out[names.SUB_STOP_REASON] = reason.copy(
+    new[names.SUB_STOP_REASON] = reason.copy(
         data=np.where(mask, names.STOP_NO_ACCEPTED_FIT, np.asarray(reason.values)).astype(str)
     )
     warn(
