@@ -169,11 +169,7 @@ def poly_roots(coef):
     a = np.empty(n + 1, dtype=np.complex128)
     for k in range(n + 1):
         a[k] = coef[k] / coef[0]
-    z = np.empty(n, dtype=np.complex128)  # np.empty and loops: no np.zeros to compile
-    done = np.empty(n, dtype=np.bool_)
-    for k in range(n):
-        z[k] = 0j
-        done[k] = False
+    z = np.zeros(n, dtype=np.complex128)
     n_zero = 0  # trailing zero coefficients: roots exactly 0 (as np.roots gives them)
     while n_zero < n and a[n - n_zero] == 0.0:
         n_zero += 1
@@ -181,6 +177,7 @@ def poly_roots(coef):
     radius = 0.0
     for k in range(1, m + 1):
         radius = max(radius, abs(a[k]) ** (1.0 / k))
+    done = np.zeros(n, dtype=np.bool_)
     for k in range(m):
         angle = 2.0 * np.pi * k / m + 0.5 * np.pi / m
         z[k] = radius * complex(np.cos(angle), np.sin(angle))

@@ -118,61 +118,6 @@ def test_no_kernel_passes_an_integer_constant_to_another_kernel():
     assert _kernel_calls_with_constants() == []
 
 
-# numba compiles each of these once per signature as an implementation of its own (np.zeros is
-# np.empty and a zero fill, two more); np.empty and a loop compile only in the kernel itself
-NUMPY_ALLOCATORS = {"zeros", "ones", "full", "arange", "zeros_like", "ones_like", "full_like"}
-
-
-def _allocator_calls(source: str, is_kernel) -> list[str]:
-    """``line function np.name`` of each call of :data:`NUMPY_ALLOCATORS` in the functions of
-    ``source`` that ``is_kernel(name)`` says are jitted."""
-    found = []
-    for fn in ast.walk(ast.parse(source)):
-        if not isinstance(fn, ast.FunctionDef) or not is_kernel(fn.name):
-            continue
-        for call in ast.walk(fn):
-            func = call.func if isinstance(call, ast.Call) else None
-            if (
-                isinstance(func, ast.Attribute)
-                and isinstance(func.value, ast.Name)
-                and func.value.id in ("np", "numpy")
-                and func.attr in NUMPY_ALLOCATORS
-            ):
-                found.append(f"{call.lineno} {fn.name} np.{func.attr}")
-    return found
-
-
-def test_allocator_check_finds_numpy_fills_in_kernels_only():
-    source = textwrap.dedent(
-        """
-        def kern(n):
-            a = np.zeros(n)
-            return a, np.empty(n), numpy.arange(n)
-
-        def plain(n):
-            return np.ones(n)
-        """
-    )
-    found = _allocator_calls(source, lambda name: name == "kern")
-    assert found == ["3 kern np.zeros", "4 kern np.arange"]
-
-
-def test_kernels_allocate_with_np_empty_only():
-    """np.zeros/ones/full/arange in a kernel compile numba's own implementations on a first run
-    (29 specialisations in the demo before); np.empty and a fill loop write the same values."""
-    import ami_xr.kernels
-
-    found = []
-    for path in sorted(Path(ami_xr.kernels.__file__).parent.glob("*.py")):
-        module = importlib.import_module(f"ami_xr.kernels.{path.stem}")
-
-        def is_kernel(name, module=module):
-            return hasattr(getattr(module, name, None), "py_func")
-
-        found += [f"{path.name}:{hit}" for hit in _allocator_calls(path.read_text(), is_kernel)]
-    assert found == []
-
-
 def test_cli_says_once_that_a_first_run_compiles(tmp_path):
     out, err = _run(tmp_path, CLI_SETUP)
     notices = [line for line in err.splitlines() if "compiling numeric kernels" in line]
