@@ -394,23 +394,18 @@ def sweeps(scene, params, modes, n, work):
     lam, res, fails = modes
     m = lam.shape[0]
     state = SweepState(
-        band_lo=np.empty(m, dtype=np.int64),
-        band_hi=np.empty(m, dtype=np.int64),
-        frozen=np.empty(m, dtype=np.bool_),
-        fit_failed=np.empty(m, dtype=np.int64),
+        band_lo=np.zeros(m, dtype=np.int64),
+        band_hi=np.zeros(m, dtype=np.int64),
+        frozen=np.zeros(m, dtype=np.bool_),
+        fit_failed=np.zeros(m, dtype=np.int64),
     )
-    for k in range(m):  # np.empty and a loop: numba's np.zeros not compiled on a first run
-        state.band_lo[k] = 0
-        state.band_hi[k] = 0
-        state.frozen[k] = False
-        state.fit_failed[k] = 0
     for k in range(n):
         mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
         work.back[k] = complex(np.nan, np.nan)
     it = 0
     converged = n == 0
     tot = np.empty(m)
-    order = np.empty(0, dtype=np.int64)  # set in the first sweep (no np.arange to compile)
+    order = np.arange(n)
     for it in range(1, params.max_iter + 1 if n > 0 else 1):
         if it == 1 or not params.paper_sweeps:  # the paper: the order of the restart's start
             for k in range(n):
@@ -460,9 +455,7 @@ def order_check(scene, params, modes, n, work, masked, c, split_lam, split_res):
     for k in range(n):
         mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
     _isolated_lines(work, res, n, np.int64(-1), np.int64(0), n_f)
-    stat = np.empty(n_f)  # np.empty and a loop: numba's np.zeros not compiled
-    for i in range(n_f):
-        stat[i] = 0.0
+    stat = np.zeros(n_f)
     for j in range(n_p):
         env = tolerance_envelope(omega, lam, res[j], n, params.tol)
         for i in range(n_f):
@@ -545,10 +538,7 @@ def point_estimates_kernel(data, lam, res, scene, delta, min_points, work):
     omega, x, dt, n_samples = scene.grid
     n_p, n_f = data.shape
     n_k = lam.shape[0]
-    out = np.empty((n_p, n_k), dtype=np.complex128)  # not np.full: one compile less
-    for j in range(n_p):
-        for k in range(n_k):
-            out[j, k] = complex(np.nan, np.nan)
+    out = np.full((n_p, n_k), complex(np.nan, np.nan))
     for k in range(n_k):
         mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
     for j in range(n_p):

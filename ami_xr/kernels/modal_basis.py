@@ -224,9 +224,7 @@ def tolerance_envelope(omega, lam, res, n, tol):
     ``tol |lam_k| |A_k| / |i w - lam_k|^2`` summed over modes (continuous-time approximation of
     ``|d contribution / d lam| tol |lam|``). A peak inside it is not evidence of a missing mode."""
     n_f = omega.shape[0]
-    env = np.empty(n_f)  # not np.zeros: one implementation less to compile on a first run
-    for i in range(n_f):
-        env[i] = 0.0
+    env = np.zeros(n_f)
     for k in range(n):
         lk = lam[k]
         a = tol * abs(lk) * abs(res[k])

@@ -43,15 +43,9 @@ def _normal_equations(coef, weight, s_mat, v_res, n_mode):
     blocks ``[[A1, -A2], [A2, A1]]``.
     """
     n_par = 2 * n_mode
-    # np.empty and loops, not np.zeros (one implementation less to compile on a first run);
-    # m and sm are read only where written
-    h = np.empty((n_par, n_par))
-    g = np.empty(n_par)
-    for r in range(n_par):
-        g[r] = 0.0
-        for col in range(n_par):
-            h[r, col] = 0.0
-    m = np.empty((n_par, n_par))
+    h = np.zeros((n_par, n_par))
+    g = np.zeros(n_par)
+    m = np.zeros((n_par, n_par))
     for j in range(coef.shape[0]):
         w = weight[j]
         for k in range(n_mode):
@@ -62,7 +56,7 @@ def _normal_equations(coef, weight, s_mat, v_res, n_mode):
             m[2 * k + 1, 2 * k] = a2
             m[2 * k + 1, 2 * k + 1] = a1
         # block-diagonal M: (S M)[:, l-block] = S[:, l-block] @ B_l
-        sm = np.empty((n_par, n_par))
+        sm = np.zeros((n_par, n_par))
         for r in range(n_par):
             for b in range(n_mode):
                 for c in range(2):

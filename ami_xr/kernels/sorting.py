@@ -12,9 +12,7 @@ def argsort_first(a, n):
     """``np.argsort(a[:n])`` for the few modes of a group, NaN last: an insertion sort (numba's
     own argsort sorts fewer than 15 values so; same order for distinct values), which spares a
     first run numba's quicksort compilation."""
-    order = np.empty(n, dtype=np.int64)  # not np.arange: one implementation less to compile
-    for i in range(n):
-        order[i] = i
+    order = np.arange(n)
     for i in range(1, n):
         k = order[i]
         v = a[k]

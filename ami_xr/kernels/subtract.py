@@ -74,33 +74,20 @@ def _subtract_batch(data, scene, params):
     n_p, n_f = data.shape
     m = params.max_modes
     nan = complex(np.nan, np.nan)
-    # np.empty and loops, not np.full/ones/zeros: each of those is one more of numba's own
-    # implementations to compile on a first run
     out = SubtractResult(
-        lam=np.empty((n_p, m), dtype=np.complex128),
-        res=np.empty((n_p, m), dtype=np.complex128),
-        band_low=np.empty((n_p, m)),
-        band_high=np.empty((n_p, m)),
-        sigma=np.empty(n_p),
-        statistic=np.empty(n_p),
-        reason=np.empty(n_p, dtype=np.int64),
-        n_modes=np.empty(n_p, dtype=np.int64),
+        lam=np.full((n_p, m), nan),
+        res=np.full((n_p, m), nan),
+        band_low=np.full((n_p, m), np.nan),
+        band_high=np.full((n_p, m), np.nan),
+        sigma=np.ones(n_p),
+        statistic=np.zeros(n_p),
+        reason=np.full(n_p, STOP_MAX_ATTEMPTS),
+        n_modes=np.zeros(n_p, dtype=np.int64),
     )
-    for j in range(n_p):
-        for k in range(m):
-            out.lam[j, k] = nan
-            out.res[j, k] = nan
-            out.band_low[j, k] = np.nan
-            out.band_high[j, k] = np.nan
-        out.sigma[j] = 1.0
-        out.statistic[j] = 0.0
-        out.reason[j] = STOP_MAX_ATTEMPTS
-        out.n_modes[j] = 0
     y = np.empty((1, n_f), dtype=np.complex128)
     power = np.empty(n_f)
     masked = np.empty(n_f, dtype=np.bool_)
-    wts = np.empty(1)
-    wts[0] = 1.0
+    wts = np.ones(1)
     r = np.empty(1, dtype=np.complex128)
     for j in range(n_p):
         lam_j, res_j = out.lam[j], out.res[j]
