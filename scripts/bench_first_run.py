@@ -22,6 +22,11 @@ Target (issue 11 item 1): cold demo <= 20 s.
 ``--repeat N`` runs the cold demo N times, each on a new empty cache, and prints the least and
 the median CPU time: on a machine shared with other work, contention inflates CPU time too
 (caches, hyper-threads), and the least of a few runs is the steadier figure to compare.
+
+``--base DIR`` (a checkout of the base, e.g. ``git worktree add ../base main --detach``) runs
+every cold and warm demo and the probe for the base too, the base's run and this tree's run
+back to back (``PYTHONPATH`` set to each tree), and prints both with their ratio: timings on a
+shared machine compare only within one run.
 """
 
 from __future__ import annotations
@@ -43,9 +48,19 @@ def _child_times() -> float:
     return t.children_user + t.children_system
 
 
-def _run_demo(cache: str, out: str, report: bool) -> tuple[float, float, str]:
-    """Wall and CPU seconds of one ``python -m ami_xr demo`` and its stderr."""
+def _env(cache: str, tree: str | None) -> dict[str, str]:
+    """The environment of a child: its own numba cache, and ``tree`` first on the path."""
     env = dict(os.environ, NUMBA_CACHE_DIR=cache, AMI_XR_NUMBA_CACHE="1")
+    if tree is not None:
+        env["PYTHONPATH"] = os.pathsep.join([tree] + [p for p in [env.get("PYTHONPATH")] if p])
+    return env
+
+
+def _run_demo(
+    cache: str, out: str, report: bool, tree: str | None = None
+) -> tuple[float, float, str]:
+    """Wall and CPU seconds of one ``python -m ami_xr demo`` (of ``tree``) and its stderr."""
+    env = _env(cache, tree)
     cmd = [sys.executable, "-m", "ami_xr", "demo", "-o", out]
     if not report:
         cmd.append("--no-report")
@@ -64,6 +79,7 @@ def _probe(report: bool) -> dict:
 
     own: dict[int, float] = {}
     library: dict[str, float] = {}  # numba's own implementations (np.roots, argsort, ...)
+    library_sigs: dict[str, list[str]] = {}  # their compiled signatures
     stack: list[float] = []  # callees' time, per open compile
     original = nd.Dispatcher.compile
 
@@ -80,6 +96,7 @@ def _probe(report: bool) -> dict:
             if not getattr(func, "__module__", "").startswith("ami_xr"):
                 key = f"{func.__module__}.{func.__qualname__}".replace(".<locals>", "")
                 library[key] = library.get(key, 0.0) + total - inner
+                library_sigs.setdefault(key, []).append(str(sig))
             if stack:
                 stack[-1] += total
 
@@ -105,7 +122,93 @@ def _probe(report: bool) -> dict:
                             "seconds": own.get(id(obj), 0.0),
                         }
                     )
-    return {"wall": wall, "cpu": cpu, "rows": rows, "library": library}
+    return {
+        "wall": wall,
+        "cpu": cpu,
+        "rows": rows,
+        "library": library,
+        "library_sigs": library_sigs,
+    }
+
+
+def _message(err: str) -> str:
+    message = [line for line in err.splitlines() if "compiling" in line]
+    return message[0] if message else "(none)"
+
+
+def _demo_times(tmp: str, trees: dict[str, str | None], repeat: int, report: bool) -> None:
+    """Cold (``repeat`` times, each tree's run after the other's) and warm demo per tree."""
+    cold: dict[str, list[float]] = {name: [] for name in trees}
+    caches: dict[str, str] = {}
+    for rep in range(max(repeat, 1)):
+        for name, tree in trees.items():
+            cache, out = str(Path(tmp, f"{name}-cache{rep}")), str(Path(tmp, "out"))
+            wall, cpu, err = _run_demo(cache, out, report, tree)
+            print(f"{name:>5} demo cold (empty numba cache): {wall:6.1f} s wall, {cpu:6.1f} s CPU")
+            if rep == 0:
+                print(f"        first-run message: {_message(err)}")
+            cold[name].append(cpu)
+            caches[name] = cache
+    warm: dict[str, float] = {}
+    for name, tree in trees.items():
+        wall, cpu, err = _run_demo(caches[name], str(Path(tmp, "out")), report, tree)
+        print(f"{name:>5} demo warm (cache filled):      {wall:6.1f} s wall, {cpu:6.1f} s CPU")
+        print(f"        first-run message: {_message(err)}")
+        warm[name] = cpu
+    for name, cpus in cold.items():
+        print(
+            f"{name:>5} cold over {len(cpus)} run(s): least {min(cpus):.1f} s CPU, "
+            f"median {sorted(cpus)[len(cpus) // 2]:.1f} s CPU; warm {warm[name]:.1f} s CPU"
+        )
+    if len(trees) > 1:
+        least = {name: min(cpus) for name, cpus in cold.items()}
+        print(
+            f"this/base: cold {least['this'] / least['base']:.2f} (least CPU), "
+            f"warm {warm['this'] / warm['base']:.2f}"
+        )
+    print(f"target: cold <= {TARGET_COLD_S:.0f} s")
+
+
+def _run_probe(tmp: str, name: str, tree: str | None, report: bool) -> dict:
+    env = _env(str(Path(tmp, f"{name}-probe")), tree)
+    cmd = [sys.executable, __file__, "--_probe"] + (["--no-report"] if not report else [])
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
+    if done.returncode:
+        sys.exit(f"probe ({name}) failed:\n{done.stderr[-3000:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def _summary(name: str, probe: dict) -> float:
+    rows = probe["rows"]
+    total = sum(r["seconds"] for r in rows)
+    n_sig = sum(len(r["signatures"]) for r in rows)
+    library_sigs = probe.get("library_sigs", {})
+    n_lib = sum(len(set(v)) for v in library_sigs.values())
+    print(
+        f"{name:>5} in-process demo, empty cache: {probe['wall']:.1f} s wall, "
+        f"{probe['cpu']:.1f} s CPU; {len(rows)} kernels, {n_sig} specialisations, "
+        f"{n_lib} of numba's own; {total:.1f} s CPU compiling"
+    )
+    return total
+
+
+def _print_probe(probe: dict, top: int) -> None:
+    rows = sorted(probe["rows"], key=lambda r: -r["seconds"])
+    print(f"{'CPU s':>8}  {'sigs':>4}  kernel (its callees' compilation excluded)")
+    for r in rows[:top]:
+        flag = "  (parallel)" if r["parallel"] else ""
+        print(f"{r['seconds']:8.2f}  {len(r['signatures']):4d}  {r['kernel']}{flag}")
+    library = sorted(probe.get("library", {}).items(), key=lambda kv: -kv[1])
+    library_sigs = probe.get("library_sigs", {})
+    print(
+        f"numba's own implementations compiled for them: {sum(v for _, v in library):.1f} s CPU"
+        " (the largest; sigs: distinct signatures)"
+    )
+    for key, seconds in library[: max(top // 2, 3)]:
+        print(f"{seconds:8.2f}  {len(set(library_sigs.get(key, ()))):4d}  {key}")
+    for r in rows:
+        if len(r["signatures"]) > 1:
+            print(f"  {r['kernel']}: " + " | ".join(r["signatures"]))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -116,59 +219,31 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--repeat", type=int, default=1, help="cold runs, each on a new empty cache (default 1)"
     )
+    parser.add_argument(
+        "--base", metavar="DIR", help="a checkout of the base, run back to back with this tree"
+    )
     parser.add_argument("--_probe", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     report = not args.no_report
     if args._probe:
         print(json.dumps(_probe(report)))
         return 0
+    this = str(Path(__file__).resolve().parents[1])
+    trees: dict[str, str | None] = {"this": this}
+    if args.base:
+        base = Path(args.base).resolve()
+        if not (base / "ami_xr" / "__init__.py").is_file():
+            parser.error(f"--base: expected a checkout with ami_xr/__init__.py, got {base}")
+        trees = {"base": str(base), "this": this}
     with tempfile.TemporaryDirectory() as tmp:
         if not args.probe_only:
-            cpus = []
-            for rep in range(max(args.repeat, 1)):
-                cache, out = str(Path(tmp, f"cache{rep}")), str(Path(tmp, "out"))
-                wall, cpu, err = _run_demo(cache, out, report)
-                print(f"demo cold (empty numba cache): {wall:6.1f} s wall, {cpu:6.1f} s CPU")
-                cpus.append(cpu)
-            if len(cpus) > 1:
-                print(
-                    f"  cold over {len(cpus)} runs: least {min(cpus):.1f} s CPU, "
-                    f"median {sorted(cpus)[len(cpus) // 2]:.1f} s CPU"
-                )
-            message = [line for line in err.splitlines() if "compiling" in line]
-            print(f"  first-run message: {message[0] if message else '(none)'}")
-            wall, cpu, err = _run_demo(cache, out, report)
-            print(f"demo warm (cache filled):      {wall:6.1f} s wall, {cpu:6.1f} s CPU")
-            message = [line for line in err.splitlines() if "compiling" in line]
-            print(f"  first-run message: {message[0] if message else '(none)'}")
-            print(f"target: cold <= {TARGET_COLD_S:.0f} s")
-        env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(tmp, "probe")), AMI_XR_NUMBA_CACHE="1")
-        cmd = [sys.executable, __file__, "--_probe"] + (["--no-report"] if not report else [])
-        done = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
-        if done.returncode:
-            sys.exit(f"probe failed:\n{done.stderr[-3000:]}")
-        probe = json.loads(done.stdout.strip().splitlines()[-1])
-    rows = sorted(probe["rows"], key=lambda r: -r["seconds"])
-    total = sum(r["seconds"] for r in rows)
-    n_sig = sum(len(r["signatures"]) for r in rows)
-    print(
-        f"\nin-process demo, empty cache: {probe['wall']:.1f} s wall, {probe['cpu']:.1f} s CPU; "
-        f"{len(rows)} kernels, {n_sig} specialisations, {total:.1f} s CPU compiling"
-    )
-    print(f"{'CPU s':>8}  {'sigs':>4}  kernel (its callees' compilation excluded)")
-    for r in rows[: args.top]:
-        flag = "  (parallel)" if r["parallel"] else ""
-        print(f"{r['seconds']:8.2f}  {len(r['signatures']):4d}  {r['kernel']}{flag}")
-    library = sorted(probe.get("library", {}).items(), key=lambda kv: -kv[1])
-    print(
-        f"numba's own implementations compiled for them: {sum(v for _, v in library):.1f} s CPU"
-        " (the largest:)"
-    )
-    for key, seconds in library[: max(args.top // 2, 3)]:
-        print(f"{seconds:8.2f}        {key}")
-    multi = [r for r in rows if len(r["signatures"]) > 1]
-    for r in multi:
-        print(f"  {r['kernel']}: " + " | ".join(r["signatures"]))
+            _demo_times(tmp, trees, args.repeat, report)
+        print()
+        probes = {name: _run_probe(tmp, name, tree, report) for name, tree in trees.items()}
+    totals = {name: _summary(name, probe) for name, probe in probes.items()}
+    if len(totals) > 1:
+        print(f"this/base: compiling {totals['this'] / totals['base']:.2f} (CPU)")
+    _print_probe(probes["this"], args.top)
     return 0
 
 
