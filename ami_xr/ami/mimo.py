@@ -250,7 +250,7 @@ def identify_multi_reference(
     added = np.zeros(0, np.complex128)
     split = tail = np.zeros(0)
     if R > 1:
-        work = mr.working_data(stacked, settings)  # what every refit shares, decided once
+        work = mr.SharedWorking(stacked, settings)  # what every refit shares, decided once
         result, added = mr.with_reference_proposals(stacked, result, R, settings, work)
         result, tail = mr.with_tail_poles(stacked, result, settings, work)
         more: list[float] = []

@@ -71,7 +71,11 @@ def _measured_poles(ds: xr.Dataset, result: xr.Dataset) -> np.ndarray:
 
 
 def with_reference_proposals(
-    stacked: xr.Dataset, result: xr.Dataset, n_ref: int, settings, working: Working | None = None
+    stacked: xr.Dataset,
+    result: xr.Dataset,
+    n_ref: int,
+    settings,
+    working: Working | SharedWorking | None = None,
 ) -> tuple[xr.Dataset, np.ndarray]:
     """``result`` (the stacked pipeline's) refitted with the poles each reference's FRFs need
     beyond its poles (:func:`ami_xr.ami.mimo_screen.proposals`: a screen of each reference's
@@ -130,7 +134,7 @@ def with_close_pairs_split(
     ratio_max: float,
     noise_factor: float,
     tail: list | None = None,
-    working: Working | None = None,
+    working: Working | SharedWorking | None = None,
 ) -> tuple[xr.Dataset, np.ndarray]:
     """``result`` refitted with a second pole next to poles whose residue matrix is not rank one
     (:func:`not_rank_one` with ``ratio_max`` and ``noise_factor``; ``n_ref`` references stacked)
@@ -190,7 +194,9 @@ def _above(stacked: xr.Dataset, result: xr.Dataset, f_last: float) -> np.ndarray
     return fn[(fn > f_last) & ~_frozen(result)]
 
 
-def _split_screened(stacked, result, lam, k: int, settings, working: Working | None) -> bool:
+def _split_screened(
+    stacked, result, lam, k: int, settings, working: Working | SharedWorking | None
+) -> bool:
     """Whether the split of pole ``k`` passes the screen of
     :func:`ami_xr.ami.mimo_screen.split_gain` on all FRFs: its likelihood ratio, with only the
     pole's neighbours free, above the trial's threshold (:func:`_trial`; the residual terms
@@ -199,7 +205,7 @@ def _split_screened(stacked, result, lam, k: int, settings, working: Working | N
     run: several references cost about one pipeline."""
     from scipy.stats import chi2  # lazy: scipy.stats is slow to import
 
-    work = (working if working is not None else working_data(stacked, settings)).work
+    work = _resolved(working, stacked, settings).work
     terms = tuple(t for t in str(result.attrs.get(names.ATTR_REFINE_RESIDUAL_TERMS, "")).split(","))
     prob = ms.stacked_problem(work, tuple(t for t in terms if t))
     gain = ms.split_gain(prob, lam, k, SPLIT_START, POLICY.trial_iterations)
@@ -253,7 +259,10 @@ def _n_terms(ds: xr.Dataset) -> int:
 
 
 def with_tail_poles(
-    stacked: xr.Dataset, result: xr.Dataset, settings, working: Working | None = None
+    stacked: xr.Dataset,
+    result: xr.Dataset,
+    settings,
+    working: Working | SharedWorking | None = None,
 ) -> tuple[xr.Dataset, np.ndarray]:
     """``result`` refitted with poles above the last line analysed, one at a time (at most
     ``MAX_TAIL_POLES``), each kept when the likelihood-ratio test supports it (:func:`_trial`)
@@ -310,7 +319,10 @@ def _tail_start(lam: np.ndarray, f_last: float, farther: bool) -> np.ndarray:
 
 
 def polished(
-    stacked: xr.Dataset, result: xr.Dataset, settings, working: Working | None = None
+    stacked: xr.Dataset,
+    result: xr.Dataset,
+    settings,
+    working: Working | SharedWorking | None = None,
 ) -> xr.Dataset:
     """``result`` (a kept trial's: its fit stopped early) refitted from its poles to
     convergence."""
@@ -382,14 +394,41 @@ def working_data(stacked: xr.Dataset, settings) -> Working:
     return Working(given, white, whitening.to_working(given, white))
 
 
+class SharedWorking:
+    """:func:`working_data` of one identification, decided on first use (none when no refit
+    or screen needs it) and then shared."""
+
+    def __init__(self, stacked: xr.Dataset, settings):
+        self._args = (stacked, settings)
+        self._value: Working | None = None
+
+    def get(self) -> Working:
+        if self._value is None:
+            self._value = working_data(*self._args)
+        return self._value
+
+
+def _resolved(working, stacked: xr.Dataset, settings) -> Working:
+    """``working`` as a :class:`Working` (a :class:`SharedWorking` asked, None decided here)."""
+    if isinstance(working, SharedWorking):
+        return working.get()
+    return working if working is not None else working_data(stacked, settings)
+
+
 def refit(
-    stacked, result, lam, det_added, settings, max_iter=None, working: Working | None = None
+    stacked,
+    result,
+    lam,
+    det_added,
+    settings,
+    max_iter=None,
+    working: Working | SharedWorking | None = None,
 ) -> xr.Dataset:
     """The shared-pole phases (global fit, refinement) on the stacked FRFs from the poles
     ``lam`` (measured): what :func:`identify_single` does after the isolation, in the working
     quantity and with the line weights of its noise model (:mod:`ami_xr.ami.whitening`;
-    ``working``: :func:`working_data`, computed here when None)."""
-    given, white, ds = working if working is not None else working_data(stacked, settings)
+    ``working``: :func:`working_data` or a :class:`SharedWorking`, decided here when None)."""
+    given, white, ds = _resolved(working, stacked, settings)
     peak = np.abs(ds[names.FRF]).max(skipna=False).values
     scale = float(power_of_two_scale(peak))
     work = ds if scale == 1.0 else ds.assign({names.FRF: ds[names.FRF] * scale})

@@ -107,3 +107,21 @@ def test_the_refits_shared_working_data_change_nothing():
         b = mimo_refit.refit(stacked, merged, lam, none, SETTINGS, working=work)
     np.testing.assert_array_equal(a[names.EIGENVALUE].values, b[names.EIGENVALUE].values)
     np.testing.assert_array_equal(a[names.RESIDUE].values, b[names.RESIDUE].values)
+
+
+def test_the_shared_working_data_are_decided_once(monkeypatch):
+    """A :class:`mimo_refit.SharedWorking` decides nothing until asked, then once."""
+    stacked, merged = _merged([15.0, 15.05])
+    calls = []
+    decide = mimo_refit.working_data
+    monkeypatch.setattr(mimo_refit, "working_data", lambda *a: calls.append(1) or decide(*a))
+    shared = mimo_refit.SharedWorking(stacked, SETTINGS)
+    assert not calls
+    lam = mimo_refit._measured_poles(stacked, merged)
+    none = np.zeros((stacked.sizes[names.POINT], 0), bool)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a = mimo_refit.refit(stacked, merged, lam, none, SETTINGS, working=shared)
+        b = mimo_refit.refit(stacked, merged, lam, none, SETTINGS, working=shared)
+    assert len(calls) == 1
+    np.testing.assert_array_equal(a[names.EIGENVALUE].values, b[names.EIGENVALUE].values)
