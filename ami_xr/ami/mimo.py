@@ -6,7 +6,10 @@ stacked as one ``point`` dim: each FRF of each reference is one more FRF of the 
 It runs once; each reference is then only screened against the stacked model for the poles its
 own FRFs need (:mod:`ami_xr.ami.mimo_screen`), and the shared-pole refits
 (:mod:`ami_xr.ami.mimo_refit`) add those, a pole for the modes above the band and the second
-member of close pairs: several references cost about one pipeline, not one per reference.
+member of close pairs (after a pair is split, a pole for the modes above the band is tried
+once more: the pair had drawn the first trials' pole); a split is screened on the lines around
+its pole before it is refitted: several references cost about one pipeline, not one per
+reference.
 The stacked fit gives the poles and a residue per (reference, point, mode). For each mode the
 residue matrix ``A`` (point x reference) is rank one in theory, ``A = lam phi L^T``; its best
 rank-one approximation (SVD) gives the mode vector direction and the participation factors,
@@ -247,15 +250,19 @@ def identify_multi_reference(
     added = np.zeros(0, np.complex128)
     split = tail = np.zeros(0)
     if R > 1:
-        result, added = mr.with_reference_proposals(stacked, result, R, settings)
-        result, tail = mr.with_tail_poles(stacked, result, settings)
+        work = mr.SharedWorking(stacked, settings)  # what every refit shares, decided once
+        result, added = mr.with_reference_proposals(stacked, result, R, settings, work)
+        result, tail = mr.with_tail_poles(stacked, result, settings, work)
         more: list[float] = []
         result, split = mr.with_close_pairs_split(
-            stacked, result, R, settings, RANK_ONE_RATIO_MAX, NOISE_FACTOR, more
+            stacked, result, R, settings, RANK_ONE_RATIO_MAX, NOISE_FACTOR, more, work
         )
+        if split.size:  # a pair fitted as one pole had drawn the tail trials' poles
+            result, again = mr.with_tail_poles(stacked, result, settings, work)
+            more += again.tolist()
         tail = np.append(tail, more)
         if tail.size or split.size:  # the trials' fits stopped early
-            result = mr.polished(stacked, result, settings)
+            result = mr.polished(stacked, result, settings, work)
         result = pl.drop_beyond_lines(result, stacked)
     out = _unstack(result, ds, R, P)
     pairs = [(points.index(r), i) for i, r in enumerate(refs) if r in points]

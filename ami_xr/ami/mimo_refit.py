@@ -13,7 +13,9 @@ all FRFs from a larger set of poles:
   one, beyond the residues' noise (``A = lam1 phi1 L1^T + lam2 phi2 L2^T`` seen through one
   pole). :func:`with_close_pairs_split` starts a second pole next to it and keeps the pair when
   the likelihood says so (an exactly repeated root is one pole with a rank-two residue matrix:
-  the second pole does not lower the cost, and the pair is left to the drive points).
+  the second pole does not lower the cost, and the pair is left to the drive points). Each
+  trial is screened first (:func:`ami_xr.ami.mimo_screen.split_gain`: the lines around the pole,
+  its neighbours free): a split that gains too little there is not refitted on every pole.
 
 The refits fit the eigenvalues and residues only (no model completion: each pole added is
 tested on its own, and the first pass completed the model): they cost a fraction of a
@@ -26,6 +28,7 @@ of each (reference, point) FRF and line), and comes back in the quantity given.
 from __future__ import annotations
 
 import warnings
+from typing import Any, NamedTuple
 
 import numpy as np
 import xarray as xr
@@ -68,7 +71,11 @@ def _measured_poles(ds: xr.Dataset, result: xr.Dataset) -> np.ndarray:
 
 
 def with_reference_proposals(
-    stacked: xr.Dataset, result: xr.Dataset, n_ref: int, settings
+    stacked: xr.Dataset,
+    result: xr.Dataset,
+    n_ref: int,
+    settings,
+    working: Working | SharedWorking | None = None,
 ) -> tuple[xr.Dataset, np.ndarray]:
     """``result`` (the stacked pipeline's) refitted with the poles each reference's FRFs need
     beyond its poles (:func:`ami_xr.ami.mimo_screen.proposals`: a screen of each reference's
@@ -90,7 +97,7 @@ def with_reference_proposals(
     for k, p in enumerate(got):
         det_added[p.reference * n_point : (p.reference + 1) * n_point, k] = True
     added = np.array([p.lam for p in got])
-    out = refit(stacked, result, np.append(lam, added), det_added, settings)
+    out = refit(stacked, result, np.append(lam, added), det_added, settings, working=working)
     return out, added
 
 
@@ -127,6 +134,7 @@ def with_close_pairs_split(
     ratio_max: float,
     noise_factor: float,
     tail: list | None = None,
+    working: Working | SharedWorking | None = None,
 ) -> tuple[xr.Dataset, np.ndarray]:
     """``result`` refitted with a second pole next to poles whose residue matrix is not rank one
     (:func:`not_rank_one` with ``ratio_max`` and ``noise_factor``; ``n_ref`` references stacked)
@@ -137,10 +145,11 @@ def with_close_pairs_split(
     chi-square with ``2 + 2 n_FRF`` degrees of freedom, false-alarm probability ``add_pfa``)
     supports it and the pair holds one pole more than before, none frozen at its start
     (``refine_fallback``); after a kept split the evidence is taken anew. At most
-    ``MAX_SPLIT_TRIALS`` refits. A trial whose second pole goes above the lines, supported by
-    the likelihood, keeps that pole as a tail pole (its frequency appended to ``tail``) and
-    tries the pair again. Returns the result and the natural frequencies (Hz) of the poles
-    split (empty when none)."""
+    ``MAX_SPLIT_TRIALS`` trials; a trial whose screen (:func:`_split_screened`) stays below the
+    threshold is not refitted (``working``: :func:`working_data`, shared by the refits). A
+    trial whose second pole goes above the lines, supported by the likelihood, keeps that pole
+    as a tail pole (its frequency appended to ``tail``) and tries the pair again. Returns the
+    result and the natural frequencies (Hz) of the poles split (empty when none)."""
     evidence = not_rank_one(result, n_ref, ratio_max, noise_factor)
     if not np.any(evidence > 0) or not pl.refines(settings):
         return result, np.zeros(0)
@@ -158,7 +167,9 @@ def with_close_pairs_split(
             break
         k = int(np.argmax(np.where(ok, evidence, -np.inf)))
         tried.append(lam[k])
-        out, better, held = _split_trial(stacked, result, lam, k, float(cost0), settings)
+        if not _split_screened(stacked, result, lam, k, settings, working):
+            continue  # the refit of every pole would not support it either: not run
+        out, better, held = _split_trial(stacked, result, lam, k, float(cost0), settings, working)
         above = _above(stacked, out, lines[-1])
         if held:
             result = out
@@ -183,7 +194,26 @@ def _above(stacked: xr.Dataset, result: xr.Dataset, f_last: float) -> np.ndarray
     return fn[(fn > f_last) & ~_frozen(result)]
 
 
-def _split_trial(stacked, result, lam, k: int, cost0: float, settings):
+def _split_screened(
+    stacked, result, lam, k: int, settings, working: Working | SharedWorking | None
+) -> bool:
+    """Whether the split of pole ``k`` passes the screen of
+    :func:`ami_xr.ami.mimo_screen.split_gain` on all FRFs: its likelihood ratio, with only the
+    pole's neighbours free, above the trial's threshold (:func:`_trial`; the residual terms
+    ``result`` fitted; True when the screen cannot say). Where the refit of every pole would
+    gain little more (an exactly repeated root: its second pole fits noise), the trial is not
+    run: several references cost about one pipeline."""
+    from scipy.stats import chi2  # lazy: scipy.stats is slow to import
+
+    work = _resolved(working, stacked, settings).work
+    terms = tuple(t for t in str(result.attrs.get(names.ATTR_REFINE_RESIDUAL_TERMS, "")).split(","))
+    prob = ms.stacked_problem(work, tuple(t for t in terms if t))
+    gain = ms.split_gain(prob, lam, k, SPLIT_START, POLICY.trial_iterations)
+    limit = chi2.isf(RefineSettings.add_pfa, 2 + 2 * stacked.sizes[names.POINT])
+    return not gain <= limit  # NaN: the screen could not say
+
+
+def _split_trial(stacked, result, lam, k: int, cost0: float, settings, working=None):
     """The refit with pole ``k`` split, whether the likelihood ratio supports the added pole
     and whether its pair held (False when it does not)."""
     step = 1j * SPLIT_START * abs(lam[k].real)
@@ -192,11 +222,13 @@ def _split_trial(stacked, result, lam, k: int, cost0: float, settings):
     det = np.ones((stacked.sizes[names.POINT], 1), bool)
     if names.DETECTED in result:
         det = result[names.DETECTED].transpose(names.POINT, names.MODE).values[:, [k]]
-    out, better = _trial(stacked, result, lam_set, det, cost0, settings)
+    out, better = _trial(stacked, result, lam_set, det, cost0, settings, working)
     return out, better, better and _pair_held(out, lam, stacked, lam[k])
 
 
-def _trial(stacked, result, lam_set, det, cost0: float, settings) -> tuple[xr.Dataset, bool]:
+def _trial(
+    stacked, result, lam_set, det, cost0: float, settings, working=None
+) -> tuple[xr.Dataset, bool]:
     """The refit from the poles ``lam_set`` (one more than ``result``'s; ``det`` its detection
     column), and whether the likelihood-ratio test of the refinement's objective supports the
     added pole: ``2 (cost0 - cost)`` above chi-square with ``2 + 2 n_FRF`` degrees of freedom
@@ -208,7 +240,9 @@ def _trial(stacked, result, lam_set, det, cost0: float, settings) -> tuple[xr.Da
         warnings.simplefilter("ignore")  # a rejected trial says nothing; a kept one is reported
         # a trial's fit stops early, as the completion's do: an unfinished fit only overstates
         # the cost of the larger model (conservative for adding); what is kept is polished
-        out = refit(stacked, result, lam_set, det, settings, max_iter=POLICY.trial_iterations)
+        out = refit(
+            stacked, result, lam_set, det, settings, POLICY.trial_iterations, working=working
+        )
     cost = out.attrs.get(names.ATTR_REFINE_COST)
     n_frf = stacked.sizes[names.POINT]
     # residual terms the added pole switched on (:func:`_residual_terms`): a complex
@@ -225,7 +259,10 @@ def _n_terms(ds: xr.Dataset) -> int:
 
 
 def with_tail_poles(
-    stacked: xr.Dataset, result: xr.Dataset, settings
+    stacked: xr.Dataset,
+    result: xr.Dataset,
+    settings,
+    working: Working | SharedWorking | None = None,
 ) -> tuple[xr.Dataset, np.ndarray]:
     """``result`` refitted with poles above the last line analysed, one at a time (at most
     ``MAX_TAIL_POLES``), each kept when the likelihood-ratio test supports it (:func:`_trial`)
@@ -245,40 +282,53 @@ def with_tail_poles(
     if not near_the_edge(_measured_poles(stacked, result), f_last):
         return result, np.zeros(0)
     added: list[float] = []
-    farther = 1.0  # the start's distance, doubled once after a tail pole frozen at its start
+    farther = False  # set once after a tail pole frozen at its start
     while len(added) < MAX_TAIL_POLES:
         cost0 = result.attrs.get(names.ATTR_REFINE_COST)
         lam = _measured_poles(stacked, result)
         if cost0 is None or not lam.size or not pl.refines(settings):
             break
         fn = natural_frequency(lam)
-        zeta = float(np.median(damping_ratio(lam)))
-        w = 2.0 * np.pi * max(f_last, fn.max()) * (1.0 + 2.0 * TAIL_START * farther * zeta)
         # a pole the refinement froze near the last line stood for that tail: the tail pole
         # replaces it (held at its start it would keep the tail pole from its place)
         keep = np.flatnonzero(~(_frozen(result) & (fn <= f_last) & _near(lam, f_last)))
         base = result if keep.size == lam.size else c.select_modes(result, keep.tolist())
-        start = np.append(lam[keep], -zeta * w + 1j * w * np.sqrt(1.0 - zeta**2))
+        start = _tail_start(lam[keep], f_last, farther)
         det = np.ones((stacked.sizes[names.POINT], 1), bool)
-        out, better = _trial(stacked, base, start, det, float(cost0), settings)
+        out, better = _trial(stacked, base, start, det, float(cost0), settings, working)
         got = natural_frequency(_measured_poles(stacked, out))
         above = got > f_last
-        if better and farther == 1.0 and _frozen(out)[above].any():
-            farther = 2.0  # it left its region: what lies above is farther than the start
+        if better and not farther and _frozen(out)[above].any():
+            farther = True  # it left its region: what lies above is farther than the start
             continue
         if not better or above.sum() <= np.sum(fn > f_last) or _frozen(out)[above].any():
             break
-        result, farther = out, 1.0
+        result, farther = out, False
         added.append(float(got[above].max()))
     return result, np.asarray(added)
 
 
-def polished(stacked: xr.Dataset, result: xr.Dataset, settings) -> xr.Dataset:
+def _tail_start(lam: np.ndarray, f_last: float, farther: bool) -> np.ndarray:
+    """The poles ``lam`` and a tail pole's start: ``TAIL_START`` half-power bandwidths (twice
+    as many when ``farther``) above the last line or the highest pole above it, at the median
+    damping ratio of the poles."""
+    fn = natural_frequency(lam)
+    zeta = float(np.median(damping_ratio(lam)))
+    w = 2.0 * np.pi * max(f_last, fn.max()) * (1.0 + 2.0 * TAIL_START * (1 + farther) * zeta)
+    return np.append(lam, -zeta * w + 1j * w * np.sqrt(1.0 - zeta**2))
+
+
+def polished(
+    stacked: xr.Dataset,
+    result: xr.Dataset,
+    settings,
+    working: Working | SharedWorking | None = None,
+) -> xr.Dataset:
     """``result`` (a kept trial's: its fit stopped early) refitted from its poles to
     convergence."""
     lam = _measured_poles(stacked, result)
     none = np.zeros((stacked.sizes[names.POINT], 0), bool)
-    return refit(stacked, result, lam, none, settings)
+    return refit(stacked, result, lam, none, settings, working=working)
 
 
 def near_the_edge(lam: np.ndarray, f_last: float) -> bool:
@@ -326,13 +376,59 @@ def _residual_terms(given: xr.Dataset, lam: np.ndarray, settings) -> bool:
     return bool(np.any((fn > f[-1]) | (fn < f[0])))
 
 
-def refit(stacked, result, lam, det_added, settings, max_iter=None) -> xr.Dataset:
-    """The shared-pole phases (global fit, refinement) on the stacked FRFs from the poles
-    ``lam`` (measured): what :func:`identify_single` does after the isolation, in the working
-    quantity and with the line weights of its noise model (:mod:`ami_xr.ami.whitening`)."""
+class Working(NamedTuple):
+    """The stacked band's lines as given, the noise model's decision, the lines in the working
+    quantity (:func:`working_data`)."""
+
+    given: xr.Dataset
+    white: Any
+    work: xr.Dataset
+
+
+def working_data(stacked: xr.Dataset, settings) -> Working:
+    """The band's lines of ``stacked`` as given, the noise model's decision and the lines in the
+    working quantity (:mod:`ami_xr.ami.whitening`): what every refit of one identification
+    shares (decided once)."""
     given = band_of(stacked, settings.fmin, settings.fmax, "identify")
     white = whitening.decide(given)
-    ds = whitening.to_working(given, white)
+    return Working(given, white, whitening.to_working(given, white))
+
+
+class SharedWorking:
+    """:func:`working_data` of one identification, decided on first use (none when no refit
+    or screen needs it) and then shared."""
+
+    def __init__(self, stacked: xr.Dataset, settings):
+        self._args = (stacked, settings)
+        self._value: Working | None = None
+
+    def get(self) -> Working:
+        if self._value is None:
+            self._value = working_data(*self._args)
+        return self._value
+
+
+def _resolved(working, stacked: xr.Dataset, settings) -> Working:
+    """``working`` as a :class:`Working` (a :class:`SharedWorking` asked, None decided here)."""
+    if isinstance(working, SharedWorking):
+        return working.get()
+    return working if working is not None else working_data(stacked, settings)
+
+
+def refit(
+    stacked,
+    result,
+    lam,
+    det_added,
+    settings,
+    max_iter=None,
+    working: Working | SharedWorking | None = None,
+) -> xr.Dataset:
+    """The shared-pole phases (global fit, refinement) on the stacked FRFs from the poles
+    ``lam`` (measured): what :func:`identify_single` does after the isolation, in the working
+    quantity and with the line weights of its noise model (:mod:`ami_xr.ami.whitening`;
+    ``working``: :func:`working_data` or a :class:`SharedWorking`, decided here when None)."""
+    given, white, ds = _resolved(working, stacked, settings)
     peak = np.abs(ds[names.FRF]).max(skipna=False).values
     scale = float(power_of_two_scale(peak))
     work = ds if scale == 1.0 else ds.assign({names.FRF: ds[names.FRF] * scale})

@@ -23,6 +23,7 @@ The poles kept are proposals: the caller refits all FRFs from the stacked poles 
 
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple
 
 import numpy as np
@@ -173,3 +174,78 @@ def proposals(
         lam, kept = screen(prob, lam, pfa)
         out += [Proposal(x, i, g) for x, g in kept]
     return out
+
+
+def stacked_problem(work: xr.Dataset, terms: tuple[str, ...]) -> varpro.Problem:
+    """All FRFs of ``work`` (the stacked band's lines in the working quantity, as the refit
+    fits them) as one variable-projection problem with the residual terms ``terms``, each line
+    weighted by the median of the FRFs' noise shapes (the refinement's first fit, before its
+    per-group polish; lines alike without a per-line noise model)."""
+    frf = work[names.FRF].transpose(names.POINT, names.FREQUENCY)
+    omega = 2.0 * np.pi * np.asarray(work[names.FREQUENCY].values, dtype=np.float64)
+    model = resolve_model(work.attrs, "exact")
+    kind = RESIDUAL_KIND.get(str(work.attrs.get(names.ATTR_FRF_TYPE, "")), 0)
+    prob = varpro.make_problem(
+        np.asarray(frf.values, dtype=np.complex128),
+        omega,
+        model.dt,
+        model.n_samples,
+        tuple(terms),
+        nyquist=np.pi / model.dt if model.dt else None,
+        residual_kind=kind,
+    )
+    shape, group = line_noise_shape(work, frf)
+    if shape is None:
+        return prob
+    if group is not None:
+        shape = np.median(shape[group], axis=0)
+        shape = shape / np.median(shape)
+    return grouped.whitened(prob, shape)
+
+
+# the split screen fits the lines within this many half-power bandwidths |Re lam| of the pole,
+# with the poles within three times that and lower and upper residual terms for the rest
+SPLIT_WINDOW = 20.0
+
+
+def _window(prob: varpro.Problem, lam: np.ndarray, k: int) -> tuple[varpro.Problem, np.ndarray]:
+    """``prob`` on the lines within ``SPLIT_WINDOW`` half-power bandwidths of pole ``k`` (at
+    least 8 lines each side; residual terms lower and upper) and which poles of ``lam`` it
+    keeps (those within three times that of pole ``k``; the others' tails go to the terms)."""
+    half = max(SPLIT_WINDOW * abs(lam[k].real), 8.0 * float(np.median(np.diff(prob.omega))))
+    lines = np.flatnonzero(np.abs(prob.omega - lam[k].imag) <= half)
+    keep = np.abs(lam.imag - lam[k].imag) <= 3.0 * half
+    cols = np.concatenate([lines, lines + prob.omega.size])
+    sub = dataclasses.replace(
+        prob,
+        y=np.ascontiguousarray(prob.y[:, cols]),
+        omega=prob.omega[lines],
+        line_weight=prob.line_weight[lines],
+        residual_terms=("lower", "upper"),
+    )
+    return sub, keep
+
+
+def split_gain(prob: varpro.Problem, lam: np.ndarray, k: int, start: float, max_iter: int) -> float:
+    """An upper estimate of ``2 (cost - cost')`` on ``prob`` of a second pole next to pole ``k``
+    of ``lam`` (measured, as fitted to all FRFs): the pole split into
+    ``lam[k] -+ i start |Re lam[k]|`` and fitted with the poles within ``NEIGHBOURS`` of their
+    half-power bandwidths of it (the others held) against the poles as they are, on the lines
+    around the pole (:func:`_window`). A screen for the refit of every pole: the gain is the
+    added pole's and its neighbours' (fitted on one side only, which can only add to it); NaN
+    when the window cannot be fitted (let the refit say)."""
+    lam = np.asarray(lam, dtype=np.complex128)
+    sub, keep = _window(prob, lam, k)
+    local = lam[keep]
+    j = int(np.sum(keep[:k]))
+    if sub.omega.size < 4 * (local.size + 3):
+        return float("nan")
+    width = np.maximum(np.abs(local.real), abs(local[j].real))
+    near = np.abs(local - local[j]) <= NEIGHBOURS * width
+    cost0 = varpro.objective(sub, varpro.project(sub, local))
+    step = 1j * start * abs(local[j].real)
+    two = np.append(local, local[j] + step)
+    two[j] = local[j] - step
+    fit = varpro.levenberg_marquardt(sub, two, max_iter=max_iter, free=np.append(near, True))
+    gain = 2.0 * (cost0 - fit.cost)
+    return float(gain) if np.isfinite(gain) else float("nan")
