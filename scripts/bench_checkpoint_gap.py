@@ -10,6 +10,8 @@ called the checkpoints at either end (the work in between is what ran without on
 Target: at most 1 s.
 
     python scripts/bench_checkpoint_gap.py [--points 1000] [--lines 4096] [--top 5]
+    python scripts/bench_checkpoint_gap.py --compress off   # every phase on every point (the
+                                                            # SIMO isolation kernel, the refinement)
 """
 
 from __future__ import annotations
@@ -36,7 +38,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--points", type=int, default=1000)
     parser.add_argument("--lines", type=int, default=4096)
     parser.add_argument("--top", type=int, default=5, help="gaps listed (default 5)")
+    parser.add_argument(
+        "--compress", default="auto", help="identify's compress: auto (default), off or an int"
+    )
     args = parser.parse_args(argv)
+    compress = int(args.compress) if args.compress.isdigit() else args.compress
+    if compress not in ("auto", "off") and not isinstance(compress, int):
+        parser.error(f"--compress: expected auto, off or an int, got {args.compress!r}")
 
     import ami_xr
     from ami_xr import interrupt, progress
@@ -56,19 +64,20 @@ def main(argv: list[str] | None = None) -> int:
     # progress.detail calls the name it imported; the other modules call interrupt.checkpoint
     interrupt.checkpoint = progress.checkpoint = timed
     try:
-        for run in ("warm-up", "measured"):
+        for _run in ("warm-up", "measured"):
             gaps.clear()
             with warnings.catch_warnings(), interrupt.armed():
                 warnings.simplefilter("ignore")
                 last[:] = [time.perf_counter(), time.process_time(), "start"]
                 t0, c0 = time.perf_counter(), time.process_time()
-                out = ami_xr.identify(ds)
+                out = ami_xr.identify(ds, compress=compress)
                 timed()
                 wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     finally:
         interrupt.checkpoint = progress.checkpoint = real
     print(
-        f"identify {args.points} points x {args.lines} lines ({run}): {out.sizes['mode']} modes, "
+        f"identify {args.points} points x {args.lines} lines, compress={compress} (measured): "
+        f"{out.sizes['mode']} modes, "
         f"{wall:.2f} s wall, {cpu:.2f} s CPU, {len(gaps)} checkpoints"
     )
     print(f"{'wall s':>7} {'CPU s':>7}  from -> to")
