@@ -89,7 +89,7 @@ from ami_xr.core.refine import (
 from ami_xr.core.threads import single_blas_thread
 from ami_xr.errors import ConvergenceWarning, IdentificationError
 from ami_xr.progress import Iterations, active, detail
-from ami_xr.provenance import add_history
+from ami_xr.provenance import record_history
 
 _LOWER_UPPER = list(names.RESIDUAL_TERM_LABELS)  # coordinate of the residual_term dim
 P, F, M = names.POINT, names.FREQUENCY, names.MODE
@@ -362,7 +362,8 @@ def refine(
         ch.note_loaded(out.attrs, "refine")
     to_attrs(settings, out.attrs)
     out = c.restore_coordinate_attrs(out, coord_attrs)
-    return add_history(out, "ami_xr.refine", parameters(settings))
+    record_history(out.attrs, "ami_xr.refine", parameters(settings))  # out is refine's own
+    return out
 
 
 def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
@@ -381,9 +382,8 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
         removed = [ds[M].values[k].item() for k in range(n_mode) if k not in kept]
         attrs[names.ATTR_REFINE_REMOVED_MODES] = ",".join(str(x) for x in removed)
         ds = _select_modes(ds, kept)
-    lam0 = ds[names.EIGENVALUE]
     if added.any():
-        ds, lam0 = _with_added_modes(ds, int(added.sum()))
+        ds = _with_added_modes(ds, int(added.sum()))
     new = {}
     for var in (
         names.EIGENVALUE,
@@ -397,9 +397,10 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
     units_frf = ds[names.FRF].attrs.get(names.ATTR_UNITS)
     hz = {names.ATTR_UNITS: names.FREQUENCY_UNITS}
     new[names.EIGENVALUE] = lam.assign_attrs({names.ATTR_UNITS: names.ANGULAR_UNITS})
-    new[names.NATURAL_FREQUENCY] = natural_frequency(lam).assign_attrs(hz)
-    new[names.DAMPING_RATIO] = damping_ratio(lam).assign_attrs(
-        {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
+    # on the arrays: the modal helpers on a DataArray go through temporary Datasets
+    new[names.NATURAL_FREQUENCY] = xr.Variable((M,), natural_frequency(lam.values), hz)
+    new[names.DAMPING_RATIO] = xr.Variable(
+        (M,), damping_ratio(lam.values), {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
     )
     res_units = residue_units(units_frf or "")
     new[names.RESIDUE] = r.residue.transpose(P, M).assign_attrs(res_units)
@@ -429,13 +430,14 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
             {names.RESIDUAL_TERM: _LOWER_UPPER}
         )
     low_snr = _refresh_global_outputs(ds, new, r, lam.values - model.decay, model, data_model)
-    new[names.QUALITY_FLAGS] = _merge_flags(ds, r.status.values, lam0, low_snr, added)
+    mask = _merge_flags(c.flag_mask(ds), r.status.values, low_snr, added)
+    new[names.QUALITY_FLAGS] = xr.Variable((M,), mask)
     attrs[names.ATTR_REFINE_ITERATIONS] = int(r.n_iter)
     attrs[names.ATTR_REFINE_FULL_FITS] = int(r.n_full_fits)
     attrs[names.ATTR_REFINE_CONVERGED] = int(bool(np.all(r.status.values != STATUS_NOT_CONVERGED)))
     attrs[names.ATTR_REFINE_COST_START] = float(r.cost_start)
     attrs[names.ATTR_REFINE_COST] = float(r.cost)
-    attrs.update(_pair_attrs(natural_frequency(lam).values, r.pair_supported.values, r.merged_fn))
+    attrs.update(_pair_attrs(natural_frequency(lam.values), r.pair_supported.values, r.merged_fn))
     # one assignment: the results share the input's point and mode coordinates
     if terms:
         ds = ds.assign_coords({names.RESIDUAL_TERM: _LOWER_UPPER})
@@ -560,16 +562,15 @@ def _with_added_modes(ds, n_added):
         out = out.assign_coords({names.MODE_2: new_labels})
         for v in drop:  # placeholders, recomputed by _refresh_global_outputs
             out[v] = ((names.MODE, names.MODE_2), np.full((new_labels.size,) * 2, np.nan))
-    return out, out[names.EIGENVALUE]
+    return out
 
 
-def _merge_flags(ds, status, lam0, low_snr=None, added=None):
-    """The flags of each mode after the refinement, decided from its status (set in
-    :mod:`ami_xr.core.refine`, where it is known): ``refine_not_converged`` and
-    ``refine_fallback`` as the status says; the isolation's ``not_converged`` no longer applies
-    to a mode the refinement moved to its converged estimate (status ok); ``added_by_refine``;
-    ``low_drive_point_snr`` decided again from the refined residues."""
-    mask = c.flag_mask(ds)
+def _merge_flags(mask, status, low_snr=None, added=None) -> np.ndarray:
+    """The flags (int32) of each mode after the refinement, from its flags ``mask`` before and
+    its status (set in :mod:`ami_xr.core.refine`, where it is known): ``refine_not_converged``
+    and ``refine_fallback`` as the status says; the isolation's ``not_converged`` no longer
+    applies to a mode the refinement moved to its converged estimate (status ok);
+    ``added_by_refine``; ``low_drive_point_snr`` decided again from the refined residues."""
     ok = status == STATUS_OK
     mask = flags.set_where(mask, names.FLAG_REFINE_NOT_CONVERGED, status == STATUS_NOT_CONVERGED)
     mask = flags.set_where(mask, names.FLAG_REFINE_FALLBACK, status == STATUS_FALLBACK)
@@ -580,6 +581,4 @@ def _merge_flags(ds, status, lam0, low_snr=None, added=None):
         mask = flags.set_where(mask, names.FLAG_ADDED_BY_REFINE, added)
     if low_snr is not None:
         mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, low_snr)
-    return xr.DataArray(
-        np.asarray(mask, np.int32), dims=(names.MODE,), coords={names.MODE: lam0[names.MODE].values}
-    )
+    return np.asarray(mask, np.int32)
