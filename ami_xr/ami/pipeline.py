@@ -122,11 +122,16 @@ def identify_single(
             result = scale_out.identify_compressed(work, settings, refined, progress, _phases, how)
     if scale != 1.0:
         result = unscale(result, ds, scale)
-    result = whitening.from_working(result, given, white)
+    noise_model = None
+    if white.k:
+        result = whitening.from_working(result, given, white)
+    else:  # fitted as given: the noise model's variables go into the one output build
+        noise_model = whitening.noise_model_back(result, given, white)
+        result.attrs = {**result.attrs, **white.attrs}  # (a new dict: no alias is changed)
     result = repeated_flagged(result)
     result = window_corrected(result, from_attrs(FrfAttributes, ds.attrs))
     # sorted, under_resolved flagged (damping std widened), quality indicators: one build
-    result = reported(result, whole, refined)
+    result = reported(result, whole, refined, noise_model)
     if final:  # per-mode selections: the indicators of the modes kept are theirs
         result = drop_beyond_lines(result, whole)
         result = spikes.drop_noise_spikes(result)
@@ -436,14 +441,21 @@ def finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dat
     return result
 
 
-def reported(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dataset:
+def reported(
+    result: xr.Dataset, whole: xr.Dataset, refined: bool, noise_model: dict | None = None
+) -> xr.Dataset:
     """:func:`finish_modes`, :func:`~ami_xr.ami.resolution.resolution_checked` and
     :func:`with_quality` on ``result`` in one step: the sort order, the flags and widened
     standard deviations of the under-resolved modes and the quality indicators decided on the
-    arrays, and the output built once from ``result``'s variables."""
+    arrays, and the output built once from ``result``'s variables. ``noise_model``: the
+    variables of :func:`~ami_xr.ami.whitening.noise_model_back` (they replace the working
+    ``frf_line_noise_std``)."""
     result = _in_band(result, whole)
     n = result.sizes.get(names.MODE, 0)
     if not n or names.NATURAL_FREQUENCY not in result:  # nothing to sort (c.sort_modes)
+        if noise_model is not None:
+            result = result.drop_vars([names.FRF_LINE_NOISE_STD], errors="ignore")
+            result = result.assign(noise_model)
         _capped(result, result.attrs, refined, stacklevel=4)
         return with_quality(resolution_checked(result, whole))
     fn = np.asarray(result[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
@@ -454,6 +466,9 @@ def reported(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dataset
     variables = {
         k: v.isel({d: order for d in mode_dims if d in v.dims}) for k, v in result.variables.items()
     }
+    if noise_model is not None:
+        variables.pop(names.FRF_LINE_NOISE_STD, None)
+        variables.update({k: xr.as_variable(v, name=k) for k, v in noise_model.items()})
     labels = np.arange(1, n + 1)
     for d in mode_dims:
         if d in result.dims:
