@@ -93,8 +93,8 @@ from ami_xr.provenance import record_history
 
 _LOWER_UPPER = list(names.RESIDUAL_TERM_LABELS)  # coordinate of the residual_term dim
 P, F, M = names.POINT, names.FREQUENCY, names.MODE
-# Outputs of refine_arrays: RefineResult field -> (core dims, dtype). The apply_ufunc call and the
-# unpacking of its results both follow this table, so no output is matched by position.
+# Outputs of refine_arrays: RefineResult field -> (dims, dtype). The block's tuple and the labels
+# of its results both follow this table, so no output is matched by position.
 _OUTPUTS = {
     "lam": ([M], np.complex128),
     "eig_std": ([M], np.complex128),
@@ -125,11 +125,6 @@ def _refine_block(frf, freq, lam0, res0, *, settings, model, trace) -> tuple[np.
     if trace is not None:
         detail(f"standard errors, {result.lam.size} modes, {int(result.n_iter)} iterations")
     return tuple(getattr(result, name) for name in _OUTPUTS)
-
-
-def _as(da: xr.DataArray, dtype) -> xr.DataArray:
-    """``da`` in ``dtype`` (no copy when it already is)."""
-    return da if da.dtype == dtype else da.astype(dtype)
 
 
 def _check_inputs(ds, max_iter, tol, band, residual_terms, max_shift):
@@ -216,26 +211,24 @@ def _start_values(ds: xr.Dataset, band, n_terms: int):
 
 
 def _refined(ds: xr.Dataset, start, settings: RefineSettings, model, data_model) -> xr.Dataset:
-    """``ds`` with the refined values of one apply_ufunc over the start values ``start``
+    """``ds`` with the refined values of one block over the start values ``start``
     (FRFs, eigenvalues, residues); a capped mode completion is recorded and warned about."""
     frf, lam0, res0 = start
     trace = Iterations() if active() else None  # counts on a progress bar, when one listens
-    result = xr.apply_ufunc(
-        _refine_block,
-        frf,
-        _as(frf[F], np.float64),
-        _as(lam0, np.complex128),
-        _as(res0, np.complex128),
-        kwargs=dict(settings=settings, model=model, trace=trace),
-        input_core_dims=[[P, F], [F], [M], [P, M]],
-        output_core_dims=[dims for dims, _ in _OUTPUTS.values()],
-        exclude_dims={M},  # modes may be added
-        dask="parallelized",
-        output_dtypes=[dtype for _, dtype in _OUTPUTS.values()],
-        dask_gufunc_kwargs={"allow_rechunk": True, "output_sizes": {names.RESIDUAL_TERM: 2}},
-        keep_attrs=False,
+    # the start values are in memory (_start_values gathers them): the block on their arrays,
+    # its results labeled by the dims in _OUTPUTS (no apply_ufunc and no copy of ds for it)
+    arrays = _refine_block(
+        frf.transpose(P, F).values,
+        np.asarray(frf[F].values, dtype=np.float64),
+        np.asarray(lam0.values, dtype=np.complex128),
+        np.asarray(res0.transpose(P, M).values, dtype=np.complex128),
+        settings=settings,
+        model=model,
+        trace=trace,
     )
-    fields = {k: o.compute() if o.chunks else o for k, o in zip(_OUTPUTS, result, strict=True)}
+    fields = {  # Variables: a DataArray each would build a Dataset for its coordinates
+        k: xr.Variable(dims, a) for (k, (dims, _)), a in zip(_OUTPUTS.items(), arrays, strict=True)
+    }
     out = _with_results(ds, fields, model, data_model)
     if bool(fields["capped"]):
         add_capped(out.attrs, ["refine:add_modes"])
@@ -321,7 +314,6 @@ def refine(
     """
     _check_inputs(ds, max_iter, tol, band, residual_terms, max_shift)
     coord_attrs = c.coordinate_attrs(ds)
-    ds = ds.copy()  # own variables: old xarray clears coordinate attrs in apply_ufunc
     if isinstance(add_modes, bool) or not isinstance(add_modes, (int, np.integer)) or add_modes < 0:
         raise IdentificationError(f"add_modes: expected an integer >= 0, got {add_modes!r}")
     if not (isinstance(add_pfa, (int, float, np.floating)) and 0 < add_pfa < 1):
@@ -367,7 +359,7 @@ def refine(
 
 
 def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
-    """``ds`` with the refined values of :class:`RefineResult` ``fields`` (DataArrays by field
+    """``ds`` with the refined values of :class:`RefineResult` ``fields`` (Variables by field
     name): AMI's values kept with the ``ami_`` prefix, modes dropped or added, the global-fit
     outputs recomputed, flags and attributes updated."""
     n_mode = ds.sizes[M]
@@ -396,39 +388,33 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
             new[names.AMI_PREFIX + var] = ds[var]
     units_frf = ds[names.FRF].attrs.get(names.ATTR_UNITS)
     hz = {names.ATTR_UNITS: names.FREQUENCY_UNITS}
-    new[names.EIGENVALUE] = lam.assign_attrs({names.ATTR_UNITS: names.ANGULAR_UNITS})
+    new[names.EIGENVALUE] = _var(lam, {names.ATTR_UNITS: names.ANGULAR_UNITS})
     # on the arrays: the modal helpers on a DataArray go through temporary Datasets
     new[names.NATURAL_FREQUENCY] = xr.Variable((M,), natural_frequency(lam.values), hz)
     new[names.DAMPING_RATIO] = xr.Variable(
         (M,), damping_ratio(lam.values), {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
     )
     res_units = residue_units(units_frf or "")
-    new[names.RESIDUE] = r.residue.transpose(P, M).assign_attrs(res_units)
+    new[names.RESIDUE] = _var(r.residue.transpose(P, M), res_units)
     # one mode-vector convention (displacement) whatever the FRF type: global_fit's helper
     phi, phi_attrs = receptance_mode_vectors(
         r.residue.transpose(P, M).values, lam.values, drive_index, ds.attrs, units_frf or ""
     )
-    new[names.MODE_VECTOR] = r.mode_vector.transpose(P, M).copy(data=phi).assign_attrs(phi_attrs)
+    new[names.MODE_VECTOR] = xr.Variable((P, M), phi, phi_attrs)
     phi_units = {k: v for k, v in phi_attrs.items() if k == names.ATTR_UNITS}
-    new[names.EIGENVALUE_STD] = r.eig_std.assign_attrs({names.ATTR_UNITS: names.ANGULAR_UNITS})
-    new[names.NATURAL_FREQUENCY_STD] = r.fn_std.assign_attrs(hz)
-    new[names.DAMPING_RATIO_STD] = r.zeta_std.assign_attrs(
-        {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
-    )
-    new[names.RESIDUE_STD] = r.residue_std.transpose(P, M).assign_attrs(res_units)
+    new[names.EIGENVALUE_STD] = _var(r.eig_std, {names.ATTR_UNITS: names.ANGULAR_UNITS})
+    new[names.NATURAL_FREQUENCY_STD] = _var(r.fn_std, hz)
+    new[names.DAMPING_RATIO_STD] = _var(r.zeta_std, {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS})
+    new[names.RESIDUE_STD] = _var(r.residue_std.transpose(P, M), res_units)
     # the convention scales each mode by one complex factor; the std follows its magnitude
     old = np.linalg.norm(r.mode_vector.transpose(P, M).values, axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(old > 0, np.linalg.norm(phi, axis=0) / old, 1.0)
     phi_std = r.mode_vector_std.transpose(P, M) * ratio[None, :]
-    new[names.MODE_VECTOR_STD] = phi_std.assign_attrs(phi_units)
-    new[names.FRF_NOISE_STD] = r.noise_std.assign_attrs(
-        {names.ATTR_UNITS: units_frf} if units_frf else {}
-    )
+    new[names.MODE_VECTOR_STD] = _var(phi_std, phi_units)
+    new[names.FRF_NOISE_STD] = _var(r.noise_std, {names.ATTR_UNITS: units_frf} if units_frf else {})
     if terms:
-        new[names.RESIDUAL_COEFFICIENT] = r.residual_coefficient.assign_coords(
-            {names.RESIDUAL_TERM: _LOWER_UPPER}
-        )
+        new[names.RESIDUAL_COEFFICIENT] = r.residual_coefficient  # labels: assign_coords below
     low_snr = _refresh_global_outputs(ds, new, r, lam.values - model.decay, model, data_model)
     mask = _merge_flags(c.flag_mask(ds), r.status.values, low_snr, added)
     new[names.QUALITY_FLAGS] = xr.Variable((M,), mask)
@@ -448,7 +434,12 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
     return out
 
 
-def _pair_attrs(fn: np.ndarray, supported: np.ndarray, merged_fn: xr.DataArray) -> dict:
+def _var(v: xr.Variable, attrs: dict) -> xr.Variable:
+    """The refined values ``v`` with the attributes ``attrs`` (a new Variable)."""
+    return xr.Variable(v.dims, v.data, dict(attrs))
+
+
+def _pair_attrs(fn: np.ndarray, supported: np.ndarray, merged_fn: xr.Variable) -> dict:
     """Attributes of the close-pair order test, by natural frequency (labels change later):
     ``refine_merged_modes`` (each split duplicate and the mode it was merged into) and
     ``refine_close_pairs_supported`` (modes of close pairs the data support)."""
@@ -502,7 +493,8 @@ def _refresh_global_outputs(ds, new, r: RefineResult, mu, model: RefineModel, da
     units = frf.attrs.get(names.ATTR_UNITS, "")
     if names.FRF_SYNTHESIZED in ds or names.FRF_RESIDUAL in ds:
         if lazy:
-            args = ([r.residue.transpose(P, M), rc], [M, names.RESIDUAL_TERM], frf, F)
+            small = [xr.DataArray(r.residue.transpose(P, M)), xr.DataArray(rc)]
+            args = (small, [M, names.RESIDUAL_TERM], frf, F)
             made = ch.made_from_rows(rows.refined_rows, *args, omega=omega, mu=mu, **model_kw)
             synth = made.data
         new[names.FRF_SYNTHESIZED] = xr.Variable((P, F), synth, {names.ATTR_UNITS: units})
