@@ -46,6 +46,7 @@ from ami_xr.names import ATTR_FUNCTION  # kept importable from here, defined in 
 
 __all__ = [
     "add_history",
+    "record_history",
     "command",
     "history",
     "cf_history",
@@ -160,7 +161,11 @@ def history(ds: xr.Dataset) -> list[dict]:
 
     Empty when ``ds`` has none or its ``ami_xr_history`` attribute is not a JSON list.
     """
-    raw = ds.attrs.get(names.ATTR_HISTORY)
+    return _records(ds.attrs.get(names.ATTR_HISTORY))
+
+
+def _records(raw) -> list:
+    """The records of an ``ami_xr_history`` attribute (empty when it is not a JSON list)."""
     if not raw:
         return []
     try:
@@ -210,13 +215,25 @@ def add_history(
         name, without its folder) set. Inside a call that records itself (see
         :func:`nested_calls`) a copy of ``ds`` with its attributes unchanged.
     """
+    out = ds.copy()
+    out.attrs = dict(ds.attrs)
+    record_history(out.attrs, function, parameters, source_file)
+    return out
+
+
+def record_history(
+    attrs: dict,
+    function: str,
+    parameters: dict[str, Any] | None = None,
+    source_file: str | None = None,
+) -> None:
+    """Append one provenance record to the attributes ``attrs`` of a Dataset a function made
+    (its own: they are modified), as :func:`add_history` does on a copy; nothing inside a call
+    that records itself (:func:`nested_calls`)."""
     from ami_xr import __version__
 
     if not recording():
-        out = ds.copy()
-        out.attrs = dict(ds.attrs)
-        return out
-
+        return
     record = {
         "function": function,
         "parameters": _jsonable(parameters or {}),
@@ -225,7 +242,7 @@ def add_history(
     }
     if source_file is not None:
         record[names.ATTR_SOURCE_FILE] = file_name(source_file)
-    records = history(ds)
+    records = _records(attrs.get(names.ATTR_HISTORY))
     running = _COMMAND.get()
     if running is not None and function == running:  # the command's own record: gather
         first = len(records)
@@ -240,11 +257,8 @@ def add_history(
         records = records[:first]
     elif running is not None:
         record[_STEP_OF] = running
-    out = ds.copy()
-    out.attrs = dict(ds.attrs)
-    out.attrs[names.ATTR_HISTORY] = json.dumps(records + [record])
-    out.attrs[names.ATTR_VERSION] = __version__
-    out.attrs[ATTR_FUNCTION] = function
+    attrs[names.ATTR_HISTORY] = json.dumps(records + [record])
+    attrs[names.ATTR_VERSION] = __version__
+    attrs[ATTR_FUNCTION] = function
     if source_file is not None:
-        out.attrs[names.ATTR_SOURCE_FILE] = file_name(source_file)
-    return out
+        attrs[names.ATTR_SOURCE_FILE] = file_name(source_file)

@@ -15,7 +15,7 @@ from ami_xr import names
 from ami_xr.core import checks, flags
 from ami_xr.errors import IdentificationError, SchemaError
 from ami_xr.io.schema import find_problems
-from ami_xr.provenance import add_history
+from ami_xr.provenance import record_history
 
 MODELS = ("auto", *names.AMI_MODELS)  # the ``model`` argument of subtract
 MIN_LINES = 8
@@ -219,9 +219,11 @@ def restore_coordinate_attrs(out: xr.Dataset, attrs: dict[Hashable, dict]) -> xr
 
 
 def finish(out: xr.Dataset, function: str, phase: str, parameters: dict) -> xr.Dataset:
-    """Record the phase and its provenance (once: writing is the caller's ``to_netcdf``)."""
+    """Record the phase and its provenance in the attributes of ``out`` (the Dataset the phase
+    made; once: writing is the caller's ``to_netcdf``)."""
     out.attrs[names.ATTR_AMI_PHASE] = phase
-    return add_history(out, function, parameters)
+    record_history(out.attrs, function, parameters)
+    return out
 
 
 def drive_index(ds: xr.Dataset) -> int | None:

@@ -36,7 +36,7 @@ from ami_xr.ami.isolate import (
     warn_isolation,
 )
 from ami_xr.ami.refine import refine as refine_phase
-from ami_xr.ami.resolution import resolution_checked
+from ami_xr.ami.resolution import resolution_checked, resolution_widened
 from ami_xr.ami.settings import (
     FrfAttributes,
     GlobalFitSettings,
@@ -122,15 +122,20 @@ def identify_single(
             result = scale_out.identify_compressed(work, settings, refined, progress, _phases, how)
     if scale != 1.0:
         result = unscale(result, ds, scale)
-    result = whitening.from_working(result, given, white)
+    noise_model = None
+    if white.k:
+        result = whitening.from_working(result, given, white)
+    else:  # fitted as given: the noise model's variables go into the one output build
+        noise_model = whitening.noise_model_back(result, given, white)
+        result.attrs = {**result.attrs, **white.attrs}  # (a new dict: no alias is changed)
     result = repeated_flagged(result)
     result = window_corrected(result, from_attrs(FrfAttributes, ds.attrs))
-    result = finish_modes(result, whole, refined=refined)
-    result = resolution_checked(result, whole)  # under_resolved, damping std widened
-    if final:
+    # sorted, under_resolved flagged (damping std widened), quality indicators: one build
+    result = reported(result, whole, refined, noise_model)
+    if final:  # per-mode selections: the indicators of the modes kept are theirs
         result = drop_beyond_lines(result, whole)
         result = spikes.drop_noise_spikes(result)
-    return with_quality(result)
+    return result
 
 
 def model_order(settings: IdentifySettings) -> dict:
@@ -353,45 +358,48 @@ def with_quality(result: xr.Dataset) -> xr.Dataset:
     scale-free, like the indicators); nothing when there are no mode vectors."""
     if names.MODE_VECTOR not in result or result.sizes.get(names.MODE, 0) == 0:
         return result
-    mv = result[names.MODE_VECTOR]
+    return result.assign(quality_variables(result[names.MODE_VECTOR].variable))
+
+
+def quality_variables(mv: xr.Variable) -> dict:
+    """What :func:`with_quality` adds, by name, for the mode vectors ``mv`` (point, mode in
+    either order)."""
     phi = mv.transpose(names.POINT, names.MODE).values
-    mode = [names.MODE]
-    normalised = xr.DataArray(
-        phase_normalised(phi, unit=True), dims=(names.POINT, names.MODE)
-    ).transpose(*mv.dims)
-    normalised.attrs[names.ATTR_UNITS] = "1"
-    normalised.attrs[names.ATTR_LONG_NAME] = (
-        "mode vector rotated in phase and scaled so that its largest component is 1"
-    )
-    return result.assign(
+    mode = (names.MODE,)
+    normalised = xr.Variable(
+        (names.POINT, names.MODE),
+        phase_normalised(phi, unit=True),
         {
-            names.MPC: (
-                mode,
-                mpc(phi),
-                {
-                    names.ATTR_UNITS: "1",
-                    names.ATTR_LONG_NAME: "modal phase collinearity (1: real mode)",
-                },
+            names.ATTR_UNITS: "1",
+            names.ATTR_LONG_NAME: (
+                "mode vector rotated in phase and scaled so that its largest component is 1"
             ),
-            names.MPD: (
-                mode,
-                mpd(phi),
-                {
-                    names.ATTR_UNITS: "degree",
-                    names.ATTR_LONG_NAME: "mean phase deviation from the best straight line",
-                },
-            ),
-            names.COMPLEXITY: (
-                mode,
-                complexity(phi),
-                {
-                    names.ATTR_UNITS: "1",
-                    names.ATTR_LONG_NAME: "mode complexity 1 - MPC (0: real mode)",
-                },
-            ),
-            names.MODE_VECTOR_NORMALISED: normalised,
-        }
-    )
+        },
+    ).transpose(*mv.dims)
+    return {
+        names.MPC: xr.Variable(
+            mode,
+            mpc(phi),
+            {
+                names.ATTR_UNITS: "1",
+                names.ATTR_LONG_NAME: "modal phase collinearity (1: real mode)",
+            },
+        ),
+        names.MPD: xr.Variable(
+            mode,
+            mpd(phi),
+            {
+                names.ATTR_UNITS: "degree",
+                names.ATTR_LONG_NAME: "mean phase deviation from the best straight line",
+            },
+        ),
+        names.COMPLEXITY: xr.Variable(
+            mode,
+            complexity(phi),
+            {names.ATTR_UNITS: "1", names.ATTR_LONG_NAME: "mode complexity 1 - MPC (0: real mode)"},
+        ),
+        names.MODE_VECTOR_NORMALISED: normalised,
+    }
 
 
 def drop_beyond_lines(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
@@ -428,28 +436,94 @@ def finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dat
     labels 1..n; caps that ended a phase warned about and listed in attr ``ami_capped``. An
     isolation stopped at ``max_iter`` is listed in ``ami_capped_superseded`` instead when the
     refinement ran and converged (:func:`_isolation_superseded`): it re-fitted every mode."""
+    result = c.sort_modes(_in_band(result, whole))
+    _capped(result, result.attrs, refined, stacklevel=4)
+    return result
+
+
+def reported(
+    result: xr.Dataset, whole: xr.Dataset, refined: bool, noise_model: dict | None = None
+) -> xr.Dataset:
+    """:func:`finish_modes`, :func:`~ami_xr.ami.resolution.resolution_checked` and
+    :func:`with_quality` on ``result`` in one step: the sort order, the flags and widened
+    standard deviations of the under-resolved modes and the quality indicators decided on the
+    arrays, and the output built once from ``result``'s variables. ``noise_model``: the
+    variables of :func:`~ami_xr.ami.whitening.noise_model_back` (they replace the working
+    ``frf_line_noise_std``)."""
+    result = _in_band(result, whole)
+    n = result.sizes.get(names.MODE, 0)
+    if not n or names.NATURAL_FREQUENCY not in result:  # nothing to sort (c.sort_modes)
+        if noise_model is not None:
+            result = result.drop_vars([names.FRF_LINE_NOISE_STD], errors="ignore")
+            result = result.assign(noise_model)
+        _capped(result, result.attrs, refined, stacklevel=4)
+        return with_quality(resolution_checked(result, whole))
+    fn = np.asarray(result[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
+    order = np.argsort(np.where(np.isfinite(fn), fn, np.inf), kind="stable")
+    attrs = dict(result.attrs)
+    _capped(result, attrs, refined, stacklevel=4)
+    mode_dims = (names.MODE, names.MODE_2)
+    variables = {
+        k: v.isel({d: order for d in mode_dims if d in v.dims}) for k, v in result.variables.items()
+    }
+    if noise_model is not None:
+        variables.pop(names.FRF_LINE_NOISE_STD, None)
+        variables.update({k: xr.as_variable(v, name=k) for k, v in noise_model.items()})
+    labels = np.arange(1, n + 1)
+    for d in mode_dims:
+        if d in result.dims:
+            variables[d] = xr.IndexVariable((d,), labels)
+    variables[names.MODE_LABEL_UNSORTED] = xr.Variable(
+        (names.MODE,),
+        np.asarray(result[names.MODE].values)[order],
+        {names.ATTR_LONG_NAME: "label of the mode before sorting by natural frequency"},
+    )
+    if names.DAMPING_RATIO in result and names.QUALITY_FLAGS in result:
+        stds = (names.DAMPING_RATIO_STD, names.EIGENVALUE_STD)
+        mask, widened = resolution_widened(
+            fn[order],
+            variables[names.DAMPING_RATIO].transpose(names.MODE).values,
+            c.flag_mask(result)[order],
+            {v: variables[v].transpose(names.MODE).values for v in stds if v in variables},
+            labels,
+            whole,
+        )
+        variables[names.QUALITY_FLAGS] = variables[names.QUALITY_FLAGS].copy(data=mask)
+        for v, std in widened.items():
+            variables[v] = variables[v].copy(data=std)
+    if names.MODE_VECTOR in variables:
+        variables.update(quality_variables(variables[names.MODE_VECTOR]))
+    coords = {k: variables.pop(k) for k in result.coords}
+    return xr.Dataset(variables, coords=coords, attrs=attrs)
+
+
+def _in_band(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
+    """``result`` without the modes outside a restricted analysis band (listed in attr
+    ``analysis_band_dropped_modes``); ``result`` itself when the band is ``whole``'s."""
     band = bd.analysis_band(result)
     if not bd.is_whole(whole, band):
         result, dropped = c.drop_outside_band(result, band.fmin, band.fmax)
         result.attrs[names.ATTR_BAND_DROPPED] = ",".join(f"{f:.6g}" for f in dropped)
-    result = c.sort_modes(result)
+    return result
+
+
+def _capped(result: xr.Dataset, attrs: dict, refined: bool, stacklevel: int) -> None:
+    """The caps that ended a phase of ``result`` (:func:`finish_modes`), warned about (the
+    refinement's; the isolation warned already) and written into ``attrs``."""
     caps = flags.RunStatus.NONE
     if _isolation_superseded(result, refined):  # the converged refinement re-fitted every mode
-        flags.add_caps(
-            result.attrs, flags.RunStatus.ISOLATE_MAX_ITER, names.ATTR_AMI_CAPPED_SUPERSEDED
-        )
+        flags.add_caps(attrs, flags.RunStatus.ISOLATE_MAX_ITER, names.ATTR_AMI_CAPPED_SUPERSEDED)
     elif names.ISO_CONVERGED in result and not bool(np.all(result[names.ISO_CONVERGED].values)):
         caps |= flags.RunStatus.ISOLATE_MAX_ITER  # isolate warned already
-    if refined and names.ATTR_REFINE_CONVERGED in result.attrs:
-        if not int(result.attrs[names.ATTR_REFINE_CONVERGED]):
+    if refined and names.ATTR_REFINE_CONVERGED in attrs:
+        if not int(attrs[names.ATTR_REFINE_CONVERGED]):
             caps |= flags.RunStatus.REFINE_MAX_ITER
             warnings.warn(
                 "identify: the refinement stopped at its iteration cap before converging "
-                f"({result.attrs.get(names.ATTR_REFINE_ITERATIONS, '?')} iterations in all; "
+                f"({attrs.get(names.ATTR_REFINE_ITERATIONS, '?')} iterations in all; "
                 f"attr {names.ATTR_REFINE_CONVERGED}=0; modes still moving carry "
                 f"{names.FLAG_REFINE_NOT_CONVERGED})",
                 ConvergenceWarning,
-                stacklevel=3,
+                stacklevel=stacklevel,
             )
-    add_capped(result.attrs, caps)
-    return result
+    add_capped(attrs, caps)

@@ -89,12 +89,12 @@ from ami_xr.core.refine import (
 from ami_xr.core.threads import single_blas_thread
 from ami_xr.errors import ConvergenceWarning, IdentificationError
 from ami_xr.progress import Iterations, active, detail
-from ami_xr.provenance import add_history
+from ami_xr.provenance import record_history
 
 _LOWER_UPPER = list(names.RESIDUAL_TERM_LABELS)  # coordinate of the residual_term dim
 P, F, M = names.POINT, names.FREQUENCY, names.MODE
-# Outputs of refine_arrays: RefineResult field -> (core dims, dtype). The apply_ufunc call and the
-# unpacking of its results both follow this table, so no output is matched by position.
+# Outputs of refine_arrays: RefineResult field -> (dims, dtype). The block's tuple and the labels
+# of its results both follow this table, so no output is matched by position.
 _OUTPUTS = {
     "lam": ([M], np.complex128),
     "eig_std": ([M], np.complex128),
@@ -125,11 +125,6 @@ def _refine_block(frf, freq, lam0, res0, *, settings, model, trace) -> tuple[np.
     if trace is not None:
         detail(f"standard errors, {result.lam.size} modes, {int(result.n_iter)} iterations")
     return tuple(getattr(result, name) for name in _OUTPUTS)
-
-
-def _as(da: xr.DataArray, dtype) -> xr.DataArray:
-    """``da`` in ``dtype`` (no copy when it already is)."""
-    return da if da.dtype == dtype else da.astype(dtype)
 
 
 def _check_inputs(ds, max_iter, tol, band, residual_terms, max_shift):
@@ -216,26 +211,24 @@ def _start_values(ds: xr.Dataset, band, n_terms: int):
 
 
 def _refined(ds: xr.Dataset, start, settings: RefineSettings, model, data_model) -> xr.Dataset:
-    """``ds`` with the refined values of one apply_ufunc over the start values ``start``
+    """``ds`` with the refined values of one block over the start values ``start``
     (FRFs, eigenvalues, residues); a capped mode completion is recorded and warned about."""
     frf, lam0, res0 = start
     trace = Iterations() if active() else None  # counts on a progress bar, when one listens
-    result = xr.apply_ufunc(
-        _refine_block,
-        frf,
-        _as(frf[F], np.float64),
-        _as(lam0, np.complex128),
-        _as(res0, np.complex128),
-        kwargs=dict(settings=settings, model=model, trace=trace),
-        input_core_dims=[[P, F], [F], [M], [P, M]],
-        output_core_dims=[dims for dims, _ in _OUTPUTS.values()],
-        exclude_dims={M},  # modes may be added
-        dask="parallelized",
-        output_dtypes=[dtype for _, dtype in _OUTPUTS.values()],
-        dask_gufunc_kwargs={"allow_rechunk": True, "output_sizes": {names.RESIDUAL_TERM: 2}},
-        keep_attrs=False,
+    # the start values are in memory (_start_values gathers them): the block on their arrays,
+    # its results labeled by the dims in _OUTPUTS (no apply_ufunc and no copy of ds for it)
+    arrays = _refine_block(
+        frf.transpose(P, F).values,
+        np.asarray(frf[F].values, dtype=np.float64),
+        np.asarray(lam0.values, dtype=np.complex128),
+        np.asarray(res0.transpose(P, M).values, dtype=np.complex128),
+        settings=settings,
+        model=model,
+        trace=trace,
     )
-    fields = {k: o.compute() if o.chunks else o for k, o in zip(_OUTPUTS, result, strict=True)}
+    fields = {  # Variables: a DataArray each would build a Dataset for its coordinates
+        k: xr.Variable(dims, a) for (k, (dims, _)), a in zip(_OUTPUTS.items(), arrays, strict=True)
+    }
     out = _with_results(ds, fields, model, data_model)
     if bool(fields["capped"]):
         add_capped(out.attrs, ["refine:add_modes"])
@@ -321,7 +314,6 @@ def refine(
     """
     _check_inputs(ds, max_iter, tol, band, residual_terms, max_shift)
     coord_attrs = c.coordinate_attrs(ds)
-    ds = ds.copy()  # own variables: old xarray clears coordinate attrs in apply_ufunc
     if isinstance(add_modes, bool) or not isinstance(add_modes, (int, np.integer)) or add_modes < 0:
         raise IdentificationError(f"add_modes: expected an integer >= 0, got {add_modes!r}")
     if not (isinstance(add_pfa, (int, float, np.floating)) and 0 < add_pfa < 1):
@@ -362,11 +354,12 @@ def refine(
         ch.note_loaded(out.attrs, "refine")
     to_attrs(settings, out.attrs)
     out = c.restore_coordinate_attrs(out, coord_attrs)
-    return add_history(out, "ami_xr.refine", parameters(settings))
+    record_history(out.attrs, "ami_xr.refine", parameters(settings))  # out is refine's own
+    return out
 
 
 def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
-    """``ds`` with the refined values of :class:`RefineResult` ``fields`` (DataArrays by field
+    """``ds`` with the refined values of :class:`RefineResult` ``fields`` (Variables by field
     name): AMI's values kept with the ``ami_`` prefix, modes dropped or added, the global-fit
     outputs recomputed, flags and attributes updated."""
     n_mode = ds.sizes[M]
@@ -381,9 +374,8 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
         removed = [ds[M].values[k].item() for k in range(n_mode) if k not in kept]
         attrs[names.ATTR_REFINE_REMOVED_MODES] = ",".join(str(x) for x in removed)
         ds = _select_modes(ds, kept)
-    lam0 = ds[names.EIGENVALUE]
     if added.any():
-        ds, lam0 = _with_added_modes(ds, int(added.sum()))
+        ds = _with_added_modes(ds, int(added.sum()))
     new = {}
     for var in (
         names.EIGENVALUE,
@@ -396,46 +388,42 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
             new[names.AMI_PREFIX + var] = ds[var]
     units_frf = ds[names.FRF].attrs.get(names.ATTR_UNITS)
     hz = {names.ATTR_UNITS: names.FREQUENCY_UNITS}
-    new[names.EIGENVALUE] = lam.assign_attrs({names.ATTR_UNITS: names.ANGULAR_UNITS})
-    new[names.NATURAL_FREQUENCY] = natural_frequency(lam).assign_attrs(hz)
-    new[names.DAMPING_RATIO] = damping_ratio(lam).assign_attrs(
-        {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
+    new[names.EIGENVALUE] = _var(lam, {names.ATTR_UNITS: names.ANGULAR_UNITS})
+    # on the arrays: the modal helpers on a DataArray go through temporary Datasets
+    new[names.NATURAL_FREQUENCY] = xr.Variable((M,), natural_frequency(lam.values), hz)
+    new[names.DAMPING_RATIO] = xr.Variable(
+        (M,), damping_ratio(lam.values), {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
     )
     res_units = residue_units(units_frf or "")
-    new[names.RESIDUE] = r.residue.transpose(P, M).assign_attrs(res_units)
+    new[names.RESIDUE] = _var(r.residue.transpose(P, M), res_units)
     # one mode-vector convention (displacement) whatever the FRF type: global_fit's helper
     phi, phi_attrs = receptance_mode_vectors(
         r.residue.transpose(P, M).values, lam.values, drive_index, ds.attrs, units_frf or ""
     )
-    new[names.MODE_VECTOR] = r.mode_vector.transpose(P, M).copy(data=phi).assign_attrs(phi_attrs)
+    new[names.MODE_VECTOR] = xr.Variable((P, M), phi, phi_attrs)
     phi_units = {k: v for k, v in phi_attrs.items() if k == names.ATTR_UNITS}
-    new[names.EIGENVALUE_STD] = r.eig_std.assign_attrs({names.ATTR_UNITS: names.ANGULAR_UNITS})
-    new[names.NATURAL_FREQUENCY_STD] = r.fn_std.assign_attrs(hz)
-    new[names.DAMPING_RATIO_STD] = r.zeta_std.assign_attrs(
-        {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
-    )
-    new[names.RESIDUE_STD] = r.residue_std.transpose(P, M).assign_attrs(res_units)
+    new[names.EIGENVALUE_STD] = _var(r.eig_std, {names.ATTR_UNITS: names.ANGULAR_UNITS})
+    new[names.NATURAL_FREQUENCY_STD] = _var(r.fn_std, hz)
+    new[names.DAMPING_RATIO_STD] = _var(r.zeta_std, {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS})
+    new[names.RESIDUE_STD] = _var(r.residue_std.transpose(P, M), res_units)
     # the convention scales each mode by one complex factor; the std follows its magnitude
     old = np.linalg.norm(r.mode_vector.transpose(P, M).values, axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(old > 0, np.linalg.norm(phi, axis=0) / old, 1.0)
     phi_std = r.mode_vector_std.transpose(P, M) * ratio[None, :]
-    new[names.MODE_VECTOR_STD] = phi_std.assign_attrs(phi_units)
-    new[names.FRF_NOISE_STD] = r.noise_std.assign_attrs(
-        {names.ATTR_UNITS: units_frf} if units_frf else {}
-    )
+    new[names.MODE_VECTOR_STD] = _var(phi_std, phi_units)
+    new[names.FRF_NOISE_STD] = _var(r.noise_std, {names.ATTR_UNITS: units_frf} if units_frf else {})
     if terms:
-        new[names.RESIDUAL_COEFFICIENT] = r.residual_coefficient.assign_coords(
-            {names.RESIDUAL_TERM: _LOWER_UPPER}
-        )
+        new[names.RESIDUAL_COEFFICIENT] = r.residual_coefficient  # labels: assign_coords below
     low_snr = _refresh_global_outputs(ds, new, r, lam.values - model.decay, model, data_model)
-    new[names.QUALITY_FLAGS] = _merge_flags(ds, r.status.values, lam0, low_snr, added)
+    mask = _merge_flags(c.flag_mask(ds), r.status.values, low_snr, added)
+    new[names.QUALITY_FLAGS] = xr.Variable((M,), mask)
     attrs[names.ATTR_REFINE_ITERATIONS] = int(r.n_iter)
     attrs[names.ATTR_REFINE_FULL_FITS] = int(r.n_full_fits)
     attrs[names.ATTR_REFINE_CONVERGED] = int(bool(np.all(r.status.values != STATUS_NOT_CONVERGED)))
     attrs[names.ATTR_REFINE_COST_START] = float(r.cost_start)
     attrs[names.ATTR_REFINE_COST] = float(r.cost)
-    attrs.update(_pair_attrs(natural_frequency(lam).values, r.pair_supported.values, r.merged_fn))
+    attrs.update(_pair_attrs(natural_frequency(lam.values), r.pair_supported.values, r.merged_fn))
     # one assignment: the results share the input's point and mode coordinates
     if terms:
         ds = ds.assign_coords({names.RESIDUAL_TERM: _LOWER_UPPER})
@@ -446,7 +434,12 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
     return out
 
 
-def _pair_attrs(fn: np.ndarray, supported: np.ndarray, merged_fn: xr.DataArray) -> dict:
+def _var(v: xr.Variable, attrs: dict) -> xr.Variable:
+    """The refined values ``v`` with the attributes ``attrs`` (a new Variable)."""
+    return xr.Variable(v.dims, v.data, dict(attrs))
+
+
+def _pair_attrs(fn: np.ndarray, supported: np.ndarray, merged_fn: xr.Variable) -> dict:
     """Attributes of the close-pair order test, by natural frequency (labels change later):
     ``refine_merged_modes`` (each split duplicate and the mode it was merged into) and
     ``refine_close_pairs_supported`` (modes of close pairs the data support)."""
@@ -500,7 +493,8 @@ def _refresh_global_outputs(ds, new, r: RefineResult, mu, model: RefineModel, da
     units = frf.attrs.get(names.ATTR_UNITS, "")
     if names.FRF_SYNTHESIZED in ds or names.FRF_RESIDUAL in ds:
         if lazy:
-            args = ([r.residue.transpose(P, M), rc], [M, names.RESIDUAL_TERM], frf, F)
+            small = [xr.DataArray(r.residue.transpose(P, M)), xr.DataArray(rc)]
+            args = (small, [M, names.RESIDUAL_TERM], frf, F)
             made = ch.made_from_rows(rows.refined_rows, *args, omega=omega, mu=mu, **model_kw)
             synth = made.data
         new[names.FRF_SYNTHESIZED] = xr.Variable((P, F), synth, {names.ATTR_UNITS: units})
@@ -560,16 +554,15 @@ def _with_added_modes(ds, n_added):
         out = out.assign_coords({names.MODE_2: new_labels})
         for v in drop:  # placeholders, recomputed by _refresh_global_outputs
             out[v] = ((names.MODE, names.MODE_2), np.full((new_labels.size,) * 2, np.nan))
-    return out, out[names.EIGENVALUE]
+    return out
 
 
-def _merge_flags(ds, status, lam0, low_snr=None, added=None):
-    """The flags of each mode after the refinement, decided from its status (set in
-    :mod:`ami_xr.core.refine`, where it is known): ``refine_not_converged`` and
-    ``refine_fallback`` as the status says; the isolation's ``not_converged`` no longer applies
-    to a mode the refinement moved to its converged estimate (status ok); ``added_by_refine``;
-    ``low_drive_point_snr`` decided again from the refined residues."""
-    mask = c.flag_mask(ds)
+def _merge_flags(mask, status, low_snr=None, added=None) -> np.ndarray:
+    """The flags (int32) of each mode after the refinement, from its flags ``mask`` before and
+    its status (set in :mod:`ami_xr.core.refine`, where it is known): ``refine_not_converged``
+    and ``refine_fallback`` as the status says; the isolation's ``not_converged`` no longer
+    applies to a mode the refinement moved to its converged estimate (status ok);
+    ``added_by_refine``; ``low_drive_point_snr`` decided again from the refined residues."""
     ok = status == STATUS_OK
     mask = flags.set_where(mask, names.FLAG_REFINE_NOT_CONVERGED, status == STATUS_NOT_CONVERGED)
     mask = flags.set_where(mask, names.FLAG_REFINE_FALLBACK, status == STATUS_FALLBACK)
@@ -580,6 +573,4 @@ def _merge_flags(ds, status, lam0, low_snr=None, added=None):
         mask = flags.set_where(mask, names.FLAG_ADDED_BY_REFINE, added)
     if low_snr is not None:
         mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, low_snr)
-    return xr.DataArray(
-        np.asarray(mask, np.int32), dims=(names.MODE,), coords={names.MODE: lam0[names.MODE].values}
-    )
+    return np.asarray(mask, np.int32)

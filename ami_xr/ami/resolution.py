@@ -204,29 +204,49 @@ def resolution_checked(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
     need = (names.NATURAL_FREQUENCY, names.DAMPING_RATIO, names.QUALITY_FLAGS)
     if not result.sizes.get(names.MODE, 0) or any(v not in result for v in need):
         return result
+    stds = {
+        v: result[v].transpose(names.MODE).values
+        for v in (names.DAMPING_RATIO_STD, names.EIGENVALUE_STD)
+        if v in result
+    }
+    mask, stds = resolution_widened(
+        result[names.NATURAL_FREQUENCY].transpose(names.MODE).values,
+        result[names.DAMPING_RATIO].transpose(names.MODE).values,
+        c.flag_mask(result),
+        stds,
+        result[names.MODE].values,
+        whole,
+    )
+    result = result.copy()
+    result[names.QUALITY_FLAGS] = result[names.QUALITY_FLAGS].copy(data=mask)
+    for v, std in stds.items():
+        result[v] = result[v].copy(data=std)
+    return result
+
+
+def resolution_widened(fn, zeta, mask, stds: dict, labels, whole: xr.Dataset):
+    """:func:`resolution_checked` on the arrays of the modes (natural frequencies ``fn``,
+    damping ratios ``zeta``, flag ``mask``, labels; on ``mode``) and the standard deviations
+    ``stds`` (``damping_ratio_std``, ``eigenvalue_std`` by name, those present): the flags and
+    the standard deviations, widened where a mode is under-resolved (the same warning)."""
     df = line_spacing(whole[names.FREQUENCY].values)
-    fn = np.asarray(result[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
-    zeta = np.asarray(result[names.DAMPING_RATIO].transpose(names.MODE).values, dtype=float)
+    fn = np.asarray(fn, dtype=float)
+    zeta = np.asarray(zeta, dtype=float)
     with np.errstate(invalid="ignore"):
         under = 2.0 * np.abs(zeta) * fn < RESOLUTION_LINES * df
-    result = result.copy()
-    mask = flags.set_where(c.flag_mask(result), names.FLAG_UNDER_RESOLVED, under)
-    result[names.QUALITY_FLAGS] = result[names.QUALITY_FLAGS].copy(data=mask)
+    mask = flags.set_where(mask, names.FLAG_UNDER_RESOLVED, under)
     if not under.any():
-        return result
+        return mask, {}
     welch = welch_window(whole.attrs)
     bias = np.where(under, resolution_bias(fn, df, welch), 0.0)
-    if names.DAMPING_RATIO_STD in result:
-        std = result[names.DAMPING_RATIO_STD]
-        z_std = np.asarray(std.transpose(names.MODE).values, dtype=float)
-        result[names.DAMPING_RATIO_STD] = std.copy(data=np.hypot(z_std, bias))
-    if names.EIGENVALUE_STD in result:
-        std = result[names.EIGENVALUE_STD]
-        e_std = np.asarray(std.transpose(names.MODE).values, dtype=np.complex128)
+    out = {}
+    if names.DAMPING_RATIO_STD in stds:
+        z_std = np.asarray(stds[names.DAMPING_RATIO_STD], dtype=float)
+        out[names.DAMPING_RATIO_STD] = np.hypot(z_std, bias)
+    if names.EIGENVALUE_STD in stds:
+        e_std = np.asarray(stds[names.EIGENVALUE_STD], dtype=np.complex128)
         re_bias = bias * 2.0 * np.pi * fn / np.maximum(1.0 - zeta**2, 1e-12)
-        widened = np.hypot(e_std.real, re_bias) + 1j * e_std.imag
-        result[names.EIGENVALUE_STD] = std.copy(data=widened)
-    labels = result[names.MODE].values
+        out[names.EIGENVALUE_STD] = np.hypot(e_std.real, re_bias) + 1j * e_std.imag
     # the narrowest half-power bandwidth needs the finest lines: resolving it resolves all
     smear = 0.0 if welch is None else welch.enbw_lines() * df / (2.0 * fn)
     target = np.where(under, target_spacing(fn, zeta, smear), np.nan)
@@ -243,4 +263,4 @@ def resolution_checked(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
         f"{advice(float(target[k]), df, welch)}",
         AssumptionWarning,
     )
-    return result
+    return mask, out

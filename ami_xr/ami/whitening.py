@@ -235,9 +235,10 @@ def _level(x: np.ndarray, factor, divisor) -> np.ndarray:
     q, k4 = fn.BLOCK_QUANTILE, fn.ROUGHNESS_ORDER
     xw = x * factor
     xw = np.where(np.isfinite(xw), xw, 0.0)
-    d = np.abs(np.diff(xw, n=k4, axis=-1)) / np.broadcast_to(divisor, x.shape[-1:])[
-        k4 // 2 : -(k4 // 2)
-    ]
+    d = (
+        np.abs(np.diff(xw, n=k4, axis=-1))
+        / np.broadcast_to(divisor, x.shape[-1:])[k4 // 2 : -(k4 // 2)]
+    )
     return np.quantile(d, q, axis=-1) / np.sqrt(-np.log(1 - q) * math.comb(2 * k4, k4))
 
 
@@ -251,9 +252,15 @@ def _with_noise_model(out: xr.Dataset, w: Whitening) -> xr.Dataset:
     noise-free data (no noise to show)."""
     if w.shape is None or names.FRF not in out:
         return out
-    f = out[names.FREQUENCY]
+    return out.assign(noise_model_variables(out[names.FRF], w))
+
+
+def noise_model_variables(frf: xr.DataArray, w: Whitening) -> dict:
+    """The variables :func:`_with_noise_model` adds for the FRFs ``frf`` in the quantity given
+    (``w.shape`` set), by name."""
+    f = frf[names.FREQUENCY]
     shape = w.shape[-f.size :]
-    h = out[names.FRF].transpose(..., names.FREQUENCY)
+    h = frf.transpose(..., names.FREQUENCY)
     # in the working quantity, where the noise is closest to white (in the quantity given the
     # FRF's own curvature would outweigh the noise where that is far below it)
     fw = np.asarray(f.values, dtype=float)
@@ -262,37 +269,57 @@ def _with_noise_model(out: xr.Dataset, w: Whitening) -> xr.Dataset:
     factor = conv * phase if w.k else 1.0
     level = ch.per_row(_level, h, names.FREQUENCY, factor=factor, divisor=shape * conv)
     units = h.attrs.get(names.ATTR_UNITS, "")
-    return out.assign(
-        {
-            VAR_SHAPE: (
-                (names.FREQUENCY,),
-                shape,
-                {
-                    names.ATTR_LONG_NAME: "noise std of one FRF line relative to the point's level",
-                    names.ATTR_UNITS: "1",
-                },
-            ),
-            VAR_LEVEL: (
-                h.dims[:-1],
-                level,
-                {
-                    names.ATTR_LONG_NAME: "noise std of one FRF line where noise_model_shape is 1",
-                    **({names.ATTR_UNITS: units} if units else {}),
-                },
-            ),
-        }
-    )
+    return {
+        VAR_SHAPE: (
+            (names.FREQUENCY,),
+            shape,
+            {
+                names.ATTR_LONG_NAME: "noise std of one FRF line relative to the point's level",
+                names.ATTR_UNITS: "1",
+            },
+        ),
+        VAR_LEVEL: (
+            h.dims[:-1],
+            level,
+            {
+                names.ATTR_LONG_NAME: "noise std of one FRF line where noise_model_shape is 1",
+                **({names.ATTR_UNITS: units} if units else {}),
+            },
+        ),
+    }
+
+
+def noise_model_back(result: xr.Dataset, ds: xr.Dataset, w: Whitening) -> dict:
+    """For a fit in the quantity given (``w.k == 0``): the variables :func:`from_working` adds
+    to ``result`` once the working noise model ``frf_line_noise_std`` is dropped, by name and
+    in order: the input's own noise model (``ds``'s ``frf_line_noise_std`` on ``result``'s
+    lines), then :func:`noise_model_variables` (none for noise-free data)."""
+    new = {}
+    if names.FRF_LINE_NOISE_STD in ds:  # the input's own noise model stays in the output
+        lines = {names.FREQUENCY: result[names.FREQUENCY].values}
+        new[names.FRF_LINE_NOISE_STD] = ds[names.FRF_LINE_NOISE_STD].sel(lines).variable
+    if w.shape is not None and names.FRF in result:
+        new.update(noise_model_variables(result[names.FRF], w))
+    return new
 
 
 def from_working(result: xr.Dataset, ds: xr.Dataset, w: Whitening) -> xr.Dataset:
     """``result`` of the pipeline on :func:`to_working` ``(ds, w)`` in the quantity of ``ds``."""
+    if not w.k:  # the fit ran on the quantity given: the noise model is all that changes
+        out = result.drop_vars([names.FRF_LINE_NOISE_STD], errors="ignore")
+        out = out.assign(noise_model_back(result, ds, w))
+        out.attrs.update(w.attrs)
+        return out
     out = result.drop_vars([names.FRF_LINE_NOISE_STD], errors="ignore")
     f = out[names.FREQUENCY]
     if names.FRF_LINE_NOISE_STD in ds:  # the input's own noise model stays in the output
-        out = out.assign({names.FRF_LINE_NOISE_STD: ds[names.FRF_LINE_NOISE_STD].sel(
-            {names.FREQUENCY: f.values})})
-    if not w.k:
-        return _with_noise_model(out, w).assign_attrs(w.attrs)
+        out = out.assign(
+            {
+                names.FRF_LINE_NOISE_STD: ds[names.FRF_LINE_NOISE_STD].sel(
+                    {names.FREQUENCY: f.values}
+                )
+            }
+        )
     iw = xr.DataArray(2j * np.pi * f.values, dims=[names.FREQUENCY], coords={names.FREQUENCY: f})
     back = 1.0 / (w.scale * iw**w.k)
     frf = ds[names.FRF].sel({names.FREQUENCY: f.values})

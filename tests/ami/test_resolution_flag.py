@@ -53,6 +53,8 @@ def _unwidened(monkeypatch, frf: xr.Dataset, **kwargs) -> xr.Dataset:
     """identify with the resolution check switched off (the result before this change)."""
     with monkeypatch.context() as m:
         m.setattr(pipeline, "resolution_checked", lambda result, whole: result)
+        # identify's one output step decides the flags and widening on the arrays
+        m.setattr(pipeline, "resolution_widened", lambda fn, z, mask, stds, *a: (mask, {}))
         return _identify(frf, **kwargs)[0]
 
 
