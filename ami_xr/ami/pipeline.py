@@ -47,7 +47,7 @@ from ami_xr.ami.settings import (
 )
 from ami_xr.ami.subtract import (
     add_capped,
-    band_of,
+    band_and_lines,
     power_of_two_scale,
     subtract_arrays,
     subtract_settings,
@@ -100,8 +100,8 @@ def identify_single(
     whole = ds
     # the band first, then the checks on the lines analysed: a NaN line outside the band (frf's
     # Nyquist line of a clean pulse) does not refuse the file
-    try:
-        ds = band_of(ds, settings.fmin, settings.fmax, "identify")
+    try:  # the band's record goes into the output's attributes (no copy of ``ds`` for it)
+        ds, noted = band_and_lines(ds, settings.fmin, settings.fmax, "identify")
     except Exception:
         c.check_frf(ds, "identify")  # a malformed Dataset: the data model's own message
         raise
@@ -109,7 +109,11 @@ def identify_single(
     refined = refines(settings)
     # the noise model: fit in the quantity where the noise is closest to white (ami/whitening)
     white = whitening.decide(ds)
-    given, ds = ds, whitening.to_working(ds, white)
+    given = ds
+    if white.k or white.line_noise is not None:
+        ds = whitening.to_working(ds, white)  # a new Dataset, with the noise model's attrs
+    else:  # fitted as given: its attributes, like the band's, go into the output's
+        noted = {**noted, **white.attrs}
     # one power of two for all FRFs (the isolation and the global fit combine them)
     peak = np.abs(ds[names.FRF]).max(skipna=False).values
     scale = float(power_of_two_scale(peak))
@@ -117,8 +121,9 @@ def identify_single(
     with nested_calls():  # the phases are identify's, which records itself
         how = scale_out.uses_compression(work, settings)  # many points: poles on virtual FRFs
         if how is None:
-            result = _phases(work, settings, refined, progress)
+            result = _phases(work, settings, refined, progress, noted)
         else:
+            work = work.assign_attrs(noted)  # the virtual FRFs' phases take them from work
             result = scale_out.identify_compressed(work, settings, refined, progress, _phases, how)
     if scale != 1.0:
         result = unscale(result, ds, scale)
@@ -145,8 +150,11 @@ def model_order(settings: IdentifySettings) -> dict:
     return {} if settings.complete else dict(add_modes=0, drop_modes=False)
 
 
-def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progress) -> xr.Dataset:
-    """subtract -> isolate -> global_fit [-> refine] on ``work``, with a progress bar."""
+def _phases(
+    work: xr.Dataset, settings: IdentifySettings, refined: bool, progress, noted=None
+) -> xr.Dataset:
+    """subtract -> isolate -> global_fit [-> refine] on ``work`` (with the attributes
+    ``noted`` added to its own), with a progress bar."""
     s = settings
     steps = [names.PHASE_SUBTRACT, names.PHASE_ISOLATE, names.PHASE_GLOBAL_FIT]
     steps += [names.PHASE_REFINE] if refined else []
@@ -157,7 +165,7 @@ def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progres
         c.frf_checked(work),  # identify validated it (or built it from validated FRFs)
     ):
         warnings.simplefilter("always")  # held until the refinement says whether caps mattered
-        out = fitted(work, s, step)
+        out = fitted(work, s, step, noted)
         if refined and out.sizes.get(names.MODE, 0) > 0:
             step(names.PHASE_REFINE)
             out = refine_phase(out, **model_order(s))
@@ -170,13 +178,14 @@ def _phases(work: xr.Dataset, settings: IdentifySettings, refined: bool, progres
     return out
 
 
-def fitted(work: xr.Dataset, settings: IdentifySettings, step) -> xr.Dataset:
+def fitted(work: xr.Dataset, settings: IdentifySettings, step, noted=None) -> xr.Dataset:
     """subtract -> isolate -> global_fit on the arrays of ``work`` (validated by the caller):
     each phase's core on the FRFs and the fit record the one before left, the same calls as
     the public phases make; the labeled outputs of all three in one Dataset, built once at the
     end (the global fit's from :func:`~ami_xr.ami.derive.derived`). ``step(phase)`` is told
-    when each phase starts."""
+    when each phase starts; ``noted``: attributes taken as ``work``'s own."""
     s = settings
+    given = {**work.attrs, **(noted or {})}
     paper = s.method == names.METHOD_PAPER
     coord_attrs = c.coordinate_attrs(work)
     step(names.PHASE_SUBTRACT)
@@ -191,8 +200,8 @@ def fitted(work: xr.Dataset, settings: IdentifySettings, step) -> xr.Dataset:
         names.MODEL_CONTINUOUS if paper else "auto",
     )
     c.check_values(work)
-    sub = subtract_arrays(frf, work.attrs, sub_settings)
-    attrs = {**work.attrs, **sub.attrs}
+    sub = subtract_arrays(frf, given, sub_settings)
+    attrs = {**given, **sub.attrs}
     step(names.PHASE_ISOLATE)
     iso_settings = isolate_settings(
         s.tol,

@@ -356,11 +356,21 @@ def _assign_outputs(ds: xr.Dataset, new: dict) -> xr.Dataset:
 def band_of(ds: xr.Dataset, fmin, fmax, function: str) -> xr.Dataset:
     """``ds`` restricted to its analysis band (:func:`ami_xr.dsp.band.analysis_band`); a band
     chosen from the excitation is announced in an :class:`AssumptionWarning`."""
+    lines, band = band_and_lines(ds, fmin, fmax, function)
+    out = ds.copy(deep=False) if lines is ds else lines
+    out.attrs = {**out.attrs, **band}  # a new dict: the caller's Dataset keeps its own
+    return out
+
+
+def band_and_lines(ds: xr.Dataset, fmin, fmax, function: str) -> tuple[xr.Dataset, dict]:
+    """:func:`band_of` without its copy: ``ds`` restricted to the lines of its analysis band
+    (``ds`` itself, not copied, when that is all of it; its attributes not changed) and the
+    attributes that record the band, for the caller's output."""
     recorded = names.ATTR_BAND_FMIN in ds.attrs and fmin is None and fmax is None
     band = bd.analysis_band(ds, fmin, fmax)
     if not recorded and band.rule == bd.RULE_EXCITATION:
         warn(f"{function}: {bd.band_message(band, ds)}", AssumptionWarning)
-    return bd.apply_band(ds, band)
+    return bd.band_lines(ds, band), band.attrs()
 
 
 def add_capped(attrs, entries) -> None:

@@ -354,14 +354,21 @@ def is_whole(ds: xr.Dataset, band: Band) -> bool:
     return band.fmin <= f[0] and band.fmax >= f[-1]
 
 
+def band_lines(ds: xr.Dataset, band: Band) -> xr.Dataset:
+    """``ds`` restricted to the lines of ``band`` (every variable on ``frequency``); ``ds``
+    itself (not copied) when the band is the whole of it. The band is not recorded: see
+    :func:`apply_band`."""
+    if is_whole(ds, band):
+        return ds
+    f = ds[names.FREQUENCY]
+    return ds.isel({names.FREQUENCY: ((f >= band.fmin) & (f <= band.fmax)).values})
+
+
 def apply_band(ds: xr.Dataset, band: Band) -> xr.Dataset:
     """``ds`` restricted to the lines of ``band`` (every variable on ``frequency``), with the
     band recorded in its attributes (a Dataset over the whole band is not copied)."""
-    if not is_whole(ds, band):
-        f = ds[names.FREQUENCY]
-        ds = ds.isel({names.FREQUENCY: ((f >= band.fmin) & (f <= band.fmax)).values})
-    else:
-        ds = ds.copy(deep=False)
+    lines = band_lines(ds, band)
+    ds = ds.copy(deep=False) if lines is ds else lines
     # a new dict: isel shares the attrs dict with its source, and updating it in place wrote
     # this band into the caller's Dataset (a later identify of it then kept the band)
     ds.attrs = {**ds.attrs, **band.attrs()}
