@@ -119,7 +119,7 @@ def _classify(frame: Any) -> tuple[str, Any]:
         return "held", None
     if any(
         n == "numba.core.compiler_lock" and f.f_code.co_name in _LOCK_STEPS
-        for n, f in zip(names, frames)
+        for n, f in zip(names, frames, strict=True)
     ):
         return "held", None
     numba_like = [i for i, n in enumerate(names) if n.startswith(("numba", "llvmlite"))]
