@@ -7,7 +7,10 @@ force (the command line arms it for the whole command), a SIGINT or SIGTERM that
 a frame of numba, llvmlite, the kernel modules or a thread pool is on the main thread's stack is
 only *recorded*, and :func:`checkpoint` raises it at the next safe point between bounded pieces
 of work; one that arrives elsewhere (reading, plotting, plain Python between kernels) is raised
-at once, as Python would:
+at once, as Python would. Inside numba's Python compiler (a first run compiles a kernel for up
+to 15 s with no checkpoint) no compiled code runs, so a signal is raised at once there too, like
+a compile error; inside llvmlite (C calls into LLVM, callbacks from it) it is raised as soon as
+numba's frame that called llvmlite runs again (see :func:`_classify`):
 
 * ``KeyboardInterrupt`` for SIGINT (the command line exits 130);
 * :class:`Terminated` (a ``SystemExit(143)``) for SIGTERM.
