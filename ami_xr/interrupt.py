@@ -7,7 +7,10 @@ force (the command line arms it for the whole command), a SIGINT or SIGTERM that
 a frame of numba, llvmlite, the kernel modules or a thread pool is on the main thread's stack is
 only *recorded*, and :func:`checkpoint` raises it at the next safe point between bounded pieces
 of work; one that arrives elsewhere (reading, plotting, plain Python between kernels) is raised
-at once, as Python would:
+at once, as Python would. Inside numba's Python compiler (a first run compiles a kernel for up
+to 15 s with no checkpoint) no compiled code runs, so a signal is raised at once there too, like
+a compile error; inside llvmlite (C calls into LLVM, callbacks from it) it is raised as soon as
+numba's frame that called llvmlite runs again (see :func:`_classify`):
 
 * ``KeyboardInterrupt`` for SIGINT (the command line exits 130);
 * :class:`Terminated` (a ``SystemExit(143)``) for SIGTERM.
@@ -27,6 +30,7 @@ Outside :func:`armed` (library use in a notebook) nothing changes: Python's own 
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -69,6 +73,7 @@ class _State:
         self.numba_hooked = False
         self.last = time.perf_counter()  # time of the last checkpoint (campaign measurements)
         self.longest = 0.0  # longest gap between two checkpoints while armed (seconds)
+        self.target: Any = None  # numba frame traced to raise in once llvmlite returns
 
 
 _STATE = _State()
@@ -76,19 +81,72 @@ _STATE = _State()
 
 # Modules whose Python frames may sit between numba's C dispatcher and compiled code, or wait
 # on threads that run compiled code: a signal handled while one of them is on the stack is held
-# for the next checkpoint.
+# for the next checkpoint (except inside numba's compiler, see _classify).
 _HELD_IN = ("numba", "llvmlite", "ami_xr.kernels", "threading", "concurrent.futures")
+# Never raised in, even inside the compiler: a thread pool or lock wait, the disk cache (numba
+# removes its temporary file on Exception only), pickling for it.
+_NEVER_IN = ("threading", "concurrent.futures", "numba.core.caching", "numba.core.serialize")
+# numba's compiler lock is taken and given back in Python: never raised between the two (its
+# decorator's frame, which holds the lock around a compile, is no obstacle).
+_LOCK_STEPS = ("acquire", "release", "__enter__", "__exit__")
+# Where the C dispatcher (or a caller compiling ahead) enters numba's Python compiler.
+_COMPILE_ENTRIES = ("_compile_for_args", "compile")
+
+
+def _module(frame: Any) -> str:
+    return frame.f_globals.get("__name__", "") or ""
+
+
+def _classify(frame: Any) -> tuple[str, Any]:
+    """Where the main thread was (``frame``) when a signal came, and what may be done there.
+
+    ``("plain", None)``: no frame of :data:`_HELD_IN`; raise at once. ``("compiler", None)``:
+    inside numba's Python compiler (type inference, lowering, codegen), entered from the
+    dispatcher, with no llvmlite frame: no compiled code runs (a nopython kernel cannot call
+    back into Python, and numba compiles callees before it runs a caller), so an exception goes
+    up numba's compile path like a compile error (numba catches ``Exception`` only; its locks are
+    context managers); raise at once. ``("llvm", target)``: the same but inside llvmlite, whose
+    Python binding hands LLVM objects' ownership over between two statements (raising there
+    could free one twice) and runs C callbacks (where ctypes swallows an exception): raise when
+    control is back in ``target``, numba's frame that called llvmlite. ``("held", None)``:
+    anything else (compiled code or a thread pool may be on the stack); hold for a checkpoint.
+    """
+    frames = []
+    while frame is not None:
+        frames.append(frame)
+        frame = frame.f_back
+    names = [_module(f) for f in frames]
+    if not any(n.startswith(_HELD_IN) for n in names):
+        return "plain", None
+    if any(n.startswith(_NEVER_IN) for n in names):
+        return "held", None
+    if any(
+        n == "numba.core.compiler_lock" and f.f_code.co_name in _LOCK_STEPS
+        for n, f in zip(names, frames, strict=True)
+    ):
+        return "held", None
+    numba_like = [i for i, n in enumerate(names) if n.startswith(("numba", "llvmlite"))]
+    if not numba_like:
+        return "held", None  # a kernel module's Python between compiled calls
+    entry = numba_like[-1]  # the outermost: nothing of numba runs outside it
+    if names[entry] != "numba.core.dispatcher":
+        return "held", None
+    if frames[entry].f_code.co_name not in _COMPILE_ENTRIES:
+        return "held", None
+    in_llvm = [i for i, n in enumerate(names) if n.startswith("llvmlite")]
+    if not in_llvm:
+        return "compiler", None
+    target = frames[in_llvm[-1] + 1]  # exists: the entry is outside every llvmlite frame
+    if not names[in_llvm[-1] + 1].startswith("numba"):
+        return "held", None
+    return "llvm", target
 
 
 def _safe_here(frame: Any) -> bool:
-    """Whether raising in ``frame`` (where the main thread was when the signal came) cannot land
-    in numba's machinery: no frame of :data:`_HELD_IN` on its stack."""
-    while frame is not None:
-        name = frame.f_globals.get("__name__", "") or ""
-        if name.startswith(_HELD_IN):
-            return False
-        frame = frame.f_back
-    return True
+    """Whether a signal that came while the main thread was in ``frame`` may be raised at once:
+    nothing of numba's machinery on the stack, or inside numba's Python compiler (see
+    :func:`_classify`)."""
+    return _classify(frame)[0] in ("plain", "compiler")
 
 
 def _raise(signum: int) -> None:
@@ -97,13 +155,49 @@ def _raise(signum: int) -> None:
     raise Terminated
 
 
+def _untrace() -> None:
+    target, _STATE.target = _STATE.target, None
+    if target is not None:
+        target.f_trace = None
+        if sys.gettrace() is _no_call_trace:
+            sys.settrace(None)
+
+
+def _no_call_trace(frame: Any, event: str, arg: Any) -> None:
+    return None  # new frames are not traced: only the target frame's own f_trace runs
+
+
+def _raise_back_in(frame: Any, event: str, arg: Any) -> Any:
+    """The target frame's trace function: its next line (or return) after llvmlite returned."""
+    _untrace()
+    if _STATE.armed and _STATE.pending:
+        _raise(_STATE.pending.pop(0))
+    return None
+
+
+def _raise_when_back_in(target: Any) -> None:
+    """Raise the pending signal as soon as numba's ``target`` frame runs again (llvmlite
+    returned): a line-trace on that frame only, nothing else traced. Skipped when a debugger or
+    coverage already traces (the signal then waits for the next checkpoint)."""
+    if _STATE.target is not None or sys.gettrace() is not None:
+        return
+    _STATE.target = target
+    target.f_trace = _raise_back_in
+    target.f_trace_lines = True
+    sys.settrace(_no_call_trace)
+
+
 def _record(signum: int, frame: Any) -> None:
-    # Raised at once where that is safe (reading, plotting, plain Python); held for the next
-    # checkpoint while numba's machinery may be on the stack (see the module doc).
+    # Raised at once where that is safe (reading, plotting, plain Python, numba's compiler);
+    # raised when llvmlite returns inside the compiler; held for the next checkpoint while
+    # compiled code may be on the stack (see the module doc).
     _STATE.received.append(signum)
-    if _safe_here(frame):
+    kind, target = _classify(frame)
+    if kind in ("plain", "compiler"):
         _raise(signum)
     _STATE.pending.append(signum)
+    if kind == "llvm":
+        _raise_when_back_in(target)
 
 
 def hold(signum: int, frame: Any) -> None:
@@ -157,6 +251,7 @@ def checkpoint() -> None:
         return
     if state.pending:
         state.pending.pop(0)
+    _untrace()
     _raise(signum)
 
 
@@ -170,8 +265,6 @@ def _hook_numba() -> None:
     that compiles many kernels stops between two of them. An exception raised from a listener
     goes up numba's Python compile path like a compile error (no lock or cache entry is left
     half-done: numba writes its cache files by rename)."""
-    import sys
-
     if "numba" not in sys.modules:
         return
     _STATE.numba_hooked = True
@@ -206,6 +299,8 @@ def armed() -> Iterator[None]:
         yield
     finally:
         _STATE.armed -= 1
+        if not _STATE.armed:
+            _untrace()
         for signum, handler in previous.items():
             signal.signal(signum, handler)
 
