@@ -51,10 +51,8 @@ def test_the_screen_passes_a_close_pair_and_refuses_a_repeated_root(seed):
     assert np.isfinite(gain) and gain < limit
 
 
-def test_an_exactly_repeated_root_costs_no_refit(monkeypatch):
-    """The split of an exactly repeated root is screened out: no trial refit runs, the result
-    is the one given."""
-    stacked, merged = _merged([15.0, 15.0])
+def _split_counting_trials(monkeypatch, stacked, merged):
+    """``with_close_pairs_split`` with its trial refits counted: (calls, result, split)."""
     calls = []
     trial = mimo_refit._split_trial
     monkeypatch.setattr(
@@ -65,6 +63,14 @@ def test_an_exactly_repeated_root_costs_no_refit(monkeypatch):
         out, split = mimo_refit.with_close_pairs_split(
             stacked, merged, 2, SETTINGS, mimo.RANK_ONE_RATIO_MAX, mimo.NOISE_FACTOR
         )
+    return calls, out, split
+
+
+def test_an_exactly_repeated_root_costs_no_refit(monkeypatch):
+    """The split of an exactly repeated root is screened out: no trial refit runs, the result
+    is the one given."""
+    stacked, merged = _merged([15.0, 15.0])
+    calls, out, split = _split_counting_trials(monkeypatch, stacked, merged)
     assert mimo_refit.not_rank_one(merged, 2, mimo.RANK_ONE_RATIO_MAX, mimo.NOISE_FACTOR)[1] > 0
     assert not calls and split.size == 0 and out is merged
 
@@ -72,16 +78,7 @@ def test_an_exactly_repeated_root_costs_no_refit(monkeypatch):
 def test_a_close_pair_still_runs_its_trial(monkeypatch):
     """The screen lets the real pair through: its trial runs and the split is kept."""
     stacked, merged = _merged([15.0, 15.05])
-    calls = []
-    trial = mimo_refit._split_trial
-    monkeypatch.setattr(
-        mimo_refit, "_split_trial", lambda *a, **k: calls.append(a) or trial(*a, **k)
-    )
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        _, split = mimo_refit.with_close_pairs_split(
-            stacked, merged, 2, SETTINGS, mimo.RANK_ONE_RATIO_MAX, mimo.NOISE_FACTOR
-        )
+    calls, _, split = _split_counting_trials(monkeypatch, stacked, merged)
     assert len(calls) == 1 and split.size == 1 and abs(split[0] - 15.025) < 0.01
 
 
