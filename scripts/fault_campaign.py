@@ -162,7 +162,9 @@ NAMED_THINGS = (
     "--",
 )
 TEMP_GLOB = ".*.tmp"  # temporary folders of ami_xr's atomic writer (hidden, .tmp suffix)
-AMI_XR = [sys.executable, "-c", "import sys; from ami_xr.app.cli import main; sys.exit(main())"]
+#: Every forked CLI case runs the console script as installed (signals held for the safe points,
+#: exit handling as a user sees it), not main() unarmed
+AMI_XR = AMI_XR_RUN
 
 
 class Result(NamedTuple):
