@@ -167,7 +167,7 @@ def _per_frf_rows(frf: xr.DataArray, cand: Candidates, omega, data_model, params
     pc, p = (names.POINT, names.CANDIDATE), (names.POINT,)
     outs = xr.apply_ufunc(
         _isolate_block,
-        frf,
+        frf.copy(deep=False),  # older xarray clears the input's coordinate attrs in place
         xr.DataArray(cand.lam, dims=pc),
         xr.DataArray(cand.res, dims=pc),
         xr.DataArray(cand.n_modes, dims=p),
