@@ -54,7 +54,7 @@ def line_noise_shape(ds: xr.Dataset, frf: xr.DataArray):
         _, index = np.unique(np.asarray(frf[NOISE_GROUP].values), return_inverse=True)
         index = index.ravel()
     groups = [np.arange(std.sizes[P])] if index is None else _members(index)
-    read = np.concatenate([_even(g, max(MAX_ROWS // len(groups), 8)) for g in groups])
+    read = np.concatenate([even_subset(g, max(MAX_ROWS // len(groups), 8)) for g in groups])
     sd = np.asarray(ch.rows(std, np.sort(read)), dtype=np.float64)  # of a lazy std these only
     if wants_smoothing(ds[names.FRF_LINE_NOISE_STD]):
         sd = fn.smoothed_std(sd, frf[F].values)
@@ -74,7 +74,7 @@ def _members(index: np.ndarray) -> list[np.ndarray]:
     return [np.flatnonzero(index == g) for g in range(int(index.max()) + 1)]
 
 
-def _even(points: np.ndarray, n: int) -> np.ndarray:
+def even_subset(points: np.ndarray, n: int) -> np.ndarray:
     """At most ``n`` of ``points``, evenly chosen (all of them when there are no more)."""
     if points.size <= n:
         return points

@@ -54,7 +54,7 @@ import xarray as xr
 
 from ami_xr import names
 from ami_xr.ami import chunked as ch
-from ami_xr.ami.line_noise import wants_smoothing
+from ami_xr.ami.line_noise import even_subset, wants_smoothing
 from ami_xr.caller import warn
 from ami_xr.core import frf_noise as fn
 from ami_xr.dsp.quantity import convert_units
@@ -88,7 +88,7 @@ class Whitening:
 
 
 def _points(n: int) -> np.ndarray:
-    return np.unique(np.linspace(0, n - 1, min(n, MAX_POINTS)).round().astype(int))
+    return even_subset(np.arange(n), MAX_POINTS)
 
 
 def _data(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray | None, str]:

@@ -222,28 +222,22 @@ def cmd_combine(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def usable_cores() -> int:
-    """The cores this process may run on (its CPU affinity where the system tells it)."""
-    import os
-
-    try:
-        return len(os.sched_getaffinity(0)) or 1
-    except (AttributeError, OSError):  # no affinity call (macOS, Windows)
-        return os.cpu_count() or 1
-
-
 def cmd_batch(args: argparse.Namespace) -> int:
     from ami_xr.app.batch import batch
     from ami_xr.progress import notice
 
-    workers, cores = value(args.workers), usable_cores()
-    if isinstance(workers, int) and workers > cores:
-        # not an error: the results are the same, only the time is not what the user expects
-        notice(
-            f"ami-xr batch: --workers {workers} exceeds the {cores} core(s) this process may "
-            f"run on: the workers share them (one compute thread each), so the batch is no "
-            f"faster than with --workers {cores}"
-        )
+    workers = value(args.workers)
+    if isinstance(workers, int) and workers > 1:  # one worker always has a core
+        # the count the workers' compute threads are shared by (the batch imports it then too)
+        from ami_xr.kernels.projection import usable_cores
+
+        cores = usable_cores()
+        if workers > cores:  # not an error: the results are the same, only slower than expected
+            notice(
+                f"ami-xr batch: --workers {workers} exceeds the {cores} core(s) this process "
+                f"may run on: the workers share them (one compute thread each), so the batch "
+                f"is no faster than with --workers {cores}"
+            )
     summary = batch(
         args.input,
         args.output,

@@ -156,13 +156,18 @@ def matmul_small(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 THREADS_ENV = "AMI_XR_THREADS"
 
 
-def compute_threads() -> int:
-    """Threads the per-point projection may use: the cores this process may run on (its CPU
-    affinity, not the machine's count), at most 8, or fewer when ``AMI_XR_THREADS`` says so."""
+def usable_cores() -> int:
+    """The cores this process may run on: its CPU affinity, not the machine's count."""
     try:
-        cores = len(os.sched_getaffinity(0))
+        return len(os.sched_getaffinity(0)) or 1
     except (AttributeError, OSError):  # no affinity on this platform
-        cores = os.cpu_count() or 1
+        return os.cpu_count() or 1
+
+
+def compute_threads() -> int:
+    """Threads the per-point projection may use: :func:`usable_cores`, at most 8, or fewer when
+    ``AMI_XR_THREADS`` says so."""
+    cores = usable_cores()
     limit = os.environ.get(THREADS_ENV, "").strip()
     if limit.isdigit() and int(limit) > 0:
         cores = min(cores, int(limit))

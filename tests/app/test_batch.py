@@ -269,9 +269,9 @@ def test_ctrl_c_while_planning_still_writes_the_summary(campaign, tmp_path, monk
 
 @pytest.mark.parametrize("workers, told", [(2, True), (1, False)])
 def test_more_workers_than_cores_is_said(campaign, tmp_path, capsys, monkeypatch, workers, told):
-    import ami_xr.app.commands as commands
+    import ami_xr.kernels.projection as projection
 
-    monkeypatch.setattr(commands, "usable_cores", lambda: 1)
+    monkeypatch.setattr(projection, "usable_cores", lambda: 1)
     (campaign / "day2" / "broken.nc").unlink()
     out = tmp_path / "out"
     assert main(["batch", str(campaign), "-o", str(out), "-q", "--workers", str(workers)]) == 0
@@ -281,6 +281,6 @@ def test_more_workers_than_cores_is_said(campaign, tmp_path, capsys, monkeypatch
 
 
 def test_usable_cores_is_a_positive_count():
-    from ami_xr.app.commands import usable_cores
+    from ami_xr.kernels.projection import usable_cores
 
     assert isinstance(usable_cores(), int) and usable_cores() >= 1
