@@ -27,6 +27,9 @@ NOISE_GROUP = "noise_group"
 # the shape is a median over points: at most this many (evenly chosen) are read, so that a
 # lazy set of 10^5 points is not loaded whole for it (its median moves by ~1/sqrt(rows))
 MAX_ROWS = 256
+# colour_shape: the noise's level over blocks of this share of the frequency (a quarter octave
+# is about 19 %): wide against a mode's half-power band (a few per cent at most)
+COLOUR_WIDTH = 0.2
 
 
 def wants_smoothing(std: xr.DataArray) -> bool:
@@ -67,6 +70,27 @@ def line_noise_shape(ds: xr.Dataset, frf: xr.DataArray):
     if any(x is None for x in shapes):  # a group without a noise model: one shape for all
         return _shape(rel), None
     return np.array(shapes), index
+
+
+def colour_shape(ds: xr.Dataset, frf: xr.DataArray, width: float = COLOUR_WIDTH):
+    """The noise's colour along frequency, for the subtraction's peak statistics: the shape of
+    :func:`line_noise_shape` (per group where it gives one per group) reduced to its level over
+    blocks of ``width`` of the frequency (:func:`ami_xr.core.frf_noise.local_level`, median 1).
+    Returns ``(shape, group)`` as :func:`line_noise_shape` does, ``(None, None)`` without a
+    per-line noise model.
+
+    Why a level, not the shape itself: the coherence's noise estimate follows the FRF at its
+    peaks (leakage lowers the coherence there, and its formula scales with ``|H|^2``), so the
+    power relative to it has no peak at a resonance; the phase looks for peaks against the
+    noise's colour (a force rolling off, sensor noise in another quantity), which changes over
+    tens of per cent of the frequency, not over a mode's bandwidth."""
+    shape, group = line_noise_shape(ds, frf)
+    if shape is None:
+        return None, None
+    f = np.asarray(frf[F].values, dtype=np.float64)
+    level = fn.local_level(np.atleast_2d(shape), f, width)
+    level = level / np.median(level, axis=-1, keepdims=True)
+    return (level[0] if np.ndim(shape) == 1 else level), group
 
 
 def _members(index: np.ndarray) -> list[np.ndarray]:

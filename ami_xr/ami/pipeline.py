@@ -35,6 +35,7 @@ from ami_xr.ami.isolate import (
     isolate_variables,
     warn_isolation,
 )
+from ami_xr.ami.line_noise import colour_shape
 from ami_xr.ami.refine import refine as refine_phase
 from ami_xr.ami.resolution import resolution_checked, resolution_widened
 from ami_xr.ami.settings import (
@@ -139,7 +140,7 @@ def identify_single(
     result = reported(result, whole, refined, noise_model)
     if final:  # per-mode selections: the indicators of the modes kept are theirs
         result = drop_beyond_lines(result, whole)
-        result = spikes.drop_noise_spikes(result)
+        result = spikes.drop_noise_spikes(result, settings.zeta_max)
     return result
 
 
@@ -200,7 +201,8 @@ def fitted(work: xr.Dataset, settings: IdentifySettings, step, noted=None) -> xr
         names.MODEL_CONTINUOUS if paper else "auto",
     )
     c.check_values(work)
-    sub = subtract_arrays(frf, given, sub_settings)
+    # peaks chosen and stopped against each line's noise (the model the refinement weights by)
+    sub = subtract_arrays(frf, given, sub_settings, colour_shape(work, frf))
     attrs = {**given, **sub.attrs}
     step(names.PHASE_ISOLATE)
     iso_settings = isolate_settings(

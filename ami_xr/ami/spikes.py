@@ -19,6 +19,11 @@ The rule, on the final modes, for each mode whose half-power bandwidth spans few
 * the pole is dropped when its SNR stays below the threshold at every point, or (3 points or
   more) exceeds it at one point only: a mode shows at more than one point.
 
+Nor is a pole damped above ``zeta_max`` a mode (the limit the subtraction accepts a peak by):
+the refinement's model-order step can fit one to the tail of a mode above the band or to the
+end of a sweep (simulated lab tests: 9-57 %-damped poles at the band's top edge), and it is
+reported in attr ``overdamped_dropped_modes`` instead.
+
 Dropped modes are warned about (:class:`~ami_xr.errors.AssumptionWarning`), listed in attr
 ``noise_spike_dropped_modes`` (Hz), and their contribution moves from ``frf_synthesized`` to
 ``frf_residual``.
@@ -42,6 +47,13 @@ NOISE_HALF_WIDTH = 32
 PFA = 0.01
 ATTR_DROPPED = "noise_spike_dropped_modes"
 ATTR_RULE = "noise_spike_rule"
+ATTR_OVER_DROPPED = "overdamped_dropped_modes"
+ATTR_OVER_RULE = "overdamped_rule"
+OVER_RULE = (
+    "a pole damped above zeta_max = {zeta_max} (the subtraction's physical limit) is not "
+    "reported as a mode: the refinement fitted it to the tail of what lies beyond the band or "
+    "to the background"
+)
 RULE = (
     f"a mode whose half-power bandwidth spans fewer than {NARROW_LINES:g} line(s) is dropped "
     f"when its peak contribution over the local residual noise stays below sqrt(ln(lines x "
@@ -118,11 +130,27 @@ def spike_modes(result: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
     return drop, snr_max
 
 
-def drop_noise_spikes(result: xr.Dataset) -> xr.Dataset:
-    """``result`` without the modes :func:`spike_modes` drops (labels stay 1..n), said and
-    recorded; the rule is recorded in attr ``noise_spike_rule`` either way."""
-    drop, _ = spike_modes(result)
+def overdamped_modes(result: xr.Dataset, zeta_max: float) -> np.ndarray:
+    """Which modes of ``result`` have a damping ratio above ``zeta_max`` (the physical limit
+    the subtraction accepts a peak by): poles the refinement fitted to what lies beyond the
+    band (the tail of a mode above it, the end of a sweep) or to the background, not modes."""
+    if result.sizes.get(names.MODE, 0) == 0 or names.DAMPING_RATIO not in result:
+        return np.zeros(result.sizes.get(names.MODE, 0), bool)
+    zeta = np.asarray(result[names.DAMPING_RATIO].transpose(names.MODE).values, dtype=float)
+    return np.isfinite(zeta) & (zeta > zeta_max)
+
+
+def drop_noise_spikes(result: xr.Dataset, zeta_max: float | None = None) -> xr.Dataset:
+    """``result`` without the modes :func:`spike_modes` drops, nor (``zeta_max`` given) those
+    :func:`overdamped_modes` finds (labels stay 1..n), each said and recorded; the rules are
+    recorded in attrs ``noise_spike_rule`` and ``overdamped_rule`` either way."""
+    spikes, _ = spike_modes(result)
     result.attrs[ATTR_RULE] = RULE
+    over = np.zeros_like(spikes)
+    if zeta_max is not None:
+        over = overdamped_modes(result, zeta_max) & ~spikes
+        result.attrs[ATTR_OVER_RULE] = OVER_RULE.format(zeta_max=zeta_max)
+    drop = spikes | over
     if not drop.any():
         return result
     fn = np.asarray(result[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
@@ -133,14 +161,19 @@ def drop_noise_spikes(result: xr.Dataset) -> xr.Dataset:
             da = result[v]
             result[v] = (da + sign * gone).transpose(*da.dims).assign_attrs(da.attrs)
     out = c.keep_modes(result, ~drop)
-    listed = [x for x in str(result.attrs.get(ATTR_DROPPED, "")).split(",") if x]
-    out.attrs[ATTR_DROPPED] = ",".join(listed + [f"{x:.6g}" for x in fn[drop]])
-    said = ", ".join(
-        f"{a:.6g} Hz (zeta {b:.2g})" for a, b in zip(fn[drop], zeta[drop], strict=True)
-    )
-    warn(
-        f"identify: {int(drop.sum())} pole(s) narrower than a line that the noise explains not "
-        f"reported as modes ({said}); attr {ATTR_DROPPED}",
-        AssumptionWarning,
-    )
+    for which, attr, what in (
+        (spikes, ATTR_DROPPED, "pole(s) narrower than a line that the noise explains"),
+        (over, ATTR_OVER_DROPPED, f"pole(s) damped above zeta_max = {zeta_max}"),
+    ):
+        if not which.any():
+            continue
+        listed = [x for x in str(result.attrs.get(attr, "")).split(",") if x]
+        out.attrs[attr] = ",".join(listed + [f"{x:.6g}" for x in fn[which]])
+        said = ", ".join(
+            f"{a:.6g} Hz (zeta {b:.2g})" for a, b in zip(fn[which], zeta[which], strict=True)
+        )
+        warn(
+            f"identify: {int(which.sum())} {what} not reported as modes ({said}); attr {attr}",
+            AssumptionWarning,
+        )
     return out

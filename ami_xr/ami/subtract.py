@@ -12,6 +12,7 @@ from ami_xr import names
 from ami_xr import progress as pg
 from ami_xr.ami import chunked as ch
 from ami_xr.ami import common as c
+from ami_xr.ami.line_noise import colour_shape
 from ami_xr.ami.settings import SubtractSettings, parameters, to_attrs
 from ami_xr.caller import warn
 from ami_xr.core import flags
@@ -103,15 +104,18 @@ def kernel_params(settings: SubtractSettings) -> ks.SubtractParams:
     )
 
 
-def _subtract_block(g, *, omega, dt, n_samples, params) -> tuple[np.ndarray, ...]:
-    """The Subtraction Phase on FRFs ``g`` (..., F): the fields of ``_OUTPUTS`` in its order."""
+def _subtract_block(g, *, omega, dt, n_samples, params, line_shape=None) -> tuple[np.ndarray, ...]:
+    """The Subtraction Phase on FRFs ``g`` (..., F): the fields of ``_OUTPUTS`` in its order;
+    ``line_shape`` (F,): the noise's shape along frequency (None: white)."""
     shape = g.shape[:-1]
     g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
     scale = power_of_two_scale(np.max(np.abs(g2), axis=-1)) if g2.size else np.ones(0)
     rescaled = bool(np.any(scale != 1.0))
     if rescaled:
         g2 = g2 * scale[:, None]
-    out = by_pieces(lambda rows: ks.subtract_batch(rows, omega, dt, n_samples, params), (g2,))
+    out = by_pieces(
+        lambda rows: ks.subtract_batch(rows, omega, dt, n_samples, params, line_shape), (g2,)
+    )
     if rescaled:  # residues and noise floors are in FRF units: back to the data as given
         out = out._replace(res=out.res / scale[:, None], sigma=out.sigma / scale)
     two_pi = 2.0 * np.pi
@@ -147,11 +151,20 @@ def subtract(
     Exp(1) on every line, so the largest of ``F`` lines exceeds
     ``t = -ln(1 - (1 - pfa)^(1/F))`` with probability ``pfa``. The phase stops when the largest
     remaining peak has ``|Y|^2 / sigma^2 < t`` (reason ``"below_noise_floor"``).
+
+    **Coloured noise.** When ``ds`` carries a per-line noise model (``frf_line_noise_std``:
+    from the coherence, or the one :func:`ami_xr.identify` passes on), its colour along
+    frequency ``s(f)`` (:func:`ami_xr.ami.line_noise.colour_shape`: the level over blocks of
+    20 % of the frequency, median 1) makes each line's statistic ``|Y|^2 / (sigma s)^2``, with
+    ``sigma`` the floor of ``Y / s``: a line is significant against its own noise. Of the
+    significant lines the largest ``|Y|`` is still taken first (its tail biases the others'
+    fits most); the energy test below weights the lines by ``1 / s^2`` alike.
+
     A fitted peak is rejected (its band is masked and the next peak is tried) when: fewer than
     ``min_points`` lines are above the ``delta`` level; the fit is not an oscillatory, stable
     mode with damping ratio ``<= zeta_max``; its frequency is outside its band (+- 2 bandwidths)
     or the data range; or subtracting it does not lower the band's energy
-    ``sum |Y|^2`` by at least ``t sigma^2``. A candidate closer than ``merge_tol`` half-power
+    ``sum |Y|^2 / s^2`` by at least ``t sigma^2``. A candidate closer than ``merge_tol`` half-power
     bandwidths (``|lam_a - lam_b| / (|Re lam_a| + |Re lam_b|)``) to an earlier one is merged
     into it (residues added). Other stops: ``"max_modes"``, ``"max_rejected_peaks"``
     (``3 max_modes + 10`` peaks examined).
@@ -205,7 +218,7 @@ def subtract(
     settings = subtract_settings(delta, max_modes, pfa, min_points, zeta_max, merge_tol, model)
     ds = band_of(ds, fmin, fmax, "subtract")
     c.check_values(ds)
-    done = subtract_arrays(ds[names.FRF], ds.attrs, settings)
+    done = subtract_arrays(ds[names.FRF], ds.attrs, settings, colour_shape(ds, ds[names.FRF]))
     out = _assign_outputs(ds, done.variables)
     out.attrs.update(done.attrs)
     return c.finish(out, "ami_xr.subtract", "subtract", parameters(done.settings))
@@ -235,15 +248,20 @@ class Subtracted(NamedTuple):
     settings: SubtractSettings  # with the data model resolved
 
 
-def subtract_arrays(frf: xr.DataArray, attrs: dict, settings: SubtractSettings) -> Subtracted:
+def subtract_arrays(
+    frf: xr.DataArray, attrs: dict, settings: SubtractSettings, noise=(None, None)
+) -> Subtracted:
     """The Subtraction Phase on the checked FRFs ``frf`` (point, frequency) of a Dataset with
     ``attrs``: the core of :func:`subtract`, which :func:`ami_xr.identify` calls on its arrays.
+    ``noise``: the noise's shape along frequency as
+    :func:`~ami_xr.ami.line_noise.colour_shape` gives it (``(None, None)``: white); the
+    peaks are then chosen, tested and stopped on the power relative to each line's noise.
     The attributes it records: its settings, the caps, why no mode was found; the caps and a
     zero-modes result are warned about."""
     data_model = resolve_model(attrs, settings.model)
     settings = dataclasses.replace(settings, model=data_model.name)
     omega = 2.0 * np.pi * np.asarray(frf[names.FREQUENCY].values, dtype=np.float64)
-    r = _run(frf, omega, data_model, settings)
+    r = _run(frf, omega, data_model, settings, noise)
     new = subtract_variables(r, omega, settings, frf.attrs.get(names.ATTR_UNITS, ""))
     record: dict = {}
     to_attrs(settings, record)
@@ -260,26 +278,54 @@ def subtract_arrays(frf: xr.DataArray, attrs: dict, settings: SubtractSettings) 
     return Subtracted(r, new, record, settings)
 
 
-def subtract_rows(g: np.ndarray, omega: np.ndarray, data_model, settings: SubtractSettings):
+def subtract_rows(
+    g: np.ndarray, omega: np.ndarray, data_model, settings: SubtractSettings, noise=(None, None)
+):
     """The kernel on the FRFs ``g`` (P, F) in memory: a :class:`SubtractResult` of arrays with
     one row per FRF (the core of :func:`subtract`, which :func:`ami_xr.identify` calls on its
-    arrays)."""
-    out = _subtract_block(
-        g,
-        omega=omega,
-        dt=data_model.dt,
-        n_samples=data_model.n_samples,
-        params=kernel_params(settings),
-    )
-    return ks.SubtractResult(**dict(zip(_OUTPUTS, out, strict=True)))
+    arrays); ``noise`` as :func:`subtract_arrays` takes it (a shape per group of points: the
+    kernel on each group's rows)."""
+    shape, group = noise
+    if group is None or np.ndim(shape) < 2:
+        out = _subtract_block(
+            g,
+            omega=omega,
+            dt=data_model.dt,
+            n_samples=data_model.n_samples,
+            params=kernel_params(settings),
+            line_shape=shape,
+        )
+        return ks.SubtractResult(**dict(zip(_OUTPUTS, out, strict=True)))
+    parts = {
+        int(k): subtract_rows(g[group == k], omega, data_model, settings, (shape[k], None))
+        for k in np.unique(group)
+    }
+    first = next(iter(parts.values()))
+    merged = {}
+    for name in first._fields:
+        field = np.empty((g.shape[0],) + getattr(first, name).shape[1:], getattr(first, name).dtype)
+        for k, part in parts.items():
+            field[group == k] = getattr(part, name)
+        merged[name] = field
+    return ks.SubtractResult(**merged)
 
 
-def _run(frf: xr.DataArray, omega: np.ndarray, data_model, settings: SubtractSettings):
+def _run(
+    frf: xr.DataArray,
+    omega: np.ndarray,
+    data_model,
+    settings: SubtractSettings,
+    noise=(None, None),
+) -> ks.SubtractResult:
     """The kernel on every FRF of ``frf``: a :class:`SubtractResult` of arrays (point first);
-    a lazy FRF chunk by chunk of points (one ``apply_ufunc``)."""
+    a lazy FRF chunk by chunk of points (one ``apply_ufunc``; one noise shape for all, the
+    median of the groups')."""
     if not ch.is_lazy(frf):
         g = frf.transpose(names.POINT, names.FREQUENCY).values
-        return subtract_rows(g, omega, data_model, settings)
+        return subtract_rows(g, omega, data_model, settings, noise)
+    shape = noise[0]
+    if shape is not None and np.ndim(shape) > 1:
+        shape = np.median(shape, axis=0)
     res = xr.apply_ufunc(
         _subtract_block,
         frf,
@@ -288,6 +334,7 @@ def _run(frf: xr.DataArray, omega: np.ndarray, data_model, settings: SubtractSet
             dt=data_model.dt,
             n_samples=data_model.n_samples,
             params=kernel_params(settings),
+            line_shape=shape,
         ),
         input_core_dims=[[names.FREQUENCY]],
         output_core_dims=[dims for dims, _ in _OUTPUTS.values()],

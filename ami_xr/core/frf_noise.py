@@ -388,6 +388,23 @@ def smoothed_std(
     neighbours; a row with none stays NaN.
     """
     x = np.asarray(sd, dtype=np.float64)
+    out = local_level(x, frequency, width, min_lines)
+    # a floor, not a replacement: a line above the local level keeps its own estimate (leakage
+    # at an under-resolved peak raises 1 - coh there: that model error is real, and weighting
+    # the peak's lines up split a 3-line-wide simulated mode in two)
+    return np.where(np.isfinite(x) & (x > out), x, out)
+
+
+def local_level(
+    sd: np.ndarray,
+    frequency: np.ndarray,
+    width: float = SMOOTH_WIDTH,
+    min_lines: int = SMOOTH_LINES,
+) -> np.ndarray:
+    """The local level of a noise std (..., L) along frequency: the median of ``log sd`` over
+    the blocks of :func:`smoothing_edges`, interpolated linearly (in log) between the block
+    centres (NaN for a row with no finite positive value)."""
+    x = np.asarray(sd, dtype=np.float64)
     shape = x.shape
     x = x.reshape(-1, shape[-1])
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -406,10 +423,6 @@ def smoothed_std(
         ok = np.isfinite(row)
         if ok.any():
             out[r] = np.exp(np.interp(lines, centres[ok], row[ok]))
-    # a floor, not a replacement: a line above the local level keeps its own estimate (leakage
-    # at an under-resolved peak raises 1 - coh there: that model error is real, and weighting
-    # the peak's lines up split a 3-line-wide simulated mode in two)
-    out = np.where(np.isfinite(x) & (x > out), x, out)
     return out.reshape(shape)
 
 

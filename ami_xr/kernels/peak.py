@@ -59,6 +59,9 @@ class Scene(NamedTuple):
     """Threshold on ``|Y|^2`` (noise units) of the largest of the lines of one FRF."""
     t_sum: float
     """Threshold on the power summed over the FRFs of a group (``t_line`` for one FRF)."""
+    line_w: np.ndarray
+    """(F,) weight of each line's power: ``1 / shape^2`` of a noise std that varies along
+    frequency as ``shape`` (ones: white noise)."""
 
 
 @jit
@@ -125,18 +128,22 @@ def peak_trial(y, power, scene, peak, delta, min_points, wts, res_out, masked):
     """Try one mode at line ``peak`` of the residual ``y`` (P, F), ``power`` its power summed
     over the rows: fit on the band above ``delta^2 power[peak]`` (at least ``min_points``
     lines; residues to ``res_out``), accepted when physical, near the band (+- 2 bandwidths and
-    a line) and lowering the band's energy by at least ``scene.t_sum``. A rejected band is
+    a line) and lowering the band's energy (lines weighted by ``scene.line_w``, as ``power``
+    is) by at least ``scene.t_sum``. A rejected band is
     masked. Returns ``(lam, lo, hi, code)``."""
     omega, x, dt, n_samples = scene.grid
     n_p, n_f = y.shape
     dw = scene.dw
-    # the band: contiguous lines around the peak with power >= delta^2 times the peak's
-    level = delta * delta * power[peak]
+    # the band: contiguous lines around the peak with power >= delta^2 times the peak's, on
+    # the data as given (a weighted power would lean the band towards the quieter side, where
+    # the neighbours' tails bias the one-mode fit)
+    line_w = scene.line_w
+    level = delta * delta * power[peak] / line_w[peak]
     lo = peak
-    while lo > 0 and power[lo - 1] >= level:
+    while lo > 0 and power[lo - 1] >= level * line_w[lo - 1]:
         lo -= 1
     hi = peak + 1
-    while hi < n_f and power[hi] >= level:
+    while hi < n_f and power[hi] >= level * line_w[hi]:
         hi += 1
     lam = complex(np.nan, np.nan)
     code = FIT_TOO_FEW_POINTS
@@ -156,7 +163,7 @@ def peak_trial(y, power, scene, peak, delta, min_points, wts, res_out, masked):
                 trial[i] = y[j, i]
             add_mode(trial, x, lam, res_out[j], dt, n_samples, -1.0, lo, hi)
             for i in range(lo, hi):
-                e1 += abs(trial[i]) ** 2
+                e1 += abs(trial[i]) ** 2 * line_w[i]
         for i in range(lo, hi):
             e0 += power[i]
         if e0 - e1 < scene.t_sum:
@@ -197,13 +204,21 @@ def check_inputs(
 
 
 def scene(
-    omega: np.ndarray, dt: float, n_samples: int, zeta_max: float, pfa: float, n_rows: int
+    omega: np.ndarray,
+    dt: float,
+    n_samples: int,
+    zeta_max: float,
+    pfa: float,
+    n_rows: int,
+    line_w: np.ndarray | None = None,
 ) -> Scene:
-    """The :class:`Scene` of checked inputs; ``n_rows`` FRFs share each fit."""
+    """The :class:`Scene` of checked inputs; ``n_rows`` FRFs share each fit; ``line_w`` the
+    lines' power weights (None: ones)."""
     n_f = omega.size
     dw = (omega[-1] - omega[0]) / (n_f - 1)
     limits = FitLimits(float(zeta_max), max(float(omega[0]), dw), float(omega[-1]))
     grid = Grid(omega, line_variable(omega, dt), dt, n_samples)
     t_line = peak_threshold(n_f, pfa)
     t_sum = sum_threshold(n_rows, n_f, pfa) if n_rows > 1 else t_line
-    return Scene(grid, limits, float(dw), t_line, t_sum)
+    w = np.ones(n_f) if line_w is None else np.ascontiguousarray(line_w, dtype=np.float64)
+    return Scene(grid, limits, float(dw), t_line, t_sum, w)

@@ -69,7 +69,8 @@ class SubtractResult(NamedTuple):
 @jit
 def _subtract_batch(data, scene, params):
     """Subtraction Phase on every row of ``data`` (P, F), in units of each row's noise floor
-    (residues in those units; ``sigma`` left at 1 for the wrapper)."""
+    (residues in those units; ``sigma`` left at 1 for the wrapper); each line's power weighted
+    by ``scene.line_w`` (the noise's shape along frequency)."""
     omega, x, dt, n_samples = scene.grid
     n_p, n_f = data.shape
     m = params.max_modes
@@ -89,6 +90,7 @@ def _subtract_batch(data, scene, params):
     masked = np.empty(n_f, dtype=np.bool_)
     wts = np.ones(1)
     r = np.empty(1, dtype=np.complex128)
+    line_w = scene.line_w
     for j in range(n_p):
         lam_j, res_j = out.lam[j], out.res[j]
         for i in range(n_f):
@@ -99,13 +101,21 @@ def _subtract_batch(data, scene, params):
             if n >= m:
                 out.reason[j] = STOP_MAX_MODES
                 break
+            # the largest peak first (as given: its tail biases the others' fits most), among
+            # the lines significant against their own noise (``line_w``: 1 / its shape^2)
             peak = np.int64(-1)
+            top = 0.0
             for i in range(n_f):
-                power[i] = abs(y[0, i]) ** 2
-                if not masked[i] and (peak < 0 or power[i] > power[peak]):
+                power[i] = abs(y[0, i]) ** 2 * line_w[i]
+                if masked[i]:
+                    continue
+                top = max(top, power[i])
+                if power[i] >= scene.t_line and (
+                    peak < 0 or power[i] / line_w[i] > power[peak] / line_w[peak]
+                ):
                     peak = i
-            out.statistic[j] = power[peak] if peak >= 0 else 0.0
-            if peak < 0 or power[peak] < scene.t_line:
+            out.statistic[j] = top
+            if peak < 0:
                 out.reason[j] = STOP_BELOW_FLOOR
                 break
             lam, lo, hi, code = peak_trial(
@@ -139,6 +149,7 @@ def subtract_batch(
     dt: float | None,
     n_samples: int | None,
     params: SubtractParams,
+    line_shape: np.ndarray | None = None,
 ) -> SubtractResult:
     """Subtraction Phase on every FRF (rows of ``data``; ``data``, ``omega``, ``dt`` and
     ``n_samples`` as :func:`~.peak.check_inputs` takes them), with the settings ``params``
@@ -160,10 +171,20 @@ def subtract_batch(
             f"params: max_modes and min_points must be >= 1, got {params.max_modes}, "
             f"{params.min_points}"
         )
+    line_w = None
+    white = data
+    if line_shape is not None:
+        shape = np.asarray(line_shape, dtype=np.float64)
+        if shape.shape != omega.shape or not np.all(np.isfinite(shape) & (shape > 0)):
+            raise AmiXrValueError(
+                f"line_shape: expected {omega.size} finite positive values, got shape {shape.shape}"
+            )
+        white = data / shape
+        line_w = 1.0 / shape**2
     # the noise floor, bounded below by rounding (a noise-free FRF) and 1 for an all-zero FRF
-    peak = np.max(np.abs(data), axis=1) if data.size else np.zeros(data.shape[0])
-    sigma = np.maximum(noise_floor(data), 1e-14 * peak) if data.shape[0] else np.ones(0)
+    peak = np.max(np.abs(white), axis=1) if data.size else np.zeros(data.shape[0])
+    sigma = np.maximum(noise_floor(white), 1e-14 * peak) if data.shape[0] else np.ones(0)
     sigma = np.where(sigma > 0.0, sigma, 1.0)
-    where = scene(omega, dt, n, params.zeta_max, params.pfa, 1)
+    where = scene(omega, dt, n, params.zeta_max, params.pfa, 1, line_w)
     out = _subtract_batch(data / sigma[:, None], where, params)
     return out._replace(res=out.res * sigma[:, None], sigma=sigma)
