@@ -112,14 +112,14 @@ def add_mode(out, x, lam, res, dt, n_samples, sign, lo, hi):
 
 
 @jit
-def mode_basis(x, lam, dt, n_samples, br, bi, bcr, bci):
-    """Unit-residue bases ``b(lam)``, ``b(conj lam)`` on every line (as in :func:`add_mode`),
-    real and imaginary parts apart, so the SIMO sweeps synthesise modes with (vectorisable)
-    real multiplications only and identical values."""
+def mode_basis(x, lam, dt, n_samples, br, bi, bcr, bci, lo, hi):
+    """Unit-residue bases ``b(lam)``, ``b(conj lam)`` on lines ``lo..hi-1`` (as in
+    :func:`add_mode`), real and imaginary parts apart, so the SIMO sweeps synthesise modes with
+    (vectorisable) real multiplications only and identical values."""
     p, sc = pole_factor(lam, dt, n_samples)
     pc = np.conj(p)
     scc = np.conj(sc)
-    for i in range(x.shape[0]):
+    for i in range(lo, hi):
         if dt > 0.0:
             v = sc / (1.0 - p * x[i])
             vc = scc / (1.0 - pc * x[i])
