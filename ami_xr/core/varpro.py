@@ -147,7 +147,9 @@ def _cholesky_qr2(a):
         return a, np.eye(a.shape[1]), False
     r = (r2 @ r1) * scale[None, :]
     diag = np.abs(np.diag(r)) / scale
-    ok = bool(diag.min() > 1e-7) and bool(np.all(np.isfinite(q)))
+    # q is finite when the columns and both factors are (a non-finite q1 makes its Gram
+    # matrix, hence r2, non-finite): the small matrices are checked, not the tall one
+    ok = bool(diag.min() > 1e-7) and bool(np.all(np.isfinite(r)))
     return q, r, ok
 
 
