@@ -359,7 +359,7 @@ def _basis_on_lines(x: np.ndarray, lam: np.ndarray, dt: float, n: int):
         return 1.0 / den, 1.0 / (den * den)
 
 
-@jit(inline="always")
+@jit
 def _cdiv(ar, ai, br, bi):
     """``(ar + i ai) / (br + i bi)`` by numpy's own rule (Smith's, the reciprocal of the scale
     multiplied), so that the kernel below gives numpy's values."""
@@ -374,7 +374,7 @@ def _cdiv(ar, ai, br, bi):
     return (ar * rat + ai) * scl, (ai * rat - ar) * scl
 
 
-@jit(inline="always")
+@jit
 def _pole_terms(xr, xi, pk, sk, dsk, dt):
     """``b`` and ``db/dlam`` of one pole at one line, ``(b.re, b.im, db.re, db.im)``: the
     arithmetic of :func:`_basis_on_lines`, operation by operation, in real numbers."""
