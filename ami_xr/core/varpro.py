@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ami_xr.kernels.modal_basis import line_variable, stacked_columns, stacked_residual_columns
+from ami_xr.kernels.columns import stacked_columns, stacked_residual_columns
+from ami_xr.kernels.modal_basis import line_variable
 from ami_xr.kernels.projection import gram, matmul_small, normal_equations, project_points
 
 # |r_j|^2 is floored at (RSS_FLOOR |y_j|)^2 so that noise-free data (residual at rounding

@@ -118,9 +118,7 @@ class Work(NamedTuple):
     pinned: np.ndarray
     """(max_modes,) bool: modes kept at their model-order-check fit (not re-fitted)."""
     basis_lo: np.ndarray
-    """(max_modes,) int: the lines ``basis_lo..basis_hi-1`` hold each mode's current bases
-    (``br``...; made on the lines a step needs, see :func:`_bases_on`); ``basis_hi``
-    likewise. Empty (``basis_hi <= basis_lo``) after an update of the mode."""
+    """(max_modes,) int: lines ``basis_lo..basis_hi-1`` hold each mode's current bases."""
     basis_hi: np.ndarray
 
 
@@ -202,21 +200,16 @@ def _bases_on(work, grid, lam, m, a, b):
     last update are computed (a sweep's step looks at a window around one mode; every update
     of every mode used to remake all lines of its bases, most of a sweep's work)."""
     x, dt, n_samples = grid.x, grid.dt, grid.n_samples
+    br, bi, bcr, bci = work.br[m], work.bi[m], work.bcr[m], work.bci[m]
     lo, hi = work.basis_lo[m], work.basis_hi[m]
-    if hi <= lo:
-        mode_basis(x, lam[m], dt, n_samples, work.br[m], work.bi[m], work.bcr[m], work.bci[m], a, b)
-        lo, hi = a, b
-    else:
-        if a < lo:
-            mode_basis(
-                x, lam[m], dt, n_samples, work.br[m], work.bi[m], work.bcr[m], work.bci[m], a, lo
-            )
-            lo = a
-        if b > hi:
-            mode_basis(
-                x, lam[m], dt, n_samples, work.br[m], work.bi[m], work.bcr[m], work.bci[m], hi, b
-            )
-            hi = b
+    if hi <= lo:  # nothing current: start empty at ``a``
+        lo = hi = a
+    if a < lo:
+        mode_basis(x, lam[m], dt, n_samples, br, bi, bcr, bci, a, lo)
+        lo = a
+    if b > hi:
+        mode_basis(x, lam[m], dt, n_samples, br, bi, bcr, bci, hi, b)
+        hi = b
     work.basis_lo[m] = lo
     work.basis_hi[m] = hi
 

@@ -121,12 +121,8 @@ def test_compute_threads_follow_the_affinity_and_the_batch_share(monkeypatch):
 def test_stacked_columns_equal_model_columns_stacked(dt, n, kind):
     """The refinement's one-pass stacked columns hold the values of ``model_columns``
     real-stacked and line-weighted (the same arithmetic; rounding apart)."""
-    from ami_xr.kernels.modal_basis import (
-        line_variable,
-        model_columns,
-        stacked_columns,
-        stacked_residual_columns,
-    )
+    from ami_xr.kernels.columns import stacked_columns, stacked_residual_columns
+    from ami_xr.kernels.modal_basis import line_variable, model_columns
 
     rng = np.random.default_rng(3)
     omega = np.linspace(0.0, 300.0, 257)
@@ -148,3 +144,16 @@ def test_stacked_columns_equal_model_columns_stacked(dt, n, kind):
         np.testing.assert_allclose(got / scale, want / scale, rtol=0, atol=1e-14)
     a0, _ = stacked_columns(line_variable(omega, 0.0), lam, 0.0, 0, weight, fixed[:, :0])
     assert a0.shape == (2 * omega.size, 2 * lam.size)
+
+
+def test_stacked_columns_validate():
+    from ami_xr.errors import AmiXrValueError
+    from ami_xr.kernels.columns import stacked_columns
+
+    x, lam = np.exp(-0.01j * np.arange(5.0)), np.array([-1 + 2j])
+    with pytest.raises(AmiXrValueError, match="x, weight"):
+        stacked_columns(x, lam, 0.01, 0, np.ones(4), np.empty((10, 0)))
+    with pytest.raises(AmiXrValueError, match="fixed"):
+        stacked_columns(x, lam, 0.01, 0, np.ones(5), np.empty((5, 2)))
+    with pytest.raises(AmiXrValueError, match="lam"):
+        stacked_columns(x, np.ones((1, 1), complex), 0.01, 0, np.ones(5), np.empty((10, 0)))
