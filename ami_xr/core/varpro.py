@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ami_xr.kernels.modal_basis import model_columns
+from ami_xr.kernels.columns import stacked_columns, stacked_residual_columns
+from ami_xr.kernels.modal_basis import line_variable
 from ami_xr.kernels.projection import gram, matmul_small, normal_equations, project_points
 
 # |r_j|^2 is floored at (RSS_FLOOR |y_j|)^2 so that noise-free data (residual at rounding
@@ -37,9 +38,24 @@ class Problem:
     residual_kind: int = 0
     y_norm2: np.ndarray = field(init=False)
     n_fits: int = field(init=False, default=0)  # Levenberg-Marquardt fits run on this problem
+    # what every projection shares (the lines' variable, the weighted residual-term columns),
+    # made on first use; dataclasses.replace makes a new problem, so they never go stale
+    _lines: tuple | None = field(init=False, default=None, repr=False, compare=False)
 
     def __post_init__(self):
         self.y_norm2 = np.maximum(np.sum(self.y**2, axis=1), np.finfo(float).tiny)
+
+    def lines(self) -> tuple[np.ndarray, float, int, np.ndarray]:
+        """``(x, dt, n_samples, fixed)``: the line variable, the model's ``dt`` (0.0:
+        continuous) and record length (0: none), the stacked residual-term columns."""
+        if self._lines is None:
+            dt = float(self.dt) if self.dt else 0.0
+            fixed = stacked_residual_columns(
+                self.omega, self.residual_terms, self.residual_kind, self.line_weight
+            )
+            x = line_variable(self.omega, dt)
+            self._lines = (x, dt, int(self.n_samples or 0), fixed)
+        return self._lines
 
     @property
     def n_rows(self) -> int:
@@ -85,24 +101,10 @@ def make_problem(
     )
 
 
-def _stack(z, w):
-    """Real-stack ``z * w`` (rows: lines; ``w`` (L, 1)) into (2L, n) without a complex
-    temporary."""
-    n_line = z.shape[0]
-    out = np.empty((2 * n_line,) + z.shape[1:])
-    np.multiply(z.real, w, out=out[:n_line])
-    np.multiply(z.imag, w, out=out[n_line:])
-    return out
-
-
 def project(prob: Problem, lam: np.ndarray) -> Projection:
     """Residues by linear least squares for eigenvalues ``lam`` (all points at once)."""
-    phi, dphi = model_columns(
-        prob.omega, lam, prob.dt, prob.n_samples, prob.residual_terms, prob.residual_kind
-    )
-    w = prob.line_weight[:, None]
-    a = _stack(phi, w)
-    v = _stack(dphi, w)
+    x, dt, n_samples, fixed = prob.lines()
+    a, v = stacked_columns(x, lam, dt, n_samples, prob.line_weight, fixed)
     # a non-finite entry makes a column norm or V'V non-finite: checked there, not entry-wise
     q, r, ok = _cholesky_qr2(a)
     vtv = gram(v) if ok else None
@@ -131,20 +133,24 @@ def _cholesky_qr2(a):
     matrix is slow when threads are contended). ``ok`` is False for a (numerically) rank
     deficient ``a`` -- coinciding eigenvalues -- where the residues are not unique.
     """
-    scale = np.sqrt(np.sum(a * a, axis=0))
+    # the unit-norm scaling folded into the small matrices: the column norms are the Gram
+    # matrix's diagonal, and a / scale is never formed (two passes over ``a`` fewer)
+    g = gram(a)
+    scale = np.sqrt(np.diag(g))
     if np.any(scale == 0) or not np.all(np.isfinite(scale)):
         return a, np.eye(a.shape[1]), False
-    a_s = a / scale
     try:
-        r1 = np.linalg.cholesky(gram(a_s)).T
-        q1 = _solve_upper_right(a_s, r1)
+        r1 = np.linalg.cholesky(g / np.outer(scale, scale)).T
+        q1 = matmul_small(a, np.linalg.inv(r1) / scale[:, None])
         r2 = np.linalg.cholesky(gram(q1)).T
         q = _solve_upper_right(q1, r2)
     except np.linalg.LinAlgError:
         return a, np.eye(a.shape[1]), False
     r = (r2 @ r1) * scale[None, :]
     diag = np.abs(np.diag(r)) / scale
-    ok = bool(diag.min() > 1e-7) and bool(np.all(np.isfinite(q)))
+    # q is finite when the columns and both factors are (a non-finite q1 makes its Gram
+    # matrix, hence r2, non-finite): the small matrices are checked, not the tall one
+    ok = bool(diag.min() > 1e-7) and bool(np.all(np.isfinite(r)))
     return q, r, ok
 
 

@@ -24,5 +24,6 @@ Modules (numba policy in ``_numba``):
   prune, model-order check) for per-FRF and SIMO isolation; ``groups``: its restarts, in calls
   that return to the caller between restarts (interrupts) and for a split's two-mode fit;
   ``isolate``: its checked wrappers.
-* ``projection``: variable-projection refinement kernels.
+* ``projection``: variable-projection refinement kernels; ``columns``: their model columns,
+  stacked and weighted in one pass.
 """

@@ -117,6 +117,9 @@ class Work(NamedTuple):
     """(max_modes,) each mode's eigenvalue before its last update (two-state cycle test)."""
     pinned: np.ndarray
     """(max_modes,) bool: modes kept at their model-order-check fit (not re-fitted)."""
+    basis_lo: np.ndarray
+    """(max_modes,) int: lines ``basis_lo..basis_hi-1`` hold each mode's current bases."""
+    basis_hi: np.ndarray
 
 
 class IsolateResult(NamedTuple):
@@ -178,14 +181,47 @@ def new_work(data, max_modes):
         power=np.zeros(n_f),
         back=np.full(max_modes, complex(np.nan, np.nan)),
         pinned=np.zeros(max_modes, dtype=np.bool_),
+        basis_lo=np.zeros(max_modes, dtype=np.int64),
+        basis_hi=np.zeros(max_modes, dtype=np.int64),
     )
 
 
+@jit(inline="always")
+def _forget_bases(work, n):
+    """The cached bases of modes ``0..n-1`` out of date (made again where next needed)."""
+    for m in range(n):
+        work.basis_lo[m] = 0
+        work.basis_hi[m] = 0
+
+
+@jit(inline="always")
+def _bases_on(work, grid, lam, m, a, b):
+    """Mode ``m``'s bases current on lines ``a..b-1``: only the lines not yet made since its
+    last update are computed (a sweep's step looks at a window around one mode; every update
+    of every mode used to remake all lines of its bases, most of a sweep's work)."""
+    x, dt, n_samples = grid.x, grid.dt, grid.n_samples
+    br, bi, bcr, bci = work.br[m], work.bi[m], work.bcr[m], work.bci[m]
+    lo, hi = work.basis_lo[m], work.basis_hi[m]
+    if hi <= lo:  # nothing current: start empty at ``a``
+        lo = hi = a
+    if a < lo:
+        mode_basis(x, lam[m], dt, n_samples, br, bi, bcr, bci, a, lo)
+        lo = a
+    if b > hi:
+        mode_basis(x, lam[m], dt, n_samples, br, bi, bcr, bci, hi, b)
+        hi = b
+    work.basis_lo[m] = lo
+    work.basis_hi[m] = hi
+
+
 @jit
-def _isolated_lines(work, res, n, k, a, b):
+def _isolated_lines(work, grid, lam, res, n, k, a, b):
     """eq. 7 on lines ``a..b-1`` of every FRF: ``xn = data - sum_{m != k}`` contributions (all
-    ``n`` modes for ``k = -1``: the residual) from the cached bases, and ``power[i] = sum_j
-    |xn[j, i]|^2``."""
+    ``n`` modes for ``k = -1``: the residual) from the cached bases (made current there first),
+    and ``power[i] = sum_j |xn[j, i]|^2``."""
+    for m in range(n):
+        if m != k:
+            _bases_on(work, grid, lam, m, a, b)
     xn, power, tr, ti = work.xn, work.power, work.tr, work.ti
     br, bi, bcr, bci = work.br, work.bi, work.bcr, work.bci
     power[a:b] = 0.0
@@ -207,11 +243,13 @@ def _isolated_lines(work, res, n, k, a, b):
 
 
 @jit
-def _mode_band(work, res, n, k, scene, lam, delta, wlo, whi):
-    """Fit band of mode ``k`` (eigenvalue ``lam``) within lines ``wlo..whi-1``: the largest power
-    within ``Im lam +- max(2 |Re lam|, 2 dw)`` and the contiguous lines around it with power
-    ``>= delta^2`` times that peak. The isolated data is computed only on the lines looked at
-    (the peak search range and the band grown from the peak). Returns ``(peak, lo, hi)``."""
+def _mode_band(work, lam_all, res, n, k, scene, delta, wlo, whi):
+    """Fit band of mode ``k`` (eigenvalue ``lam = lam_all[k]``) within lines ``wlo..whi-1``:
+    the largest power within ``Im lam +- max(2 |Re lam|, 2 dw)`` and the contiguous lines
+    around it with power ``>= delta^2`` times that peak. The isolated data is computed only on
+    the lines looked at (the peak search range and the band grown from the peak). Returns
+    ``(peak, lo, hi)``."""
+    lam = lam_all[k]
     omega = scene.grid.omega
     power = work.power
     half = max(2.0 * abs(lam.real), 2.0 * scene.dw)
@@ -220,7 +258,7 @@ def _mode_band(work, res, n, k, scene, lam, delta, wlo, whi):
     phi = min(nearest_line(omega, lam.imag + half), whi - 1)
     clo = min(plo, c)
     chi = max(phi, c) + 1
-    _isolated_lines(work, res, n, k, clo, chi)
+    _isolated_lines(work, scene.grid, lam_all, res, n, k, clo, chi)
     best = c
     for i in range(plo, phi + 1):
         if power[i] > power[best]:
@@ -231,7 +269,7 @@ def _mode_band(work, res, n, k, scene, lam, delta, wlo, whi):
     while lo > wlo:
         if lo - 1 < clo:
             a = max(wlo, lo - chunk)
-            _isolated_lines(work, res, n, k, a, clo)
+            _isolated_lines(work, scene.grid, lam_all, res, n, k, a, clo)
             clo = a
         if not (power[lo - 1] >= level):
             break
@@ -240,7 +278,7 @@ def _mode_band(work, res, n, k, scene, lam, delta, wlo, whi):
     while hi < whi:
         if hi >= chi:
             b = min(whi, hi + chunk)
-            _isolated_lines(work, res, n, k, chi, b)
+            _isolated_lines(work, scene.grid, lam_all, res, n, k, chi, b)
             chi = b
         if not (power[hi] >= level):
             break
@@ -320,9 +358,9 @@ def _fit_mode(scene, params, modes, n, k, work, state, it):
         # a settled mode keeps its band (while it stays inside): lines entering and leaving a
         # data-defined band make the iteration map discontinuous and can cause limit cycles
         peak = (lo + hi) // 2
-        _isolated_lines(work, res, n, k, lo, hi)
+        _isolated_lines(work, scene.grid, lam, res, n, k, lo, hi)
     else:
-        peak, lo, hi = _mode_band(work, res, n, k, scene, lk, params.delta, wlo, whi)
+        peak, lo, hi = _mode_band(work, lam, res, n, k, scene, params.delta, wlo, whi)
     state.band_lo[k] = lo
     state.band_hi[k] = hi
     code = -1
@@ -369,7 +407,8 @@ def _fit_mode(scene, params, modes, n, k, work, state, it):
     for j in range(n_p):
         res[j, k] = work.rtmp[j]
     lam[k] = new
-    mode_basis(x, new, dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
+    work.basis_lo[k] = 0  # its bases are made again where next needed
+    work.basis_hi[k] = 0
     return score
 
 
@@ -399,8 +438,8 @@ def sweeps(scene, params, modes, n, work):
         frozen=np.zeros(m, dtype=np.bool_),
         fit_failed=np.zeros(m, dtype=np.int64),
     )
+    _forget_bases(work, n)  # a restart: modes merged, pruned, added or split
     for k in range(n):
-        mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
         work.back[k] = complex(np.nan, np.nan)
     it = 0
     converged = n == 0
@@ -452,9 +491,8 @@ def order_check(scene, params, modes, n, work, masked, c, split_lam, split_res):
     lam, res, fails = modes
     n_p, n_f = work.data.shape
     no_iso = np.empty((0, 0), dtype=np.complex128)
-    for k in range(n):
-        mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
-    _isolated_lines(work, res, n, np.int64(-1), np.int64(0), n_f)
+    _forget_bases(work, n)  # merge_prune may have moved modes between slots
+    _isolated_lines(work, scene.grid, lam, res, n, np.int64(-1), np.int64(0), n_f)
     stat = np.zeros(n_f)
     for j in range(n_p):
         env = tolerance_envelope(omega, lam, res[j], n, params.tol)
@@ -539,14 +577,13 @@ def point_estimates_kernel(data, lam, res, scene, delta, min_points, work):
     n_p, n_f = data.shape
     n_k = lam.shape[0]
     out = np.full((n_p, n_k), complex(np.nan, np.nan))
-    for k in range(n_k):
-        mode_basis(x, lam[k], dt, n_samples, work.br[k], work.bi[k], work.bcr[k], work.bci[k])
+    _forget_bases(work, n_k)
     for j in range(n_p):
         for i in range(n_f):
             work.data[0, i] = data[j, i]
         for k in range(n_k):
             at = np.int64(0)
-            peak, lo, hi = _mode_band(work, res[j : j + 1], n_k, k, scene, lam[k], delta, at, n_f)
+            peak, lo, hi = _mode_band(work, lam, res[j : j + 1], n_k, k, scene, delta, at, n_f)
             if hi - lo < min_points:
                 continue
             ws = omega[peak] if omega[peak] > 0.0 else scene.dw

@@ -166,7 +166,7 @@ def isolate_groups(data, lam0, res0, n0, scene, params, out, st, budget):
         # the group's own FRFs (a view) in the shared work arrays
         work = Work(
             data[g], w.xn, w.rtmp, w.wts, w.wts_all, w.br, w.bi, w.bcr, w.bci, w.tr, w.ti,
-            w.power, w.back, w.pinned,
+            w.power, w.back, w.pinned, w.basis_lo, w.basis_hi,
         )  # fmt: skip
         modes = ModeSet(out.lam[g], out.res[g], st.fails)
         if c[AT_STARTED] == 0:

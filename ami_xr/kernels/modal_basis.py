@@ -112,14 +112,14 @@ def add_mode(out, x, lam, res, dt, n_samples, sign, lo, hi):
 
 
 @jit
-def mode_basis(x, lam, dt, n_samples, br, bi, bcr, bci):
-    """Unit-residue bases ``b(lam)``, ``b(conj lam)`` on every line (as in :func:`add_mode`),
-    real and imaginary parts apart, so the SIMO sweeps synthesise modes with (vectorisable)
-    real multiplications only and identical values."""
+def mode_basis(x, lam, dt, n_samples, br, bi, bcr, bci, lo, hi):
+    """Unit-residue bases ``b(lam)``, ``b(conj lam)`` on lines ``lo..hi-1`` (as in
+    :func:`add_mode`), real and imaginary parts apart, so the SIMO sweeps synthesise modes with
+    (vectorisable) real multiplications only and identical values."""
     p, sc = pole_factor(lam, dt, n_samples)
     pc = np.conj(p)
     scc = np.conj(sc)
-    for i in range(x.shape[0]):
+    for i in range(lo, hi):
         if dt > 0.0:
             v = sc / (1.0 - p * x[i])
             vc = scc / (1.0 - pc * x[i])
@@ -151,7 +151,7 @@ def _unit_basis(omega: np.ndarray, lam, dt: float, n_samples: int) -> np.ndarray
 # ----------------------------------------------------------------------------------------------
 # residual terms (lower / upper) and contribution peaks
 # ----------------------------------------------------------------------------------------------
-def _residual_columns(omega: np.ndarray, kind: int) -> tuple[np.ndarray, np.ndarray]:
+def residual_columns(omega: np.ndarray, kind: int) -> tuple[np.ndarray, np.ndarray]:
     """The lower and upper residual terms on the lines ``omega``: ``kind`` 0 receptance
     (``1/(i w)^2``, ``1``), 1 mobility (``1/(i w)``, ``i w``), 2 accelerance (``1``,
     ``(i w)^2``); a term singular at 0 rad/s is 0 there."""
@@ -338,8 +338,12 @@ def basis_and_derivative(
     if lam.ndim != 1:
         raise AmiXrValueError(f"lam: expected a 1-D array of poles, got shape {lam.shape}")
     dt = float(dt) if dt else 0.0
-    n = int(n_samples or 0)
-    lam = lam[:, None]
+    return _basis_on_lines(line_variable(omega, dt)[None, :], lam[:, None], dt, int(n_samples or 0))
+
+
+def _basis_on_lines(x: np.ndarray, lam: np.ndarray, dt: float, n: int):
+    """``b(lam, w)`` and its derivative by ``lam`` for the line variable ``x``
+    (:func:`line_variable`) and poles ``lam``, broadcast against each other."""
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         if dt > 0.0:
             # b = dt s / (1 - e), e = exp((lam - i w) dt), s = 1 - exp(lam n dt) (1 if n <= 0);
@@ -348,10 +352,10 @@ def basis_and_derivative(
             if n > 0:
                 e_n = np.exp(lam * (n * dt))
                 s, ds = 1.0 - e_n, -(n * dt) * e_n
-            e = np.exp(lam * dt) * np.exp(-1j * omega * dt)
+            e = np.exp(lam * dt) * x
             den = 1.0 - e
             return dt * s / den, dt * (ds * den + s * dt * e) / (den * den)
-        den = 1j * omega - lam
+        den = x - lam
         return 1.0 / den, 1.0 / (den * den)
 
 
@@ -389,7 +393,7 @@ def model_columns(
     phi = np.empty((omega.shape[0], 2 * n_mode + 2 * n_res), dtype=np.complex128)
     phi[:, 0 : 2 * n_mode : 2] = (b_l + b_c).T
     phi[:, 1 : 2 * n_mode : 2] = (1j * (b_l - b_c)).T
-    lower, upper = _residual_columns(omega, residual_kind)
+    lower, upper = residual_columns(omega, residual_kind)
     for r, term in enumerate(residual_terms):
         col = lower if term == "lower" else upper
         phi[:, 2 * n_mode + 2 * r] = col
@@ -478,7 +482,7 @@ def synthesize_residual_terms(
         raise AmiXrValueError(f"coef: expected shape (P, 2), got {coef.shape}")
     if residual_kind not in (0, 1, 2):
         raise AmiXrValueError(f"residual_kind: expected 0, 1 or 2, got {residual_kind!r}")
-    lower, upper = _residual_columns(omega, int(residual_kind))
+    lower, upper = residual_columns(omega, int(residual_kind))
     out = coef[:, 0, None] * lower + coef[:, 1, None] * upper
     if residual_kind == 0:
         out[:, omega == 0.0] = 0.0  # receptance: the whole line at 0 rad/s is left at 0

@@ -68,7 +68,7 @@ def test_residue_normal_equations_equal_the_per_line_sums(dt, n, kind):
     cols = []
     for lk in lam:
         br, bi, bcr, bci = (np.empty(OMEGA.size) for _ in range(4))
-        kb.mode_basis(x, lk, dt, n, br, bi, bcr, bci)
+        kb.mode_basis(x, lk, dt, n, br, bi, bcr, bci, 0, OMEGA.size)
         b, bc = br + 1j * bi, bcr + 1j * bci
         cols += [b + bc, 1j * (b - bc)]
     if kind >= 0:

@@ -114,3 +114,46 @@ def test_compute_threads_follow_the_affinity_and_the_batch_share(monkeypatch):
     assert projection.compute_threads() == 1
     monkeypatch.setenv(projection.THREADS_ENV, "not a number")  # ignored
     assert projection.compute_threads() >= 1
+
+
+@pytest.mark.parametrize("dt, n", [(None, None), (0.01, None), (0.01, 512)])
+@pytest.mark.parametrize("kind", [0, 1, 2])
+def test_stacked_columns_equal_model_columns_stacked(dt, n, kind):
+    """The refinement's one-pass stacked columns hold the values of ``model_columns``
+    real-stacked and line-weighted (the same arithmetic; rounding apart)."""
+    from ami_xr.kernels.columns import stacked_columns, stacked_residual_columns
+    from ami_xr.kernels.modal_basis import line_variable, model_columns
+
+    rng = np.random.default_rng(3)
+    omega = np.linspace(0.0, 300.0, 257)
+    lam = np.array([-1.5 + 40j, -0.2 + 41j, -4.0 + 200j])
+    weight = rng.uniform(0.5, 2.0, omega.size)
+    terms = ("lower", "upper")
+    phi, dphi = model_columns(omega, lam, dt, n, terms, kind)
+
+    def stack(z):
+        return np.concatenate([z.real * weight[:, None], z.imag * weight[:, None]])
+
+    fixed = stacked_residual_columns(omega, terms, kind, weight)
+    a, v = stacked_columns(line_variable(omega, dt or 0.0), lam, dt or 0.0, n or 0, weight, fixed)
+    assert a.flags.c_contiguous and v.flags.c_contiguous
+    for got, want in ((a, stack(phi)), (v, stack(dphi))):
+        # b + conj-pole term cancels where the two are close: the error is relative to the
+        # column's size (a few ulp of it), not to each entry
+        scale = np.max(np.abs(want), axis=0)
+        np.testing.assert_allclose(got / scale, want / scale, rtol=0, atol=1e-14)
+    a0, _ = stacked_columns(line_variable(omega, 0.0), lam, 0.0, 0, weight, fixed[:, :0])
+    assert a0.shape == (2 * omega.size, 2 * lam.size)
+
+
+def test_stacked_columns_validate():
+    from ami_xr.errors import AmiXrValueError
+    from ami_xr.kernels.columns import stacked_columns
+
+    x, lam = np.exp(-0.01j * np.arange(5.0)), np.array([-1 + 2j])
+    with pytest.raises(AmiXrValueError, match="x, weight"):
+        stacked_columns(x, lam, 0.01, 0, np.ones(4), np.empty((10, 0)))
+    with pytest.raises(AmiXrValueError, match="fixed"):
+        stacked_columns(x, lam, 0.01, 0, np.ones(5), np.empty((5, 2)))
+    with pytest.raises(AmiXrValueError, match="lam"):
+        stacked_columns(x, np.ones((1, 1), complex), 0.01, 0, np.ones(5), np.empty((10, 0)))
