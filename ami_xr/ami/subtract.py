@@ -287,14 +287,7 @@ def subtract_rows(
     kernel on each group's rows)."""
     shape, group = noise
     if group is None or np.ndim(shape) < 2:
-        out = _subtract_block(
-            g,
-            omega=omega,
-            dt=data_model.dt,
-            n_samples=data_model.n_samples,
-            params=kernel_params(settings),
-            line_shape=shape,
-        )
+        out = _subtract_block(g, **_block_kwargs(omega, data_model, settings, shape))
         return ks.SubtractResult(**dict(zip(_OUTPUTS, out, strict=True)))
     parts = {
         int(k): subtract_rows(g[group == k], omega, data_model, settings, (shape[k], None))
@@ -308,6 +301,17 @@ def subtract_rows(
             field[group == k] = getattr(part, name)
         merged[name] = field
     return ks.SubtractResult(**merged)
+
+
+def _block_kwargs(omega: np.ndarray, data_model, settings: SubtractSettings, shape) -> dict:
+    """:func:`_subtract_block`'s keywords."""
+    return dict(
+        omega=omega,
+        dt=data_model.dt,
+        n_samples=data_model.n_samples,
+        params=kernel_params(settings),
+        line_shape=shape,
+    )
 
 
 def _run(
@@ -329,13 +333,7 @@ def _run(
     res = xr.apply_ufunc(
         _subtract_block,
         frf,
-        kwargs=dict(
-            omega=omega,
-            dt=data_model.dt,
-            n_samples=data_model.n_samples,
-            params=kernel_params(settings),
-            line_shape=shape,
-        ),
+        kwargs=_block_kwargs(omega, data_model, settings, shape),
         input_core_dims=[[names.FREQUENCY]],
         output_core_dims=[dims for dims, _ in _OUTPUTS.values()],
         dask="parallelized",
