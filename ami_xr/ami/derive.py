@@ -170,28 +170,38 @@ def derive(fit: ResidueFit, data: xr.Dataset) -> xr.Dataset:
 def derived(fit: ResidueFit, data: xr.Dataset) -> tuple[dict, dict]:
     """What :func:`derive` assigns to ``data``: the new coordinates (``mode_2``, and
     ``residual_term`` when fitted) and the output variables, by name."""
-    frf = data[names.FRF]
+    omega, points = c.omega_of(data), data[names.POINT].values
+    return derived_from(fit, data[names.FRF], data.attrs, omega, data[names.MODE].values, points)
+
+
+def derived_from(fit: ResidueFit, frf, attrs, omega, modes, points) -> tuple[dict, dict]:
+    """:func:`derived` on the parts of the data it reads: the FRF (DataArray or Variable, dims
+    (point, frequency) in either order), the attributes, the angular frequencies of the lines,
+    the mode labels and the point labels (the drive point is found among them)."""
+    frf = _variable(frf)
     units = str(frf.attrs.get(names.ATTR_UNITS, ""))
-    drive = c.drive_index(data)
+    drive = c.drive_position(points, attrs)
     lam = fit.eigenvalue
-    phi, phi_attrs = receptance_mode_vectors(fit.residue, lam, drive, data.attrs, units)
-    snr, mask = _drive_snr(fit, c.omega_of(data), drive)
+    phi, phi_attrs = receptance_mode_vectors(fit.residue, lam, drive, attrs, units)
+    snr, mask = _drive_snr(fit, omega, drive)
     # Variables (a DataArray of a lazy fit gives its own): the outputs take data's coordinates
     synth = _variable(fit.synthesized).transpose(*frf.dims)
     pm = (names.POINT, names.MODE)
     unit = {names.ATTR_UNITS: units}
     new = {
-        names.RESIDUE: (pm, fit.residue, residue_units(units)),
-        names.MODE_VECTOR: (pm, phi, phi_attrs),
+        names.RESIDUE: xr.Variable(pm, fit.residue, residue_units(units)),
+        names.MODE_VECTOR: xr.Variable(pm, phi, phi_attrs),
         names.FRF_SYNTHESIZED: xr.Variable(frf.dims, synth.data, unit),
-        names.FRF_RESIDUAL: xr.Variable(frf.dims, (frf.variable - synth).data, unit),
-        names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi), _ONE),
-        names.DRIVE_POINT_SNR: ((names.MODE,), snr, _ONE),
-        names.QUALITY_FLAGS: ((names.MODE,), mask),
+        names.FRF_RESIDUAL: xr.Variable(frf.dims, (frf - synth).data, unit),
+        names.MAC: xr.Variable((names.MODE, names.MODE_2), mac_matrix(phi), dict(_ONE)),
+        names.DRIVE_POINT_SNR: xr.Variable((names.MODE,), snr, dict(_ONE)),
+        names.QUALITY_FLAGS: xr.Variable((names.MODE,), mask),
     }
-    coords = {names.MODE_2: data[names.MODE].values}
+    coords = {names.MODE_2: xr.Variable((names.MODE_2,), np.asarray(modes))}
     if fit.residual_coefficient is not None:
-        coords[names.RESIDUAL_TERM] = list(names.RESIDUAL_TERM_LABELS)
+        coords[names.RESIDUAL_TERM] = xr.Variable(
+            (names.RESIDUAL_TERM,), list(names.RESIDUAL_TERM_LABELS)
+        )
         rc = _variable(fit.residual_coefficient).transpose(names.POINT, names.RESIDUAL_TERM)
         new[names.RESIDUAL_COEFFICIENT] = xr.Variable(rc.dims, rc.data, rc.attrs)
     return coords, new

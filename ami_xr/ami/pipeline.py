@@ -19,7 +19,7 @@ from ami_xr.ami import common as c
 from ami_xr.ami import repeated as rp
 from ami_xr.ami import scale as scale_out
 from ami_xr.ami import spikes, whitening
-from ami_xr.ami.derive import derived
+from ami_xr.ami.derive import derived_from
 from ami_xr.ami.global_fit import (
     fit_attrs,
     fit_residues,
@@ -238,20 +238,30 @@ def fitted(work: xr.Dataset, settings: IdentifySettings, step, noted=None) -> xr
 def _labeled(work: xr.Dataset, phases, attrs: dict, fit, coord_attrs) -> xr.Dataset:
     """``work`` (earlier results dropped) with the output variables of the phases (dicts by
     name, the dim coordinates among them), ``attrs``, and the outputs of the global ``fit``
-    (:class:`~ami_xr.ami.derive.ResidueFit`, None: no mode)."""
-    earlier = [v for g in (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS) for v in g]
-    if any(v in work.variables for v in earlier):
-        work = c.drop_results(work, (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS))
-    new = {k: v for phase in phases for k, v in phase.items()}
-    coords = {d: new.pop(d) for d in (names.CANDIDATE, names.MODE)}
-    out = work.assign_coords(coords).assign(new)
-    out.attrs = attrs
+    (:class:`~ami_xr.ami.derive.ResidueFit`, None: no mode): one Dataset, built once."""
+    earlier = {v for g in (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS) for v in g}
+    variables = {k: v for k, v in work.variables.items() if k not in earlier}
+    for dim in (names.CANDIDATE, names.MODE, names.MODE_2, names.RESIDUAL_TERM):
+        if dim in variables and not any(dim in v.dims for k, v in variables.items() if k != dim):
+            del variables[dim]  # a label of earlier results only
+    coords = {k for k in work.coords if k in variables} | {names.CANDIDATE, names.MODE}
+    for phase in phases:
+        variables.update(phase)
+    attrs = dict(attrs)
     if fit is not None:
-        more, fitted = derived(fit, out)
-        out = out.assign_coords(more).assign(fitted)
-    out = c.restore_coordinate_attrs(out, coord_attrs)
-    out.attrs[names.ATTR_AMI_PHASE] = names.PHASE_ISOLATE if fit is None else names.PHASE_GLOBAL_FIT
-    return out
+        modes = np.asarray(variables[names.MODE].values)
+        more, fitted = derived_from(
+            fit, work[names.FRF], attrs, c.omega_of(work), modes, work[names.POINT].values
+        )
+        variables.update(more)
+        variables.update(fitted)
+        coords |= set(more)
+    for n, a in coord_attrs.items():  # what an apply_ufunc of old xarray cleared
+        if n in variables and variables[n].attrs != a:
+            variables[n] = variables[n].copy(deep=False)
+            variables[n].attrs = dict(a)
+    attrs[names.ATTR_AMI_PHASE] = names.PHASE_ISOLATE if fit is None else names.PHASE_GLOBAL_FIT
+    return c.built(variables, coords, attrs, like=work)
 
 
 def _caps_superseded(out: xr.Dataset, refined: bool) -> flags.RunStatus:
@@ -502,8 +512,7 @@ def reported(
             variables[v] = variables[v].copy(data=std)
     if names.MODE_VECTOR in variables:
         variables.update(quality_variables(variables[names.MODE_VECTOR]))
-    coords = {k: variables.pop(k) for k in result.coords}
-    return xr.Dataset(variables, coords=coords, attrs=attrs)
+    return c.built(variables, result.coords, attrs, like=result)
 
 
 def _in_band(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
