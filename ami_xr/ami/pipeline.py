@@ -399,7 +399,8 @@ def with_quality(result: xr.Dataset) -> xr.Dataset:
     scale-free, like the indicators); nothing when there are no mode vectors."""
     if names.MODE_VECTOR not in result or result.sizes.get(names.MODE, 0) == 0:
         return result
-    return result.assign(quality_variables(result[names.MODE_VECTOR].variable))
+    variables = {**result.variables, **quality_variables(result[names.MODE_VECTOR].variable)}
+    return c.built(variables, result.coords, result.attrs, like=result)
 
 
 def quality_variables(mv: xr.Variable) -> dict:

@@ -18,6 +18,7 @@ import pytest
 import xarray as xr
 
 import ami_xr
+from ami_xr import names
 from ami_xr.ami import common
 from ami_xr.simulate.spread import many_points
 
@@ -103,6 +104,22 @@ def test_one_validation_per_identify_on_the_compressed_path(monkeypatch):
     ds, _ = many_points(60, 256, 5, noise=0.01, seed=1)
     counts = _counted(monkeypatch, ds, compress=12)
     assert counts["validations"] == 1, counts
+
+
+def test_datasets_per_identify_on_the_compressed_path(monkeypatch):
+    """60 points compressed to 12 virtual FRFs (48 Datasets before): the virtual FRFs, their
+    phases' two outputs (fit phases, refinement), every point's residues at their poles, the
+    band's attributes on the working FRFs and the one output step."""
+    ds, _ = many_points(60, 256, 5, noise=0.01, seed=1)
+    counts = _counted(monkeypatch, ds, compress=12)
+    assert counts["datasets"] <= 6, counts
+
+
+def test_at_most_three_datasets_on_windowed_data(monkeypatch, small):
+    """The exponential window's correction is made on the arrays in the output step."""
+    windowed = small.assign_attrs({names.ATTR_EXP_DECAY: 0.2})
+    counts = _counted(monkeypatch, windowed)
+    assert counts["datasets"] <= 3, counts
 
 
 def test_the_dataset_hook_counts(monkeypatch, small):
