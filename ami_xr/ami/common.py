@@ -296,12 +296,15 @@ def select_modes(ds: xr.Dataset, index) -> xr.Dataset:
 def keep_modes(ds: xr.Dataset, keep: np.ndarray) -> xr.Dataset:
     """``ds`` with the modes where ``keep`` (bool, on ``mode``) is True, labelled 1..n on
     ``mode`` (and ``mode_2``)."""
-    out = select_modes(ds, np.flatnonzero(keep))
-    labels = np.arange(1, out.sizes[names.MODE] + 1)
-    out = out.assign_coords({names.MODE: labels})
-    if names.MODE_2 in out.dims:
-        out = out.assign_coords({names.MODE_2: labels})
-    return out
+    index = np.flatnonzero(keep)
+    variables = {}
+    for k, v in ds.variables.items():
+        at = {d: index for d in (names.MODE, names.MODE_2) if d in v.dims}
+        variables[k] = v.isel(at) if at else v
+    for d in (names.MODE, names.MODE_2):
+        if d in ds.dims:  # labelled 1..n
+            variables[d] = xr.Variable((d,), np.arange(1, index.size + 1))
+    return built(variables, ds.coords, ds.attrs, like=ds)
 
 
 def sort_modes(ds: xr.Dataset) -> xr.Dataset:
