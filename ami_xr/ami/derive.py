@@ -6,8 +6,10 @@ the labeled outputs every such path reports the same way: residues with units, m
 the displacement convention (:func:`receptance_mode_vectors`),
 synthesized FRFs and residuals, the MAC, the drive-point SNR and its flags
 (``unscaled_no_drive_point``, ``low_drive_point_snr``), residual coefficients and the labels of
-``mode_2`` and ``residual_term``. What stays lazy in the fit (synthesized FRFs of a dask-backed
-input) stays lazy here.
+``mode_2`` and ``residual_term``; :func:`derived_from` gives them as Variables, for an output
+built once (:func:`ami_xr.ami.common.built`). What stays lazy in the fit (synthesized FRFs of a
+dask-backed input) stays lazy here. The quality indicators of the final mode vectors (MPC, MPD,
+complexity, normalised vectors) come from :func:`quality_variables`.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from ami_xr import names
 from ami_xr.ami import common as c
 from ami_xr.ami.settings import FrfAttributes, from_attrs
 from ami_xr.core import flags
-from ami_xr.core.modal import mac_matrix, mode_vectors
+from ami_xr.core.modal import complexity, mac_matrix, mode_vectors, mpc, mpd, phase_normalised
 from ami_xr.kernels import modal_basis as kb
 
 __all__ = [
@@ -31,6 +33,7 @@ __all__ = [
     "receptance_residues",
     "residue_units",
     "mode_vector_units",
+    "quality_variables",
 ]
 
 _ONE = {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
@@ -210,3 +213,45 @@ def derived_from(fit: ResidueFit, frf, attrs, omega, modes, points) -> tuple[dic
 def _variable(x) -> xr.Variable:
     """The Variable of a DataArray (its coordinates left behind), or ``x`` itself."""
     return getattr(x, "variable", x)
+
+
+def quality_variables(mv: xr.Variable) -> dict:
+    """The modal quality indicators of the mode vectors ``mv`` (point, mode in either order),
+    by name: MPC, MPD, complexity (on ``mode``) and the mode vectors normalised in phase and
+    magnitude (largest component 1), as :func:`ami_xr.ami.pipeline.with_quality` adds them."""
+    phi = mv.transpose(names.POINT, names.MODE).values
+    mode = (names.MODE,)
+    normalised = xr.Variable(
+        (names.POINT, names.MODE),
+        phase_normalised(phi, unit=True),
+        {
+            names.ATTR_UNITS: "1",
+            names.ATTR_LONG_NAME: (
+                "mode vector rotated in phase and scaled so that its largest component is 1"
+            ),
+        },
+    ).transpose(*mv.dims)
+    return {
+        names.MPC: xr.Variable(
+            mode,
+            mpc(phi),
+            {
+                names.ATTR_UNITS: "1",
+                names.ATTR_LONG_NAME: "modal phase collinearity (1: real mode)",
+            },
+        ),
+        names.MPD: xr.Variable(
+            mode,
+            mpd(phi),
+            {
+                names.ATTR_UNITS: "degree",
+                names.ATTR_LONG_NAME: "mean phase deviation from the best straight line",
+            },
+        ),
+        names.COMPLEXITY: xr.Variable(
+            mode,
+            complexity(phi),
+            {names.ATTR_UNITS: "1", names.ATTR_LONG_NAME: "mode complexity 1 - MPC (0: real mode)"},
+        ),
+        names.MODE_VECTOR_NORMALISED: normalised,
+    }

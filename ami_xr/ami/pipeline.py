@@ -19,7 +19,7 @@ from ami_xr.ami import common as c
 from ami_xr.ami import repeated as rp
 from ami_xr.ami import scale as scale_out
 from ami_xr.ami import spikes, whitening
-from ami_xr.ami.derive import derived_from
+from ami_xr.ami.derive import derived_from, quality_variables
 from ami_xr.ami.global_fit import (
     fit_attrs,
     fit_residues,
@@ -55,12 +55,8 @@ from ami_xr.ami.subtract import (
 from ami_xr.caller import warn
 from ami_xr.core import flags
 from ami_xr.core.modal import (
-    complexity,
     damping_ratio,
-    mpc,
-    mpd,
     natural_frequency,
-    phase_normalised,
 )
 from ami_xr.core.model import resolve_model
 from ami_xr.dsp import band as bd
@@ -401,47 +397,6 @@ def with_quality(result: xr.Dataset) -> xr.Dataset:
         return result
     variables = {**result.variables, **quality_variables(result[names.MODE_VECTOR].variable)}
     return c.built(variables, result.coords, result.attrs, like=result)
-
-
-def quality_variables(mv: xr.Variable) -> dict:
-    """What :func:`with_quality` adds, by name, for the mode vectors ``mv`` (point, mode in
-    either order)."""
-    phi = mv.transpose(names.POINT, names.MODE).values
-    mode = (names.MODE,)
-    normalised = xr.Variable(
-        (names.POINT, names.MODE),
-        phase_normalised(phi, unit=True),
-        {
-            names.ATTR_UNITS: "1",
-            names.ATTR_LONG_NAME: (
-                "mode vector rotated in phase and scaled so that its largest component is 1"
-            ),
-        },
-    ).transpose(*mv.dims)
-    return {
-        names.MPC: xr.Variable(
-            mode,
-            mpc(phi),
-            {
-                names.ATTR_UNITS: "1",
-                names.ATTR_LONG_NAME: "modal phase collinearity (1: real mode)",
-            },
-        ),
-        names.MPD: xr.Variable(
-            mode,
-            mpd(phi),
-            {
-                names.ATTR_UNITS: "degree",
-                names.ATTR_LONG_NAME: "mean phase deviation from the best straight line",
-            },
-        ),
-        names.COMPLEXITY: xr.Variable(
-            mode,
-            complexity(phi),
-            {names.ATTR_UNITS: "1", names.ATTR_LONG_NAME: "mode complexity 1 - MPC (0: real mode)"},
-        ),
-        names.MODE_VECTOR_NORMALISED: normalised,
-    }
 
 
 def drop_beyond_lines(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
