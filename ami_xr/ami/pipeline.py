@@ -186,7 +186,7 @@ def fitted(work: xr.Dataset, settings: IdentifySettings, step, noted=None) -> xr
     """subtract -> isolate -> global_fit on the arrays of ``work`` (validated by the caller):
     each phase's core on the FRFs and the fit record the one before left, the same calls as
     the public phases make; the labeled outputs of all three in one Dataset, built once at the
-    end (the global fit's from :func:`~ami_xr.ami.derive.derived`). ``step(phase)`` is told
+    end (the global fit's from :func:`~ami_xr.ami.derive.derived_from`). ``step(phase)`` is told
     when each phase starts; ``noted``: attributes taken as ``work``'s own."""
     s = settings
     given = {**work.attrs, **(noted or {})}
