@@ -228,11 +228,52 @@ def finish(out: xr.Dataset, function: str, phase: str, parameters: dict) -> xr.D
 
 def drive_index(ds: xr.Dataset) -> int | None:
     """Position of the ``drive_point`` attribute among the points, None when it is not one."""
-    drive = ds.attrs.get(names.ATTR_DRIVE_POINT)
+    if ds.attrs.get(names.ATTR_DRIVE_POINT) is None:
+        return None
+    return drive_position(ds[names.POINT].values, ds.attrs)
+
+
+def drive_position(points, attrs) -> int | None:
+    """Position of the ``drive_point`` of ``attrs`` among the labels ``points``, None when it is
+    not one (:func:`drive_index` on arrays)."""
+    drive = attrs.get(names.ATTR_DRIVE_POINT)
     if drive is None:
         return None
-    idx = np.flatnonzero(np.asarray(ds[names.POINT].values).astype(str) == str(drive))
+    idx = np.flatnonzero(np.asarray(points).astype(str) == str(drive))
     return int(idx[0]) if idx.size else None
+
+
+def built(
+    variables: dict[Hashable, Any], coords, attrs: dict, like: xr.Dataset | None = None
+) -> xr.Dataset:
+    """One Dataset of ``variables`` (Variables or ``(dims, data[, attrs])`` tuples, by name;
+    those named in ``coords`` and the dimension coordinates are its coordinates) with the
+    attributes ``attrs``: how the phases build each output once, from their arrays.
+
+    ``xarray.Dataset(...)`` would build a second Dataset inside (its ``Coordinates``) and check
+    again what the phases made consistent; this is xarray's own constructor for the results of
+    its operations. A dimension coordinate that is the very Variable of ``like`` keeps
+    ``like``'s index (a new one is built otherwise)."""
+    from xarray.indexes import PandasIndex
+
+    out: dict[Hashable, xr.Variable] = {}
+    indexes = {}
+    sizes: dict[Hashable, int] = {}
+    for name, v in variables.items():
+        v = v if isinstance(v, xr.Variable) else xr.Variable(*v)
+        if v.dims == (name,):  # a dimension coordinate: indexed
+            same = like is not None and name in like.xindexes and like.variables[name] is v
+            if same:
+                indexes[name] = like.xindexes[name]
+            else:
+                indexes[name] = PandasIndex.from_variables({name: v}, options={})
+                v = indexes[name].create_variables({name: v})[name]
+        for d, n in zip(v.dims, v.shape, strict=True):
+            if sizes.setdefault(d, n) != n:
+                raise ValueError(f"{name}: {d} has {n} elements, another variable {sizes[d]}")
+        out[name] = v
+    names_ = {n for n in coords if n in out} | set(indexes)
+    return xr.Dataset._construct_direct(out, names_, sizes, dict(attrs), indexes)
 
 
 def frf_values(ds: xr.Dataset) -> np.ndarray:
@@ -255,12 +296,15 @@ def select_modes(ds: xr.Dataset, index) -> xr.Dataset:
 def keep_modes(ds: xr.Dataset, keep: np.ndarray) -> xr.Dataset:
     """``ds`` with the modes where ``keep`` (bool, on ``mode``) is True, labelled 1..n on
     ``mode`` (and ``mode_2``)."""
-    out = select_modes(ds, np.flatnonzero(keep))
-    labels = np.arange(1, out.sizes[names.MODE] + 1)
-    out = out.assign_coords({names.MODE: labels})
-    if names.MODE_2 in out.dims:
-        out = out.assign_coords({names.MODE_2: labels})
-    return out
+    index = np.flatnonzero(keep)
+    variables = {}
+    for k, v in ds.variables.items():
+        at = {d: index for d in (names.MODE, names.MODE_2) if d in v.dims}
+        variables[k] = v.isel(at) if at else v
+    for d in (names.MODE, names.MODE_2):
+        if d in ds.dims:  # labelled 1..n
+            variables[d] = xr.Variable((d,), np.arange(1, index.size + 1))
+    return built(variables, ds.coords, ds.attrs, like=ds)
 
 
 def sort_modes(ds: xr.Dataset) -> xr.Dataset:

@@ -6,8 +6,10 @@ the labeled outputs every such path reports the same way: residues with units, m
 the displacement convention (:func:`receptance_mode_vectors`),
 synthesized FRFs and residuals, the MAC, the drive-point SNR and its flags
 (``unscaled_no_drive_point``, ``low_drive_point_snr``), residual coefficients and the labels of
-``mode_2`` and ``residual_term``. What stays lazy in the fit (synthesized FRFs of a dask-backed
-input) stays lazy here.
+``mode_2`` and ``residual_term``; :func:`derived_from` gives them as Variables, for an output
+built once (:func:`ami_xr.ami.common.built`). What stays lazy in the fit (synthesized FRFs of a
+dask-backed input) stays lazy here. The quality indicators of the final mode vectors (MPC, MPD,
+complexity, normalised vectors) come from :func:`quality_variables`.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from ami_xr import names
 from ami_xr.ami import common as c
 from ami_xr.ami.settings import FrfAttributes, from_attrs
 from ami_xr.core import flags
-from ami_xr.core.modal import mac_matrix, mode_vectors
+from ami_xr.core.modal import complexity, mac_matrix, mode_vectors, mpc, mpd, phase_normalised
 from ami_xr.kernels import modal_basis as kb
 
 __all__ = [
@@ -31,6 +33,7 @@ __all__ = [
     "receptance_residues",
     "residue_units",
     "mode_vector_units",
+    "quality_variables",
 ]
 
 _ONE = {names.ATTR_UNITS: names.DIMENSIONLESS_UNITS}
@@ -170,28 +173,38 @@ def derive(fit: ResidueFit, data: xr.Dataset) -> xr.Dataset:
 def derived(fit: ResidueFit, data: xr.Dataset) -> tuple[dict, dict]:
     """What :func:`derive` assigns to ``data``: the new coordinates (``mode_2``, and
     ``residual_term`` when fitted) and the output variables, by name."""
-    frf = data[names.FRF]
+    omega, points = c.omega_of(data), data[names.POINT].values
+    return derived_from(fit, data[names.FRF], data.attrs, omega, data[names.MODE].values, points)
+
+
+def derived_from(fit: ResidueFit, frf, attrs, omega, modes, points) -> tuple[dict, dict]:
+    """:func:`derived` on the parts of the data it reads: the FRF (DataArray or Variable, dims
+    (point, frequency) in either order), the attributes, the angular frequencies of the lines,
+    the mode labels and the point labels (the drive point is found among them)."""
+    frf = _variable(frf)
     units = str(frf.attrs.get(names.ATTR_UNITS, ""))
-    drive = c.drive_index(data)
+    drive = c.drive_position(points, attrs)
     lam = fit.eigenvalue
-    phi, phi_attrs = receptance_mode_vectors(fit.residue, lam, drive, data.attrs, units)
-    snr, mask = _drive_snr(fit, c.omega_of(data), drive)
+    phi, phi_attrs = receptance_mode_vectors(fit.residue, lam, drive, attrs, units)
+    snr, mask = _drive_snr(fit, omega, drive)
     # Variables (a DataArray of a lazy fit gives its own): the outputs take data's coordinates
     synth = _variable(fit.synthesized).transpose(*frf.dims)
     pm = (names.POINT, names.MODE)
     unit = {names.ATTR_UNITS: units}
     new = {
-        names.RESIDUE: (pm, fit.residue, residue_units(units)),
-        names.MODE_VECTOR: (pm, phi, phi_attrs),
+        names.RESIDUE: xr.Variable(pm, fit.residue, residue_units(units)),
+        names.MODE_VECTOR: xr.Variable(pm, phi, phi_attrs),
         names.FRF_SYNTHESIZED: xr.Variable(frf.dims, synth.data, unit),
-        names.FRF_RESIDUAL: xr.Variable(frf.dims, (frf.variable - synth).data, unit),
-        names.MAC: ((names.MODE, names.MODE_2), mac_matrix(phi), _ONE),
-        names.DRIVE_POINT_SNR: ((names.MODE,), snr, _ONE),
-        names.QUALITY_FLAGS: ((names.MODE,), mask),
+        names.FRF_RESIDUAL: xr.Variable(frf.dims, (frf - synth).data, unit),
+        names.MAC: xr.Variable((names.MODE, names.MODE_2), mac_matrix(phi), dict(_ONE)),
+        names.DRIVE_POINT_SNR: xr.Variable((names.MODE,), snr, dict(_ONE)),
+        names.QUALITY_FLAGS: xr.Variable((names.MODE,), mask),
     }
-    coords = {names.MODE_2: data[names.MODE].values}
+    coords = {names.MODE_2: xr.Variable((names.MODE_2,), np.asarray(modes))}
     if fit.residual_coefficient is not None:
-        coords[names.RESIDUAL_TERM] = list(names.RESIDUAL_TERM_LABELS)
+        coords[names.RESIDUAL_TERM] = xr.Variable(
+            (names.RESIDUAL_TERM,), list(names.RESIDUAL_TERM_LABELS)
+        )
         rc = _variable(fit.residual_coefficient).transpose(names.POINT, names.RESIDUAL_TERM)
         new[names.RESIDUAL_COEFFICIENT] = xr.Variable(rc.dims, rc.data, rc.attrs)
     return coords, new
@@ -200,3 +213,45 @@ def derived(fit: ResidueFit, data: xr.Dataset) -> tuple[dict, dict]:
 def _variable(x) -> xr.Variable:
     """The Variable of a DataArray (its coordinates left behind), or ``x`` itself."""
     return getattr(x, "variable", x)
+
+
+def quality_variables(mv: xr.Variable) -> dict:
+    """The modal quality indicators of the mode vectors ``mv`` (point, mode in either order),
+    by name: MPC, MPD, complexity (on ``mode``) and the mode vectors normalised in phase and
+    magnitude (largest component 1), as :func:`ami_xr.ami.pipeline.with_quality` adds them."""
+    phi = mv.transpose(names.POINT, names.MODE).values
+    mode = (names.MODE,)
+    normalised = xr.Variable(
+        (names.POINT, names.MODE),
+        phase_normalised(phi, unit=True),
+        {
+            names.ATTR_UNITS: "1",
+            names.ATTR_LONG_NAME: (
+                "mode vector rotated in phase and scaled so that its largest component is 1"
+            ),
+        },
+    ).transpose(*mv.dims)
+    return {
+        names.MPC: xr.Variable(
+            mode,
+            mpc(phi),
+            {
+                names.ATTR_UNITS: "1",
+                names.ATTR_LONG_NAME: "modal phase collinearity (1: real mode)",
+            },
+        ),
+        names.MPD: xr.Variable(
+            mode,
+            mpd(phi),
+            {
+                names.ATTR_UNITS: "degree",
+                names.ATTR_LONG_NAME: "mean phase deviation from the best straight line",
+            },
+        ),
+        names.COMPLEXITY: xr.Variable(
+            mode,
+            complexity(phi),
+            {names.ATTR_UNITS: "1", names.ATTR_LONG_NAME: "mode complexity 1 - MPC (0: real mode)"},
+        ),
+        names.MODE_VECTOR_NORMALISED: normalised,
+    }

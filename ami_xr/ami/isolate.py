@@ -43,14 +43,9 @@ def kernel_params(sub: SubtractSettings, settings: IsolateSettings) -> ki.Isolat
     isolation's (checked) settings."""
     paper = settings.method == names.METHOD_PER_FRF
     return ki.IsolateParams(
-        delta=sub.delta,
+        **sub_phase.kernel_params(sub)._asdict(),  # the subtraction's kernel record, as it ran
         tol=settings.tol,
         max_iter=settings.max_iter,
-        pfa=sub.pfa,
-        min_points=sub.min_points,
-        zeta_max=sub.zeta_max,
-        merge_tol=sub.merge_tol,
-        max_modes=sub.max_modes,
         reweight=settings.snr_weighting,
         # the paper's per-FRF isolation: its plain sweeps, stopped on the relative change alone
         se_fraction=0.0 if paper else ki.STOP_FRACTION,

@@ -39,7 +39,6 @@ from ami_xr.ami import mimo_screen as ms
 from ami_xr.ami import pipeline as pl
 from ami_xr.ami import whitening
 from ami_xr.ami.global_fit import global_fit
-from ami_xr.ami.pipeline import with_quality
 from ami_xr.ami.refine import refine as refine_phase
 from ami_xr.ami.settings import FrfAttributes, RefineSettings, from_attrs
 from ami_xr.ami.subtract import band_of, power_of_two_scale
@@ -462,13 +461,13 @@ def refit(
         # passed theirs in the first run
         capped = {} if max_iter is None else {"max_iter": int(max_iter)}
         out = refine_phase(out, add_modes=0, drop_modes=False, **capped)
-    if scale != 1.0:
-        out = pl.unscale(out, ds, scale)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AssumptionWarning)  # the first pass said it
-        out = whitening.from_working(out, given, white)
+        out, noise_model = pl.given_back(out, ds, scale, given, white)
+    more = {}
     if floor is not None and names.SUB_NOISE_FLOOR not in out:
-        out[names.SUB_NOISE_FLOOR] = floor
-    out = pl.window_corrected(out, from_attrs(FrfAttributes, given.attrs))
-    out = pl.finish_modes(out, stacked, refined=pl.refines(settings))
-    return with_quality(out)
+        more[names.SUB_NOISE_FLOOR] = floor.variable
+    # identify's one output step: the window's correction, the band, sorted, the resolution
+    # check and the quality indicators (repeated roots: decided on every reference, in mimo)
+    window = from_attrs(FrfAttributes, given.attrs)
+    return pl.reported(out, stacked, pl.refines(settings), noise_model, window=window, more=more)

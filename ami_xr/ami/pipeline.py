@@ -19,7 +19,7 @@ from ami_xr.ami import common as c
 from ami_xr.ami import repeated as rp
 from ami_xr.ami import scale as scale_out
 from ami_xr.ami import spikes, whitening
-from ami_xr.ami.derive import derived
+from ami_xr.ami.derive import derived_from, quality_variables
 from ami_xr.ami.global_fit import (
     fit_attrs,
     fit_residues,
@@ -56,12 +56,8 @@ from ami_xr.ami.subtract import (
 from ami_xr.caller import warn
 from ami_xr.core import flags
 from ami_xr.core.modal import (
-    complexity,
     damping_ratio,
-    mpc,
-    mpd,
     natural_frequency,
-    phase_normalised,
 )
 from ami_xr.core.model import resolve_model
 from ami_xr.dsp import band as bd
@@ -126,18 +122,11 @@ def identify_single(
         else:
             work = work.assign_attrs(noted)  # the virtual FRFs' phases take them from work
             result = scale_out.identify_compressed(work, settings, refined, progress, _phases, how)
-    if scale != 1.0:
-        result = unscale(result, ds, scale)
-    noise_model = None
-    if white.k:
-        result = whitening.from_working(result, given, white)
-    else:  # fitted as given: the noise model's variables go into the one output build
-        noise_model = whitening.noise_model_back(result, given, white)
-        result.attrs = {**result.attrs, **white.attrs}  # (a new dict: no alias is changed)
-    result = repeated_flagged(result)
-    result = window_corrected(result, from_attrs(FrfAttributes, ds.attrs))
-    # sorted, under_resolved flagged (damping std widened), quality indicators: one build
-    result = reported(result, whole, refined, noise_model)
+    result, noise_model = given_back(result, ds, scale, given, white)
+    # repeated roots and the window's correction decided, sorted, under_resolved flagged (damping
+    # std widened), quality indicators: one build
+    window = from_attrs(FrfAttributes, ds.attrs)
+    result = reported(result, whole, refined, noise_model, window=window, repeated=True)
     if final:  # per-mode selections: the indicators of the modes kept are theirs
         result = drop_beyond_lines(result, whole)
         result = spikes.drop_noise_spikes(result, settings.zeta_max)
@@ -149,6 +138,21 @@ def model_order(settings: IdentifySettings) -> dict:
     or with ``complete=False`` the maximum-likelihood fit of AMI's modes only (no mode added,
     dropped or merged)."""
     return {} if settings.complete else dict(add_modes=0, drop_modes=False)
+
+
+def given_back(result: xr.Dataset, ds: xr.Dataset, scale: float, given: xr.Dataset, white):
+    """The results of the phases on the working FRFs (``ds`` scaled by the power of two
+    ``scale``, in the quantity of the noise model ``white``) back in the quantity of ``given``,
+    and the noise model's variables for :func:`reported` (None when :mod:`whitening` took the
+    results back itself: a fit in another quantity)."""
+    if scale != 1.0:
+        result = unscale(result, ds, scale)
+    if white.k:
+        return whitening.from_working(result, given, white), None
+    # fitted as given: the noise model's variables go into the one output build
+    noise_model = whitening.noise_model_back(result, given, white)
+    result.attrs = {**result.attrs, **white.attrs}  # (a new dict: no alias is changed)
+    return result, noise_model
 
 
 def _phases(
@@ -183,7 +187,7 @@ def fitted(work: xr.Dataset, settings: IdentifySettings, step, noted=None) -> xr
     """subtract -> isolate -> global_fit on the arrays of ``work`` (validated by the caller):
     each phase's core on the FRFs and the fit record the one before left, the same calls as
     the public phases make; the labeled outputs of all three in one Dataset, built once at the
-    end (the global fit's from :func:`~ami_xr.ami.derive.derived`). ``step(phase)`` is told
+    end (the global fit's from :func:`~ami_xr.ami.derive.derived_from`). ``step(phase)`` is told
     when each phase starts; ``noted``: attributes taken as ``work``'s own."""
     s = settings
     given = {**work.attrs, **(noted or {})}
@@ -240,20 +244,30 @@ def fitted(work: xr.Dataset, settings: IdentifySettings, step, noted=None) -> xr
 def _labeled(work: xr.Dataset, phases, attrs: dict, fit, coord_attrs) -> xr.Dataset:
     """``work`` (earlier results dropped) with the output variables of the phases (dicts by
     name, the dim coordinates among them), ``attrs``, and the outputs of the global ``fit``
-    (:class:`~ami_xr.ami.derive.ResidueFit`, None: no mode)."""
-    earlier = [v for g in (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS) for v in g]
-    if any(v in work.variables for v in earlier):
-        work = c.drop_results(work, (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS))
-    new = {k: v for phase in phases for k, v in phase.items()}
-    coords = {d: new.pop(d) for d in (names.CANDIDATE, names.MODE)}
-    out = work.assign_coords(coords).assign(new)
-    out.attrs = attrs
+    (:class:`~ami_xr.ami.derive.ResidueFit`, None: no mode): one Dataset, built once."""
+    earlier = {v for g in (c.SUBTRACT_VARS, c.ISOLATE_VARS, c.GLOBAL_VARS) for v in g}
+    variables = {k: v for k, v in work.variables.items() if k not in earlier}
+    for dim in (names.CANDIDATE, names.MODE, names.MODE_2, names.RESIDUAL_TERM):
+        if dim in variables and not any(dim in v.dims for k, v in variables.items() if k != dim):
+            del variables[dim]  # a label of earlier results only
+    coords = {k for k in work.coords if k in variables} | {names.CANDIDATE, names.MODE}
+    for phase in phases:
+        variables.update(phase)
+    attrs = dict(attrs)
     if fit is not None:
-        more, fitted = derived(fit, out)
-        out = out.assign_coords(more).assign(fitted)
-    out = c.restore_coordinate_attrs(out, coord_attrs)
-    out.attrs[names.ATTR_AMI_PHASE] = names.PHASE_ISOLATE if fit is None else names.PHASE_GLOBAL_FIT
-    return out
+        modes = np.asarray(variables[names.MODE].values)
+        more, fitted = derived_from(
+            fit, work[names.FRF], attrs, c.omega_of(work), modes, work[names.POINT].values
+        )
+        variables.update(more)
+        variables.update(fitted)
+        coords |= set(more)
+    for n, a in coord_attrs.items():  # what an apply_ufunc of old xarray cleared
+        if n in variables and variables[n].attrs != a:
+            variables[n] = variables[n].copy(deep=False)
+            variables[n].attrs = dict(a)
+    attrs[names.ATTR_AMI_PHASE] = names.PHASE_ISOLATE if fit is None else names.PHASE_GLOBAL_FIT
+    return c.built(variables, coords, attrs, like=work)
 
 
 def _caps_superseded(out: xr.Dataset, refined: bool) -> flags.RunStatus:
@@ -275,43 +289,56 @@ def _isolation_superseded(out: xr.Dataset, refined: bool) -> bool:
     """Whether an isolation that stopped at ``max_iter`` no longer decides the result: the
     refinement ran and converged, re-fitting every mode (it clears ``not_converged`` on each
     mode it moved to its converged estimate). Then ``isolate:max_iter`` goes to
-    ``ami_capped_superseded`` (:func:`finish_modes`) and the isolation's warning is not shown."""
+    ``ami_capped_superseded`` (:func:`_capped`) and the isolation's warning is not shown."""
+    return _superseded(_converged(out.variables), out.attrs, refined)
+
+
+def _converged(variables) -> np.ndarray | None:
+    """The isolation's ``converged`` per mode among ``variables`` (None when it is not)."""
+    v = variables.get(names.ISO_CONVERGED)
+    return None if v is None else np.asarray(v.values)
+
+
+def _superseded(converged: np.ndarray | None, attrs: dict, refined: bool) -> bool:
+    """:func:`_isolation_superseded` on the isolation's ``converged`` and the attributes."""
     return bool(
         refined
-        and names.ISO_CONVERGED in out
-        and not np.all(out[names.ISO_CONVERGED].values)
-        and int(out.attrs.get(names.ATTR_REFINE_CONVERGED, 0) or 0)
+        and converged is not None
+        and not np.all(converged)
+        and int(attrs.get(names.ATTR_REFINE_CONVERGED, 0) or 0)
     )
 
 
-def repeated_flagged(result: xr.Dataset) -> xr.Dataset:
-    """``result`` with ``repeated_root_suspected`` set where one reference's band-rank
+def _repeated_variables(result: xr.Dataset) -> dict:
+    """``quality_flags`` with ``repeated_root_suspected`` set where one reference's band-rank
     statistic sees two poles in a mode's band (:mod:`ami_xr.ami.repeated`; issue 22 item 2),
     so that a SIMO Dataset and a one-reference multi-reference Dataset carry the same flags;
-    nothing without quality flags or modes."""
+    nothing (an empty dict) without quality flags, modes or a suspected mode."""
     if names.QUALITY_FLAGS not in result or not result.sizes.get(names.MODE, 0):
-        return result
+        return {}
     suspected = rp.suspected(*rp.band_rank_statistics(result))
     if not np.any(suspected):
-        return result
+        return {}
     mask = flags.set_where(c.flag_mask(result), names.FLAG_REPEATED_ROOT, suspected)
-    result[names.QUALITY_FLAGS] = result[names.QUALITY_FLAGS].copy(data=mask)
-    return result
+    return {names.QUALITY_FLAGS: result[names.QUALITY_FLAGS].variable.copy(data=mask)}
 
 
-def window_corrected(result: xr.Dataset, data: FrfAttributes) -> xr.Dataset:
-    """``result`` with its eigenvalues corrected for the exponential window of the data
+def _window_variables(result: xr.Dataset, data: FrfAttributes) -> tuple[dict, dict]:
+    """The eigenvalues of ``result`` corrected for the exponential window of the data
     (``lam = lam_measured + beta``), natural frequencies, damping ratios and mode vectors
-    following; attr ``exponential_window_corrected`` records beta."""
+    following, by name, and the attribute ``exponential_window_corrected`` (beta); nothing
+    without a window or modes."""
     beta = float(data.exponential_window_decay)
     if not beta or not result.sizes.get(names.MODE, 0):
-        return result
+        return {}, {}
     lam = result[names.EIGENVALUE].values + beta
-    result[names.EIGENVALUE] = result[names.EIGENVALUE].copy(data=lam)
-    result[names.NATURAL_FREQUENCY] = result[names.NATURAL_FREQUENCY].copy(
-        data=natural_frequency(lam)
-    )
-    result[names.DAMPING_RATIO] = result[names.DAMPING_RATIO].copy(data=damping_ratio(lam))
+    new = {
+        names.EIGENVALUE: result[names.EIGENVALUE].variable.copy(data=lam),
+        names.NATURAL_FREQUENCY: result[names.NATURAL_FREQUENCY].variable.copy(
+            data=natural_frequency(lam)
+        ),
+        names.DAMPING_RATIO: result[names.DAMPING_RATIO].variable.copy(data=damping_ratio(lam)),
+    }
     if names.RESIDUE in result and names.MODE_VECTOR in result:
         # the one displacement convention of global_fit (residues over lam^k), at the new lam
         res = result[names.RESIDUE].transpose(names.POINT, names.MODE).values
@@ -321,12 +348,11 @@ def window_corrected(result: xr.Dataset, data: FrfAttributes) -> xr.Dataset:
         phi, phi_attrs = receptance_mode_vectors(
             res, lam, c.drive_index(result), result.attrs, units
         )
-        mv = result[names.MODE_VECTOR]
-        result[names.MODE_VECTOR] = mv.copy(
-            data=phi if mv.dims[0] == names.POINT else phi.T
-        ).assign_attrs(phi_attrs)
-    result.attrs[names.ATTR_EXP_CORRECTED] = beta
-    return result
+        mv = result[names.MODE_VECTOR].variable
+        mv = mv.copy(data=phi if mv.dims[0] == names.POINT else phi.T)
+        mv.attrs = {**mv.attrs, **phi_attrs}
+        new[names.MODE_VECTOR] = mv
+    return new, {names.ATTR_EXP_CORRECTED: beta}
 
 
 # Outputs in FRF units (scale with the FRF) and those that scale with its square root (mode
@@ -349,18 +375,20 @@ _SQRT_VARS = (names.MODE_VECTOR, names.MODE_VECTOR_STD, names.AMI_PREFIX + names
 def unscale(result: xr.Dataset, ds: xr.Dataset, scale: float) -> xr.Dataset:
     """Results of the FRF scaled by the power of two ``scale`` back to ``ds`` as given (exact:
     ``scale`` and its square root are powers of two)."""
-    result = result.assign({names.FRF: ds[names.FRF]})
-    for factor, variables in ((scale, _LINEAR_VARS), (np.sqrt(scale), _SQRT_VARS)):
-        for v in variables:
-            if v in result:
+    variables = dict(result.variables)
+    variables[names.FRF] = ds[names.FRF].variable
+    for factor, scaled in ((scale, _LINEAR_VARS), (np.sqrt(scale), _SQRT_VARS)):
+        for v in scaled:
+            if v in variables:
                 # .data, not .values: a lazy output is scaled back per chunk and stays lazy
-                result[v] = result[v].copy(data=result[v].data / factor)
+                variables[v] = variables[v].copy(data=variables[v].data / factor)
     # the refinement's objective sum_j (n_rows / 2) log rss_j, rss ~ scale^2, n_rows = 2 F
     shift = ds.sizes[names.POINT] * 2 * ds.sizes[names.FREQUENCY] * float(np.log(scale))
+    attrs = dict(result.attrs)
     for key in (names.ATTR_REFINE_COST_START, names.ATTR_REFINE_COST):
-        if key in result.attrs:
-            result.attrs[key] = float(result.attrs[key]) - shift
-    return result
+        if key in attrs:
+            attrs[key] = float(attrs[key]) - shift
+    return c.built(variables, result.coords, attrs, like=result)
 
 
 def with_quality(result: xr.Dataset) -> xr.Dataset:
@@ -369,48 +397,8 @@ def with_quality(result: xr.Dataset) -> xr.Dataset:
     scale-free, like the indicators); nothing when there are no mode vectors."""
     if names.MODE_VECTOR not in result or result.sizes.get(names.MODE, 0) == 0:
         return result
-    return result.assign(quality_variables(result[names.MODE_VECTOR].variable))
-
-
-def quality_variables(mv: xr.Variable) -> dict:
-    """What :func:`with_quality` adds, by name, for the mode vectors ``mv`` (point, mode in
-    either order)."""
-    phi = mv.transpose(names.POINT, names.MODE).values
-    mode = (names.MODE,)
-    normalised = xr.Variable(
-        (names.POINT, names.MODE),
-        phase_normalised(phi, unit=True),
-        {
-            names.ATTR_UNITS: "1",
-            names.ATTR_LONG_NAME: (
-                "mode vector rotated in phase and scaled so that its largest component is 1"
-            ),
-        },
-    ).transpose(*mv.dims)
-    return {
-        names.MPC: xr.Variable(
-            mode,
-            mpc(phi),
-            {
-                names.ATTR_UNITS: "1",
-                names.ATTR_LONG_NAME: "modal phase collinearity (1: real mode)",
-            },
-        ),
-        names.MPD: xr.Variable(
-            mode,
-            mpd(phi),
-            {
-                names.ATTR_UNITS: "degree",
-                names.ATTR_LONG_NAME: "mean phase deviation from the best straight line",
-            },
-        ),
-        names.COMPLEXITY: xr.Variable(
-            mode,
-            complexity(phi),
-            {names.ATTR_UNITS: "1", names.ATTR_LONG_NAME: "mode complexity 1 - MPC (0: real mode)"},
-        ),
-        names.MODE_VECTOR_NORMALISED: normalised,
-    }
+    variables = {**result.variables, **quality_variables(result[names.MODE_VECTOR].variable)}
+    return c.built(variables, result.coords, result.attrs, like=result)
 
 
 def drop_beyond_lines(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
@@ -448,40 +436,63 @@ def finish_modes(result: xr.Dataset, whole: xr.Dataset, refined: bool) -> xr.Dat
     isolation stopped at ``max_iter`` is listed in ``ami_capped_superseded`` instead when the
     refinement ran and converged (:func:`_isolation_superseded`): it re-fitted every mode."""
     result = c.sort_modes(_in_band(result, whole))
-    _capped(result, result.attrs, refined, stacklevel=4)
+    _capped(_converged(result.variables), result.attrs, refined, stacklevel=4)
     return result
 
 
 def reported(
-    result: xr.Dataset, whole: xr.Dataset, refined: bool, noise_model: dict | None = None
+    result: xr.Dataset,
+    whole: xr.Dataset,
+    refined: bool,
+    noise_model: dict | None = None,
+    *,
+    window: FrfAttributes | None = None,
+    repeated: bool = False,
+    more: dict | None = None,
 ) -> xr.Dataset:
-    """:func:`finish_modes`, :func:`~ami_xr.ami.resolution.resolution_checked` and
-    :func:`with_quality` on ``result`` in one step: the sort order, the flags and widened
-    standard deviations of the under-resolved modes and the quality indicators decided on the
-    arrays, and the output built once from ``result``'s variables. ``noise_model``: the
-    variables of :func:`~ami_xr.ami.whitening.noise_model_back` (they replace the working
-    ``frf_line_noise_std``)."""
-    result = _in_band(result, whole)
-    n = result.sizes.get(names.MODE, 0)
-    if not n or names.NATURAL_FREQUENCY not in result:  # nothing to sort (c.sort_modes)
-        if noise_model is not None:
-            result = result.drop_vars([names.FRF_LINE_NOISE_STD], errors="ignore")
-            result = result.assign(noise_model)
-        _capped(result, result.attrs, refined, stacklevel=4)
-        return with_quality(resolution_checked(result, whole))
-    fn = np.asarray(result[names.NATURAL_FREQUENCY].transpose(names.MODE).values, dtype=float)
-    order = np.argsort(np.where(np.isfinite(fn), fn, np.inf), kind="stable")
+    """The one output step: :func:`finish_modes`,
+    :func:`~ami_xr.ami.resolution.resolution_checked` and :func:`with_quality` on ``result``
+    in one step: the band, the sort order, the flags and widened standard deviations of the
+    under-resolved modes and the quality indicators decided on the arrays, and the output built
+    once from ``result``'s variables.
+
+    ``noise_model``: the variables of :func:`~ami_xr.ami.whitening.noise_model_back` (they
+    replace the working ``frf_line_noise_std``); ``window``: the data's attributes, whose
+    exponential window the eigenvalues are corrected for first (``lam_measured + beta``);
+    ``repeated``: ``repeated_root_suspected`` decided from one reference's band statistic;
+    ``more``: variables added as they are (by name)."""
+    variables = dict(result.variables)
     attrs = dict(result.attrs)
-    _capped(result, attrs, refined, stacklevel=4)
-    mode_dims = (names.MODE, names.MODE_2)
-    variables = {
-        k: v.isel({d: order for d in mode_dims if d in v.dims}) for k, v in result.variables.items()
-    }
     if noise_model is not None:
         variables.pop(names.FRF_LINE_NOISE_STD, None)
         variables.update({k: xr.as_variable(v, name=k) for k, v in noise_model.items()})
-    labels = np.arange(1, n + 1)
-    for d in mode_dims:
+    variables.update({k: xr.as_variable(v, name=k) for k, v in (more or {}).items()})
+    if repeated:
+        variables.update(_repeated_variables(result))
+    if window is not None:
+        corrected, noted = _window_variables(result, window)
+        variables.update(corrected)
+        attrs.update(noted)
+    n = result.sizes.get(names.MODE, 0)
+    sortable = bool(n) and names.NATURAL_FREQUENCY in variables
+    fn = np.zeros(0)
+    if sortable:
+        fn = np.asarray(variables[names.NATURAL_FREQUENCY].transpose(names.MODE).values, float)
+    index = np.arange(n)
+    band = bd.analysis_band(result)
+    if not bd.is_whole(whole, band):  # no mode outside a restricted band (c.drop_outside_band)
+        inside = (fn >= band.fmin) & (fn <= band.fmax) if sortable else np.ones(n, bool)
+        attrs[names.ATTR_BAND_DROPPED] = ",".join(f"{f:.6g}" for f in fn[~inside])
+        index = np.flatnonzero(inside)
+    if not index.size or not sortable:  # nothing to sort (c.sort_modes)
+        out = c.built(_modes_at(variables, index, n), result.coords, attrs, like=result)
+        _capped(_converged(out.variables), out.attrs, refined, stacklevel=4)
+        return with_quality(resolution_checked(out, whole))
+    order = index[np.argsort(np.where(np.isfinite(fn[index]), fn[index], np.inf), kind="stable")]
+    variables = _modes_at(variables, order, n)
+    _capped(_converged(variables), attrs, refined, stacklevel=4)
+    labels = np.arange(1, order.size + 1)
+    for d in (names.MODE, names.MODE_2):
         if d in result.dims:
             variables[d] = xr.IndexVariable((d,), labels)
     variables[names.MODE_LABEL_UNSORTED] = xr.Variable(
@@ -489,23 +500,36 @@ def reported(
         np.asarray(result[names.MODE].values)[order],
         {names.ATTR_LONG_NAME: "label of the mode before sorting by natural frequency"},
     )
-    if names.DAMPING_RATIO in result and names.QUALITY_FLAGS in result:
+    qf = variables.get(names.QUALITY_FLAGS)
+    if names.DAMPING_RATIO in variables and qf is not None:
+        mask = flags.decode(qf.values) if qf.dims == (names.MODE,) else np.zeros(labels.size)
         stds = (names.DAMPING_RATIO_STD, names.EIGENVALUE_STD)
         mask, widened = resolution_widened(
             fn[order],
             variables[names.DAMPING_RATIO].transpose(names.MODE).values,
-            c.flag_mask(result)[order],
+            np.asarray(mask, np.int32),
             {v: variables[v].transpose(names.MODE).values for v in stds if v in variables},
             labels,
             whole,
         )
-        variables[names.QUALITY_FLAGS] = variables[names.QUALITY_FLAGS].copy(data=mask)
+        variables[names.QUALITY_FLAGS] = qf.copy(data=mask)
         for v, std in widened.items():
             variables[v] = variables[v].copy(data=std)
     if names.MODE_VECTOR in variables:
         variables.update(quality_variables(variables[names.MODE_VECTOR]))
-    coords = {k: variables.pop(k) for k in result.coords}
-    return xr.Dataset(variables, coords=coords, attrs=attrs)
+    return c.built(variables, result.coords, attrs, like=result)
+
+
+def _modes_at(variables: dict, index: np.ndarray, n: int) -> dict:
+    """``variables`` (by name) at the modes of positions ``index`` on ``mode`` and ``mode_2``
+    (themselves when ``index`` is every one of the ``n`` modes in order)."""
+    if index.size == n and np.array_equal(index, np.arange(n)):
+        return variables
+    out = {}
+    for k, v in variables.items():
+        at = {d: index for d in (names.MODE, names.MODE_2) if d in v.dims}
+        out[k] = v.isel(at) if at else v
+    return out
 
 
 def _in_band(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
@@ -518,13 +542,14 @@ def _in_band(result: xr.Dataset, whole: xr.Dataset) -> xr.Dataset:
     return result
 
 
-def _capped(result: xr.Dataset, attrs: dict, refined: bool, stacklevel: int) -> None:
-    """The caps that ended a phase of ``result`` (:func:`finish_modes`), warned about (the
-    refinement's; the isolation warned already) and written into ``attrs``."""
+def _capped(converged, attrs: dict, refined: bool, stacklevel: int) -> None:
+    """The caps that ended a phase (the isolation's ``converged`` per mode, or None, and the
+    attributes ``attrs``), warned about (the refinement's; the isolation warned already) and
+    written into ``attrs``."""
     caps = flags.RunStatus.NONE
-    if _isolation_superseded(result, refined):  # the converged refinement re-fitted every mode
+    if _superseded(converged, attrs, refined):  # the converged refinement re-fitted every mode
         flags.add_caps(attrs, flags.RunStatus.ISOLATE_MAX_ITER, names.ATTR_AMI_CAPPED_SUPERSEDED)
-    elif names.ISO_CONVERGED in result and not bool(np.all(result[names.ISO_CONVERGED].values)):
+    elif converged is not None and not bool(np.all(converged)):
         caps |= flags.RunStatus.ISOLATE_MAX_ITER  # isolate warned already
     if refined and names.ATTR_REFINE_CONVERGED in attrs:
         if not int(attrs[names.ATTR_REFINE_CONVERGED]):

@@ -361,7 +361,8 @@ def refine(
 def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
     """``ds`` with the refined values of :class:`RefineResult` ``fields`` (Variables by field
     name): AMI's values kept with the ``ami_`` prefix, modes dropped or added, the global-fit
-    outputs recomputed, flags and attributes updated."""
+    outputs recomputed, flags and attributes updated; built once, from ``ds``'s Variables
+    (modes selected, added and relabelled on them)."""
     n_mode = ds.sizes[M]
     terms, drive_index = model.residual_terms, model.drive_index
     r = RefineResult(**fields)
@@ -370,12 +371,13 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
     added = origin < 0
     kept = origin[~added]
     attrs = {}
+    variables = dict(ds.variables)
     if kept.size < n_mode:  # insignificant AMI modes dropped
         removed = [ds[M].values[k].item() for k in range(n_mode) if k not in kept]
         attrs[names.ATTR_REFINE_REMOVED_MODES] = ",".join(str(x) for x in removed)
-        ds = _select_modes(ds, kept)
+        variables = _modes_at(variables, kept)
     if added.any():
-        ds = _with_added_modes(ds, int(added.sum()))
+        variables = _with_added_modes(variables, set(ds.coords), int(added.sum()))
     new = {}
     for var in (
         names.EIGENVALUE,
@@ -384,8 +386,8 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
         names.RESIDUE,
         names.MODE_VECTOR,
     ):
-        if var in ds:
-            new[names.AMI_PREFIX + var] = ds[var]
+        if var in variables:
+            new[names.AMI_PREFIX + var] = variables[var]
     units_frf = ds[names.FRF].attrs.get(names.ATTR_UNITS)
     hz = {names.ATTR_UNITS: names.FREQUENCY_UNITS}
     new[names.EIGENVALUE] = _var(lam, {names.ATTR_UNITS: names.ANGULAR_UNITS})
@@ -416,7 +418,12 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
     if terms:
         new[names.RESIDUAL_COEFFICIENT] = r.residual_coefficient  # labels: assign_coords below
     low_snr = _refresh_global_outputs(ds, new, r, lam.values - model.decay, model, data_model)
-    mask = _merge_flags(c.flag_mask(ds), r.status.values, low_snr, added)
+    before = variables.get(names.QUALITY_FLAGS)
+    if before is not None and before.dims == (M,):
+        before = flags.decode(before.values)
+    else:
+        before = np.zeros(lam.size, np.int32)
+    mask = _merge_flags(before, r.status.values, low_snr, added)
     new[names.QUALITY_FLAGS] = xr.Variable((M,), mask)
     attrs[names.ATTR_REFINE_ITERATIONS] = int(r.n_iter)
     attrs[names.ATTR_REFINE_FULL_FITS] = int(r.n_full_fits)
@@ -424,14 +431,15 @@ def _with_results(ds, fields, model: RefineModel, data_model) -> xr.Dataset:
     attrs[names.ATTR_REFINE_COST_START] = float(r.cost_start)
     attrs[names.ATTR_REFINE_COST] = float(r.cost)
     attrs.update(_pair_attrs(natural_frequency(lam.values), r.pair_supported.values, r.merged_fn))
-    # one assignment: the results share the input's point and mode coordinates
+    # one build: the results share the input's point and mode coordinates
+    coords = set(ds.coords)
     if terms:
-        ds = ds.assign_coords({names.RESIDUAL_TERM: _LOWER_UPPER})
-    out = ds.assign({k: v.variable if isinstance(v, xr.DataArray) else v for k, v in new.items()})
-    out.attrs = {**ds.attrs, **attrs}
+        variables[names.RESIDUAL_TERM] = xr.Variable((names.RESIDUAL_TERM,), _LOWER_UPPER)
+        coords.add(names.RESIDUAL_TERM)
+    variables.update(new)
     if added.any():
-        out = _relabel_added(out, ds.sizes[M] - int(added.sum()), ds[M].values)
-    return out
+        variables = _relabel_added(variables, kept.size)
+    return c.built(variables, coords, {**ds.attrs, **attrs}, like=ds)
 
 
 def _var(v: xr.Variable, attrs: dict) -> xr.Variable:
@@ -454,18 +462,18 @@ def _pair_attrs(fn: np.ndarray, supported: np.ndarray, merged_fn: xr.Variable) -
     return out
 
 
-def _relabel_added(out: xr.Dataset, n_old: int, labels: np.ndarray) -> xr.Dataset:
-    """Added modes take their place in frequency order; AMI's labels 1..K become 1..K'."""
-    perm = np.argsort(out[names.NATURAL_FREQUENCY].values, kind="stable")
-    out = out.isel({M: perm})
-    if names.MODE_2 in out.dims:
-        out = out.isel({names.MODE_2: perm})
+def _relabel_added(variables: dict, n_old: int) -> dict:
+    """Added modes take their place in frequency order; AMI's labels 1..K become 1..K'
+    (``variables`` by name, the ``mode`` labels among them; a new dict)."""
+    labels = np.asarray(variables[M].values)
+    perm = np.argsort(variables[names.NATURAL_FREQUENCY].values, kind="stable")
+    out = _modes_at(variables, perm)
     old = labels[:n_old]
     if np.issubdtype(old.dtype, np.integer) and np.array_equal(old, np.arange(1, old.size + 1)):
-        new_labels = np.arange(1, out.sizes[M] + 1)
-        out = out.assign_coords({M: new_labels})
-        if names.MODE_2 in out.dims:
-            out = out.assign_coords({names.MODE_2: new_labels})
+        new_labels = np.arange(1, labels.size + 1)
+        for d in (M, names.MODE_2):
+            if d in out:
+                out[d] = xr.Variable((d,), new_labels, out[d].attrs)
     return out
 
 
@@ -517,44 +525,58 @@ def _refresh_global_outputs(ds, new, r: RefineResult, mu, model: RefineModel, da
     return ~(snr >= from_attrs(GlobalFitSettings, ds.attrs).drive_snr_min)
 
 
-def _select_modes(ds, keep):
-    """``ds`` restricted to the modes at positions ``keep`` (and the MAC's second mode dim)."""
-    out = ds.isel({names.MODE: keep})
-    if names.MODE_2 in out.dims:
-        out = out.isel({names.MODE_2: keep})
+def _modes_at(variables: dict, index) -> dict:
+    """``variables`` (by name) at the modes of positions ``index`` on ``mode`` and ``mode_2``
+    (a new dict)."""
+    out = {}
+    for k, v in variables.items():
+        at = {d: index for d in (M, names.MODE_2) if d in v.dims}
+        out[k] = v.isel(at) if at else v
     return out
 
 
-def _with_added_modes(ds, n_added):
-    """``ds`` extended along ``mode`` by ``n_added`` modes (AMI values missing: NaN, False, "")."""
-    labels = ds[names.MODE].values
+def _with_added_modes(variables: dict, coords: set, n_added: int) -> dict:
+    """``variables`` (by name; ``coords``: the coordinates' names) extended along ``mode`` by
+    ``n_added`` modes (AMI values missing: NaN, False, ""); the ``mode_2`` outputs become NaN
+    placeholders, recomputed by :func:`_refresh_global_outputs`. A new dict."""
+    labels = variables[M].values
     if np.issubdtype(labels.dtype, np.integer):
         extra = np.arange(labels.max() + 1, labels.max() + 1 + n_added)
     else:
         extra = np.array([f"added_{i + 1}" for i in range(n_added)])
     new_labels = np.concatenate([labels, extra])
-    fill = {}
-    for name, var in ds.data_vars.items():
-        if names.MODE in var.dims:
-            if var.dtype == bool:
-                fill[name] = False
-            elif var.dtype.kind in "US":
-                fill[name] = ""
-            elif name == names.QUALITY_FLAGS:
-                fill[name] = 0  # an added mode has no flag yet (its own are set below)
-            elif var.dtype.kind in "iu":
-                fill[name] = -1
-    drop = [v for v in ds.data_vars if names.MODE_2 in ds[v].dims]
-    out = ds.drop_vars(drop).drop_vars(names.MODE_2, errors="ignore")
-    if fill:
-        out = out.reindex({names.MODE: new_labels}, fill_value=fill)
-    else:
-        out = out.reindex({names.MODE: new_labels})
-    if drop:
-        out = out.assign_coords({names.MODE_2: new_labels})
-        for v in drop:  # placeholders, recomputed by _refresh_global_outputs
-            out[v] = ((names.MODE, names.MODE_2), np.full((new_labels.size,) * 2, np.nan))
+    square = [k for k, v in variables.items() if names.MODE_2 in v.dims and k not in coords]
+    out = {}
+    for name, var in variables.items():
+        if name in square or name == names.MODE_2:
+            continue
+        if name == M:
+            out[name] = xr.Variable((M,), new_labels, var.attrs)
+        elif M in var.dims:
+            out[name] = var.pad({M: (0, n_added)}, constant_values=_fill(name, var, coords))
+        else:
+            out[name] = var
+    if square:
+        out[names.MODE_2] = xr.Variable((names.MODE_2,), new_labels)
+        for v in square:  # placeholders, recomputed by _refresh_global_outputs
+            out[v] = xr.Variable((M, names.MODE_2), np.full((new_labels.size,) * 2, np.nan))
     return out
+
+
+def _fill(name, var: xr.Variable, coords: set):
+    """What an added mode holds in ``var`` (AMI's value missing): False, "", no flag, -1 for
+    other integers, NaN otherwise (and for every coordinate)."""
+    if name in coords:
+        return None
+    if var.dtype == bool:
+        return False
+    if var.dtype.kind in "US":
+        return ""
+    if name == names.QUALITY_FLAGS:
+        return 0  # an added mode has no flag yet (its own are set below)
+    if var.dtype.kind in "iu":
+        return -1
+    return None
 
 
 def _merge_flags(mask, status, low_snr=None, added=None) -> np.ndarray:

@@ -7,7 +7,7 @@ points fits every FRF's residues at those eigenvalues by linear least squares (t
 solver of eq. 9, :func:`ami_xr.kernels.residues.residues_fixed`), with mode vectors (eq. 8 at the
 drive point, in the displacement convention of the uncompressed path:
 :func:`ami_xr.ami.derive.receptance_mode_vectors`; the outputs built by
-:func:`ami_xr.ami.derive.derive`, as the global fit's), synthesized FRFs, residuals and a
+:func:`ami_xr.ami.derive.derived_from`, as the global fit's), synthesized FRFs, residuals and a
 per-point noise estimate. The pole work does not grow with the number of points; the data are
 read ``power_iterations + 2`` times plus once for the power-of-two scale, whatever ``P`` (the
 first pass also finds all-zero FRFs, an error as on the uncompressed path).
@@ -38,7 +38,7 @@ import xarray as xr
 
 from ami_xr import interrupt, names
 from ami_xr.ami import common as c
-from ami_xr.ami.derive import ResidueFit, derive
+from ami_xr.ami.derive import ResidueFit, derived_from
 from ami_xr.ami.global_fit import RESIDUAL_KIND, band_mask
 from ami_xr.ami.settings import FrfAttributes, GlobalFitSettings, IdentifySettings, from_attrs
 from ami_xr.core import compress as cz
@@ -203,14 +203,12 @@ def compress(ds: xr.Dataset, settings: CompressSettings = CompressSettings()) ->
     attrs[ATTR_COMPRESS_ENERGY] = energy
     frf_attrs = dict(ds[names.FRF].attrs)
     frf_attrs[names.ATTR_LONG_NAME] = "virtual FRF (noise-weighted combination of FRFs)"
-    return xr.Dataset(
-        {names.FRF: ((names.POINT, names.FREQUENCY), virtual, frf_attrs)},
-        coords={
-            names.POINT: [f"v{i}" for i in range(virtual.shape[0])],
-            names.FREQUENCY: ds[names.FREQUENCY],
-        },
-        attrs=attrs,
-    )
+    variables = {
+        names.FRF: xr.Variable((names.POINT, names.FREQUENCY), virtual, frf_attrs),
+        names.POINT: xr.Variable((names.POINT,), [f"v{i}" for i in range(virtual.shape[0])]),
+        names.FREQUENCY: ds.variables[names.FREQUENCY],
+    }
+    return c.built(variables, (names.POINT, names.FREQUENCY), attrs, like=ds)
 
 
 # --- the final pass: residues at fixed eigenvalues ---------------------------------------------
@@ -319,23 +317,30 @@ def identify_compressed(
     eigenvalues found; the result has the dims of the uncompressed path's (point, mode)."""
     virtual = compress(work, how)
     vres = phases(virtual, settings, refined, progress)
-    keep = {
-        v: vres[v]
-        for v in vres.data_vars
-        if names.POINT not in vres[v].dims and names.CANDIDATE not in vres[v].dims
-    }
-    out = work.assign({k: v for k, v in keep.items() if names.MODE_2 not in v.dims})
-    out.attrs.update({k: v for k, v in vres.attrs.items() if k != names.ATTR_DRIVE_POINT})
+    # the per-mode outputs of the virtual FRFs' phases (with their coordinates) join work's
+    # variables; the output is built once, at the end
+    skip = (names.POINT, names.CANDIDATE, names.MODE_2)
+    keep = {k: v for k, v in vres.data_vars.items() if not any(d in v.dims for d in skip)}
+    variables = dict(work.variables)
+    coords = set(work.coords)
+    for k, v in keep.items():
+        variables[k] = v.variable
+        for name, coord in vres.coords.items():  # as a DataArray brings them along
+            if set(coord.dims) <= set(v.dims):
+                variables[name] = coord.variable
+                coords.add(name)
+    attrs = dict(work.attrs)
+    attrs.update({k: v for k, v in vres.attrs.items() if k != names.ATTR_DRIVE_POINT})
     if names.ATTR_DRIVE_POINT in work.attrs:
-        out.attrs[names.ATTR_DRIVE_POINT] = work.attrs[names.ATTR_DRIVE_POINT]
+        attrs[names.ATTR_DRIVE_POINT] = work.attrs[names.ATTR_DRIVE_POINT]
     if vres.sizes.get(names.MODE, 0) == 0:
-        return out
+        return c.built(variables, coords, attrs, like=work)
     lam = np.asarray(vres[names.EIGENVALUE].values, dtype=np.complex128)
     use, kind = _final_lines(work, vres, lam, refined)
     res, rc, synth, rms = residues_at(
         work, lam, use=use, residual_kind=kind, model_attrs=dict(vres.attrs)
     )
-    res = res.transpose(names.POINT, names.MODE).compute()
+    res = np.asarray(res.transpose(names.POINT, names.MODE).values)  # computed
     units = work[names.FRF].attrs.get(names.ATTR_UNITS, "")
     drive = c.drive_index(work)
     mask = c.flag_mask(vres)
@@ -348,8 +353,11 @@ def identify_compressed(
         noise[drive] = kn.noise_floor(np.asarray(g_drive.values, np.complex128)[None, :])[0]
     fit = ResidueFit(
         eigenvalue=lam,
-        residue=res.values,
-        synthesized=synth.rename({names.FREQUENCY_OUT: names.FREQUENCY}),
+        residue=res,
+        synthesized=xr.Variable(
+            tuple(names.FREQUENCY if d == names.FREQUENCY_OUT else d for d in synth.dims),
+            synth.data,
+        ),
         residual_coefficient=rc if kind >= 0 else None,
         dt=dt_model.dt,
         n_samples=dt_model.n_samples,
@@ -357,7 +365,12 @@ def identify_compressed(
         mask=mask,
         drive_snr_min=from_attrs(GlobalFitSettings, vres.attrs).drive_snr_min,
     )
-    out = derive(fit, out)
-    out[names.FRF_NOISE_STD] = rms.assign_attrs({names.ATTR_UNITS: units} if units else {})
-    out.attrs[ATTR_COMPRESS_RANK] = vres.attrs[ATTR_COMPRESS_RANK]
-    return out
+    modes = variables[names.MODE].values
+    omega, points = c.omega_of(work), work[names.POINT].values
+    more, derived = derived_from(fit, work[names.FRF], attrs, omega, modes, points)
+    variables.update({**more, **derived})
+    coords |= set(more)
+    noise_attrs = {names.ATTR_UNITS: units} if units else {}
+    variables[names.FRF_NOISE_STD] = xr.Variable(rms.dims, rms.data, noise_attrs)
+    attrs[ATTR_COMPRESS_RANK] = vres.attrs[ATTR_COMPRESS_RANK]
+    return c.built(variables, coords, attrs, like=work)

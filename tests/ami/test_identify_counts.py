@@ -1,9 +1,11 @@
 """How much one ``identify`` builds (issue 39, Done when): the FRF Dataset validated once, and
-Datasets built in at most 3 places. Counted with hooks on the data model's one validator
+at most 3 Datasets built. Counted with hooks on the data model's one validator
 (:func:`ami_xr.io.schema.find_problems` as the phases call it) and on ``xarray.Dataset``'s two
 constructors (``__init__`` and ``_construct_direct``, which every xarray operation that returns
-a new Dataset goes through) while one ``identify`` runs; a Dataset is charged to the innermost
-ami_xr function on the stack, and the places are those functions."""
+a new Dataset goes through; ``xarray.Dataset(...)`` counts two, one for its ``Coordinates``)
+while one ``identify`` runs; a Dataset is charged to the innermost ami_xr function on the stack
+(the caller of the phases' one builder, :func:`ami_xr.ami.common.built`), and the places are
+those functions."""
 
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ import pytest
 import xarray as xr
 
 import ami_xr
+from ami_xr import names
 from ami_xr.ami import common
 from ami_xr.simulate.spread import many_points
 
@@ -32,7 +35,7 @@ _PACKAGE = str(Path(ami_xr.__file__).parent)
 def _builder() -> str:
     """The innermost ami_xr function on the stack (file:function)."""
     for frame in reversed(traceback.extract_stack()[:-2]):
-        if frame.filename.startswith(_PACKAGE):
+        if frame.filename.startswith(_PACKAGE) and frame.name != "built":
             return f"{Path(frame.filename).name}:{frame.name}"
     return "?"
 
@@ -103,6 +106,22 @@ def test_one_validation_per_identify_on_the_compressed_path(monkeypatch):
     assert counts["validations"] == 1, counts
 
 
+def test_datasets_per_identify_on_the_compressed_path(monkeypatch):
+    """60 points compressed to 12 virtual FRFs (48 Datasets before): the virtual FRFs, their
+    phases' two outputs (fit phases, refinement), every point's residues at their poles, the
+    band's attributes on the working FRFs and the one output step."""
+    ds, _ = many_points(60, 256, 5, noise=0.01, seed=1)
+    counts = _counted(monkeypatch, ds, compress=12)
+    assert counts["datasets"] <= 6, counts
+
+
+def test_at_most_three_datasets_on_windowed_data(monkeypatch, small):
+    """The exponential window's correction is made on the arrays in the output step."""
+    windowed = small.assign_attrs({names.ATTR_EXP_DECAY: 0.2})
+    counts = _counted(monkeypatch, windowed)
+    assert counts["datasets"] <= 3, counts
+
+
 def test_the_dataset_hook_counts(monkeypatch, small):
     """The constructor hooks see what they count: an assign builds one Dataset in its caller."""
     counts = _counted(monkeypatch, small)
@@ -117,8 +136,16 @@ def test_datasets_built_in_at_most_three_places(monkeypatch, small):
     assert len(counts["places"]) <= 3, (len(counts["places"]), counts["datasets"])
 
 
+@pytest.mark.parametrize("options", [{}, {"refine": False}, {"method": "paper"}])
+def test_at_most_three_datasets_per_identify(monkeypatch, small, options):
+    """Each output built once, from the phases' Variables (5 points x 1024 lines: 3 Datasets;
+    22 before, from assign chains): no assign, copy or isel of a Dataset between them."""
+    counts = _counted(monkeypatch, small, **options)
+    assert counts["datasets"] <= 3, counts
+
+
 def test_datasets_built_in_the_three_places_of_today(monkeypatch, small):
-    """Where identify builds its Datasets (5 points x 1024 lines: 22 Datasets in 3 places; 130
+    """Where identify builds its Datasets (5 points x 1024 lines: 3 Datasets in 3 places; 130
     in 23 places before issue 39): the fit phases' labeled output (``pipeline._labeled``), the
     refinement's (``refine._with_results``) and the one output step (``pipeline.reported``).
     The band is no copy of the input (its record goes into the output's attributes); the

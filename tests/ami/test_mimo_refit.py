@@ -204,3 +204,34 @@ def test_no_tail_pole_is_tried_when_no_pole_is_near_the_last_line(monkeypatch):
     monkeypatch.setattr(mimo_refit, "_trial", lambda *a, **k: calls.append(a))
     out, added = mimo_refit.with_tail_poles(stacked, inband, SETTINGS)
     assert not calls and added.size == 0 and out is inband
+
+
+def test_the_refit_reports_through_the_one_output_step():
+    """The refit's result goes through identify's output step (:func:`pipeline.reported`):
+    from the first pass's own poles it carries the first pass's ``under_resolved`` flags and
+    widened damping-ratio standard deviations (a mode 2.4 lines wide at 6 Hz), sorted, with the
+    quality indicators (before issue 39 its own tail left the resolution check out)."""
+    from ami_xr.core import flags as fl
+
+    truth = _truth([6.0, 11.0, 17.0, 23.0], [0.01, 0.01, 0.01, 0.01])
+    f = np.linspace(1, 30, 581)
+    ds = _noisy(truth, f, [2, 5], 0.002, 0)
+    labels, points = mimo._check(ds)
+    stacked = mimo._stacked(ds, labels, points)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        first = ami_xr.ami.pipeline.identify_single(stacked, SETTINGS, final=False)
+        lam = first[names.EIGENVALUE].values
+        none = np.zeros((stacked.sizes[names.POINT], 0), bool)
+        again = mimo_refit.refit(stacked, first, lam, none, SETTINGS)
+    under = [
+        fl.has(fl.decode(x[names.QUALITY_FLAGS].values), names.FLAG_UNDER_RESOLVED)
+        for x in (first, again)
+    ]
+    assert under[0].any()  # the case holds an under-resolved mode
+    np.testing.assert_array_equal(under[1], under[0])
+    np.testing.assert_allclose(
+        again[names.DAMPING_RATIO_STD].values, first[names.DAMPING_RATIO_STD].values, rtol=0.2
+    )
+    assert np.all(np.diff(again[names.NATURAL_FREQUENCY].values) >= 0)
+    assert names.MPC in again and names.MODE_LABEL_UNSORTED in again

@@ -98,3 +98,16 @@ def test_finish_records_into_the_phase_output():
     same = c.finish(out, "ami_xr.subtract", "subtract", {"delta": 1.0})
     assert same is out and out.attrs[names.ATTR_AMI_PHASE] == "subtract"
     assert [r["function"] for r in provenance.history(out)] == ["ami_xr.subtract"]
+
+
+def test_keep_modes_equals_the_xarray_steps(unsorted):
+    """The modes kept, relabelled 1..n, in one build: what ``isel`` and ``assign_coords`` give
+    (on ``mode`` and ``mode_2``)."""
+    result, _ = unsorted
+    keep = np.ones(result.sizes[names.MODE], bool)
+    keep[1] = False
+    index = np.flatnonzero(keep)
+    labels = np.arange(1, index.size + 1)
+    steps = result.isel({names.MODE: index, names.MODE_2: index})
+    steps = steps.assign_coords({names.MODE: labels, names.MODE_2: labels})
+    xr.testing.assert_identical(c.keep_modes(result, keep), steps)

@@ -63,7 +63,7 @@ def test_mimo_uses_no_private_name_of_the_pipeline_or_the_noise_model(module):
         and n.attr.startswith("_")
     ]
     assert private == []
-    assert callable(pipeline.window_corrected) and callable(pipeline.finish_modes)
+    assert callable(pipeline.reported) and callable(pipeline.given_back)
 
 
 def _chain():
