@@ -243,6 +243,11 @@ def drive_position(points, attrs) -> int | None:
     return int(idx[0]) if idx.size else None
 
 
+def _direct_constructor():
+    """xarray's private constructor of a Dataset from checked parts, None where it is gone."""
+    return getattr(xr.Dataset, "_construct_direct", None)
+
+
 def built(
     variables: dict[Hashable, Any], coords, attrs: dict, like: xr.Dataset | None = None
 ) -> xr.Dataset:
@@ -252,7 +257,8 @@ def built(
 
     ``xarray.Dataset(...)`` would build a second Dataset inside (its ``Coordinates``) and check
     again what the phases made consistent; this is xarray's own constructor for the results of
-    its operations. A dimension coordinate that is the very Variable of ``like`` keeps
+    its operations (private: should a later xarray change it, the public constructor builds
+    the same Dataset). A dimension coordinate that is the very Variable of ``like`` keeps
     ``like``'s index (a new one is built otherwise)."""
     from xarray.indexes import PandasIndex
 
@@ -273,7 +279,14 @@ def built(
                 raise ValueError(f"{name}: {d} has {n} elements, another variable {sizes[d]}")
         out[name] = v
     names_ = {n for n in coords if n in out} | set(indexes)
-    return xr.Dataset._construct_direct(out, names_, sizes, dict(attrs), indexes)
+    direct = _direct_constructor()
+    if direct is not None:
+        try:
+            return direct(out, names_, sizes, dict(attrs), indexes)
+        except TypeError:  # xarray's private constructor changed: the public one below
+            pass
+    data_vars = {k: v for k, v in out.items() if k not in names_}
+    return xr.Dataset(data_vars, coords={k: out[k] for k in names_}, attrs=dict(attrs))
 
 
 def frf_values(ds: xr.Dataset) -> np.ndarray:

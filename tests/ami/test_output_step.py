@@ -111,3 +111,30 @@ def test_keep_modes_equals_the_xarray_steps(unsorted):
     steps = result.isel({names.MODE: index, names.MODE_2: index})
     steps = steps.assign_coords({names.MODE: labels, names.MODE_2: labels})
     xr.testing.assert_identical(c.keep_modes(result, keep), steps)
+
+
+def test_built_without_the_private_constructor_is_the_same(monkeypatch):
+    """``common.built`` uses xarray's private ``Dataset._construct_direct``; should a later
+    xarray drop or change it, the public constructor gives the identical Dataset."""
+    import numpy as np
+    import xarray as xr
+
+    from ami_xr.ami import common
+
+    f = xr.Variable(("frequency",), np.linspace(1.0, 2.0, 5), {"units": "Hz"})
+    variables = {
+        "frequency": f,
+        "point": xr.Variable(("point",), np.array(["a", "b"])),
+        "frf": xr.Variable(("point", "frequency"), np.ones((2, 5), complex), {"units": "m/N"}),
+        "label": (("point",), np.array([1, 2])),
+    }
+    attrs = {"drive_point": "a"}
+    direct = common.built(variables, ["label"], attrs)
+
+    def changed(*args):
+        raise TypeError("a changed signature")
+
+    for gone in (None, changed):
+        monkeypatch.setattr(common, "_direct_constructor", lambda gone=gone: gone)
+        xr.testing.assert_identical(common.built(variables, ["label"], attrs), direct)
+        assert set(direct.coords) == {"frequency", "point", "label"}
