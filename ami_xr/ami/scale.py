@@ -37,6 +37,7 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import interrupt, names
+from ami_xr.ami import chunked as ch
 from ami_xr.ami import common as c
 from ami_xr.ami.derive import ResidueFit, derive
 from ami_xr.ami.global_fit import RESIDUAL_KIND, band_mask
@@ -119,10 +120,9 @@ def _frf_array(ds: xr.Dataset):
     return data
 
 
-def _weighted_terms(h: np.ndarray, z: np.ndarray) -> np.ndarray:
+def _weighted_terms(h: np.ndarray, z: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """One chunk's ``[G_c | S_c]`` of a pass, its FRFs weighted by their noise scales."""
-    h = np.asarray(h, dtype=np.complex128)
-    return cz.pass_terms(h / cz.noise_scale(h)[:, None], z)
+    return cz.pass_terms(h, z, scale)
 
 
 def _tree_sum(parts: list, split_every: int = 8):
@@ -140,26 +140,48 @@ def _row_peaks(h: np.ndarray) -> np.ndarray:
     return np.max(np.abs(np.asarray(h)), axis=-1)
 
 
-def _map_sum(data, z: np.ndarray, peaks: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
-    """``sum over chunks of _weighted_terms(chunk, z)``: one graph (a task per chunk, a tree
-    sum, ``z`` sent once) for a dask array, a loop over row blocks for a numpy one; with
-    ``peaks``, also every FRF's largest magnitude (P,) from the same read of each chunk."""
+def _noise_scale(h: np.ndarray) -> np.ndarray:
+    return cz.noise_scale(np.asarray(h))
+
+
+def _map_sum(data, z: np.ndarray, scale: np.ndarray | None = None):
+    """``sum over chunks of _weighted_terms(chunk, z, scale)``: one graph (a task per chunk, a
+    tree sum, ``z`` sent once) for a dask array, a loop over row blocks for a numpy one.
+    ``scale`` None (the first pass): the noise scales (P,) are found from the same read of each
+    chunk, and every FRF's largest magnitude (P,) too; returns ``(total, scale, peaks)``, the
+    scales and peaks None when ``scale`` was given (they are made once, not in every pass)."""
+    first = scale is None
     if hasattr(data, "dask"):
         import dask
 
         z_task = dask.delayed(z, pure=True)
         term = dask.delayed(_weighted_terms, pure=True)
         blocks = data.to_delayed().ravel()
-        parts = [term(block, z_task) for block in blocks]
-        tops = [dask.delayed(_row_peaks, pure=True)(block) for block in blocks] if peaks else []
-        total, tops = dask.compute(_tree_sum(parts), tops)
-        return np.asarray(total), np.concatenate(tops) if peaks else None
-    total, tops = 0.0, []
+        if first:
+            scales = [dask.delayed(_noise_scale, pure=True)(block) for block in blocks]
+            tops = [dask.delayed(_row_peaks, pure=True)(block) for block in blocks]
+        else:  # each chunk's scales, cut at its rows (P floats in all)
+            bounds = np.cumsum((0,) + data.chunks[0])
+            scales = [scale[a:b] for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+            tops = []
+        parts = [term(block, z_task, s) for block, s in zip(blocks, scales, strict=True)]
+        if not first:
+            (total,) = dask.compute(_tree_sum(parts))
+            return np.asarray(total), None, None
+        total, scales, tops = dask.compute(_tree_sum(parts), scales, tops)
+        return np.asarray(total), np.concatenate(scales), np.concatenate(tops)
+    total, scales, tops = 0.0, [], []
     for lo in range(0, data.shape[0], CHUNK_POINTS):
         interrupt.checkpoint()  # a Ctrl-C lands between chunks
-        total = total + _weighted_terms(data[lo : lo + CHUNK_POINTS], z)
-        tops += [_row_peaks(data[lo : lo + CHUNK_POINTS])] if peaks else []
-    return total, np.concatenate(tops) if peaks else None
+        block = data[lo : lo + CHUNK_POINTS]
+        s = _noise_scale(block) if first else scale[lo : lo + CHUNK_POINTS]
+        total = total + _weighted_terms(block, z, s)
+        if first:
+            scales.append(s)
+            tops.append(_row_peaks(block))
+    if not first:
+        return total, None, None
+    return total, np.concatenate(scales), np.concatenate(tops)
 
 
 def compress(ds: xr.Dataset, settings: CompressSettings = CompressSettings()) -> xr.Dataset:
@@ -184,11 +206,13 @@ def compress(ds: xr.Dataset, settings: CompressSettings = CompressSettings()) ->
     n_points, n_lines = data.shape
     rank = min(settings.rank, n_points)
     z = cz.start_matrix(n_lines, rank, settings.seed)
+    scale = None  # the noise scales, found in the first pass
     for i in range(settings.power_iterations + 1):
-        total, peak = _map_sum(data, z, peaks=i == 0)
+        total, found, peak = _map_sum(data, z, scale)
         if i == 0:
             # as the phases on every point do; all-zero FRFs would leave no direction to keep
             c.check_peaks(peak, np.asarray(ds[names.POINT].values))
+            scale = found
         b = cz.orthonormal_rows(total)
         z = b.T
     virtual, s = cz.virtual_frfs(b)
@@ -216,34 +240,44 @@ def compress(ds: xr.Dataset, settings: CompressSettings = CompressSettings()) ->
 # --- the final pass: residues at fixed eigenvalues ---------------------------------------------
 
 
-def _residue_block(g, *, omega, lam, use, dt, n_samples, kind):
-    """Residues (..., n), residual coefficients (..., 2), synthesized FRFs (..., F) and the RMS
-    residual (...) of FRFs ``g`` (..., F) at the eigenvalues ``lam``."""
-    shape = g.shape[:-1]
-    g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
-    coef = np.zeros((g2.shape[0], lam.size + (2 if kind >= 0 else 0)), np.complex128)
-    for lo in range(0, g2.shape[0], CHUNK_POINTS):
-        interrupt.checkpoint()  # numpy-backed: one call for all points; a Ctrl-C lands here
-        part = g2[lo : lo + CHUNK_POINTS]
-        coef[lo : lo + CHUNK_POINTS] = kr.residues_fixed(part, omega, lam, use, dt, n_samples, kind)
+COEFFICIENT = "coefficient"
+"""The final fit's unknowns per FRF: the residues (n), then the residual coefficients (2)."""
+
+
+def _synth_rows(coef, *, omega, lam, dt, n_samples, kind):
+    """The model FRFs (..., F) of the coefficients ``coef`` (..., n + 2) of
+    :func:`_residue_block` at the eigenvalues ``lam``."""
+    shape = coef.shape[:-1]
+    c2 = np.asarray(coef, dtype=np.complex128).reshape(-1, coef.shape[-1])
     n_k = lam.size
-    res = np.ascontiguousarray(coef[:, :n_k])
+    res = c2[:, :n_k]
     # every FRF shares the basis: one (n, F) basis and a product, not a basis per FRF
     basis = np.array([kb.pole_basis(omega, lk, dt, n_samples) for lk in lam]).reshape(n_k, -1)
     conj_basis = np.array([kb.pole_basis(omega, np.conj(lk), dt, n_samples) for lk in lam])
     synth = res @ basis + res.conj() @ conj_basis.reshape(n_k, -1)
     if kind >= 0:
-        rc = np.ascontiguousarray(coef[:, n_k:])
-        synth = synth + kb.synthesize_residual_terms(omega, rc, kind)
-    else:
-        rc = np.zeros((g2.shape[0], 2), np.complex128)
-    rms = np.sqrt(np.mean(np.abs(g2 - synth)[:, use] ** 2, axis=-1))
-    return (
-        res.reshape(shape + (n_k,)),
-        rc.reshape(shape + (2,)),
-        synth.reshape(shape + (omega.size,)),
-        rms.reshape(shape),
-    )
+        synth = synth + kb.synthesize_residual_terms(omega, np.ascontiguousarray(c2[:, n_k:]), kind)
+    return synth.reshape(shape + (omega.size,))
+
+
+def _residue_block(g, *, omega, lam, use, dt, n_samples, kind):
+    """The coefficients (..., n + 2: residues, then the residual coefficients, 0 without
+    residual terms) and the RMS residual (...) of FRFs ``g`` (..., F) at the eigenvalues
+    ``lam``."""
+    shape = g.shape[:-1]
+    g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
+    n_k = lam.size
+    coef = np.zeros((g2.shape[0], n_k + 2), np.complex128)
+    rms = np.zeros(g2.shape[0])
+    model = dict(omega=omega, lam=lam, dt=dt, n_samples=n_samples, kind=kind)
+    for lo in range(0, g2.shape[0], CHUNK_POINTS):
+        interrupt.checkpoint()  # numpy-backed: one call for all points; a Ctrl-C lands here
+        part = g2[lo : lo + CHUNK_POINTS]
+        found = kr.residues_fixed(part, omega, lam, use, dt, n_samples, kind)
+        coef[lo : lo + CHUNK_POINTS, : found.shape[1]] = found
+        synth = _synth_rows(coef[lo : lo + CHUNK_POINTS], **model)
+        rms[lo : lo + CHUNK_POINTS] = np.sqrt(np.mean(np.abs(part - synth)[:, use] ** 2, axis=-1))
+    return coef.reshape(shape + (n_k + 2,)), rms.reshape(shape)
 
 
 def residues_at(
@@ -251,37 +285,42 @@ def residues_at(
 ) -> tuple[xr.DataArray, ...]:
     """Residues (point, mode), residual coefficients (point, residual_term), synthesized FRFs
     (point, frequency) and RMS residual (point) of every FRF of ``ds`` at the eigenvalues
-    ``lam``, fitted on the lines ``use`` (one apply_ufunc; lazy on a dask-backed ``ds``)."""
+    ``lam``, fitted on the lines ``use``.
+
+    One pass over the FRFs fits each point (a task per chunk of a dask-backed ``ds``) and
+    gathers only the small per-point results (residues, residual coefficients, RMS); the
+    synthesized FRFs are made from them per chunk, lazily in ``ds``'s chunks of points when
+    ``ds`` is dask-backed: a later read of the synthesized FRFs or the residuals (the
+    repeated-root and spike statistics, writing the result) costs a product per chunk, not
+    the fit again."""
     data_model = resolve_model(model_attrs, model_attrs.get(names.ATTR_REFINE_MODEL, "auto"))
     lam = np.ascontiguousarray(lam, dtype=np.complex128)
     frf = ds[names.FRF]
     if hasattr(frf.data, "dask"):
         frf = frf.chunk({names.FREQUENCY: -1})
-    return xr.apply_ufunc(
+    model = dict(omega=c.omega_of(ds), lam=lam, dt=data_model.dt, n_samples=data_model.n_samples)
+    coef, rms = xr.apply_ufunc(
         _residue_block,
         frf,
-        kwargs=dict(
-            omega=c.omega_of(ds),
-            lam=lam,
-            use=use,
-            dt=data_model.dt,
-            n_samples=data_model.n_samples,
-            kind=residual_kind,
-        ),
+        kwargs=dict(model, use=use, kind=residual_kind),
         input_core_dims=[[names.FREQUENCY]],
-        output_core_dims=[[names.MODE], [names.RESIDUAL_TERM], [names.FREQUENCY_OUT], []],
+        output_core_dims=[[COEFFICIENT], []],
         exclude_dims={names.FREQUENCY},
         dask="parallelized",
-        output_dtypes=[np.complex128, np.complex128, np.complex128, np.float64],
-        dask_gufunc_kwargs={
-            "output_sizes": {
-                names.MODE: lam.size,
-                names.RESIDUAL_TERM: 2,
-                names.FREQUENCY_OUT: frf.sizes[names.FREQUENCY],
-            }
-        },
+        output_dtypes=[np.complex128, np.float64],
+        dask_gufunc_kwargs={"output_sizes": {COEFFICIENT: lam.size + 2}},
         keep_attrs=False,
     )
+    if hasattr(coef.data, "dask"):
+        import dask
+
+        coef, rms = dask.compute(coef, rms)  # one pass: both from the same tasks
+    synth = ch.made_from_rows(
+        _synth_rows, [coef], [COEFFICIENT], frf, names.FREQUENCY, kind=residual_kind, **model
+    )
+    res = coef.isel({COEFFICIENT: slice(0, lam.size)}).rename({COEFFICIENT: names.MODE})
+    rc = coef.isel({COEFFICIENT: slice(lam.size, None)}).rename({COEFFICIENT: names.RESIDUAL_TERM})
+    return res, rc, synth, rms
 
 
 def _final_lines(ds: xr.Dataset, virtual: xr.Dataset, lam: np.ndarray, refined: bool):
@@ -335,7 +374,7 @@ def identify_compressed(
     res, rc, synth, rms = residues_at(
         work, lam, use=use, residual_kind=kind, model_attrs=dict(vres.attrs)
     )
-    res = res.transpose(names.POINT, names.MODE).compute()
+    res = res.transpose(names.POINT, names.MODE)
     units = work[names.FRF].attrs.get(names.ATTR_UNITS, "")
     drive = c.drive_index(work)
     mask = c.flag_mask(vres)
