@@ -55,7 +55,6 @@ from ami_xr.ami.subtract import (
 from ami_xr.caller import warn
 from ami_xr.core import flags
 from ami_xr.core.modal import (
-    complexity,
     damping_ratio,
     mpc,
     mpd,
@@ -374,6 +373,7 @@ def quality_variables(mv: xr.Variable) -> dict:
     """What :func:`with_quality` adds, by name, for the mode vectors ``mv`` (point, mode in
     either order)."""
     phi = mv.transpose(names.POINT, names.MODE).values
+    collinearity = mpc(phi)  # complexity is 1 - MPC: one pass over the points for both
     mode = (names.MODE,)
     normalised = xr.Variable(
         (names.POINT, names.MODE),
@@ -388,7 +388,7 @@ def quality_variables(mv: xr.Variable) -> dict:
     return {
         names.MPC: xr.Variable(
             mode,
-            mpc(phi),
+            collinearity,
             {
                 names.ATTR_UNITS: "1",
                 names.ATTR_LONG_NAME: "modal phase collinearity (1: real mode)",
@@ -404,7 +404,7 @@ def quality_variables(mv: xr.Variable) -> dict:
         ),
         names.COMPLEXITY: xr.Variable(
             mode,
-            complexity(phi),
+            1.0 - collinearity,
             {names.ATTR_UNITS: "1", names.ATTR_LONG_NAME: "mode complexity 1 - MPC (0: real mode)"},
         ),
         names.MODE_VECTOR_NORMALISED: normalised,
@@ -472,9 +472,13 @@ def reported(
     attrs = dict(result.attrs)
     _capped(result, attrs, refined, stacklevel=4)
     mode_dims = (names.MODE, names.MODE_2)
-    variables = {
-        k: v.isel({d: order for d in mode_dims if d in v.dims}) for k, v in result.variables.items()
-    }
+    if np.array_equal(order, np.arange(n)):  # already sorted: no copy of the (point, mode) data
+        variables = {k: v.copy(deep=False) for k, v in result.variables.items()}
+    else:
+        variables = {
+            k: v.isel({d: order for d in mode_dims if d in v.dims})
+            for k, v in result.variables.items()
+        }
     if noise_model is not None:
         variables.pop(names.FRF_LINE_NOISE_STD, None)
         variables.update({k: xr.as_variable(v, name=k) for k, v in noise_model.items()})
