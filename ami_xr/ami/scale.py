@@ -37,7 +37,6 @@ import numpy as np
 import xarray as xr
 
 from ami_xr import interrupt, names
-from ami_xr.ami import chunked as ch
 from ami_xr.ami import common as c
 from ami_xr.ami.derive import ResidueFit, derive
 from ami_xr.ami.global_fit import RESIDUAL_KIND, band_mask
@@ -240,44 +239,34 @@ def compress(ds: xr.Dataset, settings: CompressSettings = CompressSettings()) ->
 # --- the final pass: residues at fixed eigenvalues ---------------------------------------------
 
 
-COEFFICIENT = "coefficient"
-"""The final fit's unknowns per FRF: the residues (n), then the residual coefficients (2)."""
-
-
-def _synth_rows(coef, *, omega, lam, dt, n_samples, kind):
-    """The model FRFs (..., F) of the coefficients ``coef`` (..., n + 2) of
-    :func:`_residue_block` at the eigenvalues ``lam``."""
-    shape = coef.shape[:-1]
-    c2 = np.asarray(coef, dtype=np.complex128).reshape(-1, coef.shape[-1])
+def _residue_block(g, *, omega, lam, use, dt, n_samples, kind):
+    """Residues (..., n), residual coefficients (..., 2), synthesized FRFs (..., F) and the RMS
+    residual (...) of FRFs ``g`` (..., F) at the eigenvalues ``lam``."""
+    shape = g.shape[:-1]
+    g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
+    coef = np.zeros((g2.shape[0], lam.size + (2 if kind >= 0 else 0)), np.complex128)
+    for lo in range(0, g2.shape[0], CHUNK_POINTS):
+        interrupt.checkpoint()  # numpy-backed: one call for all points; a Ctrl-C lands here
+        part = g2[lo : lo + CHUNK_POINTS]
+        coef[lo : lo + CHUNK_POINTS] = kr.residues_fixed(part, omega, lam, use, dt, n_samples, kind)
     n_k = lam.size
-    res = c2[:, :n_k]
+    res = np.ascontiguousarray(coef[:, :n_k])
     # every FRF shares the basis: one (n, F) basis and a product, not a basis per FRF
     basis = np.array([kb.pole_basis(omega, lk, dt, n_samples) for lk in lam]).reshape(n_k, -1)
     conj_basis = np.array([kb.pole_basis(omega, np.conj(lk), dt, n_samples) for lk in lam])
     synth = res @ basis + res.conj() @ conj_basis.reshape(n_k, -1)
     if kind >= 0:
-        synth = synth + kb.synthesize_residual_terms(omega, np.ascontiguousarray(c2[:, n_k:]), kind)
-    return synth.reshape(shape + (omega.size,))
-
-
-def _residue_block(g, *, omega, lam, use, dt, n_samples, kind):
-    """The coefficients (..., n + 2: residues, then the residual coefficients, 0 without
-    residual terms) and the RMS residual (...) of FRFs ``g`` (..., F) at the eigenvalues
-    ``lam``."""
-    shape = g.shape[:-1]
-    g2 = np.ascontiguousarray(g.reshape(-1, g.shape[-1]), dtype=np.complex128)
-    n_k = lam.size
-    coef = np.zeros((g2.shape[0], n_k + 2), np.complex128)
-    rms = np.zeros(g2.shape[0])
-    model = dict(omega=omega, lam=lam, dt=dt, n_samples=n_samples, kind=kind)
-    for lo in range(0, g2.shape[0], CHUNK_POINTS):
-        interrupt.checkpoint()  # numpy-backed: one call for all points; a Ctrl-C lands here
-        part = g2[lo : lo + CHUNK_POINTS]
-        found = kr.residues_fixed(part, omega, lam, use, dt, n_samples, kind)
-        coef[lo : lo + CHUNK_POINTS, : found.shape[1]] = found
-        synth = _synth_rows(coef[lo : lo + CHUNK_POINTS], **model)
-        rms[lo : lo + CHUNK_POINTS] = np.sqrt(np.mean(np.abs(part - synth)[:, use] ** 2, axis=-1))
-    return coef.reshape(shape + (n_k + 2,)), rms.reshape(shape)
+        rc = np.ascontiguousarray(coef[:, n_k:])
+        synth = synth + kb.synthesize_residual_terms(omega, rc, kind)
+    else:
+        rc = np.zeros((g2.shape[0], 2), np.complex128)
+    rms = np.sqrt(np.mean(np.abs(g2 - synth)[:, use] ** 2, axis=-1))
+    return (
+        res.reshape(shape + (n_k,)),
+        rc.reshape(shape + (2,)),
+        synth.reshape(shape + (omega.size,)),
+        rms.reshape(shape),
+    )
 
 
 def residues_at(
@@ -285,42 +274,37 @@ def residues_at(
 ) -> tuple[xr.DataArray, ...]:
     """Residues (point, mode), residual coefficients (point, residual_term), synthesized FRFs
     (point, frequency) and RMS residual (point) of every FRF of ``ds`` at the eigenvalues
-    ``lam``, fitted on the lines ``use``.
-
-    One pass over the FRFs fits each point (a task per chunk of a dask-backed ``ds``) and
-    gathers only the small per-point results (residues, residual coefficients, RMS); the
-    synthesized FRFs are made from them per chunk, lazily in ``ds``'s chunks of points when
-    ``ds`` is dask-backed: a later read of the synthesized FRFs or the residuals (the
-    repeated-root and spike statistics, writing the result) costs a product per chunk, not
-    the fit again."""
+    ``lam``, fitted on the lines ``use`` (one apply_ufunc; lazy on a dask-backed ``ds``)."""
     data_model = resolve_model(model_attrs, model_attrs.get(names.ATTR_REFINE_MODEL, "auto"))
     lam = np.ascontiguousarray(lam, dtype=np.complex128)
     frf = ds[names.FRF]
     if hasattr(frf.data, "dask"):
         frf = frf.chunk({names.FREQUENCY: -1})
-    model = dict(omega=c.omega_of(ds), lam=lam, dt=data_model.dt, n_samples=data_model.n_samples)
-    coef, rms = xr.apply_ufunc(
+    return xr.apply_ufunc(
         _residue_block,
         frf,
-        kwargs=dict(model, use=use, kind=residual_kind),
+        kwargs=dict(
+            omega=c.omega_of(ds),
+            lam=lam,
+            use=use,
+            dt=data_model.dt,
+            n_samples=data_model.n_samples,
+            kind=residual_kind,
+        ),
         input_core_dims=[[names.FREQUENCY]],
-        output_core_dims=[[COEFFICIENT], []],
+        output_core_dims=[[names.MODE], [names.RESIDUAL_TERM], [names.FREQUENCY_OUT], []],
         exclude_dims={names.FREQUENCY},
         dask="parallelized",
-        output_dtypes=[np.complex128, np.float64],
-        dask_gufunc_kwargs={"output_sizes": {COEFFICIENT: lam.size + 2}},
+        output_dtypes=[np.complex128, np.complex128, np.complex128, np.float64],
+        dask_gufunc_kwargs={
+            "output_sizes": {
+                names.MODE: lam.size,
+                names.RESIDUAL_TERM: 2,
+                names.FREQUENCY_OUT: frf.sizes[names.FREQUENCY],
+            }
+        },
         keep_attrs=False,
     )
-    if hasattr(coef.data, "dask"):
-        import dask
-
-        coef, rms = dask.compute(coef, rms)  # one pass: both from the same tasks
-    synth = ch.made_from_rows(
-        _synth_rows, [coef], [COEFFICIENT], frf, names.FREQUENCY, kind=residual_kind, **model
-    )
-    res = coef.isel({COEFFICIENT: slice(0, lam.size)}).rename({COEFFICIENT: names.MODE})
-    rc = coef.isel({COEFFICIENT: slice(lam.size, None)}).rename({COEFFICIENT: names.RESIDUAL_TERM})
-    return res, rc, synth, rms
 
 
 def _final_lines(ds: xr.Dataset, virtual: xr.Dataset, lam: np.ndarray, refined: bool):
@@ -374,7 +358,7 @@ def identify_compressed(
     res, rc, synth, rms = residues_at(
         work, lam, use=use, residual_kind=kind, model_attrs=dict(vres.attrs)
     )
-    res = res.transpose(names.POINT, names.MODE)
+    res = res.transpose(names.POINT, names.MODE).compute()
     units = work[names.FRF].attrs.get(names.ATTR_UNITS, "")
     drive = c.drive_index(work)
     mask = c.flag_mask(vres)

@@ -2,10 +2,6 @@
 
 * the noise scales of the compression are found once, in its first pass (each later pass
   reused them; before, every pass recomputed them from each chunk);
-* the final fit gathers the residues, residual coefficients and RMS of every point in one
-  pass, and the synthesized FRFs (and so the residuals) are made from them per chunk: reading
-  the residual of a lazy result afterwards (the repeated-root and spike statistics, writing the
-  result) fits no point again;
 * the guard: a lazy set gives the in-memory set's results (rtol 1e-10).
 
 Counts of calls on the synchronous scheduler, never time.
@@ -20,7 +16,6 @@ import pytest
 
 import ami_xr
 from ami_xr import names
-from ami_xr.ami import scale
 from ami_xr.core import compress as cz
 from ami_xr.simulate.spread import many_points
 
@@ -61,20 +56,6 @@ def test_noise_scales_are_found_once(monkeypatch, four_hundred):
     assert out.sizes[names.MODE] >= 4
     # the first pass, one call per chunk (two passes made two per chunk before)
     assert len(calls) == n_chunks, (len(calls), n_chunks)
-
-
-def test_reading_the_residual_refits_no_point(monkeypatch, four_hundred):
-    calls = _counting(monkeypatch, scale, "_residue_block")
-    ds = four_hundred.chunk({names.POINT: CHUNK})
-    n_chunks = len(ds.chunksizes[names.POINT])
-    out = _identify(ds, compress=24)
-    assert hasattr(out[names.FRF_RESIDUAL].data, "dask")  # never gathered
-    assert len(calls) == n_chunks, (len(calls), n_chunks)  # one pass of the final fit
-    with dask.config.set(scheduler="synchronous"):
-        resid = out[names.FRF_RESIDUAL].values
-        synth = out[names.FRF_SYNTHESIZED].values
-    assert len(calls) == n_chunks  # made from the gathered residues, not fitted again
-    np.testing.assert_allclose(resid, four_hundred[names.FRF].values - synth, rtol=0, atol=0)
 
 
 def test_lazy_equals_in_memory_on_the_compressed_path(four_hundred):
