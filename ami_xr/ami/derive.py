@@ -23,7 +23,7 @@ from ami_xr import names
 from ami_xr.ami import common as c
 from ami_xr.ami.settings import FrfAttributes, from_attrs
 from ami_xr.core import flags
-from ami_xr.core.modal import complexity, mac_matrix, mode_vectors, mpc, mpd, phase_normalised
+from ami_xr.core.modal import mac_matrix, mode_vectors, mpc, mpd, phase_normalised
 from ami_xr.kernels import modal_basis as kb
 
 __all__ = [
@@ -220,6 +220,7 @@ def quality_variables(mv: xr.Variable) -> dict:
     by name: MPC, MPD, complexity (on ``mode``) and the mode vectors normalised in phase and
     magnitude (largest component 1), as :func:`ami_xr.ami.pipeline.with_quality` adds them."""
     phi = mv.transpose(names.POINT, names.MODE).values
+    collinearity = mpc(phi)  # complexity is 1 - MPC: one pass over the points for both
     mode = (names.MODE,)
     normalised = xr.Variable(
         (names.POINT, names.MODE),
@@ -234,7 +235,7 @@ def quality_variables(mv: xr.Variable) -> dict:
     return {
         names.MPC: xr.Variable(
             mode,
-            mpc(phi),
+            collinearity,
             {
                 names.ATTR_UNITS: "1",
                 names.ATTR_LONG_NAME: "modal phase collinearity (1: real mode)",
@@ -250,7 +251,7 @@ def quality_variables(mv: xr.Variable) -> dict:
         ),
         names.COMPLEXITY: xr.Variable(
             mode,
-            complexity(phi),
+            1.0 - collinearity,
             {names.ATTR_UNITS: "1", names.ATTR_LONG_NAME: "mode complexity 1 - MPC (0: real mode)"},
         ),
         names.MODE_VECTOR_NORMALISED: normalised,

@@ -119,10 +119,9 @@ def _frf_array(ds: xr.Dataset):
     return data
 
 
-def _weighted_terms(h: np.ndarray, z: np.ndarray) -> np.ndarray:
+def _weighted_terms(h: np.ndarray, z: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """One chunk's ``[G_c | S_c]`` of a pass, its FRFs weighted by their noise scales."""
-    h = np.asarray(h, dtype=np.complex128)
-    return cz.pass_terms(h / cz.noise_scale(h)[:, None], z)
+    return cz.pass_terms(h, z, scale)
 
 
 def _tree_sum(parts: list, split_every: int = 8):
@@ -140,26 +139,48 @@ def _row_peaks(h: np.ndarray) -> np.ndarray:
     return np.max(np.abs(np.asarray(h)), axis=-1)
 
 
-def _map_sum(data, z: np.ndarray, peaks: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
-    """``sum over chunks of _weighted_terms(chunk, z)``: one graph (a task per chunk, a tree
-    sum, ``z`` sent once) for a dask array, a loop over row blocks for a numpy one; with
-    ``peaks``, also every FRF's largest magnitude (P,) from the same read of each chunk."""
+def _noise_scale(h: np.ndarray) -> np.ndarray:
+    return cz.noise_scale(np.asarray(h))
+
+
+def _map_sum(data, z: np.ndarray, scale: np.ndarray | None = None):
+    """``sum over chunks of _weighted_terms(chunk, z, scale)``: one graph (a task per chunk, a
+    tree sum, ``z`` sent once) for a dask array, a loop over row blocks for a numpy one.
+    ``scale`` None (the first pass): the noise scales (P,) are found from the same read of each
+    chunk, and every FRF's largest magnitude (P,) too; returns ``(total, scale, peaks)``, the
+    scales and peaks None when ``scale`` was given (they are made once, not in every pass)."""
+    first = scale is None
     if hasattr(data, "dask"):
         import dask
 
         z_task = dask.delayed(z, pure=True)
         term = dask.delayed(_weighted_terms, pure=True)
         blocks = data.to_delayed().ravel()
-        parts = [term(block, z_task) for block in blocks]
-        tops = [dask.delayed(_row_peaks, pure=True)(block) for block in blocks] if peaks else []
-        total, tops = dask.compute(_tree_sum(parts), tops)
-        return np.asarray(total), np.concatenate(tops) if peaks else None
-    total, tops = 0.0, []
+        if first:
+            scales = [dask.delayed(_noise_scale, pure=True)(block) for block in blocks]
+            tops = [dask.delayed(_row_peaks, pure=True)(block) for block in blocks]
+        else:  # each chunk's scales, cut at its rows (P floats in all)
+            bounds = np.cumsum((0,) + data.chunks[0])
+            scales = [scale[a:b] for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+            tops = []
+        parts = [term(block, z_task, s) for block, s in zip(blocks, scales, strict=True)]
+        if not first:
+            (total,) = dask.compute(_tree_sum(parts))
+            return np.asarray(total), None, None
+        total, scales, tops = dask.compute(_tree_sum(parts), scales, tops)
+        return np.asarray(total), np.concatenate(scales), np.concatenate(tops)
+    total, scales, tops = 0.0, [], []
     for lo in range(0, data.shape[0], CHUNK_POINTS):
         interrupt.checkpoint()  # a Ctrl-C lands between chunks
-        total = total + _weighted_terms(data[lo : lo + CHUNK_POINTS], z)
-        tops += [_row_peaks(data[lo : lo + CHUNK_POINTS])] if peaks else []
-    return total, np.concatenate(tops) if peaks else None
+        block = data[lo : lo + CHUNK_POINTS]
+        s = _noise_scale(block) if first else scale[lo : lo + CHUNK_POINTS]
+        total = total + _weighted_terms(block, z, s)
+        if first:
+            scales.append(s)
+            tops.append(_row_peaks(block))
+    if not first:
+        return total, None, None
+    return total, np.concatenate(scales), np.concatenate(tops)
 
 
 def compress(ds: xr.Dataset, settings: CompressSettings = CompressSettings()) -> xr.Dataset:
@@ -184,11 +205,13 @@ def compress(ds: xr.Dataset, settings: CompressSettings = CompressSettings()) ->
     n_points, n_lines = data.shape
     rank = min(settings.rank, n_points)
     z = cz.start_matrix(n_lines, rank, settings.seed)
+    scale = None  # the noise scales, found in the first pass
     for i in range(settings.power_iterations + 1):
-        total, peak = _map_sum(data, z, peaks=i == 0)
+        total, found, peak = _map_sum(data, z, scale)
         if i == 0:
             # as the phases on every point do; all-zero FRFs would leave no direction to keep
             c.check_peaks(peak, np.asarray(ds[names.POINT].values))
+            scale = found
         b = cz.orthonormal_rows(total)
         z = b.T
     virtual, s = cz.virtual_frfs(b)

@@ -63,21 +63,28 @@ from ami_xr.app.batch_files import (
     ATTR_PARAMS_SHA,
     OUTPUT_SUFFIX,
     REPORT_SUFFIX,
+    STATUS_CAPPED,
+    STATUS_FAILED,
+    STATUS_OK,
+    STATUS_UP_TO_DATE,
+    SUMMARY_FIELDS,
     SUMMARY_NAME,
     check_summary,
     find_inputs,
-    output_attrs,
     output_inside_input,
     output_path,
     parameters_hash,
     sha256,
-    up_to_date,
 )
+from ami_xr.app.batch_files import modal_summary as _modal_summary
+from ami_xr.app.batch_files import plan as _plan
+from ami_xr.app.batch_files import reconcile as _reconcile
+from ami_xr.app.batch_files import summary_row as _row
 from ami_xr.app.redact import relative_paths
 from ami_xr.core import flags
 from ami_xr.errors import AmiXrValueError, DataFileError
 from ami_xr.io.atomic import atomic_folder, atomic_open, interrupts_deferred, remove_stale
-from ami_xr.io.formats import check_input, read_any
+from ami_xr.io.formats import read_any
 from ami_xr.io.reference_modes import compare_modes, frfs_and_modes
 from ami_xr.progress import Progress, notice
 
@@ -88,12 +95,6 @@ __all__ = [
     "find_inputs",
     "output_path",
 ]
-
-STATUS_OK = "ok"
-STATUS_UP_TO_DATE = "up to date"
-STATUS_FAILED = "failed"
-STATUS_CAPPED = "capped"  # identified, but a phase stopped at a cap: modes may be missing
-SUMMARY_FIELDS = ("file", "status", "modes", "frequencies_hz", "output", "seconds", "message")
 
 
 @dataclass
@@ -197,28 +198,6 @@ def estimate_frf(ts, frf_options: dict[str, Any] | None = None):
     options = dict(frf_options or {})
     options.setdefault("excitation", "auto")
     return frf_from_options(ts, options)
-
-
-def _modal_summary(ds) -> tuple[int, str]:
-    if names.EIGENVALUE not in ds:
-        return 0, ""
-    import numpy as np
-
-    fn = np.sort(np.abs(np.atleast_1d(ds[names.EIGENVALUE].values)) / (2 * np.pi))
-    return int(fn.size), " ".join(f"{f:.4f}" for f in fn)
-
-
-def _row(rel: str, out_rel: str, status: str, message: str = "", modes="", frequencies_hz=""):
-    """One summary row (the fields of SUMMARY_FIELDS)."""
-    return {
-        "file": rel,
-        "status": status,
-        "modes": modes,
-        "frequencies_hz": frequencies_hz,
-        "output": out_rel,
-        "seconds": 0.0,
-        "message": message,
-    }
 
 
 BATCH_FUNCTION = "ami_xr.batch"  # the provenance record of each output
@@ -414,71 +393,6 @@ def _run_jobs(jobs: list[dict], workers: int) -> Iterator[dict]:
 POLL_SECONDS = 0.2
 
 
-def _reconcile(rows: dict[str, dict], jobs: list[dict]) -> None:
-    """Rows for outputs written but not reported (the parent stopped before a worker's result
-    came back): the summary lists exactly the outputs on disk."""
-    for job in jobs:
-        if rows.get(job["rel"]):
-            continue
-        out = Path(job["output"])
-        try:
-            if not up_to_date(Path(job["input"]), out, job["params_sha"]):
-                continue
-        except OSError:
-            continue
-        count, freqs = _modal_summary_from_file(out)
-        caps = flags.run_status(output_attrs(out) or {}).text()
-        status = STATUS_CAPPED if caps else STATUS_OK
-        rows[job["rel"]] = _row(
-            job["rel"],
-            job["out_rel"],
-            status,
-            "written; the batch stopped before its report",
-            modes=count,
-            frequencies_hz=freqs,
-        )
-
-
-def _plan(
-    inputs: list[Path], input_dir: Path, output_dir: Path, shared: dict[str, Any], force: bool
-) -> tuple[dict[str, dict], list[dict]]:
-    """Summary rows keyed by relative input path (final for name collisions and up-to-date
-    files, empty for the others) and one job per file to process (``shared`` plus its paths)."""
-    rows: dict[str, dict] = {}
-    jobs, claimed = [], {}
-    for inp in inputs:
-        out = output_path(inp, input_dir, output_dir)
-        rel = inp.relative_to(input_dir).as_posix()
-        out_rel = out.relative_to(output_dir).as_posix()
-        if out in claimed:
-            rows[rel] = _row(
-                rel,
-                out_rel,
-                STATUS_FAILED,
-                f"output name collides with that of {claimed[out]}; rename one of the files",
-            )
-            continue
-        claimed[out] = rel
-        try:  # a named pipe would block the batch forever: refused before anything opens it
-            check_input(inp, name=rel)
-        except DataFileError as err:
-            why = relative_paths(str(err), {inp: rel}, shared["folders"])  # no machine path
-            rows[rel] = _row(rel, "", STATUS_FAILED, why)
-            continue
-        if not force and up_to_date(inp, out, shared["params_sha"]):
-            count, freqs = _modal_summary_from_file(out)
-            caps = flags.run_status(output_attrs(out) or {}).text()
-            status, message = STATUS_UP_TO_DATE, ""
-            if caps:  # an up-to-date incomplete result stays incomplete
-                status, message = STATUS_CAPPED, f"up to date; stopped at cap(s): {caps}"
-            rows[rel] = _row(rel, out_rel, status, message, modes=count, frequencies_hz=freqs)
-            continue
-        rows[rel] = {}
-        paths = {"input": str(inp), "output": str(out), "rel": rel, "out_rel": out_rel}
-        jobs.append({**paths, **shared})
-    return rows, jobs
-
-
 def batch(
     input_dir: str | os.PathLike,
     output_dir: str | os.PathLike,
@@ -589,12 +503,3 @@ def batch(
                 ]
                 _write_summary(summary.rows, summary.csv_path)
     return summary
-
-
-def _modal_summary_from_file(path: Path) -> tuple[int | str, str]:
-    try:
-        from ami_xr.io.netcdf import open_dataset
-
-        return _modal_summary(open_dataset(path))
-    except (AmiXrValueError, OSError):
-        return "", ""

@@ -13,6 +13,9 @@ results go, whether a result is still up to date, and the summary's write check.
   that keeps both can change the content.
 * **Read-only summary.** An existing ``batch_summary.csv`` that is read-only is refused before
   any work, as every other read-only output is (:func:`ami_xr.io.formats.check_output`).
+* **The plan.** :func:`plan` decides, before any work, each file's summary row (a name
+  collision, a special file, an up-to-date output) or its job; :func:`reconcile` lists the
+  outputs written but not reported when a batch stopped.
 """
 
 from __future__ import annotations
@@ -25,8 +28,11 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from ami_xr.errors import DataFileError
-from ami_xr.io.formats import INPUT_SUFFIXES, same_file
+from ami_xr import names
+from ami_xr.app.redact import relative_paths
+from ami_xr.core import flags
+from ami_xr.errors import AmiXrValueError, DataFileError
+from ami_xr.io.formats import INPUT_SUFFIXES, check_input, same_file
 
 OUTPUT_SUFFIX = ".modes.nc"
 REPORT_SUFFIX = ".report"
@@ -41,6 +47,12 @@ ATTR_PARAMS = "batch_parameters"
 PIPELINE_VERSION = 1
 _WRITE_BITS = stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH
 _HASH_BLOCK = 1 << 20
+
+STATUS_OK = "ok"
+STATUS_UP_TO_DATE = "up to date"
+STATUS_FAILED = "failed"
+STATUS_CAPPED = "capped"  # identified, but a phase stopped at a cap: modes may be missing
+SUMMARY_FIELDS = ("file", "status", "modes", "frequencies_hz", "output", "seconds", "message")
 
 
 # --- discovery -----------------------------------------------------------------------------------
@@ -171,3 +183,106 @@ def check_summary(output_dir: Path) -> Path:
                 f"{stat.S_IMODE(mode):04o}); make it writable or choose another output folder"
             )
     return path
+
+
+# --- the plan and the rows --------------------------------------------------------------------
+def summary_row(
+    rel: str, out_rel: str, status: str, message: str = "", modes="", frequencies_hz=""
+):
+    """One summary row (the fields of SUMMARY_FIELDS)."""
+    return {
+        "file": rel,
+        "status": status,
+        "modes": modes,
+        "frequencies_hz": frequencies_hz,
+        "output": out_rel,
+        "seconds": 0.0,
+        "message": message,
+    }
+
+
+def modal_summary(ds) -> tuple[int, str]:
+    """The number of modes of a result and their natural frequencies (Hz, sorted, as text)."""
+    if names.EIGENVALUE not in ds:
+        return 0, ""
+    import numpy as np
+
+    fn = np.sort(np.abs(np.atleast_1d(ds[names.EIGENVALUE].values)) / (2 * np.pi))
+    return int(fn.size), " ".join(f"{f:.4f}" for f in fn)
+
+
+def modal_summary_from_file(path: Path) -> tuple[int | str, str]:
+    """:func:`modal_summary` of the result file ``path`` (empty fields when it cannot be read)."""
+    try:
+        from ami_xr.io.netcdf import open_dataset
+
+        return modal_summary(open_dataset(path))
+    except (AmiXrValueError, OSError):
+        return "", ""
+
+
+def reconcile(rows: dict[str, dict], jobs: list[dict]) -> None:
+    """Rows for outputs written but not reported (the parent stopped before a worker's result
+    came back): the summary lists exactly the outputs on disk."""
+    for job in jobs:
+        if rows.get(job["rel"]):
+            continue
+        out = Path(job["output"])
+        try:
+            if not up_to_date(Path(job["input"]), out, job["params_sha"]):
+                continue
+        except OSError:
+            continue
+        count, freqs = modal_summary_from_file(out)
+        caps = flags.run_status(output_attrs(out) or {}).text()
+        status = STATUS_CAPPED if caps else STATUS_OK
+        rows[job["rel"]] = summary_row(
+            job["rel"],
+            job["out_rel"],
+            status,
+            "written; the batch stopped before its report",
+            modes=count,
+            frequencies_hz=freqs,
+        )
+
+
+def plan(
+    inputs: list[Path], input_dir: Path, output_dir: Path, shared: dict[str, Any], force: bool
+) -> tuple[dict[str, dict], list[dict]]:
+    """Summary rows keyed by relative input path (final for name collisions and up-to-date
+    files, empty for the others) and one job per file to process (``shared`` plus its paths)."""
+    rows: dict[str, dict] = {}
+    jobs, claimed = [], {}
+    for inp in inputs:
+        out = output_path(inp, input_dir, output_dir)
+        rel = inp.relative_to(input_dir).as_posix()
+        out_rel = out.relative_to(output_dir).as_posix()
+        if out in claimed:
+            rows[rel] = summary_row(
+                rel,
+                out_rel,
+                STATUS_FAILED,
+                f"output name collides with that of {claimed[out]}; rename one of the files",
+            )
+            continue
+        claimed[out] = rel
+        try:  # a named pipe would block the batch forever: refused before anything opens it
+            check_input(inp, name=rel)
+        except DataFileError as err:
+            why = relative_paths(str(err), {inp: rel}, shared["folders"])  # no machine path
+            rows[rel] = summary_row(rel, "", STATUS_FAILED, why)
+            continue
+        if not force and up_to_date(inp, out, shared["params_sha"]):
+            count, freqs = modal_summary_from_file(out)
+            caps = flags.run_status(output_attrs(out) or {}).text()
+            status, message = STATUS_UP_TO_DATE, ""
+            if caps:  # an up-to-date incomplete result stays incomplete
+                status, message = STATUS_CAPPED, f"up to date; stopped at cap(s): {caps}"
+            rows[rel] = summary_row(
+                rel, out_rel, status, message, modes=count, frequencies_hz=freqs
+            )
+            continue
+        rows[rel] = {}
+        paths = {"input": str(inp), "output": str(out), "rel": rel, "out_rel": out_rel}
+        jobs.append({**paths, **shared})
+    return rows, jobs

@@ -74,13 +74,27 @@ def start_matrix(n_lines: int, rank: int, seed: int) -> np.ndarray:
     return np.random.default_rng(seed).standard_normal((2 * n_lines, rank))
 
 
-def pass_terms(h: np.ndarray, z: np.ndarray) -> np.ndarray:
+def pass_terms(h: np.ndarray, z: np.ndarray, scale: np.ndarray | None = None) -> np.ndarray:
     """One chunk's partial sums of a pass, packed as ``[G_c | S_c]`` (r, r + 2L).
 
-    ``h`` (p, L) complex, already weighted; ``z`` (2L, r) the pass's test matrix."""
-    hr = real_form(h)
-    y = hr @ z
-    return np.concatenate([y.T @ y, y.T @ hr], axis=1)
+    ``h`` (p, L) complex; ``z`` (2L, r) the pass's test matrix; ``scale`` (p,): each FRF is
+    weighted by ``1 / scale`` (None: as given). The products run on the complex data viewed
+    as interleaved reals ``[Re h_0, Im h_0, Re h_1, ...]`` with ``z``'s rows in that order,
+    and the weights are applied to the (p, r) products: nothing of the chunk's size is copied
+    (a chunk of 1000 FRFs x 4096 lines is 65 MB)."""
+    h = np.ascontiguousarray(h, dtype=np.complex128)
+    n_lines = h.shape[1]
+    hr = h.view(np.float64)  # (p, 2L) interleaved: no copy
+    zi = np.empty_like(z, dtype=np.float64)
+    zi[0::2], zi[1::2] = z[:n_lines], z[n_lines:]
+    y = hr @ zi
+    if scale is not None:
+        y /= np.asarray(scale, dtype=np.float64)[:, None]  # y = Hr_w z
+        s_i = (y / np.asarray(scale, dtype=np.float64)[:, None]).T @ hr  # Y^T Hr_w
+    else:
+        s_i = y.T @ hr
+    s = np.concatenate([s_i[:, 0::2], s_i[:, 1::2]], axis=1)  # back to [Re | Im] columns
+    return np.concatenate([y.T @ y, s], axis=1)
 
 
 def orthonormal_rows(packed: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
@@ -136,7 +150,7 @@ def compress_array(
     z = start_matrix(h.shape[1], min(rank, h.shape[0]), seed)
     for _ in range(int(power_iterations) + 1):
         total = sum(
-            pass_terms(h[lo : lo + chunk] / scale[lo : lo + chunk, None], z)
+            pass_terms(h[lo : lo + chunk], z, scale[lo : lo + chunk])
             for lo in range(0, h.shape[0], chunk)
         )
         b = orthonormal_rows(total)
