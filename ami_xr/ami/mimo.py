@@ -258,7 +258,7 @@ def identify_multi_reference(
             stacked, result, R, settings, RANK_ONE_RATIO_MAX, NOISE_FACTOR, more, work
         )
         if split.size:  # a pair fitted as one pole had drawn the tail trials' poles
-            result, again = mr.with_tail_poles(stacked, result, settings, work)
+            result, again = mr.with_tail_poles(stacked, result, settings, work, keep_frozen=True)
             more += again.tolist()
         tail = np.append(tail, more)
         if tail.size or split.size:  # the trials' fits stopped early
@@ -385,17 +385,7 @@ def _separate_repeated(
             modes.separated[j + m], modes.repeated[j + m] = True, False
             snr = _drive_snr(modes.a[j + m][None], modes.lam[[j]], pairs, sigma)
             modes.best_snr[j + m] = np.nanmax(snr)
-    out = c.select_modes(out, src)
-    labels = np.arange(1, len(src) + 1)
-    out = out.assign_coords({names.MODE: labels})
-    if names.MODE_2 in out.dims:
-        out = out.assign_coords({names.MODE_2: labels})
-    residue = out[names.RESIDUE]
-    out[names.RESIDUE] = residue.copy(
-        data=xr.DataArray(modes.a, dims=(names.MODE, names.POINT, names.REFERENCE))
-        .transpose(*residue.dims)
-        .values
-    )
+    out = _reselected(out, src, modes.a)
     warnings.warn(
         f"identify: {len(split)} repeated root(s) separated into two modes at one eigenvalue "
         f"by the drive points {both} (flag {names.FLAG_REPEATED_ROOT_SEPARATED}); the "
@@ -405,6 +395,27 @@ def _separate_repeated(
         stacklevel=4,
     )
     return out, modes
+
+
+def _reselected(out: xr.Dataset, src: list[int], residue: np.ndarray) -> xr.Dataset:
+    """``out`` with the modes at positions ``src`` (repeated positions copy a mode), labelled
+    1..n on ``mode`` (and ``mode_2``), and ``residue`` (K, P, R) as its residues: built once
+    from its variables (a selection, two coordinates and a variable assigned one by one copy
+    the Dataset each time)."""
+    index = np.asarray(src, dtype=int)
+    mode_dims = [d for d in (names.MODE, names.MODE_2) if d in out.dims]
+    variables = {}
+    for name, var in out.variables.items():
+        pick = {d: index for d in mode_dims if d in var.dims}
+        variables[name] = var.isel(pick) if pick else var
+    labels = np.arange(1, index.size + 1)
+    for d in mode_dims:
+        variables[d] = xr.IndexVariable((d,), labels)
+    var = variables[names.RESIDUE]
+    order = [(names.MODE, names.POINT, names.REFERENCE).index(d) for d in var.dims]
+    variables[names.RESIDUE] = var.copy(data=np.transpose(residue, order))
+    coords = {k: variables.pop(k) for k in out.coords}
+    return xr.Dataset(variables, coords=coords, attrs=out.attrs)
 
 
 def _with_mode_outputs(out: xr.Dataset, modes: _Modes, ds: xr.Dataset, scaled: bool):
@@ -417,43 +428,45 @@ def _with_mode_outputs(out: xr.Dataset, modes: _Modes, ds: xr.Dataset, scaled: b
         else "unit largest entry (no drive point)"
     )
     k = (names.MODE,)
-    out = out.assign(
-        {
-            names.MODE_VECTOR: (
-                (names.POINT, names.MODE),
-                modes.phi.T,
-                {
-                    names.ATTR_SCALING: scaling,
-                    ATTR_MODE_VECTOR_CONVENTION: MODE_VECTOR_CONVENTION,
-                    **units,
-                },
-            ),
-            names.PARTICIPATION: (
-                (names.MODE, names.REFERENCE),
-                modes.part,
-                {**units, names.ATTR_LONG_NAME: "modal participation factor L (A = lam phi L^T)"},
-            ),
-            names.RANK_ONE_RATIO: (
-                k,
-                modes.ratio,
-                {**one, names.ATTR_LONG_NAME: "s2/s1 of the residue matrix (point x reference)"},
-            ),
-            names.DRIVE_POINT_CONSISTENCY: (
-                k,
-                modes.spread,
-                {
-                    **one,
-                    names.ATTR_LONG_NAME: "largest relative deviation of the mode-vector "
-                    "scale from the other drive points",
-                },
-            ),
-            names.SCALING_REFERENCE: (k, modes.scaling_ref.astype(str)),
-            names.DRIVE_POINT_SNR: (k, modes.best_snr, one),
-            names.MAC: ((names.MODE, names.MODE_2), mac_matrix(modes.phi.T), one),
-        }
-    )
+    new = {
+        names.MODE_VECTOR: (
+            (names.POINT, names.MODE),
+            modes.phi.T,
+            {
+                names.ATTR_SCALING: scaling,
+                ATTR_MODE_VECTOR_CONVENTION: MODE_VECTOR_CONVENTION,
+                **units,
+            },
+        ),
+        names.PARTICIPATION: (
+            (names.MODE, names.REFERENCE),
+            modes.part,
+            {**units, names.ATTR_LONG_NAME: "modal participation factor L (A = lam phi L^T)"},
+        ),
+        names.RANK_ONE_RATIO: (
+            k,
+            modes.ratio,
+            {**one, names.ATTR_LONG_NAME: "s2/s1 of the residue matrix (point x reference)"},
+        ),
+        names.DRIVE_POINT_CONSISTENCY: (
+            k,
+            modes.spread,
+            {
+                **one,
+                names.ATTR_LONG_NAME: "largest relative deviation of the mode-vector "
+                "scale from the other drive points",
+            },
+        ),
+        names.SCALING_REFERENCE: (k, modes.scaling_ref.astype(str)),
+        names.DRIVE_POINT_SNR: (k, modes.best_snr, one),
+        names.MAC: ((names.MODE, names.MODE_2), mac_matrix(modes.phi.T), one),
+    }
+    variables = dict(out.variables)
+    variables.update({name: xr.Variable(*spec) for name, spec in new.items()})
+    coords = list(out.coords)
     if names.MODE_2 not in out.coords:
-        out = out.assign_coords({names.MODE_2: out[names.MODE].values})
+        variables[names.MODE_2] = xr.IndexVariable((names.MODE_2,), out[names.MODE].values)
+        coords.append(names.MODE_2)
     if names.QUALITY_FLAGS in out:
         mask = c.flag_mask(out)
         mask = flags.set_where(mask, names.FLAG_REPEATED_ROOT, modes.repeated)
@@ -461,5 +474,8 @@ def _with_mode_outputs(out: xr.Dataset, modes: _Modes, ds: xr.Dataset, scaled: b
         if scaled:
             smin = from_attrs(GlobalFitSettings, out.attrs).drive_snr_min
             mask = flags.set_where(mask, names.FLAG_LOW_DRIVE_SNR, ~(modes.best_snr >= smin))
-        out[names.QUALITY_FLAGS] = out[names.QUALITY_FLAGS].copy(data=np.asarray(mask, np.int32))
-    return out
+        flagged = variables[names.QUALITY_FLAGS]
+        variables[names.QUALITY_FLAGS] = flagged.copy(data=np.asarray(mask, np.int32))
+    # one build (assigning the outputs, a coordinate and the flags one by one copies it 3 times)
+    coords = {name: variables.pop(name) for name in coords}
+    return xr.Dataset(variables, coords=coords, attrs=out.attrs)

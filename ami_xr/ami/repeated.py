@@ -178,10 +178,16 @@ def band_shift(
     NaN (``spread``, ``z``) with fewer than ``min_points`` FRFs with a noise level and a
     residue (or no degree of freedom left), or fewer than three lines in the band.
     """
+    setup = _setup(omega, lam, basis, derivative, policy)
+    return _band_shift(residual, lam, residue, setup, policy, noise_var)
+
+
+def _band_shift(residual, lam, residue, setup: dict, policy: RepeatedPolicy, noise_var=None):
+    """:func:`band_shift` with its :func:`_setup` made (one for every reference of a result:
+    the lines, design and noise windows depend on the poles only)."""
     n_k = lam.size
     spread = np.full(n_k, np.nan)
     z = np.full(n_k, np.nan)
-    setup = _setup(omega, lam, basis, derivative, policy)
     if noise_var is not None:  # one value per FRF, cut into blocks with them
         noise_var = np.broadcast_to(np.asarray(noise_var, dtype=float), residual.shape[:1])
     if setup["lines"].size >= 3:
@@ -347,23 +353,19 @@ def band_shift_statistics(
     derivative = np.array(
         [(basis_at(lk + h) - basis_at(lk - h)) / (2 * h) for lk, h in zip(lam, step, strict=True)]
     )
-    for i, r in enumerate(refs):
-        pick = {} if r is None else {names.REFERENCE: r}
+    setup = _setup(omega, lam, basis, derivative, policy)  # the same for every reference
 
-        def block(name: str, *dims: str, pick: dict = pick):
-            da = result[name]
-            da = da.sel(pick) if pick and names.REFERENCE in da.dims else da
-            return da.transpose(*dims).data  # a dask residual stays lazy: reduced per chunk
+    def rows(name: str, *dims: str):
+        da = result[name]  # (reference, ...) with one reference row when it has no such dim
+        if names.REFERENCE in da.dims:
+            return da.transpose(names.REFERENCE, *dims).data
+        return da.transpose(*dims).data[None]  # a dask residual stays lazy: reduced per chunk
 
-        spread[i], z[i], alone[i] = band_shift(
-            block(names.FRF_RESIDUAL, names.POINT, names.FREQUENCY),
-            omega,
-            lam,
-            np.asarray(block(names.RESIDUE, names.POINT, names.MODE)),
-            basis,
-            derivative,
-            policy,
-        )
+    residual = rows(names.FRF_RESIDUAL, names.POINT, names.FREQUENCY)
+    residue = np.asarray(rows(names.RESIDUE, names.POINT, names.MODE))
+    for i in range(len(refs)):
+        j = i if residue.shape[0] > 1 else 0
+        spread[i], z[i], alone[i] = _band_shift(residual[i], lam, residue[j], setup, policy)
     return RepeatedStatistics(spread, z, alone)
 
 

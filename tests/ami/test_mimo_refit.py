@@ -235,3 +235,44 @@ def test_the_refit_reports_through_the_one_output_step():
     )
     assert np.all(np.diff(again[names.NATURAL_FREQUENCY].values) >= 0)
     assert names.MPC in again and names.MODE_LABEL_UNSORTED in again
+
+
+def _frozen_above(rank):
+    """A stand-in for ``mimo_refit._frozen``: the refinement's flags, and every pole above 20 Hz
+    from the ``rank``-th up (0: all of them) as if frozen at its start."""
+    real = mimo_refit._frozen
+
+    def frozen(out):
+        got = real(out).copy()
+        fn = out[names.NATURAL_FREQUENCY].values
+        above = np.flatnonzero(fn > 20.0)
+        got[above[np.argsort(fn[above])][rank:]] = True
+        return got
+
+    return frozen
+
+
+def test_a_further_tail_pole_frozen_at_its_start_is_kept_only_when_asked(monkeypatch):
+    """Two modes above the lines (21.5 and 23 Hz): the first tail pole places itself; a second
+    one the refinement holds at its start (here: made to) is refused by default and kept with
+    ``keep_frozen`` (the trial after a kept split), the likelihood supporting it. A first tail
+    pole held at its start is refused either way."""
+    truth = _truth([8.0, 15.0, 18.5, 21.5, 23.0], [0.01] * 5)
+    lam = truth[names.EIGENVALUE].values
+    f = np.linspace(2, 20, 451)
+    _, stacked, inband = _start(truth, f, [2, 5], 0.001, 0, lam[:3])
+    monkeypatch.setattr(mimo_refit, "_frozen", _frozen_above(1))
+    got = {}
+    for keep in (False, True):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            got[keep] = mimo_refit.with_tail_poles(stacked, inband, SETTINGS, keep_frozen=keep)
+    assert got[False][1].size == 1 and got[True][1].size == 2
+    assert np.all(got[True][1] > 20.0)
+    fn = np.sort(got[True][0][names.NATURAL_FREQUENCY].values)
+    assert np.sum(fn > 20.0) == 2 and np.sum(fn <= 20.0) == 3
+    monkeypatch.setattr(mimo_refit, "_frozen", _frozen_above(0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out, added = mimo_refit.with_tail_poles(stacked, inband, SETTINGS, keep_frozen=True)
+    assert added.size == 0 and out is inband

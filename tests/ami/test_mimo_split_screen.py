@@ -122,3 +122,54 @@ def test_the_shared_working_data_are_decided_once(monkeypatch):
         b = mimo_refit.refit(stacked, merged, lam, none, SETTINGS, working=shared)
     assert len(calls) == 1
     np.testing.assert_array_equal(a[names.EIGENVALUE].values, b[names.EIGENVALUE].values)
+
+
+def _problem(stacked, merged):
+    work = mimo_refit.working_data(stacked, SETTINGS).work
+    terms = str(merged.attrs.get(names.ATTR_REFINE_RESIDUAL_TERMS, "")).split(",")
+    prob = mimo_screen.stacked_problem(work, tuple(t for t in terms if t))
+    lam = mimo_refit._measured_poles(stacked, merged)
+    return prob, lam, int(np.argmin(np.abs(lam.imag - 2 * np.pi * 15.0)))
+
+
+def test_the_first_order_gain_is_that_of_two_poles_a_hair_apart():
+    """:func:`mimo_screen.first_order_gain` from the projection's own columns equals the gain
+    of the pole replaced by two poles ``lam -+ eps`` (free residues: the pole's term and its
+    derivative to first order), computed by a projection of its own."""
+    stacked, merged = _merged([15.0, 15.05])
+    prob, lam, k = _problem(stacked, merged)
+    proj = varpro.project(prob, lam)
+    got = mimo_screen.first_order_gain(prob, proj, k)
+    eps = 1e-3 * abs(lam[k].real)
+    two = np.append(lam, lam[k] + eps)
+    two[k] = lam[k] - eps
+    ref = 2.0 * (varpro.objective(prob, proj) - varpro.objective(prob, varpro.project(prob, two)))
+    assert got > 100 and abs(got - ref) < 1e-3 * ref
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_split_within_the_noise_to_first_order_is_refused_without_a_fit(monkeypatch, seed):
+    """An exactly repeated root: the split's first-order term gains what noise gives (below
+    the chi-square level of 2 per FRF at ``FIRST_ORDER_PFA``) and no pole is fitted; a close
+    pair's first-order gain is most of its fitted split's, and the fit runs."""
+    fits = []
+    lm = varpro.levenberg_marquardt
+    monkeypatch.setattr(
+        varpro, "levenberg_marquardt", lambda *a, **k: fits.append(1) or lm(*a, **k)
+    )
+    stacked, merged = _merged([15.0, 15.0], seed)
+    prob, lam, k = _problem(stacked, merged)
+    sub, keep = mimo_screen._window(prob, lam, k)
+    first = mimo_screen.first_order_gain(sub, varpro.project(sub, lam[keep]), int(keep[:k].sum()))
+    level = chi2.isf(mimo_screen.FIRST_ORDER_PFA, 2 * prob.n_points)
+    assert 0 < first < level
+    fits.clear()  # the fits that made the start
+    assert mimo_screen.split_gain(prob, lam, k, mimo_refit.SPLIT_START, 10) == first
+    assert not fits
+    stacked, merged = _merged([15.0, 15.05], seed)
+    prob, lam, k = _problem(stacked, merged)
+    sub, keep = mimo_screen._window(prob, lam, k)
+    first = mimo_screen.first_order_gain(sub, varpro.project(sub, lam[keep]), int(keep[:k].sum()))
+    fits.clear()
+    gain = mimo_screen.split_gain(prob, lam, k, mimo_refit.SPLIT_START, 10)
+    assert fits and first > level and 0.8 * gain < first <= 1.05 * gain

@@ -263,3 +263,18 @@ def test_statistics_per_reference_of_a_multi_reference_result():
     simo = _identify(select_reference(full, 2))
     one = rp.band_shift_statistics(simo)
     assert one.z.shape == (1, simo.sizes[names.MODE])
+
+
+def test_each_reference_row_is_that_references_own_statistics():
+    """The design made once for every reference gives, row by row, the statistics of the
+    result cut to that reference (a Dataset without the reference dim)."""
+    truth = simulate.symmetric_structure(0.001)
+    full = _noisy(simulate.frf(truth, F, references=[2, 3, 4]), 0.01, 100)
+    out = _identify(full)
+    stats = rp.band_shift_statistics(out)
+    assert stats.z.shape == (3, out.sizes[names.MODE]) and np.isfinite(stats.z).any()
+    for i, ref in enumerate(out[names.REFERENCE].values):
+        one = rp.band_shift_statistics(out.sel({names.REFERENCE: ref}))
+        np.testing.assert_array_equal(stats.spread[i], one.spread[0])
+        np.testing.assert_array_equal(stats.z[i], one.z[0])
+        np.testing.assert_array_equal(stats.alone[i], one.alone[0])
