@@ -38,10 +38,10 @@ def _mode_codes(lam: np.ndarray, lam0: np.ndarray, max_shift: float, min_width: 
     w = np.maximum(2.0 * np.abs(ref.real), min_width)
     outside = (np.abs(lam - ref) > max_shift * w) | (-lam.real < -ref.real / (1.0 + max_shift))
     code[(code == 0) & outside] = 1
-    for k in range(lam.size):
-        others = np.delete(lam, k)
-        if others.size and np.min(np.abs(others - lam[k])) < 1e-6 * np.abs(lam[k]):
-            code[k] = 2
+    if lam.size > 1:  # merged: another mode within 1e-6 relative (all pairs at once)
+        gap = np.abs(lam[:, None] - lam[None, :])
+        np.fill_diagonal(gap, np.inf)
+        code[np.min(gap, axis=1) < 1e-6 * np.abs(lam)] = 2
     return code
 
 
