@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ami_xr.core.matching import match_by_distance
-from ami_xr.core.regions import _mode_codes
+from ami_xr.core.regions import _mode_codes, fit_modes
 
 
 def _reference(lam, lam0, max_shift, min_width):
@@ -61,3 +61,26 @@ def test_a_mode_that_is_not_finite_makes_only_its_own_code_impossible():
     lam0 = np.array([-0.5 + 100.0j, -0.6 + 130.0j])
     lam = np.array([complex(np.nan, np.nan), -0.6 + 130.0j])
     np.testing.assert_array_equal(_mode_codes(lam, lam0, 2.0, 0.01), [2, 0])
+
+
+def test_a_fit_gives_up_when_a_mode_it_needs_freezes():
+    """``give_up``: the fit stops as soon as one of those modes leaves its region (a band fit
+    of a trial is useless then); a fit in which they stay free is the same as without it."""
+    from .test_local_trials import _opts, _problem
+
+    prob, lam, omega = _problem(0.1)
+    opts = _opts(omega)
+    need = np.zeros(lam.size + 1, bool)
+    need[-1] = True
+    # an extra pole beside the 52 Hz mode leaves its region (it runs into the mode)
+    start = np.append(lam, 2 * np.pi * (-0.3 + 52.3j))
+    full = fit_modes(prob, start, start, **opts)
+    short = fit_modes(prob, start, start, give_up=need, **opts)
+    assert not full[1][-1] and not short[1][-1]
+    assert short[2] < full[2]
+    # on an extra pole that stays free nothing changes
+    start = np.append(lam, 2 * np.pi * (-0.01 + 12.15j))
+    full = fit_modes(prob, start, start, **opts)
+    same = fit_modes(prob, start, start, give_up=need, **opts)
+    assert full[1].all() and same[1].all() and same[2] == full[2]
+    np.testing.assert_array_equal(same[0].lam, full[0].lam)
