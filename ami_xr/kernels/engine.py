@@ -415,8 +415,7 @@ def _fit_mode(scene, params, modes, n, k, work, state, it):
 @jit(inline="always")
 def sweeps(scene, params, modes, n, work):
     """Isolation sweeps until every eigenvalue has settled, or the early pruning after 3 sweeps
-    finds an insignificant mode, or (SIMO) two modes are due to merge. Returns
-    ``(iterations, converged)``.
+    finds an insignificant mode. Returns ``(iterations, converged)``.
 
     Stopping rule: a mode has settled in a sweep when its Re and Im change less than ``tol``
     (relative) or (``se_fraction > 0``) its step is below ``se_fraction`` of its standard error;
@@ -426,12 +425,7 @@ def sweeps(scene, params, modes, n, work):
     fraction of their uncertainty. A mode that steps back to where it was two sweeps before
     (``|lam_new - lam_back| < CYCLE_RATIO |lam_new - lam_old|``) is in a two-state cycle (its
     band switching between two data-defined choices): it takes the mean of the two states and
-    keeps its band, so the cycle dies out. Two modes within ``merge_tol`` bandwidths of each
-    other at the end of two sweeps in a row (from the 3rd, every fit of the restart so far run
-    and fitted) end the sweeps unconverged: they share one resonance and drift together by
-    small steps that never settle (the paper benchmark's first restart ran all ``max_iter``),
-    and :func:`merge_prune` merges them after the sweeps in any case. Modes in ``work.pinned``
-    are not re-fitted. With
+    keeps its band, so the cycle dies out. Modes in ``work.pinned`` are not re-fitted. With
     ``paper_sweeps`` (the per-FRF isolation, measured against the paper's figures) the order
     is fixed per restart and there is no cycle averaging.
     """
@@ -451,8 +445,6 @@ def sweeps(scene, params, modes, n, work):
     converged = n == 0
     tot = np.empty(m)
     order = np.arange(n)
-    close_before = False
-    all_fitted = True
     for it in range(1, params.max_iter + 1 if n > 0 else 1):
         if it == 1 or not params.paper_sweeps:  # the paper: the order of the restart's start
             for k in range(n):
@@ -461,9 +453,7 @@ def sweeps(scene, params, modes, n, work):
         change = 0.0
         for k in order:
             if not work.pinned[k]:
-                score = _fit_mode(scene, params, modes, n, k, work, state, it)
-                change = max(change, score)
-                all_fitted = all_fitted and score >= 0.0
+                change = max(change, _fit_mode(scene, params, modes, n, k, work, state, it))
         if change < 1.0:
             converged = True
             break
@@ -474,15 +464,6 @@ def sweeps(scene, params, modes, n, work):
                 weak = weak or _mode_snr(scene.grid, lam, res, k)[1] < scene.t_line
             if weak:
                 break
-        if not params.paper_sweeps:
-            # a pair due to merge (see above): restart without the duplicate; not while a fit
-            # fails (failures count towards pruning over the sweeps: measurement.uff)
-            dup = False
-            for k in range(n):
-                dup = dup or nearest_within(lam, n, lam[k], params.merge_tol, k) >= 0
-            if dup and close_before and all_fitted and it >= 3:
-                break
-            close_before = dup
     # a fit that ran and failed in every sweep (at least 2) marks the mode for merge-and-prune; a
     # band too narrow to fit does not (a lightly damped mode on a coarse grid spans 1-3 lines:
     # measurement.uff lost 4 of its 6 modes so); the significance test still removes noise
@@ -584,3 +565,32 @@ def order_check(scene, params, modes, n, work, masked, c, split_lam, split_res):
         fails[n] = 0
         return n + 1, True, ks, no_iso
     return n, False, -1, no_iso
+
+
+@jit
+def point_estimates_kernel(data, lam, res, scene, delta, min_points, work):
+    """Per-FRF single-mode estimates of the modes ``lam`` (K,) on each row of ``data`` (P, F)
+    isolated with the residues ``res`` (P, K) (eq. 7; noise units): ``(P, K)`` complex, NaN
+    where the band is too narrow or the fit fails. ``work``: :func:`new_work` of one row of
+    ``F`` lines for ``max(K, 1)`` modes."""
+    omega, x, dt, n_samples = scene.grid
+    n_p, n_f = data.shape
+    n_k = lam.shape[0]
+    out = np.full((n_p, n_k), complex(np.nan, np.nan))
+    _forget_bases(work, n_k)
+    for j in range(n_p):
+        for i in range(n_f):
+            work.data[0, i] = data[j, i]
+        for k in range(n_k):
+            at = np.int64(0)
+            peak, lo, hi = _mode_band(work, lam, res[j : j + 1], n_k, k, scene, delta, at, n_f)
+            if hi - lo < min_points:
+                continue
+            ws = omega[peak] if omega[peak] > 0.0 else scene.dw
+            nan = complex(np.nan, np.nan)
+            new, code = fit_single(
+                work.xn, scene.grid, lo, hi, ws, scene.limits, nan, work.wts, work.rtmp
+            )
+            if code == FIT_OK:
+                out[j, k] = new
+    return out

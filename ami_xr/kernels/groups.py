@@ -1,8 +1,7 @@
 """The isolation engine's entry point (:mod:`.engine`): every group's restarts, in calls that
 return to the caller between restarts when asked (an interrupt is handled there) and for the
 model-order check's two-mode fits (compiled only when a split is tried); the results are those
-of one pass. Also the per-FRF estimates of given modes on their isolated data
-(:func:`point_estimates_kernel`).
+of one pass.
 
 A caller allocates :func:`new_result` and :func:`new_resume` and calls :func:`isolate_groups`
 until it returns ``DONE``, running :func:`split_fit` when it returns ``SPLIT_WANTED`` (the
@@ -39,15 +38,12 @@ from ami_xr.kernels.engine import (
     IsolateResult,
     ModeSet,
     Work,
-    _forget_bases,
-    _mode_band,
     merge_prune,
     new_work,
     order_check,
     sweeps,
 )
 from ami_xr.kernels.peak import nearest_within
-from ami_xr.kernels.single_mode import FIT_OK, fit_single
 from ami_xr.kernels.two_mode import fit_two
 
 
@@ -223,32 +219,3 @@ def isolate_groups(data, lam0, res0, n0, scene, params, out, st, budget):
         c[AT_GROUP] += 1
         c[AT_STARTED] = 0
     return DONE, np.empty((0, 0), dtype=np.complex128)
-
-
-@jit
-def point_estimates_kernel(data, lam, res, scene, delta, min_points, work):
-    """Per-FRF single-mode estimates of the modes ``lam`` (K,) on each row of ``data`` (P, F)
-    isolated with the residues ``res`` (P, K) (eq. 7; noise units): ``(P, K)`` complex, NaN
-    where the band is too narrow or the fit fails. ``work``: :func:`new_work` of one row of
-    ``F`` lines for ``max(K, 1)`` modes."""
-    omega, x, dt, n_samples = scene.grid
-    n_p, n_f = data.shape
-    n_k = lam.shape[0]
-    out = np.full((n_p, n_k), complex(np.nan, np.nan))
-    _forget_bases(work, n_k)
-    for j in range(n_p):
-        for i in range(n_f):
-            work.data[0, i] = data[j, i]
-        for k in range(n_k):
-            at = np.int64(0)
-            peak, lo, hi = _mode_band(work, lam, res[j : j + 1], n_k, k, scene, delta, at, n_f)
-            if hi - lo < min_points:
-                continue
-            ws = omega[peak] if omega[peak] > 0.0 else scene.dw
-            nan = complex(np.nan, np.nan)
-            new, code = fit_single(
-                work.xn, scene.grid, lo, hi, ws, scene.limits, nan, work.wts, work.rtmp
-            )
-            if code == FIT_OK:
-                out[j, k] = new
-    return out

@@ -21,14 +21,9 @@ from ami_xr.kernels.engine import (
     IsolateParams,
     IsolateResult,
     new_work,
-)
-from ami_xr.kernels.groups import (
-    isolate_groups,
-    new_result,
-    new_resume,
     point_estimates_kernel,
-    split_fit,
 )
+from ami_xr.kernels.groups import isolate_groups, new_result, new_resume, split_fit
 from ami_xr.kernels.peak import check_inputs, scene
 from ami_xr.kernels.residues import residues_fixed_kernel
 

@@ -28,20 +28,6 @@ def test_benchmark_isolation_converges(paper_benchmark_noisy):
     assert iso.sizes[names.MODE] == 4
 
 
-def test_duplicates_on_one_resonance_end_the_sweeps():
-    """Benchmark seed 1: the SIMO isolation starts from 7 candidates, 5 of them on the two
-    modes near 10.4 Hz; two pairs within ``merge_tol`` bandwidths drifted together for all
-    ``max_iter`` = 100 sweeps of the first restart, and 67 of the second, before the merge
-    (191 sweeps in all). The sweeps now end once a pair is due to merge."""
-    _, g, _ = ami_xr.simulate.benchmark(noise=0.15, seed=1)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", ConvergenceWarning)
-        iso = ami_xr.isolate(ami_xr.subtract(g))
-    assert bool(iso[names.ISO_CONVERGED].values.all())
-    assert iso.sizes[names.MODE] == 4
-    assert int(iso[names.ISO_ITERATIONS].values[0]) < 100  # fewer sweeps in all than max_iter
-
-
 def test_weak_mode_beside_strong_does_not_cycle():
     """bench_peers system 3 (38 points, 8 modes, 3 % noise): the mode at 1628 Hz beside the one
     at 1714 used to be added, merged away and added again until the restart budget ran out
