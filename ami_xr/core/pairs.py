@@ -86,7 +86,12 @@ def merge_split_pairs(
         # the merged pole's region: around the stronger pole's present value
         ref = np.delete(state.modes.lam0, weak)
         ref[kept] = lam[strong] + decay
-        trial = fit_modes(prob, np.delete(lam, weak), ref, **trial_opts)
+        # the strong pole frozen in the one-pole fit decides the pair (below): no fit beyond
+        need = None
+        if state.modes.free[strong]:
+            need = np.zeros(lam.size - 1, bool)
+            need[kept] = True
+        trial = fit_modes(prob, np.delete(lam, weak), ref, give_up=need, **trial_opts)
         state.n_iter += trial[2]
         one = trial[0]
         if not (one.proj.ok and np.isfinite(one.cost)):

@@ -38,17 +38,32 @@ def _mode_codes(lam: np.ndarray, lam0: np.ndarray, max_shift: float, min_width: 
     w = np.maximum(2.0 * np.abs(ref.real), min_width)
     outside = (np.abs(lam - ref) > max_shift * w) | (-lam.real < -ref.real / (1.0 + max_shift))
     code[(code == 0) & outside] = 1
-    for k in range(lam.size):
-        others = np.delete(lam, k)
-        if others.size and np.min(np.abs(others - lam[k])) < 1e-6 * np.abs(lam[k]):
-            code[k] = 2
+    if lam.size > 1:  # merged: another mode within 1e-6 relative (all pairs at once)
+        gap = np.abs(lam[:, None] - lam[None, :])
+        np.fill_diagonal(gap, np.inf)
+        code[np.min(gap, axis=1) < 1e-6 * np.abs(lam)] = 2
     return code
 
 
-def fit_modes(prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width, free=None, trace=None):
+def fit_modes(
+    prob,
+    mu0,
+    ref,
+    *,
+    decay,
+    max_iter,
+    tol,
+    max_shift,
+    min_width,
+    free=None,
+    trace=None,
+    give_up=None,
+):
     """Levenberg-Marquardt from ``mu0`` (data poles); a mode that leaves its region around
     ``ref`` (physical eigenvalues) is frozen at its start and the fit goes on without it.
     ``trace``: an :class:`ami_xr.progress.Iterations` counting the iterations (or None).
+    ``give_up`` (K,) bool: modes whose freezing makes the fit useless to the caller; the fit
+    stops when one of them freezes (``free`` says so; the fit is the last one run).
 
     Returns ``(fit, free, n_iter, start_cost)``.
     """
@@ -96,6 +111,8 @@ def fit_modes(prob, mu0, ref, *, decay, max_iter, tol, max_shift, min_width, fre
             fit.bad = final > 0
         # freeze the offending modes at their start values, go on from where the others are
         free &= ~fit.bad
+        if give_up is not None and np.any(fit.bad & give_up):
+            break
         start_mu = np.where(free, fit.lam, mu0)
     return fit, free, n_iter, start_cost
 
@@ -222,10 +239,11 @@ def band_fit(
         before, r_before = proj0.rss, residual_rows(band, proj0) if proj0.ok else None
     else:  # nothing modelled on the band yet: the data are the residual
         before, r_before = np.sum(band.y**2, axis=1), band.y
-    local = fit_modes(band, start[entry], ref[entry], **opts)
+    tried = changed[entry]
+    # a tried mode frozen leaves the band unable to judge the trial: no fit beyond that
+    local = fit_modes(band, start[entry], ref[entry], give_up=tried, **opts)
     refined = start.copy()
     refined[entry] = local[0].lam
-    tried = changed[entry]
     fine = np.all(np.isfinite(before)) and np.isfinite(local[0].cost) and local[1][tried].all()
     if not fine:
         return None, refined, local[2]  # the band cannot tell (a far mode's tail, a neighbour)
