@@ -154,14 +154,7 @@ def test_the_refit_runs_in_the_first_pass_noise_model():
     sd = 0.002 * np.abs(acc).max(axis=-1, keepdims=True)
     e = sd * (rng.standard_normal(acc.shape) + 1j * rng.standard_normal(acc.shape))
     ds = ds.assign({names.FRF: g.copy(data=g.values + e / -w2)})
-    labels, points = mimo._check(ds)
-    stacked = mimo._stacked(ds, labels, points)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        first = ami_xr.ami.pipeline.identify_single(stacked, SETTINGS, final=False)
-        lam = first[names.EIGENVALUE].values
-        none = np.zeros((stacked.sizes[names.POINT], 0), bool)
-        again = mimo_refit.refit(stacked, first, lam, none, SETTINGS)
+    first, lam, again = _first_and_refit(ds)
     assert first.attrs["noise_model_quantity"] == "acceleration"
     assert again.attrs["noise_model_quantity"] == "acceleration"
     assert again.attrs[names.ATTR_QUANTITY] == "displacement"
@@ -216,14 +209,7 @@ def test_the_refit_reports_through_the_one_output_step():
     truth = _truth([6.0, 11.0, 17.0, 23.0], [0.01, 0.01, 0.01, 0.01])
     f = np.linspace(1, 30, 581)
     ds = _noisy(truth, f, [2, 5], 0.002, 0)
-    labels, points = mimo._check(ds)
-    stacked = mimo._stacked(ds, labels, points)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        first = ami_xr.ami.pipeline.identify_single(stacked, SETTINGS, final=False)
-        lam = first[names.EIGENVALUE].values
-        none = np.zeros((stacked.sizes[names.POINT], 0), bool)
-        again = mimo_refit.refit(stacked, first, lam, none, SETTINGS)
+    first, lam, again = _first_and_refit(ds)
     under = [
         fl.has(fl.decode(x[names.QUALITY_FLAGS].values), names.FLAG_UNDER_RESOLVED)
         for x in (first, again)
@@ -276,3 +262,16 @@ def test_a_further_tail_pole_frozen_at_its_start_is_kept_only_when_asked(monkeyp
         warnings.simplefilter("ignore")
         out, added = mimo_refit.with_tail_poles(stacked, inband, SETTINGS, keep_frozen=True)
     assert added.size == 0 and out is inband
+
+
+def _first_and_refit(ds):
+    """The stacked first pass of ``ds`` (not final), its poles, and their refit."""
+    labels, points = mimo._check(ds)
+    stacked = mimo._stacked(ds, labels, points)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        first = ami_xr.ami.pipeline.identify_single(stacked, SETTINGS, final=False)
+        lam = first[names.EIGENVALUE].values
+        none = np.zeros((stacked.sizes[names.POINT], 0), bool)
+        again = mimo_refit.refit(stacked, first, lam, none, SETTINGS)
+    return first, lam, again
