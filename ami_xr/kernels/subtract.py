@@ -105,15 +105,15 @@ def _subtract_batch(data, scene, params):
             # the lines significant against their own noise (``line_w``: 1 / its shape^2)
             peak = np.int64(-1)
             top = 0.0
+            largest = -1.0  # |Y|^2 as given at ``peak``
             for i in range(n_f):
-                power[i] = abs(y[0, i]) ** 2 * line_w[i]
+                raw = abs(y[0, i]) ** 2
+                power[i] = raw * line_w[i]
                 if masked[i]:
                     continue
                 top = max(top, power[i])
-                if power[i] >= scene.t_line and (
-                    peak < 0 or power[i] / line_w[i] > power[peak] / line_w[peak]
-                ):
-                    peak = i
+                if power[i] >= scene.t_line and raw > largest:
+                    peak, largest = i, raw
             out.statistic[j] = top
             if peak < 0:
                 out.reason[j] = STOP_BELOW_FLOOR
